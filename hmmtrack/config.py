@@ -1,0 +1,219 @@
+"""The tracking configuration: the few numbers a tracking run needs beyond its data files.
+
+:class:`TrackingConfig` holds the tag period, sound speed, known initial ranges, search
+bounds, measurement covariance, particle count, prediction step and depth policy. It is
+validated when built (whatever the source) and can be read from a small JSON file whose
+keys are the field names, e.g.::
+
+    {"period": 8.179, "r0": {"VR2W-1": 12.0, "VR2W-2": 230.0},
+     "measurement_covariance": [[25.0, 0.0], [0.0, 0.25]], "n_particles": 5000}
+
+Command-line arguments override file values with :meth:`TrackingConfig.replace`.
+
+It is not for running anything: :mod:`hmmtrack.tracking` uses it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import numbers
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+from hmmtrack.ranging import SOUND_SPEED
+
+#: depth policies that are not a number (see :attr:`TrackingConfig.depth`)
+DEPTH_POLICIES = ("none", "sensor")
+
+
+def _positive(name: str, value) -> float:
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a number, got {value!r}") from None
+    if not math.isfinite(number) or number <= 0:
+        raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+    return number
+
+
+@dataclass(frozen=True)
+class TrackingConfig:
+    """Settings of one tracking run.
+
+    Parameters
+    ----------
+    period : float
+        Transmitter period ``T`` (s), e.g. 8.179.
+    r0 : mapping of str to float
+        Known range (m, ≥ 0) between the tag and each receiver at that receiver's first
+        detection, keyed by receiver name.
+    sound_speed : float
+        Speed of sound (m/s); 1460 as the paper.
+    transmitter : str or None
+        Transmitter to track; ``None`` when the detections hold just one.
+    bounds : (xmin, xmax, ymin, ymax) or None
+        Search region for the initial particles (m, receivers' frame). ``None`` derives it
+        from the receivers' first positions and ``r0`` (see
+        :func:`hmmtrack.tracking.search_bounds`).
+    bounds_margin : float
+        Margin added around derived bounds (m).
+    measurement_covariance : 2×2 nested sequence
+        Σ_z of (range m, range_rate m/s): ``[[var_r, cov], [cov, var_rdot]]``; symmetric
+        positive definite. Estimate it with
+        :func:`hmmtrack.ranging.estimate_measurement_covariance`.
+    n_particles : int
+        Number of particles.
+    prediction_step : float
+        Time between predictions and between estimates (s); 1 s as the paper.
+    depth : "none", "sensor" or float
+        Depth correction of the ranges: ``"none"`` (2-D, the paper), ``"sensor"`` (the
+        detections' ``depth`` column, a tag depth sensor) or an assumed constant depth (m).
+    shallower : {"raise", "clip"}
+        What a depth correction does with a range shorter than the depth (see
+        :func:`hmmtrack.ranging.depth_correction`).
+    """
+
+    period: float
+    r0: Mapping[str, float]
+    sound_speed: float = SOUND_SPEED
+    transmitter: str | None = None
+    bounds: tuple[float, float, float, float] | None = None
+    bounds_margin: float = 100.0
+    measurement_covariance: tuple[tuple[float, float], tuple[float, float]] = (
+        (25.0, 0.0),
+        (0.0, 0.25),
+    )
+    n_particles: int = 5000
+    prediction_step: float = 1.0
+    depth: str | float = "none"
+    shallower: str = "raise"
+
+    def __post_init__(self) -> None:
+        set_ = object.__setattr__
+        set_(self, "period", _positive("period", self.period))
+        set_(self, "sound_speed", _positive("sound_speed", self.sound_speed))
+        set_(self, "prediction_step", _positive("prediction_step", self.prediction_step))
+        if not isinstance(self.r0, Mapping) or not self.r0:
+            raise ValueError(f"r0 must map receiver names to ranges (m), got {self.r0!r}")
+        r0 = {}
+        for receiver, value in self.r0.items():
+            try:
+                metres = float(value)
+            except (TypeError, ValueError):
+                metres = math.nan
+            if not math.isfinite(metres) or metres < 0:
+                raise ValueError(
+                    f"r0 of receiver {receiver!r} must be a non-negative range in metres, "
+                    f"got {value!r}"
+                )
+            r0[str(receiver)] = metres
+        set_(self, "r0", r0)
+        if self.transmitter is not None:
+            set_(self, "transmitter", str(self.transmitter))
+        if self.bounds is not None:
+            try:
+                bounds = tuple(float(b) for b in self.bounds)
+            except (TypeError, ValueError):
+                bounds = ()
+            if (
+                len(bounds) != 4
+                or not all(map(math.isfinite, bounds))
+                or not (bounds[0] < bounds[1] and bounds[2] < bounds[3])
+            ):
+                raise ValueError(
+                    f"bounds must be (xmin, xmax, ymin, ymax) with xmin < xmax and ymin < ymax, "
+                    f"got {self.bounds!r}"
+                )
+            set_(self, "bounds", bounds)
+        margin = float(self.bounds_margin)
+        if not math.isfinite(margin) or margin < 0:
+            raise ValueError(f"bounds_margin must be a non-negative number (m), got {margin!r}")
+        set_(self, "bounds_margin", margin)
+        set_(self, "measurement_covariance", _covariance(self.measurement_covariance))
+        n = self.n_particles
+        if isinstance(n, bool) or not isinstance(n, numbers.Real) or n != int(n) or n < 1:
+            raise ValueError(f"n_particles must be a positive integer, got {n!r}")
+        set_(self, "n_particles", int(n))
+        set_(self, "depth", _depth(self.depth))
+        if self.shallower not in ("raise", "clip"):
+            raise ValueError(f"shallower must be 'raise' or 'clip', got {self.shallower!r}")
+
+    def replace(self, **changes) -> TrackingConfig:
+        """A copy with ``changes`` applied (``None`` values are ignored), validated."""
+        return dataclasses.replace(self, **{k: v for k, v in changes.items() if v is not None})
+
+    def to_dict(self) -> dict:
+        """Plain JSON-ready dictionary; :meth:`from_dict` reads it back."""
+        out = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+        out["r0"] = dict(self.r0)
+        out["bounds"] = None if self.bounds is None else list(self.bounds)
+        out["measurement_covariance"] = [list(row) for row in self.measurement_covariance]
+        return out
+
+    @classmethod
+    def from_dict(cls, data: Mapping, source: str = "configuration") -> TrackingConfig:
+        """Build from a dictionary, naming ``source`` and the key in any error."""
+        if not isinstance(data, Mapping):
+            raise ValueError(f"{source}: expected a JSON object of settings, got {type(data)}")
+        known = [f.name for f in dataclasses.fields(cls)]
+        unknown = sorted(set(data) - set(known))
+        if unknown:
+            raise ValueError(f"{source}: unknown key(s) {unknown}; known keys are {known}")
+        missing = [k for k in ("period", "r0") if k not in data]
+        if missing:
+            raise ValueError(f"{source}: missing required key(s) {missing}")
+        try:
+            return cls(**data)
+        except ValueError as exc:
+            raise ValueError(f"{source}: {exc}") from None
+
+    @classmethod
+    def from_json(cls, path: str | Path, **overrides) -> TrackingConfig:
+        """Read a JSON file; ``overrides`` (if not ``None``) replace or add keys."""
+        path = Path(path)
+        try:
+            data = json.loads(path.read_text())
+        except json.JSONDecodeError as exc:
+            raise ValueError(f"{path}: not valid JSON ({exc})") from None
+        if not isinstance(data, dict):
+            raise ValueError(f"{path}: expected a JSON object of settings")
+        data.update({k: v for k, v in overrides.items() if v is not None})
+        return cls.from_dict(data, source=str(path))
+
+
+def _covariance(value) -> tuple[tuple[float, float], tuple[float, float]]:
+    message = (
+        "measurement_covariance must be a symmetric positive definite 2x2 matrix "
+        f"[[var_r, cov], [cov, var_rdot]], got {value!r}"
+    )
+    try:
+        rows = tuple(tuple(float(v) for v in row) for row in value)
+    except (TypeError, ValueError):
+        raise ValueError(message) from None
+    if len(rows) != 2 or any(len(row) != 2 for row in rows):
+        raise ValueError(message)
+    (a, b), (c, d) = rows
+    if not all(map(math.isfinite, (a, b, c, d))) or b != c or a <= 0 or a * d - b * c <= 0:
+        raise ValueError(message)
+    return rows
+
+
+def _depth(value) -> str | float:
+    if isinstance(value, str):
+        if value in DEPTH_POLICIES:
+            return value
+        try:
+            value = float(value)
+        except ValueError:
+            raise ValueError(
+                f"depth must be one of {DEPTH_POLICIES} or a depth in metres, got {value!r}"
+            ) from None
+    if value is None:
+        return "none"
+    depth = float(value)
+    if not math.isfinite(depth) or depth < 0:
+        raise ValueError(f"depth must be a non-negative number of metres, got {value!r}")
+    return depth

@@ -1,0 +1,217 @@
+"""Detection probability as a function of range, fitted from data, and what a silence tells.
+
+A receiver hears a ping with a probability that falls with range. Modelled as a logistic
+curve ``p(r) = 1 / (1 + exp((r − range_50) / width))`` it does two jobs:
+
+* scenarios draw which pings are heard (:mod:`hmmtrack.clock_scenarios`);
+* the arrival-time filter counts a ping that a receiver should have heard but did not
+  against particles close to that receiver (:func:`silence_loglik`): each particle
+  predicts when its ping reaches each receiver; if no detection came within a tolerance
+  of that instant, the particle gains ``log(1 − p(range))``.
+
+:func:`fit_detection_probability` estimates the curve by maximum likelihood from
+``(range, heard)`` pairs - from a range test, a simulation, or a first tracking pass
+(:func:`expected_pings` lists the pings an estimated track and emission schedule imply).
+
+This module does not score arrival times (:mod:`hmmtrack.arrival`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+from scipy.optimize import minimize
+from scipy.special import expit, log_expit
+
+from hmmtrack.receivers import ReceiverTracks
+
+
+@dataclass(frozen=True)
+class LogisticDetection:
+    """``p(r) = 1 / (1 + exp((r − range_50) / width))``.
+
+    Parameters
+    ----------
+    range_50 : float
+        Range at which half the pings are heard (m).
+    width : float
+        Range scale of the fall-off (m); ``p`` drops from 73 % to 27 % over ``2·width``.
+    """
+
+    range_50: float
+    width: float
+
+    def __post_init__(self) -> None:
+        if not (np.isfinite(self.range_50) and np.isfinite(self.width) and self.width > 0):
+            raise ValueError(
+                f"LogisticDetection needs a finite range_50 and a positive width (m), got "
+                f"range_50={self.range_50}, width={self.width}"
+            )
+
+    def probability(self, range_m) -> np.ndarray:
+        """Probability (0-1) of hearing a ping at range ``range_m`` (m), same shape."""
+        return expit(-(np.asarray(range_m, dtype=float) - self.range_50) / self.width)
+
+    def __call__(self, range_m) -> np.ndarray:
+        """Same as :meth:`probability`, so the curve plugs into detection simulation."""
+        return self.probability(range_m)
+
+    def log_probability(self, range_m) -> np.ndarray:
+        """``log p(range_m)``, stable far beyond ``range_50``."""
+        return log_expit(-(np.asarray(range_m, dtype=float) - self.range_50) / self.width)
+
+    def log_miss_probability(self, range_m) -> np.ndarray:
+        """``log(1 − p(range_m))``, stable close to the receiver."""
+        return log_expit((np.asarray(range_m, dtype=float) - self.range_50) / self.width)
+
+
+def fit_detection_probability(range_m, heard) -> LogisticDetection:
+    """Maximum-likelihood logistic detection curve from pings with known range.
+
+    Parameters
+    ----------
+    range_m : array_like, shape (n,)
+        Range of each ping from the receiver (m).
+    heard : array_like of bool, shape (n,)
+        Whether the receiver detected that ping.
+
+    Returns
+    -------
+    LogisticDetection
+    """
+    r = np.asarray(range_m, dtype=float)
+    y = np.asarray(heard)
+    if r.ndim != 1 or y.shape != r.shape:
+        raise ValueError(f"range_m and heard must be 1-D of equal length, got {r.shape}, {y.shape}")
+    bad = np.flatnonzero(~np.isfinite(r))
+    if bad.size:
+        raise ValueError(f"range_m must be finite; rows {bad[:10].tolist()} are not")
+    y = y.astype(bool)
+    if y.all() or not y.any():
+        raise ValueError(
+            "fit_detection_probability needs both heard and missed pings; "
+            f"got {int(y.sum())} heard of {y.size}"
+        )
+    scale = max(float(np.std(r)), 1.0)
+    center = float(np.mean(r))
+    u = (r - center) / scale
+
+    def negative_loglik(theta: np.ndarray) -> float:
+        a, b = theta
+        eta = a - b * u
+        return -float(np.sum(np.where(y, log_expit(eta), log_expit(-eta))))
+
+    fit = minimize(negative_loglik, np.array([0.0, 1.0]), method="BFGS")
+    a, b = fit.x
+    if not fit.success and fit.status != 2:  # status 2: precision loss at the optimum
+        raise ValueError(f"fit_detection_probability did not converge: {fit.message}")
+    if b <= 0:
+        raise ValueError(
+            "fit_detection_probability: detections do not fall off with range "
+            f"(fitted slope {b:.3g}); a logistic range curve does not describe these data"
+        )
+    return LogisticDetection(range_50=center + a * scale / b, width=scale / b)
+
+
+def expected_pings(
+    emission_times,
+    tag_x,
+    tag_y,
+    receivers: ReceiverTracks,
+    detections: pd.DataFrame,
+    sound_speed: float,
+    tolerance: float = 0.1,
+) -> pd.DataFrame:
+    """List which pings each receiver heard, for fitting :class:`LogisticDetection`.
+
+    Parameters
+    ----------
+    emission_times : array_like, shape (n,)
+        True or estimated emission times of the tag's pings (s).
+    tag_x, tag_y : array_like, shape (n,)
+        Tag position at each emission (m).
+    receivers : ReceiverTracks
+        Receiver positions; every receiver listed is taken to be listening throughout.
+    detections : pandas.DataFrame
+        Columns ``time`` (true time base, s) and ``receiver``.
+    sound_speed : float
+        m/s.
+    tolerance : float
+        A detection within ``tolerance`` seconds after the expected arrival (or before it)
+        counts as hearing that ping (s).
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per (ping, receiver): ``emission_time``, ``receiver``, ``range`` (m),
+        ``heard`` (bool).
+    """
+    emission_times = np.asarray(emission_times, dtype=float)
+    tag_x = np.asarray(tag_x, dtype=float)
+    tag_y = np.asarray(tag_y, dtype=float)
+    frames = []
+    for name in receivers.names:
+        rx, ry, _, _ = receivers.state(name, emission_times)
+        r = np.hypot(tag_x - rx, tag_y - ry)
+        expected = emission_times + r / sound_speed
+        heard_times = np.sort(
+            detections.loc[detections["receiver"] == name, "time"].to_numpy(float)
+        )
+        heard = _any_within(heard_times, expected, tolerance)
+        frames.append(
+            pd.DataFrame(
+                {"emission_time": emission_times, "receiver": name, "range": r, "heard": heard}
+            )
+        )
+    return pd.concat(frames, ignore_index=True)
+
+
+def _any_within(sorted_times: np.ndarray, targets: np.ndarray, tolerance: float) -> np.ndarray:
+    """For each target, whether a time of ``sorted_times`` lies within ``tolerance`` of it."""
+    if sorted_times.size == 0:
+        return np.zeros(targets.shape, dtype=bool)
+    i = np.searchsorted(sorted_times, targets - tolerance, side="left")
+    i = np.minimum(i, sorted_times.size - 1)
+    return np.abs(sorted_times[i] - targets) <= tolerance
+
+
+def silence_loglik(
+    expected_arrival: np.ndarray,
+    range_m: np.ndarray,
+    heard_times: np.ndarray,
+    window_start: float,
+    window_end: float,
+    detection: LogisticDetection,
+    tolerance: float,
+) -> np.ndarray:
+    """Log-likelihood each particle gains from a receiver's silence, shape (N,).
+
+    A particle whose ping was due at the receiver in ``(window_start, window_end]`` and
+    that the receiver did not hear (no detection within ``tolerance`` of the expected
+    arrival) gains ``log(1 − p(range))``; all other particles gain 0 (a heard ping is
+    scored by the arrival-time model).
+
+    Parameters
+    ----------
+    expected_arrival : numpy.ndarray, shape (N,)
+        Each particle's predicted arrival time of its ping at the receiver (s).
+    range_m : numpy.ndarray, shape (N,)
+        Each particle's range to the receiver (m).
+    heard_times : numpy.ndarray, shape (M,)
+        Sorted arrival times of the receiver's detections, true time base (s); must
+        include detections up to ``window_end + tolerance``.
+    window_start, window_end : float
+        The filter step (s).
+    detection : LogisticDetection
+    tolerance : float
+        Seconds.
+    """
+    due = (expected_arrival > window_start) & (expected_arrival <= window_end)
+    out = np.zeros(expected_arrival.shape)
+    if not due.any():
+        return out
+    missed = due & ~_any_within(heard_times, expected_arrival, tolerance)
+    out[missed] = detection.log_miss_probability(range_m[missed])
+    return out

@@ -1,0 +1,528 @@
+"""The particle filter that localises an acoustic tag: predict every second, correct on data.
+
+:class:`ParticleFilter` runs the paper's Algorithms 1 and 2 with pluggable parts:
+
+* a motion model (:mod:`hmmtrack.motion`) moves the particles every ``dt`` (1 s) seconds;
+* a measurement model (:mod:`hmmtrack.measurement`, or any object with
+  ``loglik(particles, obs, time) -> (N,)``) weighs them when observations arrive; the
+  log weights are normalised with ``logsumexp``;
+* a resampling scheme (:mod:`hmmtrack.resampling`) runs after every correction
+  (``resample_when="always"``, the paper) or when the effective sample size falls below
+  ``ess_threshold * N`` (``"ess"``).
+
+Each second it reports an :class:`Estimate`: the weighted mean position, the x-y
+covariance, ``sqrt_lambda1`` (square root of its largest eigenvalue, the paper's
+convergence measure) and the effective sample size.
+
+Online use: ``pf.step(t, observations)`` advances to time ``t`` and returns the estimate
+there. Offline use: ``pf.iterate(observations, start, end)`` yields one estimate per second
+and ``pf.run(...)`` collects them into a :class:`FilterResult` with optional particle
+snapshots and the list of events (degenerate weights and how they were recovered,
+observations outside the time window).
+
+Speed: between observations nothing but prediction happens, so the seconds up to the next
+observation are predicted in one compiled call (``motion.advance``) that also returns the
+per-second moments; with ``backend="numpy"`` every second is one call of
+``motion.propagate`` instead (the reference path, and the one for motion models without a
+compiled kernel). The compiled path draws from per-particle random streams, so one seed
+gives one answer whatever the number of threads.
+
+Observations are assigned to the nearest prediction time (``start + k dt``); with
+``dt = 1 s`` the particles are at most 0.5 s away from the observation's time.
+
+This module does not read files or build observations (:mod:`hmmtrack.tracking` does).
+"""
+
+from __future__ import annotations
+
+import logging
+import warnings
+from collections.abc import Iterator, Sequence
+from dataclasses import asdict, dataclass, field
+
+import numba
+import numpy as np
+import pandas as pd
+from scipy.special import logsumexp
+
+from hmmtrack import streams as rs
+from hmmtrack.particles import Particles, as_bounds
+from hmmtrack.random import SeedLike, as_generator
+from hmmtrack.resampling import effective_sample_size, get_resampler
+
+__all__ = [
+    "ESTIMATE_COLUMNS",
+    "Estimate",
+    "FilterResult",
+    "ParticleFilter",
+    "sqrt_largest_eigenvalue",
+]
+
+logger = logging.getLogger(__name__)
+
+#: columns of the estimates table (docs/interfaces.md plus the effective sample size)
+ESTIMATE_COLUMNS = ("time", "x", "y", "var_x", "var_y", "cov_xy", "sqrt_lambda1", "n_eff")
+#: below this many particle-steps per compiled call, one thread is faster than waking more
+PARALLEL_MIN_WORK = 400_000
+BACKENDS = ("auto", "numba", "numpy")
+RESAMPLE_WHEN = ("always", "ess")
+
+
+def sqrt_largest_eigenvalue(var_x, var_y, cov_xy):
+    """``sqrt(lambda_1)`` of the 2x2 covariance ``[[var_x, cov_xy], [cov_xy, var_y]]``.
+
+    ``lambda_1 = (var_x + var_y)/2 + sqrt(((var_x - var_y)/2)^2 + cov_xy^2)``, the paper's
+    formula: the standard deviation along the direction of largest spread (m).
+    """
+    half_sum = 0.5 * (np.asarray(var_x) + np.asarray(var_y))
+    half_diff = 0.5 * (np.asarray(var_x) - np.asarray(var_y))
+    return np.sqrt(half_sum + np.hypot(half_diff, cov_xy))
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """The filter's summary at one time.
+
+    Attributes
+    ----------
+    time : float
+        s (UTC epoch seconds).
+    x, y : float
+        Weighted mean position, m.
+    var_x, var_y, cov_xy : float
+        Weighted x-y covariance of the particles, m^2.
+    sqrt_lambda1 : float
+        Square root of the covariance's largest eigenvalue, m.
+    n_eff : float
+        Effective sample size of the weights (N right after resampling).
+    """
+
+    time: float
+    x: float
+    y: float
+    var_x: float
+    var_y: float
+    cov_xy: float
+    sqrt_lambda1: float
+    n_eff: float
+
+
+def _estimate(time: float, origin: tuple[float, float], moments: np.ndarray, n_eff: float):
+    """Estimate from weighted moments ``(5,)`` of positions relative to ``origin``."""
+    mx, my, sxx, syy, sxy = moments
+    var_x = max(sxx - mx * mx, 0.0)
+    var_y = max(syy - my * my, 0.0)
+    cov_xy = sxy - mx * my
+    return Estimate(
+        time=float(time),
+        x=float(origin[0] + mx),
+        y=float(origin[1] + my),
+        var_x=float(var_x),
+        var_y=float(var_y),
+        cov_xy=float(cov_xy),
+        sqrt_lambda1=float(sqrt_largest_eigenvalue(var_x, var_y, cov_xy)),
+        n_eff=float(n_eff),
+    )
+
+
+def _weighted_moments(p: Particles, weights: np.ndarray, origin) -> np.ndarray:
+    """Weighted moments (5,) of positions relative to ``origin`` (as the compiled kernels)."""
+    dx = p.x - origin[0]
+    dy = p.y - origin[1]
+    return np.array(
+        [weights @ dx, weights @ dy, weights @ (dx * dx), weights @ (dy * dy), weights @ (dx * dy)]
+    )
+
+
+def _n_rows(obs) -> int:
+    """Number of observations in a DataFrame or a mapping of equal-length columns."""
+    if isinstance(obs, pd.DataFrame):
+        return len(obs)
+    return len(np.atleast_1d(next(iter(obs.values())))) if len(obs) else 0
+
+
+@dataclass
+class FilterResult:
+    """What :meth:`ParticleFilter.run` returns.
+
+    Attributes
+    ----------
+    estimates : pandas.DataFrame
+        One row per second, columns :data:`ESTIMATE_COLUMNS`.
+    snapshots : dict of float to pandas.DataFrame
+        Particles (x, y, heading, speed, turn_rate, state, weight) at each requested time,
+        taken after the correction and before resampling.
+    events : pandas.DataFrame
+        Columns ``time``, ``kind``, ``detail``: degenerate weights and their recovery,
+        observations outside the time window.
+    """
+
+    estimates: pd.DataFrame
+    snapshots: dict[float, pd.DataFrame] = field(default_factory=dict)
+    events: pd.DataFrame = field(
+        default_factory=lambda: pd.DataFrame(columns=["time", "kind", "detail"])
+    )
+
+
+class ParticleFilter:
+    """Particle filter with pluggable motion, measurement and resampling.
+
+    Parameters
+    ----------
+    motion
+        Motion model with ``initialise(rng, particles)``, ``propagate(rng, particles, dt)``
+        and, for the compiled path, ``compiled`` and ``advance(...)``
+        (:mod:`hmmtrack.motion`).
+    measurement
+        Object with ``loglik(particles, obs, time) -> (N,)``; an optional attribute
+        ``columns`` lists the observation columns it needs (checked up front).
+    n_particles : int
+        Number of particles ``N``.
+    bounds : (xmin, xmax, ymin, ymax)
+        Search box for the uniform initialisation (m).
+    resampling : str
+        Scheme name from :data:`hmmtrack.resampling.RESAMPLERS` (default multinomial, the
+        paper's).
+    resample_when : {"always", "ess"}
+        Resample after every correction (the paper), or only when the effective sample
+        size falls below ``ess_threshold * N``.
+    ess_threshold : float
+        Fraction of ``N`` in ``(0, 1]`` used by ``resample_when="ess"``.
+    rng : int, SeedSequence, Generator or None
+        Seed of every random draw of the filter (initialisation, prediction, resampling).
+    dt : float
+        Prediction step, s (the paper: 1 s).
+    backend : {"auto", "numba", "numpy"}
+        ``"auto"`` uses the motion model's compiled kernel when it has one.
+    threads : int or None
+        Threads for compiled prediction; ``None`` uses one thread for small calls (fewer
+        than :data:`PARALLEL_MIN_WORK` particle-steps) and numba's default otherwise.
+        Results do not depend on it.
+    """
+
+    def __init__(
+        self,
+        motion,
+        measurement,
+        n_particles: int,
+        bounds,
+        resampling: str = "multinomial",
+        resample_when: str = "always",
+        ess_threshold: float = 0.5,
+        rng: SeedLike = None,
+        dt: float = 1.0,
+        backend: str = "auto",
+        threads: int | None = None,
+    ) -> None:
+        if int(n_particles) != n_particles or n_particles < 1:
+            raise ValueError(f"n_particles must be a positive integer, got {n_particles!r}")
+        if resample_when not in RESAMPLE_WHEN:
+            raise ValueError(f"resample_when must be one of {RESAMPLE_WHEN}, got {resample_when!r}")
+        if not 0.0 < ess_threshold <= 1.0:
+            raise ValueError(f"ess_threshold must be in (0, 1], got {ess_threshold}")
+        if not (np.isfinite(dt) and dt > 0):
+            raise ValueError(f"dt must be a positive number of seconds, got {dt}")
+        if backend not in BACKENDS:
+            raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
+        compiled = bool(getattr(motion, "compiled", False))
+        if backend == "numba" and not compiled:
+            raise ValueError(f"{type(motion).__name__} has no compiled kernel; use backend='numpy'")
+        self.motion = motion
+        self.measurement = measurement
+        self.n_particles = int(n_particles)
+        self.bounds = as_bounds(bounds)
+        self.resampling = resampling
+        self._resample = get_resampler(resampling)
+        self.resample_when = resample_when
+        self.ess_threshold = float(ess_threshold)
+        self.rng = as_generator(rng)
+        self.dt = float(dt)
+        self.compiled = compiled and backend != "numpy"
+        self.threads = threads
+        self.particles: Particles | None = None
+        self.time: float | None = None
+        self.events: list[dict] = []
+        self._streams: np.ndarray | None = None
+
+    # ------------------------------------------------------------------ state
+
+    def initialise(self, time: float) -> Estimate:
+        """Algorithm 1 at ``time``: particles uniform in the bounds, at rest, equal weights."""
+        self.particles = Particles.uniform(self.rng, self.n_particles, self.bounds)
+        self.motion.initialise(self.rng, self.particles)
+        self._streams = rs.new_streams(self.rng, self.n_particles)
+        self.time = float(time)
+        self.events = []
+        return self.estimate()
+
+    def estimate(self) -> Estimate:
+        """Weighted estimate of the current particles at the current time."""
+        p = self._require_particles()
+        weights = p.normalised_weights()
+        origin = (float(weights @ p.x), float(weights @ p.y))
+        moments = _weighted_moments(p, weights, origin)
+        return _estimate(self.time, origin, moments, effective_sample_size(p.log_weight))
+
+    def _require_particles(self) -> Particles:
+        if self.particles is None:
+            raise RuntimeError("the filter has no particles yet: call initialise(time) or step()")
+        return self.particles
+
+    # ------------------------------------------------------------------ predict
+
+    def predict(self, n_steps: int) -> list[Estimate]:
+        """Move the particles ``n_steps`` prediction steps; the estimate after each step."""
+        p = self._require_particles()
+        if n_steps <= 0:
+            return []
+        weights = p.normalised_weights()
+        n_eff = effective_sample_size(p.log_weight)
+        origin = (float(weights @ p.x), float(weights @ p.y))
+        if self.compiled:
+            moments = self._advance(p, n_steps, weights, origin)
+        else:
+            moments = np.empty((n_steps, 5))
+            for k in range(n_steps):
+                self.motion.propagate(self.rng, p, self.dt)
+                moments[k] = _weighted_moments(p, weights, origin)
+        start = self.time
+        self.time = start + n_steps * self.dt
+        return [
+            _estimate(start + (k + 1) * self.dt, origin, moments[k], n_eff) for k in range(n_steps)
+        ]
+
+    def _advance(self, p: Particles, n_steps: int, weights: np.ndarray, origin) -> np.ndarray:
+        threads = self.threads
+        if threads is None:
+            threads = 1 if p.n * n_steps < PARALLEL_MIN_WORK else numba.config.NUMBA_NUM_THREADS
+        previous = numba.get_num_threads()
+        numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
+        try:
+            return self.motion.advance(p, self._streams, n_steps, self.dt, weights, origin)
+        finally:
+            numba.set_num_threads(previous)
+
+    # ------------------------------------------------------------------ correct
+
+    def correct(self, obs) -> Estimate:
+        """Weigh the particles by the observations ``obs`` made now; the weighted estimate.
+
+        Resampling is not done here (see :meth:`resample_if_due`). Degenerate weights (every
+        particle impossible) are recovered as described in :meth:`_recover`.
+        """
+        p = self._require_particles()
+        loglik = np.asarray(self.measurement.loglik(p, obs, time=self.time), dtype=np.float64)
+        if loglik.shape != (p.n,) or np.any(np.isnan(loglik)) or np.any(loglik == np.inf):
+            raise ValueError(
+                f"{type(self.measurement).__name__}.loglik returned "
+                f"{'NaN/+inf values' if loglik.shape == (p.n,) else f'shape {loglik.shape}'} "
+                f"at time {self.time} for observations:\n{obs}"
+            )
+        log_weight = p.log_weight + loglik
+        if np.isfinite(log_weight.max()):
+            p.log_weight = log_weight - logsumexp(log_weight)
+        else:
+            self._recover(obs)
+        return self.estimate()
+
+    def _recover(self, obs) -> None:
+        """Re-initialise after degenerate weights; warn and record the event.
+
+        First on the ring of the observed range around the receiver with the shortest
+        range (radius ``range + N(0, var(r))``, any heading, at rest; other fields kept),
+        weighted by all the observations; if that is degenerate too, or the observations
+        have no ranges, uniformly in the bounds with equal weights.
+        """
+        p = self.particles
+        action = "reinitialised uniformly in the bounds"
+        if all(c in obs for c in ("range", "receiver_x", "receiver_y")):
+            ranges = np.asarray(obs["range"], dtype=np.float64)
+            j = int(np.argmin(ranges))
+            covariance = getattr(self.measurement, "covariance", None)
+            sd = 1.0 if covariance is None else float(np.sqrt(covariance[0][0]))
+            radius = np.abs(ranges[j] + sd * self.rng.standard_normal(p.n))
+            bearing = self.rng.uniform(-np.pi, np.pi, p.n)
+            heading = self.rng.uniform(-np.pi, np.pi, p.n)
+            p.x = np.asarray(obs["receiver_x"], dtype=np.float64)[j] + radius * np.cos(bearing)
+            p.y = np.asarray(obs["receiver_y"], dtype=np.float64)[j] + radius * np.sin(bearing)
+            p.heading, p.cos_heading, p.sin_heading = heading, np.cos(heading), np.sin(heading)
+            p.speed, p.turn_rate = np.zeros(p.n), np.zeros(p.n)
+            log_weight = np.asarray(self.measurement.loglik(p, obs, time=self.time), dtype=float)
+            if np.isfinite(log_weight.max()) and not np.any(np.isnan(log_weight)):
+                p.log_weight = log_weight - logsumexp(log_weight)
+                action = f"reinitialised on the {ranges[j]:.1f} m range ring of receiver " + (
+                    str(np.asarray(obs["receiver"])[j]) if "receiver" in obs else f"row {j}"
+                )
+                self._record("degenerate_weights", action)
+                return
+        fresh = Particles.uniform(self.rng, p.n, self.bounds)
+        for name in ("x", "y", "heading", "cos_heading", "sin_heading", "speed", "turn_rate"):
+            setattr(p, name, getattr(fresh, name))
+        p.log_weight = np.full(p.n, -np.log(p.n))
+        self._record("degenerate_weights", action)
+
+    def _record(self, kind: str, detail: str) -> None:
+        message = f"t={self.time}: {kind}: {detail}"
+        warnings.warn(message, RuntimeWarning, stacklevel=3)
+        logger.warning(message)
+        self.events.append({"time": self.time, "kind": kind, "detail": detail})
+
+    def resample_if_due(self) -> bool:
+        """Resample per ``resample_when``; return whether it happened."""
+        p = self._require_particles()
+        if self.resample_when == "ess":
+            if effective_sample_size(p.log_weight) >= self.ess_threshold * p.n:
+                return False
+        ancestors = self._resample(self.rng, p.normalised_weights(), p.n)
+        self.particles = p.take(ancestors)
+        self.particles.log_weight = np.full(p.n, -np.log(p.n))
+        return True
+
+    # ------------------------------------------------------------------ online
+
+    def step(self, time: float, observations=None) -> Estimate:
+        """Advance to ``time`` and correct with ``observations`` made there (online use).
+
+        The first call initialises the filter at ``time``. Later times must lie on the
+        prediction grid ``t0 + k dt`` at or after the current time.
+
+        Parameters
+        ----------
+        time : float
+            s.
+        observations : DataFrame or mapping of columns, optional
+            Observations made at ``time`` (any number of rows, including none).
+
+        Returns
+        -------
+        Estimate
+            After the correction, before resampling.
+        """
+        if self.particles is None:
+            estimate = self.initialise(time)
+        else:
+            n_steps = round((time - self.time) / self.dt)
+            if n_steps < 0 or abs(time - (self.time + n_steps * self.dt)) > 1e-6 * self.dt:
+                raise ValueError(
+                    f"step time {time} is not on the prediction grid {self.time} + k*{self.dt}"
+                    " with k >= 0"
+                )
+            predicted = self.predict(n_steps)
+            estimate = predicted[-1] if predicted else self.estimate()
+        if observations is not None and _n_rows(observations) > 0:
+            estimate = self.correct(observations)
+            self.resample_if_due()
+        return estimate
+
+    # ------------------------------------------------------------------ offline
+
+    def iterate(
+        self,
+        observations: pd.DataFrame,
+        start: float | None = None,
+        end: float | None = None,
+        snapshot_times: Sequence[float] = (),
+        snapshots: dict | None = None,
+    ) -> Iterator[Estimate]:
+        """Run from ``start`` to ``end``, yielding one estimate per prediction step.
+
+        Parameters
+        ----------
+        observations : pandas.DataFrame
+            Column ``time`` (s) and the measurement model's columns; any order.
+        start, end : float, optional
+            Time window (s); default: the observations' first time rounded down and last
+            time rounded up to whole seconds. Observations outside it are left out with a
+            warning and an event.
+        snapshot_times : sequence of float
+            Times (s) at which to copy the particles into ``snapshots`` (rounded to the
+            prediction grid).
+        snapshots : dict, optional
+            Receives ``{time: particles table}`` for ``snapshot_times``.
+        """
+        obs = self._checked_observations(observations)
+        times = obs["time"].to_numpy()
+        if start is None:
+            start = float(np.floor(times.min())) if times.size else 0.0
+        if end is None:
+            end = float(np.ceil(times.max())) if times.size else start
+        if end < start:
+            raise ValueError(f"end ({end}) is before start ({start})")
+        n_ticks = int(np.floor((end - start) / self.dt + 1e-9))
+        ticks = np.rint((times - start) / self.dt).astype(np.int64)
+        inside = (ticks >= 0) & (ticks <= n_ticks)
+        self.initialise(start)
+        if not inside.all():
+            self._record(
+                "observations_outside_window",
+                f"{int((~inside).sum())} observation(s) (rows {obs.index[~inside][:10].tolist()}"
+                f"{'...' if (~inside).sum() > 10 else ''}) outside [{start}, {end}] left out",
+            )
+        obs, ticks = obs[inside], ticks[inside]
+        order = np.argsort(ticks, kind="stable")
+        obs, ticks = obs.iloc[order], ticks[order]
+        snap_ticks = self._snapshot_ticks(snapshot_times, start, n_ticks)
+        stops = np.union1d(np.union1d(ticks, snap_ticks), [0, n_ticks])
+        current = 0
+        for stop in stops:
+            predicted = self.predict(int(stop - current))
+            yield from predicted[:-1]
+            estimate = predicted[-1] if predicted else self.estimate()
+            lo, hi = np.searchsorted(ticks, [stop, stop + 1])
+            if hi > lo:
+                estimate = self.correct(obs.iloc[lo:hi])
+            if stop in snap_ticks and snapshots is not None:
+                snapshots[self.time] = self.particles.to_frame()
+            if hi > lo:
+                self.resample_if_due()
+            yield estimate
+            current = stop
+
+    def _snapshot_ticks(self, snapshot_times, start: float, n_ticks: int) -> np.ndarray:
+        snap = np.asarray(snapshot_times, dtype=np.float64)
+        snap_ticks = np.rint((snap - start) / self.dt).astype(np.int64)
+        outside = (snap_ticks < 0) | (snap_ticks > n_ticks)
+        if outside.any():
+            raise ValueError(
+                f"snapshot_times {snap[outside].tolist()} are outside the run "
+                f"[{start}, {start + n_ticks * self.dt}]"
+            )
+        return np.unique(snap_ticks)
+
+    def _checked_observations(self, observations: pd.DataFrame) -> pd.DataFrame:
+        """Observations with every needed column present and finite, or a clear error."""
+        needed = ("time", *getattr(self.measurement, "columns", ()))
+        missing = [c for c in needed if c not in observations.columns]
+        if missing:
+            raise ValueError(
+                f"observations lack column(s) {missing}; expected {list(needed)} "
+                f"(docs/interfaces.md), got {list(observations.columns)}"
+            )
+        values = observations[list(needed)].apply(pd.to_numeric, errors="coerce")
+        bad = ~np.isfinite(values.to_numpy(dtype=np.float64))
+        if bad.any():
+            rows, cols = np.nonzero(bad)
+            raise ValueError(
+                f"observations have missing or non-numeric values in column(s) "
+                f"{sorted({needed[c] for c in cols})} at row(s) "
+                f"{observations.index[np.unique(rows)][:10].tolist()}; expected finite numbers"
+            )
+        return observations
+
+    def run(
+        self,
+        observations: pd.DataFrame,
+        start: float | None = None,
+        end: float | None = None,
+        snapshot_times: Sequence[float] = (),
+    ) -> FilterResult:
+        """Run :meth:`iterate` to the end; estimates, snapshots and events together."""
+        snapshots: dict[float, pd.DataFrame] = {}
+        rows = [
+            asdict(e) for e in self.iterate(observations, start, end, snapshot_times, snapshots)
+        ]
+        return FilterResult(
+            estimates=pd.DataFrame(rows, columns=list(ESTIMATE_COLUMNS)),
+            snapshots=snapshots,
+            events=pd.DataFrame(self.events, columns=["time", "kind", "detail"]),
+        )

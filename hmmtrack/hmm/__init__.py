@@ -1,0 +1,45 @@
+"""Movement hidden Markov models of step lengths and turning angles.
+
+The public workflow (moveHMM's ``prepData`` -> ``fitHMM`` -> ``viterbi`` / ``pseudoRes`` /
+``CI``)::
+
+    from hmmtrack import io, tracks
+    from hmmtrack.hmm import fit_movement_hmm, MovementHMM
+
+    prepared = tracks.prepare(io.read_tracks("data/example_tracks.csv"))
+    model = fit_movement_hmm(prepared, n_states=2, n_starts=5, seed=1)
+    model.save("model.json")
+    states = MovementHMM.load("model.json").viterbi(prepared)
+
+Submodules: :mod:`~hmmtrack.hmm.distributions` (emission families),
+:mod:`~hmmtrack.hmm.inference` (forward-backward, Viterbi), :mod:`~hmmtrack.hmm.covariates`
+(logit transition matrices), :mod:`~hmmtrack.hmm.fit` (EM, multi-start),
+:mod:`~hmmtrack.hmm.model` (the fitted model and its JSON file),
+:mod:`~hmmtrack.hmm.diagnostics` (pseudo-residuals, Wald intervals, AIC/BIC).
+"""
+
+from hmmtrack.hmm.distributions import (
+    Exponential,
+    Gamma,
+    LogNormal,
+    VonMises,
+    Weibull,
+    WrappedCauchy,
+)
+from hmmtrack.hmm.fit import MovementHMMEstimator, fit_movement_hmm
+from hmmtrack.hmm.inference import forward_backward, viterbi
+from hmmtrack.hmm.model import MovementHMM
+
+__all__ = [
+    "Exponential",
+    "Gamma",
+    "LogNormal",
+    "MovementHMM",
+    "MovementHMMEstimator",
+    "VonMises",
+    "Weibull",
+    "WrappedCauchy",
+    "fit_movement_hmm",
+    "forward_backward",
+    "viterbi",
+]

@@ -1,0 +1,267 @@
+"""Covariates on the transition probabilities: the multinomial logit of moveHMM's ``formula=~cov``.
+
+For ``K`` states and covariate row ``z_t = (1, c_1, ..., c_p)`` (standardised covariates), the
+transition matrix at row ``t`` is
+
+    Gamma_t[i, j] = exp(eta_t[i, j]) / sum_k exp(eta_t[i, k]),   eta_t[i, i] = 0,
+    eta_t[i, j] = coefficients[r(i, j)] @ z_t                     (i != j),
+
+where ``r(i, j)`` runs over the off-diagonal entries in row-major order (as moveHMM's
+``trMatrix_rcpp``). The transition *into* row ``t`` uses the covariates of row ``t``, so a
+sequence of ``T`` rows has ``T - 1`` matrices built from rows ``1 .. T-1``.
+
+This module is for design matrices, logit transition matrices and the weighted M-step of the
+coefficients from expected transition counts. It is not for reading covariates from files
+(see :mod:`hmmtrack.io`) nor for the forward-backward recursions (see
+:mod:`hmmtrack.hmm.inference`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+import pandas as pd
+from scipy.special import logsumexp
+
+CovariateScaling = dict[str, tuple[float, float]]
+
+
+def covariate_scaling(frame: pd.DataFrame, names: Sequence[str]) -> CovariateScaling:
+    """Mean and sample standard deviation (``ddof=1``) of each covariate column.
+
+    Parameters
+    ----------
+    frame : DataFrame
+        Table holding the covariate columns.
+    names : sequence of str
+        Covariate column names.
+
+    Returns
+    -------
+    dict
+        ``{name: (mean, sd)}`` in the covariate's own unit.
+    """
+    scaling = {}
+    for name in names:
+        values = _covariate_column(frame, name)
+        sd = float(np.std(values, ddof=1)) if values.size > 1 else 0.0
+        if not sd > 0:
+            raise ValueError(
+                f"covariate column {name!r} is constant (sd = {sd}); it cannot be standardised"
+            )
+        scaling[name] = (float(np.mean(values)), sd)
+    return scaling
+
+
+def design_matrix(frame: pd.DataFrame | Mapping, scaling: Mapping[str, tuple[float, float]]):
+    """Standardised design matrix ``(1, (c_1 - mean_1) / sd_1, ...)`` for each row.
+
+    Parameters
+    ----------
+    frame : DataFrame or mapping of str to array
+        Holds one column per covariate named in ``scaling``.
+    scaling : mapping
+        ``{name: (mean, sd)}`` as returned by :func:`covariate_scaling`; its order is the
+        column order of the result.
+
+    Returns
+    -------
+    ndarray, shape (T, 1 + p)
+        First column ones (intercept).
+    """
+    n_rows = len(frame) if isinstance(frame, pd.DataFrame) else len(next(iter(frame.values())))
+    columns = [
+        (_covariate_column(frame, name) - mean) / sd for name, (mean, sd) in scaling.items()
+    ]
+    return np.column_stack([np.ones(n_rows), *columns])
+
+
+def _covariate_column(frame, name: str) -> np.ndarray:
+    if name not in frame:
+        raise ValueError(f"covariate column {name!r} is missing (columns: {list(frame)})")
+    values = np.asarray(frame[name], dtype=float)
+    bad = np.flatnonzero(~np.isfinite(values))
+    if bad.size:
+        raise ValueError(
+            f"covariate column {name!r} has missing or non-finite values at rows "
+            f"{bad[:10].tolist()}{' ...' if bad.size > 10 else ''}; fill or drop them first"
+        )
+    return values
+
+
+def off_diagonal_index(n_states: int) -> tuple[np.ndarray, np.ndarray]:
+    """Row and column indices of the off-diagonal entries, row-major, each ``(K*(K-1),)``."""
+    rows, cols = np.nonzero(~np.eye(n_states, dtype=bool))
+    return rows, cols
+
+
+def log_transition_matrices(coefficients: np.ndarray, design: np.ndarray) -> np.ndarray:
+    """Log transition matrices of the multinomial logit, one per design row.
+
+    Parameters
+    ----------
+    coefficients : ndarray, shape (K*(K-1), 1 + p)
+        One row per off-diagonal entry (row-major), one column per design column.
+    design : ndarray, shape (T, 1 + p)
+
+    Returns
+    -------
+    ndarray, shape (T, K, K)
+        ``log Gamma_t``; each row of each matrix exponentiates and sums to one.
+    """
+    coefficients = np.asarray(coefficients, dtype=float)
+    n_states = _n_states(coefficients.shape[0])
+    rows, cols = off_diagonal_index(n_states)
+    eta = np.zeros((design.shape[0], n_states, n_states))
+    eta[:, rows, cols] = design @ coefficients.T
+    return eta - logsumexp(eta, axis=2, keepdims=True)
+
+
+def coefficients_from_matrix(transition: np.ndarray, n_design: int = 1) -> np.ndarray:
+    """Coefficients whose intercepts reproduce ``transition`` and whose slopes are zero.
+
+    Parameters
+    ----------
+    transition : ndarray, shape (K, K)
+        Row-stochastic with positive entries.
+    n_design : int
+        Number of design columns ``1 + p``.
+
+    Returns
+    -------
+    ndarray, shape (K*(K-1), n_design)
+    """
+    transition = np.asarray(transition, dtype=float)
+    rows, cols = off_diagonal_index(transition.shape[0])
+    coefficients = np.zeros((rows.size, n_design))
+    coefficients[:, 0] = np.log(transition[rows, cols]) - np.log(transition[rows, rows])
+    return coefficients
+
+
+def expected_log_likelihood(coefficients: np.ndarray, xi: np.ndarray, design: np.ndarray):
+    """Value and gradient of ``sum_t sum_ij xi_t[i, j] log Gamma_t[i, j]``.
+
+    Parameters
+    ----------
+    coefficients : ndarray, shape (K*(K-1), 1 + p)
+    xi : ndarray, shape (T, K, K)
+        Expected transition counts per step (zero rows for steps that cross a track boundary).
+    design : ndarray, shape (T, 1 + p)
+        Design row of the step's destination row.
+
+    Returns
+    -------
+    value : float
+    gradient : ndarray, shape (K*(K-1), 1 + p)
+    """
+    log_gamma = log_transition_matrices(coefficients, design)
+    value = float(np.sum(xi * log_gamma))
+    n_states = xi.shape[1]
+    rows, cols = off_diagonal_index(n_states)
+    leaving = xi.sum(axis=2, keepdims=True)  # (T, K, 1)
+    residual = xi - leaving * np.exp(log_gamma)  # (T, K, K)
+    gradient = residual[:, rows, cols].T @ design
+    return value, gradient
+
+
+def fit_coefficients(
+    xi: np.ndarray,
+    design: np.ndarray,
+    start: np.ndarray,
+    max_iter: int = 50,
+    tol: float = 1e-10,
+    max_abs: float = 30.0,
+) -> np.ndarray:
+    """Weighted maximum-likelihood coefficients of the logit (the EM M-step).
+
+    Maximises :func:`expected_log_likelihood`, which separates into one weighted multinomial
+    logistic regression per origin state ``i`` (outcomes: the destination ``j``, reference
+    ``j = i``). Each is solved by Newton's method with its analytic gradient and Hessian and
+    step halving, so the objective never decreases.
+
+    Parameters
+    ----------
+    xi : ndarray, shape (T, K, K)
+        Expected transition counts per step.
+    design : ndarray, shape (T, 1 + p)
+    start : ndarray, shape (K*(K-1), 1 + p)
+        Starting coefficients (the previous iteration's).
+    max_iter : int
+        Newton iterations per origin state.
+    tol : float
+        Stop when a Newton step gains less than ``tol`` (in log-likelihood units).
+    max_abs : float
+        Bound on each coefficient's absolute value, keeping a nearly absorbing state finite.
+
+    Returns
+    -------
+    ndarray, shape (K*(K-1), 1 + p)
+    """
+    n_states = xi.shape[1]
+    rows, _ = off_diagonal_index(n_states)
+    out = np.array(start, dtype=float)
+    for i in range(n_states):
+        others = np.flatnonzero(np.arange(n_states) != i)
+        counts = xi[:, i, others]  # (T, K-1)
+        out[rows == i] = _newton_logit(
+            counts, xi[:, i, i], design, out[rows == i], max_iter, tol, max_abs
+        )
+    return out
+
+
+def _logit_objective(beta, counts, stay, design):
+    """Value, gradient and Hessian of one origin state's weighted multinomial logit."""
+    eta = design @ beta.T  # (T, J)
+    top = np.maximum(eta.max(axis=1), 0.0)
+    log_norm = top + np.log(np.exp(-top) + np.exp(eta - top[:, None]).sum(axis=1))
+    total = counts.sum(axis=1) + stay
+    value = float(np.sum(counts * eta) - np.sum(total * log_norm))
+    prob = np.exp(eta - log_norm[:, None])  # (T, J)
+    gradient = (counts - total[:, None] * prob).T @ design  # (J, D)
+    n_out, n_design = beta.shape
+    weighted = total[:, None] * prob
+    outer = (design[:, :, None] * design[:, None, :]).reshape(-1, n_design * n_design)
+    pairs = (weighted[:, :, None] * prob[:, None, :]).reshape(-1, n_out * n_out)
+    hessian = (pairs.T @ outer).reshape(n_out, n_out, n_design, n_design)
+    hessian[np.arange(n_out), np.arange(n_out)] -= (weighted.T @ outer).reshape(
+        n_out, n_design, n_design
+    )
+    return value, gradient, hessian.transpose(0, 2, 1, 3).reshape(n_out * n_design, -1)
+
+
+def _newton_logit(counts, stay, design, beta, max_iter, tol, max_abs):
+    beta = np.clip(beta, -max_abs, max_abs)
+    value, gradient, hessian = _logit_objective(beta, counts, stay, design)
+    size = beta.size
+    for _ in range(max_iter):
+        # the objective is concave; a small ridge keeps flat directions solvable
+        direction = np.linalg.solve(
+            hessian - 1e-9 * np.eye(size) * (1 + np.abs(np.diag(hessian)).max()),
+            -gradient.ravel(),
+        ).reshape(beta.shape)
+        step = 1.0
+        while step > 1e-8:
+            trial = np.clip(beta + step * direction, -max_abs, max_abs)
+            trial_value, trial_gradient, trial_hessian = _logit_objective(
+                trial, counts, stay, design
+            )
+            if trial_value >= value:
+                break
+            step /= 2
+        else:
+            return beta
+        gain = trial_value - value
+        beta, value, gradient, hessian = trial, trial_value, trial_gradient, trial_hessian
+        if gain < tol:
+            break
+    return beta
+
+
+def _n_states(n_off_diagonal: int) -> int:
+    n_states = int(round((1 + np.sqrt(1 + 4 * n_off_diagonal)) / 2))
+    if n_states * (n_states - 1) != n_off_diagonal:
+        raise ValueError(
+            f"coefficients have {n_off_diagonal} rows; expected K*(K-1) for some K >= 2"
+        )
+    return n_states

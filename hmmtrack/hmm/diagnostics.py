@@ -1,0 +1,243 @@
+"""Checking a fitted movement HMM: pseudo-residuals, QQ / ACF, Wald intervals, AIC/BIC tables.
+
+* :func:`pseudo_residuals` -- moveHMM's forecast pseudo-residuals: for row ``t`` of a
+  sequence, ``Phi^-1(sum_k P(S_t = k | rows before t) F_k(x_t))`` with ``F_k`` the
+  state-dependent CDF of steps (zero mass included) or of angles (integrated from -pi). Under
+  a correct model each series is independent standard normal.
+* :func:`qq_points`, :func:`autocorrelation` -- their QQ coordinates and ACF (statsmodels).
+* :func:`confidence_intervals` -- Wald intervals: the Hessian of the log-likelihood on the
+  working scale by central differences of its gradient, mapped to the natural scale by the
+  delta method.
+* :func:`model_selection_table` -- log-likelihood, parameters, AIC and BIC of several models.
+
+Not for fitting (:mod:`hmmtrack.hmm.fit`) or drawing (:mod:`hmmtrack.plots.hmm`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+from scipy import stats
+from statsmodels.graphics.gofplots import ProbPlot
+from statsmodels.tsa.stattools import acf
+
+from hmmtrack.hmm import fit
+from hmmtrack.hmm.inference import forward_backward
+from hmmtrack.hmm.model import MovementHMM, Observations
+
+_ANGLE_GRID = 8193  # nodes of the numerical angle CDF on [-pi, pi]
+
+
+# ---------------------------------------------------------------------------------------------
+# Pseudo-residuals
+# ---------------------------------------------------------------------------------------------
+
+
+def step_cdf(dist, x: np.ndarray) -> np.ndarray:
+    """State-dependent CDF of steps, shape (T, K); NaN rows stay NaN.
+
+    Parameters
+    ----------
+    dist : step distribution (gamma, weibull, lognormal, exponential)
+    x : ndarray, shape (T,)
+        Steps in the unit of the fit.
+    """
+    x = np.asarray(x, dtype=float)[:, None]
+    if dist.name == "gamma":
+        positive = stats.gamma.cdf(x, a=dist.shape, scale=dist.scale)
+    elif dist.name == "weibull":
+        positive = stats.weibull_min.cdf(x, c=dist.shape, scale=dist.scale)
+    elif dist.name == "lognormal":
+        positive = stats.lognorm.cdf(x, s=dist.scale, scale=np.exp(dist.location))
+    elif dist.name == "exponential":
+        positive = stats.expon.cdf(x, scale=1.0 / dist.rate)
+    else:
+        raise ValueError(f"no step CDF for family {dist.name!r}")
+    if dist.zero_mass is None:
+        return positive
+    return dist.zero_mass + (1.0 - dist.zero_mass) * positive
+
+
+def angle_cdf(dist, x: np.ndarray) -> np.ndarray:
+    """State-dependent CDF of angles from -pi, shape (T, K), by integrating the density.
+
+    The density is integrated with the trapezoidal rule on a grid of 8193 nodes over
+    [-pi, pi] and interpolated linearly; NaN rows stay NaN.
+    """
+    grid = np.linspace(-np.pi, np.pi, _ANGLE_GRID)
+    density = np.exp(dist.logpdf(grid))
+    cumulative = np.concatenate(
+        [np.zeros((1, dist.n_states)), np.cumsum(0.5 * (density[1:] + density[:-1]), axis=0)]
+    ) * (grid[1] - grid[0])
+    cumulative /= cumulative[-1]
+    x = np.asarray(x, dtype=float)
+    out = np.column_stack([np.interp(x, grid, cumulative[:, k]) for k in range(dist.n_states)])
+    out[np.isnan(x)] = np.nan
+    return out
+
+
+def pseudo_residuals(model: MovementHMM, data: pd.DataFrame) -> pd.DataFrame:
+    """Forecast pseudo-residuals of steps and angles (moveHMM's ``pseudoRes``).
+
+    Parameters
+    ----------
+    model : MovementHMM
+    data : DataFrame
+        Prepared track (``step``, ``angle``, ``segment``, covariates).
+
+    Returns
+    -------
+    DataFrame
+        Columns ``step_residual`` and ``angle_residual``, one row per data row; NaN where
+        the observation is missing.
+    """
+    observations = Observations.from_frame(data, model.covariate_names)
+    log_lik = model.log_likelihood_matrix(observations.step, observations.angle)
+    log_transition = model.log_transition_for(observations.covariates, len(log_lik))
+    with np.errstate(divide="ignore"):
+        log_initial = np.log(model.initial)
+    forecast = forward_backward(log_initial, log_transition, log_lik, observations.lengths).predicted
+    out = {}
+    for name, dist, x, cdf in (
+        ("step", model.step, observations.step, step_cdf),
+        ("angle", model.angle, observations.angle, angle_cdf),
+    ):
+        u = np.sum(forecast * cdf(dist, x), axis=1)
+        out[f"{name}_residual"] = stats.norm.ppf(np.clip(u, 1e-300, 1 - 1e-16))
+    return pd.DataFrame(out, index=data.index)
+
+
+def qq_points(residuals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Theoretical and sample quantiles of the non-missing residuals against N(0, 1)."""
+    residuals = np.asarray(residuals, dtype=float)
+    plot = ProbPlot(residuals[np.isfinite(residuals)], dist=stats.norm)
+    return plot.theoretical_quantiles, plot.sample_quantiles
+
+
+def autocorrelation(residuals: np.ndarray, n_lags: int = 40) -> np.ndarray:
+    """Sample autocorrelation of the residuals at lags 0..n_lags (missing values skipped)."""
+    return acf(np.asarray(residuals, dtype=float), nlags=n_lags, missing="conservative")
+
+
+# ---------------------------------------------------------------------------------------------
+# Wald intervals
+# ---------------------------------------------------------------------------------------------
+
+
+def working_hessian(likelihood: fit.WorkingLikelihood, theta: np.ndarray, step: float = 1e-4):
+    """Hessian of the log-likelihood on the working scale, central differences of the gradient.
+
+    Returns
+    -------
+    ndarray, shape (n_parameters, n_parameters)
+        Symmetrised.
+    """
+    n = theta.size
+    hessian = np.empty((n, n))
+    for i in range(n):
+        shift = np.zeros(n)
+        shift[i] = step
+        up = likelihood.value_and_gradient(theta + shift)[1]
+        down = likelihood.value_and_gradient(theta - shift)[1]
+        hessian[i] = (up - down) / (2 * step)
+    return 0.5 * (hessian + hessian.T)
+
+
+def natural_parameters(params: fit.Parameters) -> tuple[list[tuple], np.ndarray]:
+    """Names and values of the natural parameters.
+
+    Returns
+    -------
+    names : list of (parameter, index) tuples
+        ``("step.mean", "1")``, ``("transition", "1->2")``, ``("beta.dist_water", "1->2")``...
+        states numbered from 1 as moveHMM prints them.
+    values : ndarray, shape (n,)
+    """
+    names, values = [], []
+    for prefix, dist in (("step", params.step), ("angle", params.angle)):
+        for key, value in dist.to_dict().items():
+            if isinstance(value, list):
+                for k, v in enumerate(value):
+                    names.append((f"{prefix}.{key}", str(k + 1)))
+                    values.append(v)
+    k = params.n_states
+    if params.transition is not None:
+        for i in range(k):
+            for j in range(k):
+                names.append(("transition", f"{i + 1}->{j + 1}"))
+                values.append(params.transition[i, j])
+    else:
+        rows, cols = np.nonzero(~np.eye(k, dtype=bool))
+        for c in range(params.coefficients.shape[1]):
+            for r, (i, j) in enumerate(zip(rows, cols, strict=True)):
+                names.append((f"beta.{c}", f"{i + 1}->{j + 1}"))
+                values.append(params.coefficients[r, c])
+    for i in range(k):
+        names.append(("initial", str(i + 1)))
+        values.append(params.initial[i])
+    return names, np.asarray(values, dtype=float)
+
+
+def confidence_intervals(model: MovementHMM, data: pd.DataFrame, level: float = 0.95):
+    """Wald confidence intervals of every natural parameter (delta method).
+
+    Parameters
+    ----------
+    model : MovementHMM
+        A fitted model (at the maximum of the likelihood of ``data``).
+    data : DataFrame
+        The prepared track it was fitted to.
+    level : float
+        Coverage probability.
+
+    Returns
+    -------
+    DataFrame
+        Columns ``parameter``, ``index``, ``estimate``, ``se``, ``lower``, ``upper``.
+        Coefficient rows are named ``beta.0`` (intercept), ``beta.1``... in the order of
+        ``model.covariate_names``. A parameter on the boundary (e.g. a zero mass of 0) gets
+        an interval that the working scale makes very wide or degenerate.
+    """
+    params = fit.parameters_of(model)
+    observations = Observations.from_frame(data, model.covariate_names)
+    likelihood = fit.WorkingLikelihood(params, fit.fit_data(observations, model.covariate_scaling))
+    theta = likelihood.pack(params)
+    covariance = np.linalg.pinv(-working_hessian(likelihood, theta))
+    names, values = natural_parameters(params)
+    jacobian = np.empty((values.size, theta.size))
+    for i in range(theta.size):
+        shift = np.zeros(theta.size)
+        shift[i] = 1e-6
+        up = natural_parameters(likelihood.unpack(theta + shift))[1]
+        down = natural_parameters(likelihood.unpack(theta - shift))[1]
+        jacobian[:, i] = (up - down) / 2e-6
+    se = np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", jacobian, covariance, jacobian), 0.0))
+    z = stats.norm.ppf(0.5 + level / 2)
+    return pd.DataFrame(
+        {
+            "parameter": [n for n, _ in names],
+            "index": [i for _, i in names],
+            "estimate": values,
+            "se": se,
+            "lower": values - z * se,
+            "upper": values + z * se,
+        }
+    )
+
+
+def model_selection_table(models: dict[str, MovementHMM]) -> pd.DataFrame:
+    """Log-likelihood, number of parameters, AIC and BIC of fitted models, best AIC first."""
+    rows = []
+    for name, model in models.items():
+        n_parameters = round((model.aic + 2 * model.log_likelihood) / 2)
+        rows.append(
+            {
+                "model": name,
+                "log_likelihood": model.log_likelihood,
+                "n_parameters": n_parameters,
+                "n_obs": model.n_obs,
+                "aic": model.aic,
+                "bic": model.bic,
+            }
+        )
+    return pd.DataFrame(rows).sort_values("aic", ignore_index=True)

@@ -1,0 +1,1075 @@
+"""State-dependent emission distributions of movement HMMs: step lengths and turning angles.
+
+Each family is a small frozen dataclass holding one array of shape ``(K,)`` per parameter
+(one entry per behavioural state) and implementing the ``StateDistribution`` protocol of
+``docs/interfaces.md``:
+
+* ``logpdf(x) -> (T, K)`` closed-form log-densities on arrays (NaN ``x`` -> a row of 0.0:
+  a missing observation contributes a density of 1);
+* ``fit_weighted(x, w) -> new instance`` weighted maximum likelihood per state (the EM
+  M-step; ``w[t, k]`` is the posterior probability of state ``k`` at row ``t``);
+* ``sample(rng, states) -> (n,)``; ``expected_value() -> (K,)`` (mean step, or mean direction);
+* ``to_dict()`` / ``from_dict()`` for the JSON model file;
+* ``to_working()`` / ``from_working()`` an unconstrained parameter vector (moveHMM's
+  working scale) for direct likelihood optimisation and Wald intervals.
+
+Step families (``Gamma`` in moveHMM's mean/sd parametrisation, ``Weibull``, ``LogNormal``,
+``Exponential``) share one zero-inflation mechanism: an optional ``zero_mass`` (K,) puts a
+point mass at a step of exactly 0 and scales the density for ``x > 0`` by ``1 - zero_mass``.
+Angle families (``VonMises``, ``WrappedCauchy``) have a mean that is either estimated or
+fixed at 0 (``estimate_mean``).
+
+Not for: hidden-state inference (``hmmtrack.hmm.inference``), transition matrices or EM
+bookkeeping (``hmmtrack.hmm.fit``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any, ClassVar, Protocol, TypeVar
+
+import numpy as np
+from scipy import special
+
+_LOG_2PI = float(np.log(2.0 * np.pi))
+_MIN_STATE_WEIGHT = 1e-10  # a state with less total weight keeps its current parameters
+_TINY = 1e-12  # floor for quantities whose log is taken (degenerate fits, working scale)
+_NEWTON_TOL = 1e-12
+_NEWTON_MAX_ITER = 100
+_MAX_CONCENTRATION = 1e8
+_MAX_WRAPPED_CAUCHY_RHO = 1.0 - 1e-9
+
+D = TypeVar("D", bound="_Family")
+
+
+class StateDistribution(Protocol):
+    """The protocol every emission family implements (see module docstring)."""
+
+    name: ClassVar[str]
+
+    @property
+    def n_states(self) -> int: ...
+
+    def logpdf(self, x: np.ndarray) -> np.ndarray: ...
+
+    def fit_weighted(self, x: np.ndarray, w: np.ndarray) -> StateDistribution: ...
+
+    def sample(self, rng: np.random.Generator, states: np.ndarray) -> np.ndarray: ...
+
+    def expected_value(self) -> np.ndarray: ...
+
+    def to_dict(self) -> dict: ...
+
+    def to_working(self) -> np.ndarray: ...
+
+
+# ----------------------------------------------------------------------------------------
+# Small helpers
+# ----------------------------------------------------------------------------------------
+
+
+def wrap_angle(x: np.ndarray) -> np.ndarray:
+    """Wrap angles (rad) to the interval (-pi, pi]."""
+    return np.pi - np.mod(np.pi - np.asarray(x, dtype=float), 2.0 * np.pi)
+
+
+def _rows(mask: np.ndarray, limit: int = 10) -> str:
+    idx = np.flatnonzero(mask)
+    shown = ", ".join(str(i) for i in idx[:limit])
+    return f"[{shown}{', ...' if idx.size > limit else ''}] ({idx.size} rows)"
+
+
+def _logit(p: np.ndarray) -> np.ndarray:
+    p = np.clip(p, _TINY, 1.0 - _TINY)
+    return np.log(p) - np.log1p(-p)
+
+
+def _expit(a: np.ndarray) -> np.ndarray:
+    return special.expit(a)
+
+
+def _check_observations(x: np.ndarray, who: str) -> np.ndarray:
+    x = np.asarray(x, dtype=float)
+    if x.ndim != 1:
+        raise ValueError(f"{who}: observations must have shape (T,), got {x.shape}")
+    if np.isinf(x).any():
+        raise ValueError(f"{who}: infinite observations at rows {_rows(np.isinf(x))}")
+    return x
+
+
+def _check_weights(w: np.ndarray, n_obs: int, n_states: int, who: str) -> np.ndarray:
+    w = np.asarray(w, dtype=float)
+    if w.shape != (n_obs, n_states):
+        raise ValueError(f"{who}: weights must have shape ({n_obs}, {n_states}), got {w.shape}")
+    bad = ~np.isfinite(w) | (w < 0)
+    if bad.any():
+        raise ValueError(
+            f"{who}: weights must be finite and >= 0; bad weights at rows {_rows(bad.any(1))}"
+        )
+    return w
+
+
+def _weighted_means(values: np.ndarray, w: np.ndarray, total: np.ndarray) -> np.ndarray:
+    """Per-state weighted means of ``values`` (T,) with weights ``w`` (T, K); total (K,)."""
+    return (values @ w) / np.maximum(total, np.finfo(float).tiny)
+
+
+# ----------------------------------------------------------------------------------------
+# Common base: parameter storage, validation, dict and working-scale round trips
+# ----------------------------------------------------------------------------------------
+
+
+class _Family:
+    """Shared machinery of all families; subclasses are frozen dataclasses."""
+
+    name: ClassVar[str]
+    _parameters: ClassVar[tuple[str, ...]]  # per-state array fields, in working order
+
+    def __post_init__(self) -> None:
+        n = None
+        for field in self._array_fields():
+            value = getattr(self, field)
+            if value is None:
+                continue
+            arr = np.atleast_1d(np.asarray(value, dtype=float)).copy()
+            if arr.ndim != 1 or arr.size == 0:
+                raise ValueError(f"{type(self).__name__}.{field} must have shape (K,), K >= 1")
+            if n is not None and arr.size != n:
+                raise ValueError(
+                    f"{type(self).__name__}: all parameters need the same number of states; "
+                    f"{field} has {arr.size}, expected {n}"
+                )
+            n = arr.size
+            if not np.isfinite(arr).all():
+                raise ValueError(f"{type(self).__name__}.{field} must be finite, got {arr}")
+            arr.setflags(write=False)
+            object.__setattr__(self, field, arr)
+        self._validate()
+
+    def _array_fields(self) -> tuple[str, ...]:
+        return self._parameters
+
+    def _validate(self) -> None:
+        raise NotImplementedError
+
+    def _require(self, field: str, ok: np.ndarray, expected: str) -> None:
+        if not np.all(ok):
+            value = getattr(self, field)
+            raise ValueError(f"{type(self).__name__}.{field} must be {expected}, got {value}")
+
+    @property
+    def n_states(self) -> int:
+        """Number of states K."""
+        return int(getattr(self, self._parameters[0]).size)
+
+    def __eq__(self, other: object) -> bool:
+        if type(other) is not type(self):
+            return NotImplemented
+        return self.to_dict() == other.to_dict()
+
+    __hash__ = None  # type: ignore[assignment]
+
+    def _replace(self: D, **changes: Any) -> D:
+        return dataclasses.replace(self, **changes)
+
+    def _fit_states(self, fit, w: np.ndarray, *data: np.ndarray) -> dict[str, np.ndarray]:
+        """Run ``fit(*data, w)`` on the states with weight; the others keep their values.
+
+        ``fit`` returns ``{parameter: (K_usable,) array}``; a state is usable when its total
+        weight exceeds 1e-10.
+        """
+        usable = w.sum(axis=0) > _MIN_STATE_WEIGHT
+        if not usable.any():
+            return {}
+        fitted = fit(*data, w if usable.all() else w[:, usable])
+        out = {}
+        for field, value in fitted.items():
+            full = np.array(getattr(self, field), dtype=float)
+            full[usable] = value
+            out[field] = full
+        return out
+
+    def to_dict(self) -> dict:
+        """Return a JSON-ready dict ``{"family": name, <parameter>: [K floats], ...}``."""
+        out: dict[str, Any] = {"family": self.name}
+        for field in dataclasses.fields(self):  # type: ignore[arg-type]
+            value = getattr(self, field.name)
+            out[field.name] = value.tolist() if isinstance(value, np.ndarray) else value
+        return out
+
+    @classmethod
+    def from_dict(cls: type[D], d: dict) -> D:
+        """Rebuild from :meth:`to_dict` output; raises ``ValueError`` on malformed input."""
+        if not isinstance(d, dict):
+            raise ValueError(f"{cls.__name__}.from_dict expects a dict, got {type(d).__name__}")
+        if d.get("family") != cls.name:
+            raise ValueError(f"{cls.__name__}.from_dict: family must be {cls.name!r}, got {d}")
+        names = {f.name for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
+        required = {f.name for f in dataclasses.fields(cls) if f.default is dataclasses.MISSING}  # type: ignore[arg-type]
+        keys = set(d) - {"family"}
+        if not required <= keys or not keys <= names:
+            raise ValueError(
+                f"{cls.__name__}.from_dict: expected keys {sorted(required)} "
+                f"(optional {sorted(names - required)}), got {sorted(keys)}"
+            )
+        return cls(**{k: d[k] for k in keys})
+
+    def with_working(self: D, theta: np.ndarray) -> D:
+        """Return a distribution of the same structure from working parameters ``theta``."""
+        return type(self).from_working(theta, self.n_states, **self._structure())
+
+    def _structure(self) -> dict[str, Any]:
+        raise NotImplementedError
+
+    @classmethod
+    def from_working(cls: type[D], theta: np.ndarray, n_states: int, **structure: Any) -> D:
+        raise NotImplementedError
+
+
+def _split_working(theta: np.ndarray, n_states: int, n_blocks: int, who: str) -> np.ndarray:
+    theta = np.asarray(theta, dtype=float)
+    if theta.shape != (n_blocks * n_states,):
+        raise ValueError(
+            f"{who}.from_working: expected {n_blocks * n_states} working parameters "
+            f"({n_blocks} per state x {n_states} states), got shape {theta.shape}"
+        )
+    if not np.isfinite(theta).all():
+        raise ValueError(f"{who}.from_working: working parameters must be finite, got {theta}")
+    return theta.reshape(n_blocks, n_states)
+
+
+# ----------------------------------------------------------------------------------------
+# Step lengths: positive part per family + one shared zero-inflation mechanism
+# ----------------------------------------------------------------------------------------
+
+
+class _StepFamily(_Family):
+    """Base of step-length families (x >= 0, units of the data, e.g. m or km).
+
+    Subclasses implement the density of strictly positive steps (``_logpdf_positive``),
+    its weighted MLE (``_fit_positive``), sampling and mean; this class adds missing
+    values and the optional point mass ``zero_mass`` at exactly 0.
+    """
+
+    zero_mass: np.ndarray | None
+
+    def _array_fields(self) -> tuple[str, ...]:
+        return (*self._parameters, "zero_mass")
+
+    def _validate(self) -> None:
+        self._validate_positive_part()
+        if self.zero_mass is not None:
+            self._require("zero_mass", (self.zero_mass >= 0) & (self.zero_mass < 1), "in [0, 1)")
+
+    def _validate_positive_part(self) -> None:
+        for field in self._parameters:
+            self._require(field, getattr(self, field) > 0, "> 0")
+
+    # --- to be provided by each family ---------------------------------------------------
+    def _logpdf_positive(self, x: np.ndarray, log_x: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    def _fit_positive(self, x: np.ndarray, log_x: np.ndarray, w: np.ndarray) -> dict:
+        raise NotImplementedError
+
+    def _sample_positive(self, rng: np.random.Generator, states: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    def _expected_positive(self) -> np.ndarray:
+        raise NotImplementedError
+
+    @classmethod
+    def from_moments(cls: type[D], mean: Any, sd: Any, zero_mass: Any = None) -> D:
+        """Family member whose positive part has the given mean and sd (K,) (same units)."""
+        raise NotImplementedError
+
+    # --- shared -------------------------------------------------------------------------
+    @property
+    def zero_inflated(self) -> bool:
+        """True when the distribution has a point mass at step 0."""
+        return self.zero_mass is not None
+
+    def _classify(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        who = type(self).__name__
+        x = _check_observations(x, who)
+        missing = np.isnan(x)
+        negative = x < 0
+        if negative.any():
+            raise ValueError(
+                f"{who}: step lengths must be >= 0; negative at rows {_rows(negative)}"
+            )
+        zero = x == 0
+        if zero.any() and self.zero_mass is None:
+            raise ValueError(
+                f"{who}: steps of exactly 0 at rows {_rows(zero)} need zero-inflation; "
+                "construct the distribution with zero_mass=... (K,) to switch it on"
+            )
+        return x, missing, zero
+
+    def logpdf(self, x: np.ndarray) -> np.ndarray:
+        """Log-density of steps ``x`` (T,) in every state -> (T, K); NaN -> 0.0 row.
+
+        With ``zero_mass`` z: ``log z`` at x == 0 and ``log(1 - z) + log f(x)`` for x > 0.
+        """
+        x, missing, zero = self._classify(x)
+        special_rows = missing | zero
+        safe = np.where(special_rows, 1.0, x) if special_rows.any() else x
+        out = self._logpdf_positive(safe, np.log(safe))
+        if self.zero_mass is not None:
+            out += np.log1p(-self.zero_mass)
+            with np.errstate(divide="ignore"):
+                out[zero] = np.log(self.zero_mass)
+        out[missing] = 0.0
+        return out
+
+    def fit_weighted(self: D, x: np.ndarray, w: np.ndarray) -> D:
+        """Weighted MLE per state: ``w[t, k]`` is the weight of row t for state k.
+
+        NaN rows are ignored. ``zero_mass`` (if present) becomes the weighted share of
+        exact zeros. A state with (almost) no weight on positive steps keeps its current
+        parameters for the positive part.
+        """
+        x, missing, zero = self._classify(x)
+        w = _check_weights(w, x.size, self.n_states, type(self).__name__)
+        positive = ~(missing | zero)
+        changes: dict[str, Any] = {}
+        if self.zero_mass is not None:
+            total = w[~missing].sum(axis=0)
+            zeros = w[zero].sum(axis=0)
+            share = zeros / np.maximum(total, np.finfo(float).tiny)
+            changes["zero_mass"] = np.where(total > _MIN_STATE_WEIGHT, share, self.zero_mass)
+        xp, wp = (x, w) if positive.all() else (x[positive], w[positive])
+        changes.update(self._fit_states(self._fit_positive, wp, xp, np.log(xp)))
+        return self._replace(**changes)
+
+    def sample(self, rng: np.random.Generator, states: np.ndarray) -> np.ndarray:
+        """Draw one step per entry of ``states`` (n,) ints in [0, K) -> (n,)."""
+        states = _check_states(states, self.n_states, type(self).__name__)
+        out = self._sample_positive(rng, states)
+        if self.zero_mass is not None:
+            out[rng.random(states.size) < self.zero_mass[states]] = 0.0
+        return out
+
+    def expected_value(self) -> np.ndarray:
+        """Expected step per state (K,), including the zero mass."""
+        m = self._expected_positive()
+        return m if self.zero_mass is None else (1.0 - self.zero_mass) * m
+
+    def _structure(self) -> dict[str, Any]:
+        return {"zero_inflated": self.zero_mass is not None}
+
+    def to_working(self) -> np.ndarray:
+        """Working vector: log of each positive parameter, then logit(zero_mass) if present.
+
+        Laid out parameter-major: ``[p1_state1..p1_stateK, p2_state1.., (logit z)..]``.
+        ``zero_mass`` is clipped to [1e-12, 1 - 1e-12] before the logit.
+        """
+        blocks = [self._positive_to_working()]
+        if self.zero_mass is not None:
+            blocks.append(_logit(self.zero_mass))
+        return np.concatenate(blocks)
+
+    def _positive_to_working(self) -> np.ndarray:
+        return np.log(np.concatenate([getattr(self, f) for f in self._parameters]))
+
+    @classmethod
+    def from_working(
+        cls: type[D], theta: np.ndarray, n_states: int, zero_inflated: bool = False
+    ) -> D:
+        """Inverse of :meth:`to_working` for ``n_states`` states."""
+        n_blocks = len(cls._parameters) + int(zero_inflated)  # type: ignore[attr-defined]
+        blocks = _split_working(theta, n_states, n_blocks, cls.__name__)
+        params = cls._positive_from_working(blocks[: len(cls._parameters)])  # type: ignore[attr-defined]
+        zero_mass = _expit(blocks[-1]) if zero_inflated else None
+        return cls(**params, zero_mass=zero_mass)
+
+    @classmethod
+    def _positive_from_working(cls, blocks: np.ndarray) -> dict:
+        return {f: np.exp(b) for f, b in zip(cls._parameters, blocks, strict=True)}  # type: ignore[attr-defined]
+
+
+def _check_states(states: np.ndarray, n_states: int, who: str) -> np.ndarray:
+    states = np.asarray(states)
+    if states.ndim != 1 or not np.issubdtype(states.dtype, np.integer):
+        raise ValueError(f"{who}.sample: states must be a (n,) integer array, got {states.dtype}")
+    bad = (states < 0) | (states >= n_states)
+    if bad.any():
+        raise ValueError(f"{who}.sample: states must be in [0, {n_states}); bad at {_rows(bad)}")
+    return states
+
+
+def _gamma_shape_mle(s: np.ndarray) -> np.ndarray:
+    """Solve ``log k - digamma(k) = s`` for the gamma shape k, (K,), by Newton from Minka's start.
+
+    ``s = log(weighted mean of x) - weighted mean of log x`` (> 0 by Jensen; floored at 1e-12
+    for degenerate data, which gives a very large but finite shape).
+    """
+    s = np.maximum(s, _TINY)
+    k = (3.0 - s + np.sqrt((s - 3.0) ** 2 + 24.0 * s)) / (12.0 * s)
+    for _ in range(_NEWTON_MAX_ITER):
+        f = np.log(k) - special.digamma(k) - s
+        fprime = 1.0 / k - special.polygamma(1, k)
+        k_new = k - f / fprime
+        k_new = np.where(k_new > 0, k_new, k / 2.0)
+        done = np.all(np.abs(k_new - k) <= _NEWTON_TOL * k_new)
+        k = k_new
+        if done:
+            break
+    return k
+
+
+@dataclass(frozen=True, eq=False)
+class Gamma(_StepFamily):
+    """Gamma step lengths in moveHMM's mean/sd parametrisation.
+
+    Parameters
+    ----------
+    mean, sd : (K,) float > 0
+        Mean and standard deviation of the positive part, in the units of the steps.
+        Shape ``(mean / sd)**2``, scale ``sd**2 / mean``.
+    zero_mass : (K,) float in [0, 1) or None
+        Probability of a step of exactly 0 (zero-inflation); None switches it off.
+    """
+
+    mean: np.ndarray
+    sd: np.ndarray
+    zero_mass: np.ndarray | None = None
+
+    name: ClassVar[str] = "gamma"
+    _parameters: ClassVar[tuple[str, ...]] = ("mean", "sd")
+
+    @property
+    def shape(self) -> np.ndarray:
+        """Gamma shape k = (mean / sd)**2, (K,)."""
+        return (self.mean / self.sd) ** 2
+
+    @property
+    def scale(self) -> np.ndarray:
+        """Gamma scale theta = sd**2 / mean, (K,), units of the steps."""
+        return self.sd**2 / self.mean
+
+    @classmethod
+    def from_moments(cls, mean: Any, sd: Any, zero_mass: Any = None) -> Gamma:
+        """Gamma with the given mean and sd (K,) of its positive part."""
+        return cls(mean=mean, sd=sd, zero_mass=zero_mass)
+
+    def _logpdf_positive(self, x: np.ndarray, log_x: np.ndarray) -> np.ndarray:
+        k = self.shape
+        rate = self.mean / self.sd**2
+        out = np.multiply.outer(log_x, k - 1.0)
+        out -= np.multiply.outer(x, rate)
+        out += k * np.log(rate) - special.gammaln(k)
+        return out
+
+    def _fit_positive(self, x: np.ndarray, log_x: np.ndarray, w: np.ndarray) -> dict:
+        total = w.sum(axis=0)
+        mean = _weighted_means(x, w, total)
+        mean_log = _weighted_means(log_x, w, total)
+        k = _gamma_shape_mle(np.log(mean) - mean_log)
+        return {"mean": mean, "sd": mean / np.sqrt(k)}
+
+    def _sample_positive(self, rng: np.random.Generator, states: np.ndarray) -> np.ndarray:
+        return rng.gamma(self.shape[states], self.scale[states])
+
+    def _expected_positive(self) -> np.ndarray:
+        return self.mean.copy()
+
+
+@dataclass(frozen=True, eq=False)
+class Weibull(_StepFamily):
+    """Weibull step lengths, density ``(k/l) (x/l)**(k-1) exp(-(x/l)**k)``.
+
+    Parameters
+    ----------
+    shape : (K,) float > 0
+        Shape k (dimensionless).
+    scale : (K,) float > 0
+        Scale l, in the units of the steps.
+    zero_mass : (K,) float in [0, 1) or None
+        Probability of a step of exactly 0; None switches zero-inflation off.
+    """
+
+    shape: np.ndarray
+    scale: np.ndarray
+    zero_mass: np.ndarray | None = None
+
+    name: ClassVar[str] = "weibull"
+    _parameters: ClassVar[tuple[str, ...]] = ("shape", "scale")
+
+    @classmethod
+    def from_moments(cls, mean: Any, sd: Any, zero_mass: Any = None) -> Weibull:
+        """Weibull with approximately the given mean and sd (K,) (Justus' shape formula).
+
+        Shape ``k = (sd / mean) ** -1.086``, then scale ``mean / Gamma(1 + 1/k)`` so the mean
+        is exact; meant for starting values.
+        """
+        mean, sd = np.asarray(mean, dtype=float), np.asarray(sd, dtype=float)
+        shape = (sd / mean) ** -1.086
+        return cls(shape=shape, scale=mean / special.gamma(1.0 + 1.0 / shape), zero_mass=zero_mass)
+
+    def _logpdf_positive(self, x: np.ndarray, log_x: np.ndarray) -> np.ndarray:
+        k = self.shape
+        z = np.multiply.outer(log_x, k)
+        z -= k * np.log(self.scale)  # z = k (log x - log l)
+        out = z - np.exp(z)
+        out -= log_x[:, None]
+        out += np.log(k)
+        return out
+
+    def _fit_positive(self, x: np.ndarray, log_x: np.ndarray, w: np.ndarray) -> dict:
+        total = w.sum(axis=0)
+        shift = log_x.max()
+        y = log_x - shift  # <= 0: scale invariance keeps exp(k y) from overflowing
+        mean_y = _weighted_means(y, w, total)
+        var_y = np.maximum(_weighted_means(y**2, w, total) - mean_y**2, _TINY)
+        k = np.pi / np.sqrt(6.0 * var_y)  # log-Weibull variance pi^2 / (6 k^2)
+        for _ in range(_NEWTON_MAX_ITER):
+            e = np.exp(np.multiply.outer(y, k)) * w
+            b = e.sum(axis=0)
+            a = y @ e / b
+            c = (y**2) @ e / b
+            g = 1.0 / k + mean_y - a
+            gprime = -1.0 / k**2 - (c - a**2)
+            k_new = k - g / gprime
+            k_new = np.where(k_new > 0, k_new, k / 2.0)
+            done = np.all(np.abs(k_new - k) <= _NEWTON_TOL * k_new)
+            k = k_new
+            if done:
+                break
+        b = (np.exp(np.multiply.outer(y, k)) * w).sum(axis=0)
+        log_scale = shift + (np.log(b) - np.log(total)) / k
+        return {"shape": k, "scale": np.exp(log_scale)}
+
+    def _sample_positive(self, rng: np.random.Generator, states: np.ndarray) -> np.ndarray:
+        return self.scale[states] * rng.weibull(self.shape[states])
+
+    def _expected_positive(self) -> np.ndarray:
+        return self.scale * special.gamma(1.0 + 1.0 / self.shape)
+
+
+@dataclass(frozen=True, eq=False)
+class LogNormal(_StepFamily):
+    """Log-normal step lengths: ``log x ~ Normal(location, scale**2)``.
+
+    Parameters
+    ----------
+    location : (K,) float
+        Mean of log step (log of the units of the steps).
+    scale : (K,) float > 0
+        Standard deviation of log step.
+    zero_mass : (K,) float in [0, 1) or None
+        Probability of a step of exactly 0; None switches zero-inflation off.
+    """
+
+    location: np.ndarray
+    scale: np.ndarray
+    zero_mass: np.ndarray | None = None
+
+    name: ClassVar[str] = "lognormal"
+    _parameters: ClassVar[tuple[str, ...]] = ("location", "scale")
+
+    def _validate_positive_part(self) -> None:
+        self._require("scale", self.scale > 0, "> 0")
+
+    def _positive_to_working(self) -> np.ndarray:
+        return np.concatenate([self.location, np.log(self.scale)])
+
+    @classmethod
+    def _positive_from_working(cls, blocks: np.ndarray) -> dict:
+        return {"location": blocks[0].copy(), "scale": np.exp(blocks[1])}
+
+    @classmethod
+    def from_moments(cls, mean: Any, sd: Any, zero_mass: Any = None) -> LogNormal:
+        """Log-normal with exactly the given mean and sd (K,) of the steps."""
+        mean, sd = np.asarray(mean, dtype=float), np.asarray(sd, dtype=float)
+        var_log = np.log1p((sd / mean) ** 2)
+        return cls(location=np.log(mean) - var_log / 2, scale=np.sqrt(var_log), zero_mass=zero_mass)
+
+    def _logpdf_positive(self, x: np.ndarray, log_x: np.ndarray) -> np.ndarray:
+        z = np.subtract.outer(log_x, self.location)
+        z /= self.scale
+        out = -0.5 * z**2
+        out -= log_x[:, None]
+        out -= np.log(self.scale) + 0.5 * _LOG_2PI
+        return out
+
+    def _fit_positive(self, x: np.ndarray, log_x: np.ndarray, w: np.ndarray) -> dict:
+        total = w.sum(axis=0)
+        location = _weighted_means(log_x, w, total)
+        var = _weighted_means(log_x**2, w, total) - location**2
+        return {"location": location, "scale": np.sqrt(np.maximum(var, _TINY))}
+
+    def _sample_positive(self, rng: np.random.Generator, states: np.ndarray) -> np.ndarray:
+        return rng.lognormal(self.location[states], self.scale[states])
+
+    def _expected_positive(self) -> np.ndarray:
+        return np.exp(self.location + self.scale**2 / 2)
+
+
+@dataclass(frozen=True, eq=False)
+class Exponential(_StepFamily):
+    """Exponential step lengths, density ``rate * exp(-rate * x)``.
+
+    Parameters
+    ----------
+    rate : (K,) float > 0
+        Rate, in 1 / (units of the steps).
+    zero_mass : (K,) float in [0, 1) or None
+        Probability of a step of exactly 0; None switches zero-inflation off.
+    """
+
+    rate: np.ndarray
+    zero_mass: np.ndarray | None = None
+
+    name: ClassVar[str] = "exponential"
+    _parameters: ClassVar[tuple[str, ...]] = ("rate",)
+
+    @classmethod
+    def from_moments(cls, mean: Any, sd: Any = None, zero_mass: Any = None) -> Exponential:
+        """Exponential with the given mean (K,); ``sd`` is ignored (it equals the mean)."""
+        return cls(rate=1.0 / np.asarray(mean, dtype=float), zero_mass=zero_mass)
+
+    def _logpdf_positive(self, x: np.ndarray, log_x: np.ndarray) -> np.ndarray:
+        out = np.multiply.outer(x, -self.rate)
+        out += np.log(self.rate)
+        return out
+
+    def _fit_positive(self, x: np.ndarray, log_x: np.ndarray, w: np.ndarray) -> dict:
+        return {"rate": 1.0 / _weighted_means(x, w, w.sum(axis=0))}
+
+    def _sample_positive(self, rng: np.random.Generator, states: np.ndarray) -> np.ndarray:
+        return rng.exponential(1.0 / self.rate[states])
+
+    def _expected_positive(self) -> np.ndarray:
+        return 1.0 / self.rate
+
+
+# ----------------------------------------------------------------------------------------
+# Turning angles
+# ----------------------------------------------------------------------------------------
+
+
+class _AngleFamily(_Family):
+    """Base of circular families on (-pi, pi] with a mean direction and a concentration.
+
+    Both families' densities depend on ``cos(x - mean)`` only. The mean is estimated, or
+    fixed at 0 when ``estimate_mean`` is False. Working scale (moveHMM's): with the mean
+    estimated ``(r cos mean, r sin mean)``, otherwise ``log r``, where ``r`` is a family
+    specific non-negative transform of the concentration (``_radial``).
+    """
+
+    mean: np.ndarray
+    concentration: np.ndarray
+    estimate_mean: bool
+
+    _parameters: ClassVar[tuple[str, ...]] = ("mean", "concentration")
+
+    def _validate(self) -> None:
+        object.__setattr__(self, "estimate_mean", bool(self.estimate_mean))
+        if not self.estimate_mean:
+            self._require("mean", self.mean == 0, "all 0 when estimate_mean is False")
+        mean = wrap_angle(self.mean)
+        mean.setflags(write=False)
+        object.__setattr__(self, "mean", mean)
+        self._validate_concentration()
+
+    # --- to be provided by each family ---------------------------------------------------
+    def _validate_concentration(self) -> None:
+        raise NotImplementedError
+
+    def _logpdf_cos(self, cos_dev: np.ndarray) -> np.ndarray:
+        """Log-density given cos(x - mean), (T, K)."""
+        raise NotImplementedError
+
+    def _fit_angles(self, cos_x: np.ndarray, sin_x: np.ndarray, w: np.ndarray) -> dict:
+        """Weighted MLE ``{"mean": (K,), "concentration": (K,)}`` (mean 0 if fixed)."""
+        raise NotImplementedError
+
+    def _sample_deviation(self, rng: np.random.Generator, states: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    @classmethod
+    def _radial(cls, concentration: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    @classmethod
+    def _radial_inverse(cls, r: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    @classmethod
+    def from_mean_resultant(
+        cls: type[D], mean: Any, mean_resultant_length: Any, estimate_mean: bool = True
+    ) -> D:
+        """Family member whose mean resultant length E[cos(x - mean)] is given (K,)."""
+        raise NotImplementedError
+
+    # --- shared -------------------------------------------------------------------------
+    def _trig(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        x = _check_observations(x, type(self).__name__)
+        missing = np.isnan(x)
+        safe = np.where(missing, 0.0, x) if missing.any() else x
+        return np.cos(safe), np.sin(safe), missing
+
+    def logpdf(self, x: np.ndarray) -> np.ndarray:
+        """Log-density of turning angles ``x`` (T,) rad in every state -> (T, K); NaN -> 0.0."""
+        cos_x, sin_x, missing = self._trig(x)
+        cos_dev = np.multiply.outer(cos_x, np.cos(self.mean))
+        if self.estimate_mean:
+            cos_dev += np.multiply.outer(sin_x, np.sin(self.mean))
+        out = self._logpdf_cos(cos_dev)
+        out[missing] = 0.0
+        return out
+
+    def fit_weighted(self: D, x: np.ndarray, w: np.ndarray) -> D:
+        """Weighted MLE per state (``w`` (T, K)); NaN rows ignored; mean kept at 0 if fixed.
+
+        A state with (almost) no weight keeps its current parameters.
+        """
+        cos_x, sin_x, missing = self._trig(x)
+        w = _check_weights(w, cos_x.size, self.n_states, type(self).__name__)
+        if missing.any():
+            keep = ~missing
+            cos_x, sin_x, w = cos_x[keep], sin_x[keep], w[keep]
+        return self._replace(**self._fit_states(self._fit_angles, w, cos_x, sin_x))
+
+    def sample(self, rng: np.random.Generator, states: np.ndarray) -> np.ndarray:
+        """Draw one angle (rad, in (-pi, pi]) per entry of ``states`` (n,) -> (n,)."""
+        states = _check_states(states, self.n_states, type(self).__name__)
+        return wrap_angle(self.mean[states] + self._sample_deviation(rng, states))
+
+    def expected_value(self) -> np.ndarray:
+        """Mean direction per state (K,), rad."""
+        return self.mean.copy()
+
+    def _trigonometric_moments(self, cos_x, sin_x, w) -> tuple[np.ndarray, np.ndarray]:
+        """Weighted mean direction (0 if fixed) and E[cos(x - direction)] per state, (K,)."""
+        total = w.sum(axis=0)
+        c, s = _weighted_means(cos_x, w, total), _weighted_means(sin_x, w, total)
+        if self.estimate_mean:
+            return np.arctan2(s, c), np.hypot(c, s)
+        return np.zeros_like(c), c
+
+    def _structure(self) -> dict[str, Any]:
+        return {"estimate_mean": self.estimate_mean}
+
+    def to_working(self) -> np.ndarray:
+        """Working vector: ``[r cos mean (K), r sin mean (K)]`` or ``log r`` (K) if fixed."""
+        r = self._radial(self.concentration)
+        if self.estimate_mean:
+            return np.concatenate([r * np.cos(self.mean), r * np.sin(self.mean)])
+        return np.log(np.maximum(r, _TINY))
+
+    @classmethod
+    def from_working(
+        cls: type[D], theta: np.ndarray, n_states: int, estimate_mean: bool = True
+    ) -> D:
+        """Inverse of :meth:`to_working` for ``n_states`` states."""
+        blocks = _split_working(theta, n_states, 2 if estimate_mean else 1, cls.__name__)
+        if estimate_mean:
+            mean = np.arctan2(blocks[1], blocks[0])
+            r = np.hypot(blocks[0], blocks[1])
+        else:
+            mean, r = np.zeros(n_states), np.exp(blocks[0])
+        return cls(mean, cls._radial_inverse(r), estimate_mean)  # type: ignore[attr-defined]
+
+
+def _a1(kappa: np.ndarray) -> np.ndarray:
+    """Mean resultant length of a von Mises: I1(kappa) / I0(kappa)."""
+    return special.i1e(kappa) / special.i0e(kappa)
+
+
+def _a1_inverse(r: np.ndarray) -> np.ndarray:
+    """Von Mises concentration with mean resultant length ``r`` (K,) in [0, 1).
+
+    Best & Fisher's (1981) approximation refined by Newton on ``A1(kappa) = r`` with
+    ``A1'(kappa) = 1 - A1/kappa - A1**2``; ``r <= 0`` gives 0, the result is capped at 1e8.
+    """
+    r = np.clip(np.asarray(r, dtype=float), 0.0, 1.0 - 1e-15)
+    with np.errstate(divide="ignore"):
+        kappa = np.where(
+            r < 0.53,
+            2 * r + r**3 + 5 * r**5 / 6,
+            np.where(r < 0.85, -0.4 + 1.39 * r + 0.43 / (1 - r), 1 / (r**3 - 4 * r**2 + 3 * r)),
+        )
+    kappa = np.clip(kappa, 0.0, _MAX_CONCENTRATION)
+    for _ in range(_NEWTON_MAX_ITER):
+        a = _a1(kappa)
+        safe = np.maximum(kappa, _TINY)
+        slope = np.where(kappa > _TINY, 1.0 - a / safe - a**2, 0.5)
+        k_new = np.clip(kappa - (a - r) / slope, 0.0, _MAX_CONCENTRATION)
+        k_new = np.where(k_new > 0, k_new, kappa / 2.0)
+        done = np.all(np.abs(k_new - kappa) <= _NEWTON_TOL * np.maximum(k_new, 1.0))
+        kappa = k_new
+        if done:
+            break
+    return np.where(r > 0, kappa, 0.0)
+
+
+@dataclass(frozen=True, eq=False)
+class VonMises(_AngleFamily):
+    """Von Mises turning angles, density ``exp(kappa cos(x - mean)) / (2 pi I0(kappa))``.
+
+    Parameters
+    ----------
+    mean : (K,) float
+        Mean direction (rad), wrapped to (-pi, pi]; all 0 when ``estimate_mean`` is False.
+    concentration : (K,) float >= 0
+        Concentration kappa (dimensionless); 0 is the uniform distribution.
+    estimate_mean : bool
+        Whether ``fit_weighted`` estimates the mean (True) or keeps it at 0.
+    """
+
+    mean: np.ndarray
+    concentration: np.ndarray
+    estimate_mean: bool = True
+
+    name: ClassVar[str] = "vonmises"
+
+    def _validate_concentration(self) -> None:
+        self._require("concentration", self.concentration >= 0, ">= 0")
+
+    @classmethod
+    def from_mean_resultant(
+        cls, mean: Any, mean_resultant_length: Any, estimate_mean: bool = True
+    ) -> VonMises:
+        """Von Mises whose mean resultant length A1(kappa) is given (K,)."""
+        return cls(mean, _a1_inverse(mean_resultant_length), estimate_mean)
+
+    def _logpdf_cos(self, cos_dev: np.ndarray) -> np.ndarray:
+        kappa = self.concentration
+        cos_dev *= kappa
+        cos_dev -= _LOG_2PI + np.log(special.i0e(kappa)) + kappa
+        return cos_dev
+
+    def _fit_angles(self, cos_x, sin_x, w):
+        mean, resultant = self._trigonometric_moments(cos_x, sin_x, w)
+        return {"mean": mean, "concentration": _a1_inverse(resultant)}
+
+    def _sample_deviation(self, rng: np.random.Generator, states: np.ndarray) -> np.ndarray:
+        return rng.vonmises(0.0, self.concentration[states])
+
+    @classmethod
+    def _radial(cls, concentration: np.ndarray) -> np.ndarray:
+        return concentration
+
+    @classmethod
+    def _radial_inverse(cls, r: np.ndarray) -> np.ndarray:
+        return r
+
+
+def _wrapped_cauchy_mle(
+    cos_x: np.ndarray, sin_x: np.ndarray, w: np.ndarray, estimate_mean: bool
+) -> tuple[np.ndarray, np.ndarray]:
+    """Weighted wrapped Cauchy MLE per state by Kent & Tyler's (1988) fixed point.
+
+    With ``psi = rho exp(i mean)`` and ``z = exp(i x)``, the likelihood equations are
+    ``psi = sum(w u z) / sum(w (1 + u))`` with ``u = (1 - |psi|^2) / |z - psi|^2``; iterating
+    them increases the likelihood at every step. Started at the trigonometric moments.
+    Returns (mean, rho), each (K,); with a fixed mean, psi stays real and >= 0.
+    """
+    total = w.sum(axis=0)
+    a = _weighted_means(cos_x, w, total)
+    b = _weighted_means(sin_x, w, total) if estimate_mean else np.zeros_like(a)
+    a = a if estimate_mean else np.maximum(a, 0.0)
+    for _ in range(10 * _NEWTON_MAX_ITER):
+        # |z - psi|^2 in a form without cancellation when |psi| is close to 1
+        denom = np.subtract.outer(cos_x, a) ** 2 + np.subtract.outer(sin_x, b) ** 2
+        wu = w * (1.0 - a**2 - b**2) / denom
+        norm = total + wu.sum(axis=0)
+        a_new = cos_x @ wu / norm
+        b_new = sin_x @ wu / norm if estimate_mean else b
+        a_new = a_new if estimate_mean else np.maximum(a_new, 0.0)
+        rho = np.hypot(a_new, b_new)
+        shrink = np.where(rho > _MAX_WRAPPED_CAUCHY_RHO, _MAX_WRAPPED_CAUCHY_RHO / rho, 1.0)
+        a_new, b_new = a_new * shrink, b_new * shrink
+        done = np.all(np.hypot(a_new - a, b_new - b) <= _NEWTON_TOL)
+        a, b = a_new, b_new
+        if done:
+            break
+    return np.arctan2(b, a), np.hypot(a, b)
+
+
+@dataclass(frozen=True, eq=False)
+class WrappedCauchy(_AngleFamily):
+    """Wrapped Cauchy turning angles, density ``(1 - r^2) / (2 pi (1 + r^2 - 2 r cos(x - mean)))``.
+
+    Parameters
+    ----------
+    mean : (K,) float
+        Mean direction (rad), wrapped to (-pi, pi]; all 0 when ``estimate_mean`` is False.
+    concentration : (K,) float in [0, 1)
+        Concentration r (the mean resultant length); 0 is the uniform distribution.
+    estimate_mean : bool
+        Whether ``fit_weighted`` estimates the mean (True) or keeps it at 0.
+
+    Notes
+    -----
+    The weighted M-step has no closed form; it iterates Kent & Tyler's fixed point (a few
+    tens of vectorised passes), see ``_wrapped_cauchy_mle``.
+    Working scale: ``r = artanh(concentration)`` in the base class' polar mapping.
+    """
+
+    mean: np.ndarray
+    concentration: np.ndarray
+    estimate_mean: bool = True
+
+    name: ClassVar[str] = "wrappedcauchy"
+
+    def _validate_concentration(self) -> None:
+        ok = (self.concentration >= 0) & (self.concentration < 1)
+        self._require("concentration", ok, "in [0, 1)")
+
+    @classmethod
+    def from_mean_resultant(
+        cls, mean: Any, mean_resultant_length: Any, estimate_mean: bool = True
+    ) -> WrappedCauchy:
+        """Wrapped Cauchy with concentration equal to the mean resultant length (K,)."""
+        rho = np.clip(np.asarray(mean_resultant_length, dtype=float), 0, _MAX_WRAPPED_CAUCHY_RHO)
+        return cls(mean, rho, estimate_mean)
+
+    def _logpdf_cos(self, cos_dev: np.ndarray) -> np.ndarray:
+        rho = self.concentration
+        # 1 + rho^2 - 2 rho cos = (1 - rho)^2 + 2 rho (1 - cos): no cancellation near rho = 1
+        np.subtract(1.0, cos_dev, out=cos_dev)
+        np.maximum(cos_dev, 0.0, out=cos_dev)
+        cos_dev *= 2.0 * rho
+        cos_dev += (1.0 - rho) ** 2
+        out = -np.log(cos_dev)
+        out += np.log1p(-(rho**2)) - _LOG_2PI
+        return out
+
+    def _fit_angles(self, cos_x, sin_x, w):
+        mean, rho = _wrapped_cauchy_mle(cos_x, sin_x, w, self.estimate_mean)
+        return {"mean": mean, "concentration": rho}
+
+    def _sample_deviation(self, rng: np.random.Generator, states: np.ndarray) -> np.ndarray:
+        rho = self.concentration[states]
+        uniform = rho == 0
+        with np.errstate(divide="ignore"):
+            spread = -np.log(np.where(uniform, 1.0, rho))  # rho = exp(-Cauchy scale)
+        out = spread * rng.standard_cauchy(states.size)
+        out[uniform] = rng.uniform(-np.pi, np.pi, uniform.sum())
+        return out
+
+    @classmethod
+    def _radial(cls, concentration: np.ndarray) -> np.ndarray:
+        return np.arctanh(np.minimum(concentration, _MAX_WRAPPED_CAUCHY_RHO))
+
+    @classmethod
+    def _radial_inverse(cls, r: np.ndarray) -> np.ndarray:
+        return np.minimum(np.tanh(r), _MAX_WRAPPED_CAUCHY_RHO)
+
+
+# ----------------------------------------------------------------------------------------
+# Registries and starting values
+# ----------------------------------------------------------------------------------------
+
+STEP_FAMILIES: dict[str, type[_StepFamily]] = {
+    cls.name: cls for cls in (Gamma, Weibull, LogNormal, Exponential)
+}
+ANGLE_FAMILIES: dict[str, type[_AngleFamily]] = {cls.name: cls for cls in (VonMises, WrappedCauchy)}
+
+
+def from_dict(d: dict) -> _StepFamily | _AngleFamily:
+    """Rebuild any family from its ``to_dict`` output, dispatching on ``d["family"]``."""
+    if not isinstance(d, dict) or "family" not in d:
+        raise ValueError(f"a distribution needs a dict with a 'family' key, got {d!r}")
+    families = {**STEP_FAMILIES, **ANGLE_FAMILIES}
+    if d["family"] not in families:
+        raise ValueError(f"unknown distribution family {d['family']!r}; known: {sorted(families)}")
+    return families[d["family"]].from_dict(d)
+
+
+def _family(name_or_class: str | type, registry: dict[str, type], kind: str) -> type:
+    if isinstance(name_or_class, str):
+        if name_or_class not in registry:
+            raise ValueError(f"unknown {kind} family {name_or_class!r}; known: {sorted(registry)}")
+        return registry[name_or_class]
+    if name_or_class not in registry.values():
+        raise ValueError(f"{name_or_class!r} is not a {kind} family; known: {sorted(registry)}")
+    return name_or_class
+
+
+def initial_guess(
+    steps: np.ndarray,
+    angles: np.ndarray,
+    n_states: int,
+    step_family: str | type = "gamma",
+    angle_family: str | type = "vonmises",
+    *,
+    estimate_angle_mean: bool = True,
+    zero_inflated: bool | None = None,
+    rng: np.random.Generator | None = None,
+) -> tuple[_StepFamily, _AngleFamily]:
+    """Starting values for an EM fit from the data, states ordered by mean step.
+
+    The positive steps are sorted and cut into ``n_states`` groups of equal size (with
+    ``rng``: group sizes drawn from a flat Dirichlet, for multi-start). Each group's mean
+    and sd give the step distribution (``from_moments``); the turning angles of the rows in
+    each group give the mean direction and mean resultant length of the angle distribution.
+
+    Parameters
+    ----------
+    steps : (T,) float
+        Step lengths (>= 0, NaN missing), units of the data.
+    angles : (T,) float
+        Turning angles (rad, NaN missing), same rows as ``steps``.
+    n_states : int
+        Number of states K >= 1.
+    step_family, angle_family : str or class
+        Names in ``STEP_FAMILIES`` / ``ANGLE_FAMILIES`` or the classes themselves.
+    estimate_angle_mean : bool
+        False fixes the angle means at 0.
+    zero_inflated : bool or None
+        Zero-inflation of steps; None switches it on when a step is exactly 0 (moveHMM).
+    rng : numpy.random.Generator or None
+        None gives the deterministic equal-count split.
+
+    Returns
+    -------
+    (step distribution, angle distribution)
+    """
+    step_cls = _family(step_family, STEP_FAMILIES, "step")
+    angle_cls = _family(angle_family, ANGLE_FAMILIES, "angle")
+    steps = _check_observations(steps, "initial_guess(steps)")
+    angles = _check_observations(angles, "initial_guess(angles)")
+    if steps.shape != angles.shape:
+        raise ValueError(f"initial_guess: steps {steps.shape} and angles {angles.shape} differ")
+    if n_states < 1:
+        raise ValueError(f"initial_guess: n_states must be >= 1, got {n_states}")
+    positive = np.flatnonzero(steps > 0)
+    if positive.size < 2 * n_states:
+        raise ValueError(
+            f"initial_guess: {positive.size} positive steps are too few for {n_states} states"
+        )
+    zero = steps == 0
+    if zero_inflated is None:
+        zero_inflated = bool(zero.any())
+    order = positive[np.argsort(steps[positive], kind="stable")]
+    shares = np.full(n_states, 1.0 / n_states) if rng is None else rng.dirichlet(np.ones(n_states))
+    # at least two rows per group so that every sd is defined
+    sizes = 2 + np.floor(shares * (order.size - 2 * n_states)).astype(int)
+    sizes[-1] = order.size - sizes[:-1].sum()
+    groups = np.split(order, np.cumsum(sizes)[:-1])
+
+    means = np.array([steps[g].mean() for g in groups])
+    sds = np.array([max(steps[g].std(), 1e-3 * steps[g].mean()) for g in groups])
+    zero_mass = None
+    if zero_inflated:
+        share = zero.sum() / max((~np.isnan(steps)).sum(), 1)
+        zero_mass = np.full(n_states, min(max(share, 1e-3), 0.5))
+    step_dist = step_cls.from_moments(means, sds, zero_mass=zero_mass)
+
+    direction, resultant = np.zeros(n_states), np.zeros(n_states)
+    for k, g in enumerate(groups):
+        a = angles[g]
+        a = a[~np.isnan(a)]
+        if a.size == 0:
+            continue
+        c, s = np.cos(a).mean(), np.sin(a).mean()
+        direction[k] = np.arctan2(s, c) if estimate_angle_mean else 0.0
+        resultant[k] = np.hypot(c, s) if estimate_angle_mean else max(c, 0.0)
+    resultant = np.clip(resultant, 0.01, 0.95)
+    angle_dist = angle_cls.from_mean_resultant(direction, resultant, estimate_angle_mean)
+    return step_dist, angle_dist

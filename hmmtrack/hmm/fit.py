@@ -1,0 +1,725 @@
+"""Fitting movement HMMs: EM (Baum-Welch) with multi-start, then a direct-likelihood polish.
+
+:class:`MovementHMMEstimator` is the scikit-learn-shaped estimator (hyper-parameters in
+``__init__``; ``fit`` returns ``self``; learned attributes ``model_``, ``starts_``,
+``monitor_``; ``predict``, ``predict_proba``, ``score``, ``sample``) and
+:func:`fit_movement_hmm` the one-call convenience. One fit is:
+
+1. for each of ``n_starts`` starts (seeds from ``SeedSequence.spawn``, run serially or in
+   ``n_jobs`` processes with identical results): random initial values, then EM -- the
+   E-step is :func:`hmmtrack.hmm.inference.forward_backward`, the M-step the weighted
+   maximum-likelihood fits of the emission families, the initial distribution and the
+   transition matrix (closed form) or its logit coefficients (:mod:`~hmmtrack.hmm.covariates`);
+2. the best start is *polished*: L-BFGS on the full log-likelihood over the working
+   parameters (the scale moveHMM's ``nlm`` maximises on), with the gradient from Fisher's
+   identity (one forward-backward pass plus the emission scores), so that the optimum is
+   the same one moveHMM reaches;
+3. states are reordered by increasing mean step so labels are stable.
+
+The working-scale log-likelihood and its gradient (:class:`WorkingLikelihood`) are also what
+:mod:`hmmtrack.hmm.diagnostics` differentiates for Wald intervals.
+
+This module is not for the recursions themselves, the emission maths, the JSON file or
+diagnostics; those live in the sibling modules.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures
+import multiprocessing
+from dataclasses import dataclass, replace
+
+import numpy as np
+import pandas as pd
+from scipy.optimize import minimize
+
+from hmmtrack.hmm import covariates as cov
+from hmmtrack.hmm import distributions
+from hmmtrack.hmm.inference import forward_backward, log_likelihood
+from hmmtrack.hmm.model import MovementHMM, Observations
+from hmmtrack.random import as_generator, spawn
+
+_TINY = 1e-12  # floor of probabilities whose log is a working parameter
+_FD_STEP = 1e-5  # central-difference step of the emission scores (working scale)
+
+
+# ---------------------------------------------------------------------------------------------
+# Data and parameters
+# ---------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class FitData:
+    """Arrays a fit runs on.
+
+    Attributes
+    ----------
+    step, angle : ndarray, shape (T,)
+        Step lengths and turning angles (NaN = missing).
+    lengths : ndarray, shape (n_sequences,)
+    design : ndarray, shape (T, 1 + p) or None
+        Standardised covariate design matrix (None without covariates).
+    """
+
+    step: np.ndarray
+    angle: np.ndarray
+    lengths: np.ndarray
+    design: np.ndarray | None = None
+
+    @property
+    def starts(self) -> np.ndarray:
+        """Row index of the first row of each sequence, shape (n_sequences,)."""
+        return np.concatenate([[0], np.cumsum(self.lengths)[:-1]]).astype(np.int64)
+
+    @property
+    def n_obs(self) -> int:
+        """Number of rows ``T``."""
+        return int(self.step.shape[0])
+
+
+@dataclass(frozen=True)
+class Parameters:
+    """Parameters of one EM iterate.
+
+    Attributes
+    ----------
+    initial : ndarray, shape (K,)
+    transition : ndarray, shape (K, K) or None
+        Used when there are no covariates.
+    coefficients : ndarray, shape (K*(K-1), 1 + p) or None
+        Logit coefficients, used with covariates.
+    step, angle : StateDistribution
+    """
+
+    initial: np.ndarray
+    transition: np.ndarray | None
+    coefficients: np.ndarray | None
+    step: distributions.StateDistribution
+    angle: distributions.StateDistribution
+
+    @property
+    def n_states(self) -> int:
+        return self.initial.shape[0]
+
+    def log_transition(self, data: FitData) -> np.ndarray:
+        """``(K, K)`` or, with covariates, ``(T-1, K, K)`` (entry t: row t -> t+1)."""
+        if self.coefficients is None:
+            return np.log(np.maximum(self.transition, _TINY))
+        return cov.log_transition_matrices(self.coefficients, data.design[1:])
+
+    def log_likelihood_matrix(self, data: FitData) -> np.ndarray:
+        """Emission log densities, shape (T, K)."""
+        return self.step.logpdf(data.step) + self.angle.logpdf(data.angle)
+
+    def permuted(self, order: np.ndarray) -> Parameters:
+        """The same model with state ``k`` of the result being state ``order[k]`` of this one."""
+        order = np.asarray(order)
+        rows, cols = cov.off_diagonal_index(self.n_states)
+        position = {(i, j): r for r, (i, j) in enumerate(zip(rows, cols, strict=True))}
+        return Parameters(
+            initial=self.initial[order],
+            transition=None if self.transition is None else self.transition[np.ix_(order, order)],
+            coefficients=None
+            if self.coefficients is None
+            else self.coefficients[[position[order[i], order[j]] for i, j in zip(rows, cols)]],
+            step=_permute_distribution(self.step, order),
+            angle=_permute_distribution(self.angle, order),
+        )
+
+
+def _permute_distribution(dist, order: np.ndarray):
+    document = dist.to_dict()
+    k = dist.n_states
+    for key, value in document.items():
+        if isinstance(value, list) and len(value) == k:
+            document[key] = [value[i] for i in order]
+    return type(dist).from_dict(document)
+
+
+# ---------------------------------------------------------------------------------------------
+# The working scale: unconstrained vector <-> parameters, likelihood and its gradient
+# ---------------------------------------------------------------------------------------------
+
+
+class WorkingLikelihood:
+    """Log-likelihood of the data as a function of the working parameter vector.
+
+    The vector is ``[step.to_working(), angle.to_working(), logit coefficients (row-major,
+    intercepts = log(Gamma_ij / Gamma_ii) without covariates), log(delta_k / delta_0) for
+    k = 1..K-1]``, moveHMM's layout up to ordering.
+
+    Parameters
+    ----------
+    template : Parameters
+        Fixes the structure (families, zero-inflation, fixed angle means, covariates).
+    data : FitData
+    """
+
+    def __init__(self, template: Parameters, data: FitData):
+        self.template = template
+        self.data = data
+        self.n_step = template.step.to_working().size
+        self.n_angle = template.angle.to_working().size
+        n_design = 1 if data.design is None else data.design.shape[1]
+        k = template.n_states
+        self.coefficient_shape = (k * (k - 1), n_design)
+        self.size = self.n_step + self.n_angle + k * (k - 1) * n_design + k - 1
+
+    def pack(self, params: Parameters) -> np.ndarray:
+        """Working vector of ``params``, shape (n_parameters,)."""
+        if params.coefficients is None:
+            coefficients = cov.coefficients_from_matrix(np.maximum(params.transition, _TINY))
+        else:
+            coefficients = params.coefficients
+        initial = np.maximum(params.initial, _TINY)
+        return np.concatenate(
+            [
+                params.step.to_working(),
+                params.angle.to_working(),
+                coefficients.ravel(),
+                np.log(initial[1:]) - np.log(initial[0]),
+            ]
+        )
+
+    def unpack(self, theta: np.ndarray) -> Parameters:
+        """Parameters of a working vector (inverse of :meth:`pack`)."""
+        a, b = self.n_step, self.n_step + self.n_angle
+        c = b + int(np.prod(self.coefficient_shape))
+        coefficients = theta[b:c].reshape(self.coefficient_shape)
+        log_initial = np.concatenate([[0.0], theta[c:]])
+        initial = np.exp(log_initial - np.logaddexp.reduce(log_initial))
+        if self.data.design is None:
+            transition = np.exp(cov.log_transition_matrices(coefficients, np.ones((1, 1))))[0]
+            coefficients = None
+        else:
+            transition = None
+        return Parameters(
+            initial=initial,
+            transition=transition,
+            coefficients=coefficients,
+            step=self.template.step.with_working(theta[:a]),
+            angle=self.template.angle.with_working(theta[a:b]),
+        )
+
+    def value(self, theta: np.ndarray) -> float:
+        """Log-likelihood at ``theta``."""
+        params = self.unpack(theta)
+        data = self.data
+        with np.errstate(divide="ignore"):
+            log_initial = np.log(params.initial)
+        return log_likelihood(
+            log_initial, params.log_transition(data), params.log_likelihood_matrix(data), data.lengths
+        )
+
+    def value_and_gradient(self, theta: np.ndarray) -> tuple[float, np.ndarray]:
+        """Log-likelihood and its gradient at ``theta`` (Fisher's identity).
+
+        The gradient of the log-likelihood equals the expected gradient of the complete-data
+        log-likelihood under the posterior at ``theta``: closed forms for the initial and
+        transition parts, central differences of the posterior-weighted emission log
+        densities for the emission parts (cheap: no recursion inside).
+        """
+        params = self.unpack(theta)
+        post, _ = _posterior(params, self.data)
+        weights = post.posterior
+        data = self.data
+        gradient = np.empty_like(theta)
+        a, b = self.n_step, self.n_step + self.n_angle
+        gradient[:a] = _emission_score(self.template.step, theta[:a], data.step, weights)
+        gradient[a:b] = _emission_score(self.template.angle, theta[a:b], data.angle, weights)
+        c = b + int(np.prod(self.coefficient_shape))
+        if data.design is None:
+            xi, design = post.pair_counts[None], np.ones((1, 1))
+        else:
+            xi, design = post.pair_counts, data.design[1:]
+        coefficients = theta[b:c].reshape(self.coefficient_shape)
+        gradient[b:c] = cov.expected_log_likelihood(coefficients, xi, design)[1].ravel()
+        first = weights[data.starts].sum(axis=0)
+        gradient[c:] = first[1:] - first.sum() * params.initial[1:]
+        return post.log_likelihood, gradient
+
+
+def _emission_score(template, theta: np.ndarray, x: np.ndarray, weights: np.ndarray):
+    """Gradient of ``sum(weights * logpdf(x))`` w.r.t. the working vector, central differences."""
+    observed = ~np.isnan(x)
+    x, weights = x[observed], weights[observed]
+    score = np.empty(theta.size)
+    for i in range(theta.size):
+        shift = np.zeros(theta.size)
+        shift[i] = _FD_STEP
+        up = np.sum(weights * template.with_working(theta + shift).logpdf(x))
+        down = np.sum(weights * template.with_working(theta - shift).logpdf(x))
+        score[i] = (up - down) / (2 * _FD_STEP)
+    return score
+
+
+def _posterior(params: Parameters, data: FitData):
+    log_lik = params.log_likelihood_matrix(data)
+    with np.errstate(divide="ignore"):
+        log_initial = np.log(params.initial)
+    post = forward_backward(log_initial, params.log_transition(data), log_lik, data.lengths)
+    return post, log_lik
+
+
+# ---------------------------------------------------------------------------------------------
+# EM
+# ---------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class ConvergenceMonitor:
+    """History of one EM run.
+
+    Attributes
+    ----------
+    history : tuple of float
+        Log-likelihood before each M-step (the E-step's value), one per iteration.
+    n_iter : int
+    converged : bool
+        True when the gain of an iteration fell below ``tol * n_obs`` before ``max_iter``.
+    tol : float
+        Tolerance on the log-likelihood gain per observation.
+    """
+
+    history: tuple[float, ...]
+    n_iter: int
+    converged: bool
+    tol: float
+
+
+@dataclass(frozen=True)
+class StartResult:
+    """What one start produced.
+
+    Attributes
+    ----------
+    index : int
+        Position of the start (its seed is child ``index`` of the fit's seed).
+    parameters : Parameters
+        After EM (and after the polish, for the chosen start), states in ascending mean step.
+    log_likelihood : float
+    monitor : ConvergenceMonitor
+    polished : bool
+    """
+
+    index: int
+    parameters: Parameters
+    log_likelihood: float
+    monitor: ConvergenceMonitor
+    polished: bool = False
+
+
+def m_step(params: Parameters, data: FitData, post) -> Parameters:
+    """One weighted maximum-likelihood M-step from a forward-backward result."""
+    weights = post.posterior
+    first = weights[data.starts].sum(axis=0)
+    initial = first / first.sum()
+    transition = coefficients = None
+    if params.coefficients is None:
+        counts = post.pair_counts
+        leaving = counts.sum(axis=1, keepdims=True)
+        transition = np.where(
+            leaving > 0, counts / np.where(leaving > 0, leaving, 1.0), params.transition
+        )
+    else:
+        coefficients = cov.fit_coefficients(post.pair_counts, data.design[1:], params.coefficients)
+    return Parameters(
+        initial=initial,
+        transition=transition,
+        coefficients=coefficients,
+        step=params.step.fit_weighted(data.step, weights),
+        angle=params.angle.fit_weighted(data.angle, weights),
+    )
+
+
+def run_em(params: Parameters, data: FitData, max_iter: int, tol: float):
+    """Baum-Welch from ``params`` until the gain per observation is below ``tol``.
+
+    Returns
+    -------
+    params : Parameters
+        The last M-step's parameters.
+    log_likelihood : float
+        Log-likelihood of the returned parameters.
+    monitor : ConvergenceMonitor
+    """
+    history = []
+    converged = False
+    post, _ = _posterior(params, data)
+    for _ in range(max_iter):
+        history.append(post.log_likelihood)
+        params = m_step(params, data, post)
+        post, _ = _posterior(params, data)
+        if post.log_likelihood - history[-1] < tol * data.n_obs:
+            converged = True
+            break
+    monitor = ConvergenceMonitor(tuple(history), len(history), converged, tol)
+    return params, float(post.log_likelihood), monitor
+
+
+def polish(params: Parameters, data: FitData, max_iter: int = 500):
+    """Maximise the full log-likelihood over the working parameters with L-BFGS.
+
+    Returns the polished parameters and log-likelihood, or the inputs if L-BFGS did not
+    improve on them.
+    """
+    likelihood = WorkingLikelihood(params, data)
+    start = likelihood.pack(params)
+    start_value = likelihood.value(start)
+
+    def objective(theta):
+        try:
+            value, gradient = likelihood.value_and_gradient(theta)
+        except ValueError:  # some observation impossible under every state path
+            return np.inf, np.zeros_like(theta)
+        if not np.isfinite(value):
+            return np.inf, np.zeros_like(theta)
+        return -value, -gradient
+
+    result = minimize(
+        objective,
+        start,
+        jac=True,
+        method="L-BFGS-B",
+        options={"maxiter": max_iter, "gtol": 1e-6, "ftol": 1e-12},
+    )
+    if np.isfinite(result.fun) and -result.fun > start_value:
+        return likelihood.unpack(result.x), float(-result.fun)
+    return params, float(start_value)
+
+
+def order_by_mean_step(params: Parameters) -> Parameters:
+    """Relabel states so that the mean step increases with the state index."""
+    return params.permuted(np.argsort(params.step.expected_value(), kind="stable"))
+
+
+# ---------------------------------------------------------------------------------------------
+# Starting values
+# ---------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class FitSpec:
+    """Structure and controls of a fit (everything a start needs besides data and seed)."""
+
+    n_states: int
+    step_family: str
+    angle_family: str
+    estimate_angle_mean: bool
+    zero_inflated: bool
+    max_iter: int
+    tol: float
+
+
+def initial_parameters(
+    rng: np.random.Generator | None, data: FitData, spec: FitSpec
+) -> Parameters:
+    """Starting values for one start.
+
+    Emission distributions come from :func:`hmmtrack.hmm.distributions.initial_guess` (steps
+    cut into groups at quantiles; random group sizes with ``rng``, equal sizes without). The
+    transition matrix has diagonal entries 0.9 (without ``rng``) or uniform in (0.5, 0.95),
+    the rest of each row spread evenly; covariate slopes start at 0; the initial distribution
+    is uniform.
+    """
+    k = spec.n_states
+    step, angle = distributions.initial_guess(
+        data.step,
+        data.angle,
+        k,
+        spec.step_family,
+        spec.angle_family,
+        estimate_angle_mean=spec.estimate_angle_mean,
+        zero_inflated=spec.zero_inflated,
+        rng=rng,
+    )
+    diagonal = np.full(k, 0.9) if rng is None else rng.uniform(0.5, 0.95, k)
+    if k == 1:
+        diagonal = np.ones(1)
+    off = (1 - diagonal[:, None]) / max(k - 1, 1)
+    transition = np.where(np.eye(k, dtype=bool), diagonal[:, None], off)
+    coefficients = None
+    if data.design is not None:
+        coefficients = cov.coefficients_from_matrix(transition, data.design.shape[1])
+        transition = None
+    return Parameters(np.full(k, 1.0 / k), transition, coefficients, step, angle)
+
+
+def run_start(index: int, seed: np.random.SeedSequence, data: FitData, spec: FitSpec):
+    """One start, then EM; states ordered by mean step.
+
+    Start 0 uses the deterministic equal-count starting values, the others random ones drawn
+    with a generator from ``seed``.
+    """
+    params = initial_parameters(None if index == 0 else as_generator(seed), data, spec)
+    params, log_likelihood, monitor = run_em(params, data, spec.max_iter, spec.tol)
+    return StartResult(index, order_by_mean_step(params), log_likelihood, monitor)
+
+
+def _run_start_packed(arguments):
+    return run_start(*arguments)
+
+
+def run_starts(data: FitData, spec: FitSpec, n_starts: int, seed, n_jobs: int = 1):
+    """All starts, serially or in ``n_jobs`` processes; the same list either way."""
+    seeds = spawn(seed, n_starts)
+    tasks = [(i, s, data, spec) for i, s in enumerate(seeds)]
+    if n_jobs == 1 or n_starts == 1:
+        return [run_start(*task) for task in tasks]
+    methods = multiprocessing.get_all_start_methods()
+    context = multiprocessing.get_context("fork" if "fork" in methods else None)
+    with concurrent.futures.ProcessPoolExecutor(n_jobs, mp_context=context) as pool:
+        return list(pool.map(_run_start_packed, tasks))
+
+
+# ---------------------------------------------------------------------------------------------
+# Between tables, arrays and models
+# ---------------------------------------------------------------------------------------------
+
+
+def fit_data(observations: Observations, scaling: dict | None) -> FitData:
+    """:class:`FitData` of a table's observations, standardising covariates with ``scaling``."""
+    design = None
+    if scaling:
+        design = cov.design_matrix(observations.covariates, scaling)
+    return FitData(observations.step, observations.angle, observations.lengths, design)
+
+
+def parameters_of(model: MovementHMM) -> Parameters:
+    """The :class:`Parameters` of a fitted model."""
+    return Parameters(model.initial, model.transition, model.coefficients, model.step, model.angle)
+
+
+def as_table(X, lengths=None, covariate_names=()) -> pd.DataFrame:
+    """A prepared-track table from a table, or from an array ``(T, 2 + p)`` and ``lengths``.
+
+    Array columns are step, angle, then the covariates in ``covariate_names`` order;
+    ``lengths`` (rows per sequence) becomes a ``segment`` column.
+    """
+    if isinstance(X, pd.DataFrame):
+        if lengths is not None:
+            raise ValueError("give 'lengths' with an array only; a table has a 'segment' column")
+        return X
+    X = np.asarray(X, dtype=float)
+    columns = ["step", "angle", *covariate_names]
+    if X.ndim != 2 or X.shape[1] != len(columns):
+        raise ValueError(f"X must have shape (T, {len(columns)}) with columns {columns}")
+    table = pd.DataFrame(X, columns=columns)
+    if lengths is not None:
+        lengths = np.asarray(lengths, dtype=np.int64)
+        if lengths.sum() != len(table) or np.any(lengths < 1):
+            raise ValueError(f"lengths sum to {lengths.sum()}; expected {len(table)} rows")
+        table["segment"] = np.repeat(np.arange(lengths.size), lengths)
+    return table
+
+
+def information_criteria(log_likelihood: float, n_parameters: int, n_obs: int):
+    """AIC ``= -2 logL + 2 p`` and BIC ``= -2 logL + p log n`` (n = rows fitted)."""
+    return (
+        -2.0 * log_likelihood + 2.0 * n_parameters,
+        -2.0 * log_likelihood + n_parameters * np.log(n_obs),
+    )
+
+
+# ---------------------------------------------------------------------------------------------
+# Estimator
+# ---------------------------------------------------------------------------------------------
+
+
+class MovementHMMEstimator:
+    """Fit an N-state step-length / turning-angle HMM (scikit-learn-shaped).
+
+    Parameters
+    ----------
+    n_states : int
+    step : {"gamma", "weibull", "lognormal", "exponential"}
+    angle : {"vonmises", "wrpcauchy"}
+    estimate_angle_mean : bool
+        False fixes the angle means at 0.
+    covariates : sequence of str
+        Columns of the data on the transition probabilities (standardised, multinomial logit).
+    zero_inflation : "auto" or bool
+        "auto" switches zero-inflated steps on when a step is exactly 0.
+    n_starts : int
+        EM runs from random starting values; the best is kept.
+    seed : int, SeedSequence or None
+        Seed of the starts (children by ``SeedSequence.spawn``).
+    n_jobs : int
+        Processes for the starts; results do not depend on it.
+    max_iter : int
+        EM iterations per start.
+    tol : float
+        EM stops when an iteration gains less than ``tol`` log-likelihood per row.
+    polish : bool
+        Maximise the full likelihood with L-BFGS from the best EM result.
+    dt : float or None
+        Time step of the data (s); None takes the median of the table's ``dt`` column (NaN
+        if it has none).
+    step_unit : str
+        Unit of the steps, written to the model file.
+
+    Attributes
+    ----------
+    model_ : MovementHMM
+        The fitted model (best start, polished, states ordered by mean step).
+    starts_ : list of StartResult
+        Every start's EM result, in seed order.
+    monitor_ : ConvergenceMonitor
+        EM history of the chosen start.
+    best_start_ : int
+    n_parameters_ : int
+        Free parameters (the working vector's length).
+    """
+
+    def __init__(
+        self,
+        n_states: int = 2,
+        step: str = "gamma",
+        angle: str = "vonmises",
+        estimate_angle_mean: bool = True,
+        covariates=(),
+        zero_inflation="auto",
+        n_starts: int = 1,
+        seed=None,
+        n_jobs: int = 1,
+        max_iter: int = 1000,
+        tol: float = 1e-9,
+        polish: bool = True,
+        dt: float | None = None,
+        step_unit: str = "m",
+    ):
+        self.n_states = n_states
+        self.step = step
+        self.angle = angle
+        self.estimate_angle_mean = estimate_angle_mean
+        self.covariates = covariates
+        self.zero_inflation = zero_inflation
+        self.n_starts = n_starts
+        self.seed = seed
+        self.n_jobs = n_jobs
+        self.max_iter = max_iter
+        self.tol = tol
+        self.polish = polish
+        self.dt = dt
+        self.step_unit = step_unit
+
+    def _spec(self, data: FitData) -> FitSpec:
+        if self.step not in distributions.STEP_FAMILIES:
+            raise ValueError(f"step family {self.step!r} unknown; choose from {list(distributions.STEP_FAMILIES)}")
+        if self.angle not in distributions.ANGLE_FAMILIES:
+            raise ValueError(
+                f"angle family {self.angle!r} unknown; choose from {list(distributions.ANGLE_FAMILIES)}"
+            )
+        if int(self.n_states) < 1 or int(self.n_starts) < 1 or int(self.n_jobs) < 1:
+            raise ValueError("n_states, n_starts and n_jobs must be positive integers")
+        has_zero = bool(np.any(data.step == 0))
+        if self.zero_inflation == "auto":
+            zero_inflated = has_zero
+        elif has_zero and not self.zero_inflation:
+            raise ValueError("the data have steps of exactly 0; zero_inflation must be on")
+        else:
+            zero_inflated = bool(self.zero_inflation)
+        return FitSpec(
+            n_states=int(self.n_states),
+            step_family=self.step,
+            angle_family=self.angle,
+            estimate_angle_mean=bool(self.estimate_angle_mean),
+            zero_inflated=zero_inflated,
+            max_iter=int(self.max_iter),
+            tol=float(self.tol),
+        )
+
+    def fit(self, X, lengths=None) -> MovementHMMEstimator:
+        """Fit to a prepared-track table or to an array ``(T, 2 + p)`` with ``lengths``.
+
+        Parameters
+        ----------
+        X : DataFrame or ndarray
+            Table with ``step`` (``step_unit``), ``angle`` (rad), ``segment`` and the
+            covariate columns; or an array with columns step, angle, covariates.
+        lengths : array of int, optional
+            Rows per sequence, for an array ``X``.
+        """
+        names = tuple(self.covariates)
+        table = as_table(X, lengths, names)
+        observations = Observations.from_frame(table, names)
+        scaling = cov.covariate_scaling(observations.covariates, names) if names else {}
+        data = fit_data(observations, scaling)
+        if np.all(np.isnan(data.step)):
+            raise ValueError("no observed step in the data")
+        spec = self._spec(data)
+        starts = run_starts(data, spec, int(self.n_starts), self.seed, int(self.n_jobs))
+        best = max(starts, key=lambda s: (s.log_likelihood, -s.index))
+        params, log_likelihood = best.parameters, best.log_likelihood
+        if self.polish:
+            params, log_likelihood = polish(params, data)
+            params = order_by_mean_step(params)
+            best = replace(best, parameters=params, log_likelihood=log_likelihood, polished=True)
+        n_parameters = WorkingLikelihood(params, data).size
+        aic, bic = information_criteria(log_likelihood, n_parameters, data.n_obs)
+        self.model_ = MovementHMM(
+            initial=params.initial,
+            transition=params.transition,
+            step=params.step,
+            angle=params.angle,
+            dt=self._time_step(table),
+            coefficients=params.coefficients,
+            covariate_names=names,
+            covariate_scaling=scaling,
+            step_unit=self.step_unit,
+            log_likelihood=log_likelihood,
+            n_obs=data.n_obs,
+            aic=aic,
+            bic=bic,
+        )
+        self.starts_ = starts
+        self.best_start_ = best.index
+        self.monitor_ = best.monitor
+        self.n_parameters_ = n_parameters
+        return self
+
+    def _time_step(self, table: pd.DataFrame) -> float:
+        if self.dt is not None:
+            return float(self.dt)
+        if "dt" in table.columns:
+            dt = np.asarray(table["dt"], dtype=float)
+            if np.any(np.isfinite(dt)):
+                return float(np.nanmedian(dt))
+        return float("nan")
+
+    def _table(self, X, lengths):
+        if not hasattr(self, "model_"):
+            raise ValueError("this estimator is not fitted yet; call fit first")
+        return as_table(X, lengths, self.model_.covariate_names)
+
+    def predict(self, X, lengths=None) -> np.ndarray:
+        """Viterbi states (T,) of ``X`` (same forms as :meth:`fit`)."""
+        return self.model_.viterbi(self._table(X, lengths))
+
+    def predict_proba(self, X, lengths=None) -> np.ndarray:
+        """Posterior state probabilities (T, K) of ``X``."""
+        return self.model_.state_probabilities(self._table(X, lengths))
+
+    def score(self, X, lengths=None) -> float:
+        """Log-likelihood of ``X`` under the fitted model."""
+        return self.model_.score(self._table(X, lengths))
+
+    def sample(self, n: int, seed=None) -> pd.DataFrame:
+        """Simulate ``n`` rows (state, step, angle) from the fitted model."""
+        if not hasattr(self, "model_"):
+            raise ValueError("this estimator is not fitted yet; call fit first")
+        return self.model_.simulate(as_generator(seed), n)
+
+
+def fit_movement_hmm(X, n_states: int = 2, *, lengths=None, seed=None, **options) -> MovementHMM:
+    """Fit a movement HMM and return the model (see :class:`MovementHMMEstimator`).
+
+    Examples
+    --------
+    >>> from hmmtrack import io, tracks                                   # doctest: +SKIP
+    >>> prepared = tracks.prepare(io.read_tracks("data/example_tracks.csv"))  # doctest: +SKIP
+    >>> model = fit_movement_hmm(prepared, 2, n_starts=5, seed=1)          # doctest: +SKIP
+    >>> model.save("model.json")                                          # doctest: +SKIP
+    """
+    estimator = MovementHMMEstimator(n_states=n_states, seed=seed, **options)
+    return estimator.fit(X, lengths).model_

@@ -1,0 +1,469 @@
+"""The fitted movement HMM: a small frozen dataclass and its versioned JSON file.
+
+:class:`MovementHMM` holds everything a user of a fitted model needs -- the initial
+distribution, the transition matrix (or the logit coefficients of covariates on it), the
+state-dependent step and angle distributions, the time step of the data it was fitted on -- and
+answers questions about it: transition matrices, the stationary distribution, state
+probabilities and Viterbi paths for data, simulation. :meth:`MovementHMM.save` /
+:meth:`MovementHMM.load` write and read the JSON schema ``"hmmtrack.movement_hmm"``, version 1;
+loading validates every field and refuses anything it does not understand. There is no pickle.
+
+This module is not for fitting (see :mod:`hmmtrack.hmm.fit`) nor for the recursions (see
+:mod:`hmmtrack.hmm.inference`).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from hmmtrack import __version__
+from hmmtrack.hmm import covariates as cov
+from hmmtrack.hmm import distributions
+from hmmtrack.hmm.inference import forward_backward, viterbi
+
+SCHEMA = "hmmtrack.movement_hmm"
+VERSION = 1
+
+
+@dataclass(frozen=True)
+class Observations:
+    """Steps, angles and sequence lengths pulled out of a prepared-track table.
+
+    Attributes
+    ----------
+    step : ndarray, shape (T,)
+        Step lengths (m); NaN where missing.
+    angle : ndarray, shape (T,)
+        Turning angles (rad); NaN where missing.
+    lengths : ndarray, shape (n_sequences,)
+        Rows per sequence (track segment), in table order; sums to ``T``.
+    covariates : DataFrame
+        The covariate columns asked for (raw values), ``T`` rows; no columns if none.
+    """
+
+    step: np.ndarray
+    angle: np.ndarray
+    lengths: np.ndarray
+    covariates: pd.DataFrame
+
+    @classmethod
+    def from_frame(cls, frame: pd.DataFrame, covariate_names=(), source: str = "table"):
+        """Read ``step``, ``angle``, ``segment`` (and covariates) from a prepared-track table.
+
+        Parameters
+        ----------
+        frame : DataFrame
+            Prepared track (see :func:`hmmtrack.tracks.prepare`). Without a ``segment``
+            column the table is one sequence. Each segment's rows must be contiguous.
+        covariate_names : sequence of str
+        source : str
+            Name of the table's origin (a file name) used in error messages.
+        """
+        missing = [c for c in ("step", "angle", *covariate_names) if c not in frame.columns]
+        if missing:
+            raise ValueError(
+                f"{source}: missing column(s) {missing}; a prepared track needs 'step' (m) and "
+                f"'angle' (rad) (and 'segment'); columns present: {list(frame.columns)}"
+            )
+        values = {}
+        for name in ("step", "angle"):
+            try:
+                values[name] = np.asarray(frame[name], dtype=float)
+            except (TypeError, ValueError) as exc:
+                raise ValueError(f"{source}: column {name!r} is not numeric ({exc})") from exc
+        negative = np.flatnonzero(values["step"] < 0)
+        if negative.size:
+            raise ValueError(
+                f"{source}: column 'step' has negative values at rows {negative[:10].tolist()}"
+            )
+        if "segment" in frame.columns:
+            segment = frame["segment"].to_numpy()
+            change = np.flatnonzero(segment[1:] != segment[:-1]) + 1
+            starts = np.concatenate([[0], change])
+            labels = segment[starts]
+            if len(set(labels)) != len(labels):
+                seen, repeated = set(), None
+                for label in labels:
+                    if label in seen:
+                        repeated = label
+                        break
+                    seen.add(label)
+                raise ValueError(
+                    f"{source}: rows of segment {repeated!r} are not contiguous; sort the "
+                    "table by segment and time"
+                )
+            lengths = np.diff(np.concatenate([starts, [len(frame)]]))
+        else:
+            lengths = np.array([len(frame)])
+        return cls(
+            step=values["step"],
+            angle=values["angle"],
+            lengths=lengths.astype(np.int64),
+            covariates=frame.loc[:, list(covariate_names)].reset_index(drop=True),
+        )
+
+
+@dataclass(frozen=True, eq=False)
+class MovementHMM:
+    """A fitted N-state movement HMM of step lengths and turning angles.
+
+    Attributes
+    ----------
+    initial : ndarray, shape (K,)
+        Probability of each state at the first row of a sequence.
+    transition : ndarray, shape (K, K) or None
+        Row-stochastic transition matrix; ``None`` when ``coefficients`` are given.
+    step, angle : StateDistribution
+        State-dependent distributions of step length (m) and turning angle (rad).
+    dt : float
+        Time step of the data fitted (s); NaN when the data had no times.
+    coefficients : ndarray, shape (K*(K-1), 1 + p) or None
+        Logit coefficients of the standardised covariates (see :mod:`~hmmtrack.hmm.covariates`).
+    covariate_names : tuple of str
+    covariate_scaling : dict
+        ``{name: (mean, sd)}`` used to standardise each covariate.
+    step_unit : str
+        Unit of the steps (``"m"``; ``"km"`` if the user fitted kilometres).
+    log_likelihood : float
+        Maximised log-likelihood (NaN if unknown).
+    n_obs : int
+        Number of rows (time points) fitted.
+    aic, bic : float
+    """
+
+    initial: np.ndarray
+    transition: np.ndarray | None
+    step: distributions.StateDistribution
+    angle: distributions.StateDistribution
+    dt: float = math.nan
+    coefficients: np.ndarray | None = None
+    covariate_names: tuple[str, ...] = ()
+    covariate_scaling: dict = field(default_factory=dict)
+    step_unit: str = "m"
+    log_likelihood: float = math.nan
+    n_obs: int = 0
+    aic: float = math.nan
+    bic: float = math.nan
+
+    def __post_init__(self):
+        initial = np.asarray(self.initial, dtype=float)
+        object.__setattr__(self, "initial", initial)
+        if (self.transition is None) == (self.coefficients is None):
+            raise ValueError("give exactly one of 'transition' and 'coefficients'")
+        if self.transition is not None:
+            object.__setattr__(self, "transition", np.asarray(self.transition, dtype=float))
+        else:
+            coefficients = np.asarray(self.coefficients, dtype=float)
+            object.__setattr__(self, "coefficients", coefficients)
+            if coefficients.shape[1] != 1 + len(self.covariate_names):
+                raise ValueError(
+                    f"coefficients have {coefficients.shape[1]} columns; expected 1 + "
+                    f"{len(self.covariate_names)} covariates"
+                )
+        object.__setattr__(self, "covariate_names", tuple(self.covariate_names))
+        object.__setattr__(
+            self,
+            "covariate_scaling",
+            {k: (float(m), float(s)) for k, (m, s) in dict(self.covariate_scaling).items()},
+        )
+
+    @property
+    def n_states(self) -> int:
+        """Number of hidden states ``K``."""
+        return self.initial.shape[0]
+
+    # -- transition probabilities ------------------------------------------------------------
+
+    def transition_matrix(self, covariates: pd.DataFrame | dict | None = None) -> np.ndarray:
+        """Transition matrix, or one per row of covariate values.
+
+        Parameters
+        ----------
+        covariates : DataFrame or mapping of str to array, optional
+            Raw (unstandardised) covariate values, one column per ``covariate_names``.
+            Without it a covariate model is evaluated at the covariate means.
+
+        Returns
+        -------
+        ndarray, shape (K, K) or (T, K, K)
+            Entry ``t`` of the 3-d result is the matrix *into* row ``t``.
+        """
+        if self.coefficients is None:
+            if covariates is not None and len(self.covariate_names) == 0:
+                raise ValueError("this model has no covariates")
+            return self.transition.copy()
+        if covariates is None:
+            return np.exp(cov.log_transition_matrices(self.coefficients[:, :1], np.ones((1, 1))))[0]
+        design = cov.design_matrix(covariates, self.covariate_scaling)
+        return np.exp(cov.log_transition_matrices(self.coefficients, design))
+
+    def stationary(self, covariates: pd.DataFrame | dict | None = None) -> np.ndarray:
+        """Stationary distribution of :meth:`transition_matrix` (``delta = delta Gamma``).
+
+        Returns
+        -------
+        ndarray, shape (K,) or (T, K)
+        """
+        gamma = self.transition_matrix(covariates)
+        k = self.n_states
+        system = np.swapaxes(np.eye(k) - gamma + 1.0, -1, -2)
+        return np.linalg.solve(system, np.ones(gamma.shape[:-1]))
+
+    def log_transition_for(self, covariates: pd.DataFrame, n_rows: int) -> np.ndarray:
+        """Log transition argument for the recursions: ``(K, K)`` or ``(T-1, K, K)``.
+
+        Entry ``t`` of the time-varying form is the transition from row ``t`` to ``t + 1``,
+        built from the covariates of row ``t + 1``.
+        """
+        if self.coefficients is None:
+            with np.errstate(divide="ignore"):
+                return np.log(self.transition)
+        design = cov.design_matrix(covariates, self.covariate_scaling)
+        if design.shape[0] != n_rows:
+            raise ValueError(f"covariates have {design.shape[0]} rows; expected {n_rows}")
+        return cov.log_transition_matrices(self.coefficients, design[1:])
+
+    # -- data ---------------------------------------------------------------------------------
+
+    def log_likelihood_matrix(self, step: np.ndarray, angle: np.ndarray) -> np.ndarray:
+        """State-dependent log densities of each row, shape ``(T, K)``; missing values add 0."""
+        return self.step.logpdf(np.asarray(step, float)) + self.angle.logpdf(
+            np.asarray(angle, float)
+        )
+
+    def _recursion_inputs(self, data: pd.DataFrame):
+        obs = Observations.from_frame(data, self.covariate_names)
+        with np.errstate(divide="ignore"):
+            log_initial = np.log(self.initial)
+        return (
+            log_initial,
+            self.log_transition_for(obs.covariates, len(obs.step)),
+            self.log_likelihood_matrix(obs.step, obs.angle),
+            obs.lengths,
+        )
+
+    def state_probabilities(self, data: pd.DataFrame) -> np.ndarray:
+        """Posterior state probabilities of each row of a prepared track, shape ``(T, K)``."""
+        return forward_backward(*self._recursion_inputs(data)).posterior
+
+    def score(self, data: pd.DataFrame) -> float:
+        """Log-likelihood of a prepared track under this model."""
+        return float(forward_backward(*self._recursion_inputs(data)).log_likelihood)
+
+    def viterbi(self, data: pd.DataFrame) -> np.ndarray:
+        """Most probable state sequence of a prepared track, shape ``(T,)``, states 0..K-1."""
+        return viterbi(*self._recursion_inputs(data))
+
+    def simulate(
+        self, rng: np.random.Generator, n: int, covariates: pd.DataFrame | dict | None = None
+    ) -> pd.DataFrame:
+        """Simulate one sequence of states, steps and angles.
+
+        Parameters
+        ----------
+        rng : numpy.random.Generator
+        n : int
+            Number of rows.
+        covariates : DataFrame or mapping, optional
+            ``n`` rows of raw covariate values (covariate models only; without them the
+            matrix at the covariate means is used).
+
+        Returns
+        -------
+        DataFrame
+            Columns ``state`` (int), ``step`` (``step_unit``), ``angle`` (rad).
+        """
+        gamma = self.transition_matrix(covariates)
+        if gamma.ndim == 2:
+            gamma = np.broadcast_to(gamma, (n, *gamma.shape))
+        elif gamma.shape[0] != n:
+            raise ValueError(f"covariates have {gamma.shape[0]} rows; expected n = {n}")
+        states = np.empty(n, dtype=np.int64)
+        uniforms = rng.random(n)
+        cumulative = np.cumsum(gamma, axis=2)
+        states[0] = np.searchsorted(np.cumsum(self.initial), uniforms[0] * self.initial.sum())
+        for t in range(1, n):
+            row = cumulative[t, states[t - 1]]
+            states[t] = min(np.searchsorted(row, uniforms[t] * row[-1]), self.n_states - 1)
+        return pd.DataFrame(
+            {
+                "state": states,
+                "step": self.step.sample(rng, states),
+                "angle": self.angle.sample(rng, states),
+            }
+        )
+
+    # -- file ---------------------------------------------------------------------------------
+
+    def to_dict(self) -> dict:
+        """The JSON document of this model (plain Python types)."""
+        return {
+            "schema": SCHEMA,
+            "version": VERSION,
+            "package_version": __version__,
+            "units": {"step": self.step_unit, "angle": "rad", "dt": "s"},
+            "n_states": self.n_states,
+            "dt": None if math.isnan(self.dt) else float(self.dt),
+            "initial": self.initial.tolist(),
+            "transition": None if self.transition is None else self.transition.tolist(),
+            "coefficients": None
+            if self.coefficients is None
+            else {
+                "covariates": list(self.covariate_names),
+                "scaling": {
+                    name: {"mean": m, "sd": s} for name, (m, s) in self.covariate_scaling.items()
+                },
+                "values": self.coefficients.tolist(),
+                "layout": "rows: off-diagonal entries (i, j) row-major; columns: intercept, "
+                "covariates (standardised)",
+            },
+            "step": self.step.to_dict(),
+            "angle": self.angle.to_dict(),
+            "log_likelihood": _float_or_none(self.log_likelihood),
+            "n_obs": int(self.n_obs),
+            "aic": _float_or_none(self.aic),
+            "bic": _float_or_none(self.bic),
+        }
+
+    def save(self, path: str | Path) -> None:
+        """Write the model as JSON (schema ``hmmtrack.movement_hmm``, version 1)."""
+        Path(path).write_text(json.dumps(self.to_dict(), indent=2) + "\n", encoding="utf-8")
+
+    @classmethod
+    def load(cls, path: str | Path) -> MovementHMM:
+        """Read and validate a model file written by :meth:`save`.
+
+        Raises
+        ------
+        ValueError
+            Naming the file and the field, for an unknown schema or version, a missing or
+            malformed field, or probabilities that are not probabilities.
+        """
+        path = Path(path)
+        try:
+            document = json.loads(path.read_text(encoding="utf-8"))
+        except json.JSONDecodeError as exc:
+            raise ValueError(f"{path}: not a JSON file ({exc})") from exc
+        return cls.from_dict(document, source=str(path))
+
+    @classmethod
+    def from_dict(cls, document: dict, source: str = "model") -> MovementHMM:
+        """Validate a JSON document (see :meth:`to_dict`) and build the model."""
+        reader = _Reader(document, source)
+        schema = reader.get("schema", str)
+        if schema != SCHEMA:
+            reader.fail("schema", f"is {schema!r}; expected {SCHEMA!r}")
+        version = reader.get("version", int)
+        if version != VERSION:
+            reader.fail("version", f"is {version}; this hmmtrack reads version {VERSION} only")
+        n_states = reader.get("n_states", int)
+        if n_states < 1:
+            reader.fail("n_states", f"is {n_states}; expected a positive integer")
+        units = reader.get("units", dict)
+        step_unit = units.get("step")
+        if not isinstance(step_unit, str):
+            reader.fail("units.step", "missing or not a string")
+        initial = reader.probabilities("initial", (n_states,))
+        step = reader.distribution("step", n_states)
+        angle = reader.distribution("angle", n_states)
+        transition = coefficients = None
+        names, scaling = (), {}
+        if document.get("transition") is not None:
+            transition = reader.probabilities("transition", (n_states, n_states))
+        else:
+            block = reader.get("coefficients", dict)
+            names = tuple(block.get("covariates", ()))
+            if not all(isinstance(n, str) for n in names):
+                reader.fail("coefficients.covariates", "expected a list of names")
+            try:
+                scaling = {n: (float(block["scaling"][n]["mean"]), float(block["scaling"][n]["sd"]))
+                           for n in names}
+                coefficients = np.array(block["values"], dtype=float)
+            except (KeyError, TypeError, ValueError) as exc:
+                reader.fail("coefficients", f"malformed ({exc!r})")
+            expected = (n_states * (n_states - 1), 1 + len(names))
+            if coefficients.shape != expected or not np.all(np.isfinite(coefficients)):
+                reader.fail(
+                    "coefficients.values",
+                    f"has shape {coefficients.shape}; expected {expected} finite numbers",
+                )
+        dt = document.get("dt")
+        if dt is not None and not (isinstance(dt, int | float) and dt > 0):
+            reader.fail("dt", f"is {dt!r}; expected a positive number of seconds or null")
+        return cls(
+            initial=initial,
+            transition=transition,
+            step=step,
+            angle=angle,
+            dt=math.nan if dt is None else float(dt),
+            coefficients=coefficients,
+            covariate_names=names,
+            covariate_scaling=scaling,
+            step_unit=step_unit,
+            log_likelihood=reader.number("log_likelihood"),
+            n_obs=reader.get("n_obs", int),
+            aic=reader.number("aic"),
+            bic=reader.number("bic"),
+        )
+
+
+def _float_or_none(value: float) -> float | None:
+    return None if value is None or math.isnan(value) else float(value)
+
+
+class _Reader:
+    """Field access on a model document with errors naming the source and field."""
+
+    def __init__(self, document, source: str):
+        if not isinstance(document, dict):
+            raise ValueError(f"{source}: expected a JSON object at the top level")
+        self.document = document
+        self.source = source
+
+    def fail(self, name: str, message: str):
+        raise ValueError(f"{self.source}: field {name!r} {message}")
+
+    def get(self, name: str, kind: type):
+        if name not in self.document:
+            self.fail(name, "is missing")
+        value = self.document[name]
+        if not isinstance(value, kind) or (kind is int and isinstance(value, bool)):
+            self.fail(name, f"is {value!r}; expected {kind.__name__}")
+        return value
+
+    def number(self, name: str) -> float:
+        value = self.document.get(name)
+        if value is None:
+            return math.nan
+        if not isinstance(value, int | float) or isinstance(value, bool):
+            self.fail(name, f"is {value!r}; expected a number or null")
+        return float(value)
+
+    def probabilities(self, name: str, shape: tuple[int, ...]) -> np.ndarray:
+        try:
+            values = np.array(self.get(name, list), dtype=float)
+        except (TypeError, ValueError):
+            self.fail(name, "is not an array of numbers")
+        if values.shape != shape:
+            self.fail(name, f"has shape {values.shape}; expected {shape}")
+        if np.any(~np.isfinite(values)) or np.any(values < 0) or np.any(
+            np.abs(values.sum(axis=-1) - 1) > 1e-6
+        ):
+            self.fail(name, "must hold non-negative numbers with each row summing to 1")
+        return values
+
+    def distribution(self, name: str, n_states: int):
+        block = self.get(name, dict)
+        try:
+            dist = distributions.from_dict(block)
+        except (KeyError, TypeError, ValueError) as exc:
+            self.fail(name, f"is not a valid distribution ({exc})")
+        if dist.n_states != n_states:
+            self.fail(name, f"has {dist.n_states} states; expected {n_states}")
+        return dist

@@ -1,0 +1,254 @@
+"""Metrics of a tracking run against the truth: the paper's position error and convergence.
+
+* position error at each estimate time, the truth interpolated linearly to those times;
+* time to convergence: the first time the particles' spread √λ₁ (square root of the
+  largest eigenvalue of their x-y covariance) falls below a threshold (10 m in the
+  paper), counted from the first estimate, and 0 when it never does — the paper's
+  convention, which is ambiguous, so :class:`Convergence` also says whether it converged;
+* the error after convergence in two forms that must not be confused: the paper's
+  "RMSE", which its formula defines as the *mean* of the errors after convergence
+  (:func:`mean_error_after_convergence`), and the true root-mean-square error
+  (:func:`rmse_after_convergence`). Always mean ≤ RMS.
+
+It is not for running filters or Monte Carlo trials (``hmmtrack.experiments`` does that)
+nor for plotting.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+import pandas as pd
+
+#: the paper's convergence threshold on √λ₁ (m)
+CONVERGENCE_THRESHOLD = 10.0
+
+
+@dataclass(frozen=True)
+class Convergence:
+    """When a run converged.
+
+    Attributes
+    ----------
+    time_to_convergence : float
+        Seconds from the first estimate to the first one with √λ₁ below the threshold;
+        0.0 when it never converged (the paper's convention).
+    converged : bool
+        Whether √λ₁ ever fell below the threshold.
+    index : int
+        Position of the first converged estimate; 0 when it never converged, so that
+        "after convergence" then means the whole run, as in the paper.
+    """
+
+    time_to_convergence: float
+    converged: bool
+    index: int
+
+
+@dataclass(frozen=True)
+class TrackingMetrics:
+    """The paper's summary of one run (see :func:`tracking_metrics`)."""
+
+    time_to_convergence: float
+    converged: bool
+    mean_error_after_convergence: float
+    rmse_after_convergence: float
+    n_estimates_after_convergence: int
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def sqrt_largest_eigenvalue(var_x, var_y, cov_xy) -> np.ndarray:
+    """√λ₁ of 2×2 covariances, the paper's closed form.
+
+    Parameters
+    ----------
+    var_x, var_y, cov_xy : array_like, shape (n,)
+        Entries of the x-y covariance (m²).
+
+    Returns
+    -------
+    numpy.ndarray, shape (n,)
+        ``sqrt((var_x + var_y)/2 + sqrt(((var_x − var_y)/2)² + cov_xy²))`` (m).
+    """
+    var_x, var_y, cov_xy = (np.asarray(a, dtype=float) for a in (var_x, var_y, cov_xy))
+    half_sum = 0.5 * (var_x + var_y)
+    return np.sqrt(half_sum + np.hypot(0.5 * (var_x - var_y), cov_xy))
+
+
+def _columns(table: pd.DataFrame, name: str, columns: tuple[str, ...]) -> list[np.ndarray]:
+    missing = [c for c in columns if c not in table.columns]
+    if missing:
+        raise ValueError(f"{name} table lacks column(s) {missing}; expected {list(columns)}")
+    arrays = [table[c].to_numpy(dtype=float) for c in columns]
+    for column, values in zip(columns, arrays, strict=True):
+        bad = np.flatnonzero(~np.isfinite(values))
+        if bad.size:
+            raise ValueError(
+                f"{name} table has non-finite {column!r} in row(s) {bad[:10].tolist()}"
+            )
+    return arrays
+
+
+def truth_at(truth: pd.DataFrame, times) -> tuple[np.ndarray, np.ndarray]:
+    """True position at ``times``, interpolated linearly between truth rows.
+
+    Parameters
+    ----------
+    truth : pandas.DataFrame
+        ``time`` (s), ``x``, ``y`` (m). A single row is a stationary tag, valid at any time.
+    times : array_like, shape (n,)
+        Times (s), inside the truth's time span unless the truth has one row.
+
+    Returns
+    -------
+    x, y : numpy.ndarray, shape (n,)
+        Interpolated positions (m).
+    """
+    t_true, x_true, y_true = _columns(truth, "truth", ("time", "x", "y"))
+    times = np.asarray(times, dtype=float)
+    if t_true.size == 1:
+        return np.full(times.shape, x_true[0]), np.full(times.shape, y_true[0])
+    order = np.argsort(t_true, kind="stable")
+    t_true, x_true, y_true = t_true[order], x_true[order], y_true[order]
+    outside = np.flatnonzero((times < t_true[0]) | (times > t_true[-1]))
+    if outside.size:
+        raise ValueError(
+            f"{outside.size} time(s) lie outside the truth's span [{t_true[0]}, {t_true[-1]}] s "
+            f"(first at position {outside[0]}); restrict the estimates to that span"
+        )
+    return np.interp(times, t_true, x_true), np.interp(times, t_true, y_true)
+
+
+def position_error(estimates: pd.DataFrame, truth: pd.DataFrame) -> np.ndarray:
+    """The paper's position estimate error at each estimate time.
+
+    Parameters
+    ----------
+    estimates : pandas.DataFrame
+        Estimates table (``time`` s, ``x``, ``y`` m).
+    truth : pandas.DataFrame
+        Truth table (``time`` s, ``x``, ``y`` m), see :func:`truth_at`.
+
+    Returns
+    -------
+    numpy.ndarray, shape (n_estimates,)
+        ``sqrt((x_t − x̂_t)² + (y_t − ŷ_t)²)`` (m).
+    """
+    times, x_hat, y_hat = _columns(estimates, "estimates", ("time", "x", "y"))
+    x, y = truth_at(truth, times)
+    return np.hypot(x - x_hat, y - y_hat)
+
+
+def time_to_convergence(
+    times, sqrt_lambda1, threshold: float = CONVERGENCE_THRESHOLD
+) -> Convergence:
+    """First time the particles' spread √λ₁ falls below ``threshold``.
+
+    Parameters
+    ----------
+    times : array_like, shape (n,)
+        Estimate times, increasing (s).
+    sqrt_lambda1 : array_like, shape (n,)
+        √λ₁ at those times (m).
+    threshold : float
+        Convergence threshold (m); 10 m in the paper.
+
+    Returns
+    -------
+    Convergence
+        Time from ``times[0]`` (s, 0 if never), whether it converged, and the index.
+    """
+    times = np.asarray(times, dtype=float)
+    spread = np.asarray(sqrt_lambda1, dtype=float)
+    if times.shape != spread.shape or times.ndim != 1 or times.size == 0:
+        raise ValueError(
+            f"times and sqrt_lambda1 must be non-empty and of one shape; got {times.shape} "
+            f"and {spread.shape}"
+        )
+    bad = np.flatnonzero(~np.isfinite(spread))
+    if bad.size:
+        raise ValueError(f"sqrt_lambda1 is not finite at position(s) {bad[:10].tolist()}")
+    below = np.flatnonzero(spread < threshold)
+    if below.size == 0:
+        return Convergence(time_to_convergence=0.0, converged=False, index=0)
+    index = int(below[0])
+    return Convergence(float(times[index] - times[0]), converged=True, index=index)
+
+
+def _after(errors, convergence: Convergence) -> np.ndarray:
+    errors = np.asarray(errors, dtype=float)
+    after = errors[convergence.index :]
+    if after.size == 0:
+        raise ValueError(
+            f"no errors after convergence index {convergence.index} ({errors.size} errors)"
+        )
+    return after
+
+
+def mean_error_after_convergence(errors, convergence: Convergence) -> float:
+    """The paper's "RMSE": the *mean* position error from convergence to the end.
+
+    Parameters
+    ----------
+    errors : array_like, shape (n,)
+        Position errors at each estimate (m), see :func:`position_error`.
+    convergence : Convergence
+        From :func:`time_to_convergence` on the same estimates.
+
+    Returns
+    -------
+    float
+        ``mean(errors[t_c:])`` (m); the whole run when it never converged (t_c = 0).
+    """
+    return float(np.mean(_after(errors, convergence)))
+
+
+def rmse_after_convergence(errors, convergence: Convergence) -> float:
+    """True root-mean-square position error from convergence to the end.
+
+    Parameters
+    ----------
+    errors : array_like, shape (n,)
+        Position errors at each estimate (m).
+    convergence : Convergence
+        From :func:`time_to_convergence` on the same estimates.
+
+    Returns
+    -------
+    float
+        ``sqrt(mean(errors[t_c:]²))`` (m), never below :func:`mean_error_after_convergence`.
+    """
+    return float(np.sqrt(np.mean(_after(errors, convergence) ** 2)))
+
+
+def tracking_metrics(
+    estimates: pd.DataFrame, truth: pd.DataFrame, threshold: float = CONVERGENCE_THRESHOLD
+) -> TrackingMetrics:
+    """All of the paper's metrics of one run.
+
+    Parameters
+    ----------
+    estimates : pandas.DataFrame
+        Estimates table with ``time``, ``x``, ``y``, ``sqrt_lambda1``.
+    truth : pandas.DataFrame
+        Truth table (``time``, ``x``, ``y``).
+    threshold : float
+        Convergence threshold on √λ₁ (m).
+
+    Returns
+    -------
+    TrackingMetrics
+    """
+    errors = position_error(estimates, truth)
+    (times, spread) = _columns(estimates, "estimates", ("time", "sqrt_lambda1"))
+    convergence = time_to_convergence(times, spread, threshold)
+    return TrackingMetrics(
+        time_to_convergence=convergence.time_to_convergence,
+        converged=convergence.converged,
+        mean_error_after_convergence=mean_error_after_convergence(errors, convergence),
+        rmse_after_convergence=rmse_after_convergence(errors, convergence),
+        n_estimates_after_convergence=errors.size - convergence.index,
+    )

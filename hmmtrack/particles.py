@@ -1,0 +1,203 @@
+"""The particle set of the tracking filter: a structure of arrays, one entry per particle.
+
+A particle is the paper's state ``[x, y, theta, v, omega]`` plus its log weight, its
+behavioural state (used by the HMM motion model) and the time since its speed and turn
+rate were last drawn (used by the time-consistent HMM motion model). ``cos_heading`` and
+``sin_heading`` are kept beside ``heading`` so that the motion kernels rotate the heading
+with one sine/cosine pair per step instead of recomputing three trigonometric functions.
+
+This module only stores, creates, copies and selects particles; motion models
+(:mod:`hmmtrack.motion`) move them and measurement models (:mod:`hmmtrack.measurement`)
+weigh them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields
+
+import numpy as np
+import pandas as pd
+
+__all__ = ["Bounds", "Particles", "as_bounds"]
+
+Bounds = tuple[float, float, float, float]
+
+
+def as_bounds(bounds) -> Bounds:
+    """Return ``bounds`` as ``(xmin, xmax, ymin, ymax)`` floats, refusing an empty box."""
+    try:
+        xmin, xmax, ymin, ymax = (float(b) for b in bounds)
+    except (TypeError, ValueError):
+        raise ValueError(
+            f"bounds must be (xmin, xmax, ymin, ymax) in metres, got {bounds!r}"
+        ) from None
+    if not (np.isfinite([xmin, xmax, ymin, ymax]).all() and xmin < xmax and ymin < ymax):
+        raise ValueError(
+            "bounds must be finite with xmin < xmax and ymin < ymax, "
+            f"got {(xmin, xmax, ymin, ymax)}"
+        )
+    return xmin, xmax, ymin, ymax
+
+
+@dataclass
+class Particles:
+    """Particle arrays, each of shape ``(N,)``.
+
+    Attributes
+    ----------
+    x, y : float64
+        Position, projected metres (x east, y north).
+    heading : float64
+        Direction of motion, radians counter-clockwise from +x, in ``(-pi, pi]``.
+    cos_heading, sin_heading : float64
+        ``cos(heading)`` and ``sin(heading)``, kept in step with ``heading``.
+    speed : float64
+        Linear velocity ``v`` along the heading, m/s (the velocity model lets it be negative).
+    turn_rate : float64
+        Angular velocity ``omega``, rad/s.
+    state : int64
+        Behavioural state (HMM motion model), ``0 .. K-1``; 0 for the other models.
+    time_since_draw : float64
+        Seconds since speed and turn rate were last drawn (time-consistent HMM motion).
+    log_weight : float64
+        Log importance weight; ``-inf`` marks an impossible particle.
+    extra : dict of str to (N,) array
+        Further per-particle fields that other process or measurement models need (for
+        example a transmitter clock's ``emission_time`` and ``period``); they are read as
+        attributes (``particles.emission_time``) and copied, taken and resampled with the
+        rest.
+    """
+
+    x: np.ndarray
+    y: np.ndarray
+    heading: np.ndarray
+    cos_heading: np.ndarray
+    sin_heading: np.ndarray
+    speed: np.ndarray
+    turn_rate: np.ndarray
+    state: np.ndarray
+    time_since_draw: np.ndarray
+    log_weight: np.ndarray
+    extra: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        n = np.shape(self.x)
+        for name in self.array_names():
+            dtype = np.int64 if name == "state" else np.float64
+            value = np.require(getattr(self, name), dtype=dtype, requirements=("C", "W", "A"))
+            if value.shape != n or value.ndim != 1:
+                raise ValueError(f"Particles.{name} has shape {value.shape}, expected {n}")
+            setattr(self, name, value)
+        for name, value in self.extra.items():
+            value = np.require(value, requirements=("C", "W", "A"))
+            if value.shape != n:
+                raise ValueError(f"Particles.extra[{name!r}] has shape {value.shape}, expected {n}")
+            self.extra[name] = value
+
+    def __getattr__(self, name: str) -> np.ndarray:
+        extra = self.__dict__.get("extra", {})
+        if name in extra:
+            return extra[name]
+        raise AttributeError(f"Particles has no field {name!r}")
+
+    @classmethod
+    def array_names(cls) -> tuple[str, ...]:
+        """Names of the built-in per-particle arrays (all fields but ``extra``)."""
+        return tuple(f.name for f in fields(cls) if f.name != "extra")
+
+    @property
+    def n(self) -> int:
+        """Number of particles ``N``."""
+        return self.x.size
+
+    @classmethod
+    def from_state(
+        cls,
+        x: np.ndarray,
+        y: np.ndarray,
+        heading: np.ndarray,
+        speed: np.ndarray | float = 0.0,
+        turn_rate: np.ndarray | float = 0.0,
+        state: np.ndarray | int = 0,
+    ) -> Particles:
+        """Build particles from the paper's state variables, with equal weights.
+
+        Parameters
+        ----------
+        x, y : (N,) float, metres
+        heading : (N,) float, radians
+        speed : (N,) float or scalar, m/s
+        turn_rate : (N,) float or scalar, rad/s
+        state : (N,) int or scalar, behavioural state
+        """
+        x = np.asarray(x, dtype=np.float64)
+        n = x.size
+        heading = np.broadcast_to(np.asarray(heading, dtype=np.float64), (n,))
+        return cls(
+            x=x,
+            y=np.asarray(y, dtype=np.float64),
+            heading=heading,
+            cos_heading=np.cos(heading),
+            sin_heading=np.sin(heading),
+            speed=np.broadcast_to(np.asarray(speed, dtype=np.float64), (n,)),
+            turn_rate=np.broadcast_to(np.asarray(turn_rate, dtype=np.float64), (n,)),
+            state=np.broadcast_to(np.asarray(state, dtype=np.int64), (n,)),
+            time_since_draw=np.zeros(n),
+            log_weight=np.full(n, -np.log(n)),
+        )
+
+    @classmethod
+    def uniform(cls, rng: np.random.Generator, n: int, bounds) -> Particles:
+        """The paper's Algorithm 1: ``n`` particles uniform in ``bounds``, at rest.
+
+        Parameters
+        ----------
+        rng : numpy.random.Generator
+        n : int
+            Number of particles.
+        bounds : (xmin, xmax, ymin, ymax), metres
+
+        Returns
+        -------
+        Particles with x ~ U(xmin, xmax), y ~ U(ymin, ymax), heading ~ U(-pi/2, pi/2),
+        speed 0, turn rate 0, state 0 and equal weights.
+        """
+        if n < 1:
+            raise ValueError(f"need at least one particle, got n={n}")
+        xmin, xmax, ymin, ymax = as_bounds(bounds)
+        return cls.from_state(
+            x=rng.uniform(xmin, xmax, n),
+            y=rng.uniform(ymin, ymax, n),
+            heading=rng.uniform(-np.pi / 2, np.pi / 2, n),
+        )
+
+    def copy(self) -> Particles:
+        """Deep copy."""
+        return self.take(slice(None))
+
+    def take(self, indices: np.ndarray | slice) -> Particles:
+        """New particles ``self[indices]`` for every field (used after resampling)."""
+        return Particles(
+            **{name: getattr(self, name)[indices].copy() for name in self.array_names()},
+            extra={name: value[indices].copy() for name, value in self.extra.items()},
+        )
+
+    def normalised_weights(self) -> np.ndarray:
+        """Weights ``exp(log_weight)`` scaled to sum one, shape ``(N,)``."""
+        lw = self.log_weight - self.log_weight.max()
+        w = np.exp(lw)
+        return w / w.sum()
+
+    def to_frame(self) -> pd.DataFrame:
+        """Snapshot as a table: x, y, heading, speed, turn_rate, state, weight."""
+        return pd.DataFrame(
+            {
+                "x": self.x,
+                "y": self.y,
+                "heading": self.heading,
+                "speed": self.speed,
+                "turn_rate": self.turn_rate,
+                "state": self.state,
+                "weight": self.normalised_weights(),
+            }
+        )

@@ -1,0 +1,191 @@
+"""The :class:`Scenario` container and the one routine that turns simulated paths into one.
+
+A scenario is everything a tracking run needs plus its ground truth: the detection log, the
+logged hydrophone positions, the true tag path, the transmitter period, the true initial
+ranges ``r0`` and a box to initialise particles in (``docs/interfaces.md``). The paper's
+three datasets are built in :mod:`hmmtrack.scenarios.paper`; this module only assembles.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from hmmtrack.scenarios.detection import (
+    SOUND_SPEED,
+    GpsNoise,
+    detections_from_pings,
+    receiver_positions,
+    simulate_pings,
+)
+from hmmtrack.scenarios.trajectory import Trajectory
+
+#: margin (m) added around the discs of radius r0 to make the initialisation box
+BOUNDS_MARGIN = 100.0
+
+
+@dataclass(frozen=True, kw_only=True)
+class Scenario:
+    """A synthetic tracking dataset with its ground truth.
+
+    Attributes
+    ----------
+    name : str
+        Short name, e.g. ``"shark-pursuit"``.
+    detections : DataFrame
+        ``time`` (UTC s, as logged), ``receiver``, ``transmitter``; ``depth`` (m) for a
+        depth-sensor tag.
+    receivers : DataFrame
+        Logged hydrophone positions with GPS noise: ``receiver``, ``time`` (NaN for a moored
+        hydrophone), ``x``, ``y`` (m).
+    truth : DataFrame
+        The tag's true position every second: ``time``, ``x``, ``y`` and ``depth`` for a
+        diving tag.
+    period : float
+        Nominal transmitter period (s).
+    r0 : dict of str to float
+        True range (m, 3-D) from each hydrophone to the tag at ``start``.
+    bounds : tuple of float
+        ``(xmin, xmax, ymin, ymax)`` (m): every point within ``r0 + 100 m`` of a hydrophone at
+        ``start``, the box the paper's filter initialises particles in.
+    sound_speed : float
+        m/s.
+    start, end : float
+        UTC s; the run covers ``[start, end]``.
+    description : str
+        What the scenario imitates and how it differs from the paper's data.
+    transmitter : str
+        Transmitter id used in ``detections``.
+    pings : DataFrame
+        Every emission at every hydrophone, detected or lost (columns
+        :data:`hmmtrack.scenarios.detection.PING_COLUMNS`).
+    receivers_truth : DataFrame
+        Like ``receivers`` without GPS noise.
+    """
+
+    name: str
+    detections: pd.DataFrame
+    receivers: pd.DataFrame
+    truth: pd.DataFrame
+    period: float
+    r0: dict[str, float]
+    bounds: tuple[float, float, float, float]
+    sound_speed: float = SOUND_SPEED
+    start: float
+    end: float
+    description: str
+    transmitter: str
+    pings: pd.DataFrame
+    receivers_truth: pd.DataFrame
+
+    def metadata(self) -> dict:
+        """The scalar settings a tracker needs (the ``scenario.json`` of ``hmmtrack simulate``).
+
+        Returns
+        -------
+        dict
+            ``name``, ``description``, ``transmitter``, ``period`` (s), ``sound_speed`` (m/s),
+            ``start`` and ``end`` (UTC s), ``r0`` (m per receiver), ``bounds`` (m).
+        """
+        return {
+            "name": self.name,
+            "description": self.description,
+            "transmitter": self.transmitter,
+            "period": self.period,
+            "sound_speed": self.sound_speed,
+            "start": self.start,
+            "end": self.end,
+            "r0": dict(self.r0),
+            "bounds": list(self.bounds),
+        }
+
+
+def assemble_scenario(
+    rng: np.random.Generator,
+    *,
+    name: str,
+    description: str,
+    tag: Trajectory,
+    receivers: Mapping[str, Trajectory],
+    emission_time: np.ndarray,
+    period: float,
+    detection_probability: Mapping[str, Callable[[np.ndarray], np.ndarray]],
+    gps: GpsNoise,
+    start: float,
+    end: float,
+    transmitter: str,
+    sound_speed: float = SOUND_SPEED,
+) -> Scenario:
+    """Simulate emissions, detections and logged positions for given paths.
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+        Used in this order: detection draws, GPS noise.
+    name, description, transmitter : str
+    tag : Trajectory
+        The transmitter's true path (with depth for a depth-sensor tag).
+    receivers : mapping of str to Trajectory
+        True hydrophone paths; a single-vertex path is a moored hydrophone.
+    emission_time : (n,) float array
+        Emission times (UTC s), e.g. from an
+        :class:`~hmmtrack.scenarios.detection.EmissionClock`.
+    period : float
+        The nominal period (s) reported to the tracker.
+    detection_probability : mapping of str to callable
+        Per hydrophone, range (m) -> probability.
+    gps : GpsNoise
+        Error on logged positions of hydrophones (1 Hz for moving ones).
+    start, end : float
+        UTC s.
+    sound_speed : float
+        m/s.
+
+    Returns
+    -------
+    Scenario
+    """
+    pings = simulate_pings(
+        rng, tag, receivers, emission_time, detection_probability, sound_speed=sound_speed
+    )
+    detections = detections_from_pings(pings, transmitter, tag)
+    seconds = start + np.arange(int(np.floor(end - start)) + 1, dtype=float)
+    logged = receiver_positions(rng, receivers, seconds, gps)
+    exact = receiver_positions(rng, receivers, seconds, GpsNoise(sd=0.0))
+    x, y, depth = tag.position(seconds)
+    truth = pd.DataFrame({"time": seconds, "x": x, "y": y})
+    if tag.depth is not None:
+        truth["depth"] = depth
+    tx, ty, tz = tag.position(np.array([start]))
+    r0, boxes = {}, []
+    for receiver, path in receivers.items():
+        rx, ry, rz = path.position(np.array([start]))
+        r0[receiver] = float(np.sqrt((tx - rx) ** 2 + (ty - ry) ** 2 + (tz - rz) ** 2)[0])
+        reach = r0[receiver] + BOUNDS_MARGIN
+        boxes.append((rx[0] - reach, rx[0] + reach, ry[0] - reach, ry[0] + reach))
+    boxes = np.array(boxes)
+    bounds = (
+        float(boxes[:, 0].min()),
+        float(boxes[:, 1].max()),
+        float(boxes[:, 2].min()),
+        float(boxes[:, 3].max()),
+    )
+    return Scenario(
+        name=name,
+        detections=detections,
+        receivers=logged,
+        truth=truth,
+        period=period,
+        r0=r0,
+        bounds=bounds,
+        sound_speed=sound_speed,
+        start=start,
+        end=end,
+        description=description,
+        transmitter=transmitter,
+        pings=pings,
+        receivers_truth=exact,
+    )

@@ -1,0 +1,277 @@
+"""Per-particle random streams and the samplers that compiled motion kernels draw from.
+
+The compiled motion kernels (:mod:`hmmtrack.motion`) run over particles on several threads.
+To give the same answer for the same seed whatever the number of threads, each particle
+*slot* ``i`` owns its own random stream: a 64-bit SplitMix64 state ``streams[i]`` seeded once
+from the filter's ``numpy.random.Generator``. A kernel reads the state into a register,
+draws from it, and writes it back; no two threads ever share a stream. Streams stay with the
+slot when particles are resampled, so copies of one ancestor diverge.
+
+The scalar samplers below (uniform, standard normal pairs, gamma, von Mises, categorical)
+are ``numba.njit`` functions that take and return the stream state. They are written from
+the textbook algorithms: a 256-layer ziggurat for normals and Marsaglia & Tsang (2000) for
+gamma, Best & Fisher (1979) for von Mises. :func:`draw_uniforms` and the other ``draw_*``
+helpers expose them as array functions so that tests can compare them with SciPy.
+
+This module does not move particles; it only makes random numbers for those that do.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+from scipy import optimize, special
+
+__all__ = [
+    "draw_gamma",
+    "draw_normal_pairs",
+    "draw_uniforms",
+    "draw_vonmises",
+    "new_streams",
+]
+
+_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
+_MIX1 = np.uint64(0xBF58476D1CE4E5B9)
+_MIX2 = np.uint64(0x94D049BB133111EB)
+_S30 = np.uint64(30)
+_S27 = np.uint64(27)
+_S31 = np.uint64(31)
+_S11 = np.uint64(11)
+_TWO_M53 = 1.0 / 9007199254740992.0  # 2**-53
+
+
+def new_streams(rng: np.random.Generator, n: int) -> np.ndarray:
+    """Seed ``n`` particle streams from ``rng``; returns a (n,) uint64 state array."""
+    return rng.integers(0, np.iinfo(np.uint64).max, size=n, dtype=np.uint64, endpoint=True)
+
+
+def _ziggurat_tables(n_layers: int = 256) -> tuple[np.ndarray, np.ndarray]:
+    """Layer edges ``x`` (n_layers + 1,) and heights ``f(x)`` of the normal ziggurat.
+
+    ``f(x) = exp(-x^2 / 2)``; the base layer is the rectangle ``[0, r] x [0, f(r)]`` plus the
+    tail beyond ``r`` and has area ``v``; every other layer is a rectangle of area ``v``
+    stacked above, with ``x[0] = v / f(r)`` the base layer's virtual width and ``x[-1] = 0``.
+    ``r`` is solved for so that the top layer closes exactly at height 1.
+    """
+
+    def f(x):
+        return np.exp(-0.5 * x * x)
+
+    def layers(r):
+        v = r * f(r) + np.sqrt(np.pi / 2.0) * special.erfc(r / np.sqrt(2.0))
+        x = np.empty(n_layers + 1)
+        x[0], x[1] = v / f(r), r
+        for i in range(1, n_layers):
+            height = f(x[i]) + v / x[i]
+            if height >= 1.0:
+                return x, 1.0 - height - (n_layers - i)  # too few layers fit: r too small
+            x[i + 1] = np.sqrt(-2.0 * np.log(height))
+        return x, x[n_layers - 1] * (1.0 - f(x[n_layers - 1])) - v  # top layer's area error
+
+    r = optimize.brentq(lambda r: layers(r)[1], 2.5, 5.0, xtol=1e-15)
+    x = layers(r)[0]
+    x[-1] = 0.0
+    return x, f(x)
+
+
+_ZIG_X, _ZIG_F = _ziggurat_tables()
+_ZIG_R = float(_ZIG_X[1])
+_S8 = np.uint64(8)
+_LAYER = np.uint64(255)
+_ONE = np.uint64(1)
+
+
+@njit(cache=True, inline="always")
+def _bits(state):
+    state = state + _GOLDEN
+    z = state
+    z = (z ^ (z >> _S30)) * _MIX1
+    z = (z ^ (z >> _S27)) * _MIX2
+    return z ^ (z >> _S31), state
+
+
+@njit(cache=True, inline="always")
+def uniform(state):
+    """One uniform in ``(0, 1]`` (53 random bits) and the advanced state (SplitMix64)."""
+    z, state = _bits(state)
+    return ((z >> _S11) + _ONE) * _TWO_M53, state
+
+
+@njit(cache=True)
+def _normal_slow(layer, x, state):
+    """Rejection part of the ziggurat for ``|x|`` outside layer ``layer``'s inner box."""
+    if layer == 0:  # tail beyond r (Marsaglia's exponential method)
+        while True:
+            u1, state = uniform(state)
+            u2, state = uniform(state)
+            a = -np.log(u1) / _ZIG_R
+            if -2.0 * np.log(u2) >= a * a:
+                return _ZIG_R + a, True, state
+    u, state = uniform(state)
+    height = _ZIG_F[layer] + u * (_ZIG_F[layer + 1] - _ZIG_F[layer])
+    return x, height < np.exp(-0.5 * x * x), state
+
+
+@njit(cache=True, inline="always")
+def normal(state):
+    """One standard normal (256-layer ziggurat) and the advanced state."""
+    while True:
+        z, state = _bits(state)
+        layer = z & _LAYER
+        x = ((z >> _S11) * _TWO_M53) * _ZIG_X[layer]
+        if x >= _ZIG_X[layer + 1]:
+            x, accepted, state = _normal_slow(layer, x, state)
+            if not accepted:
+                continue
+        if (z >> _S8) & _ONE:
+            return -x, state
+        return x, state
+
+
+@njit(cache=True, inline="always")
+def normal_pair(state):
+    """Two independent standard normals and the advanced state."""
+    z1, state = normal(state)
+    z2, state = normal(state)
+    return z1, z2, state
+
+
+@njit(cache=True)
+def gamma(shape_less_third, inv_sqrt_9d, boost_exponent, scale, state):
+    """One gamma variate (Marsaglia & Tsang) and the advanced state.
+
+    Parameters are precomputed per behavioural state by :func:`gamma_constants`:
+    ``d = max(shape, shape + 1) - 1/3``, ``c = 1 / sqrt(9 d)``, ``boost_exponent = 1/shape``
+    when ``shape < 1`` (then ``X * U**(1/shape)`` is drawn), else 0.
+    """
+    d = shape_less_third
+    c = inv_sqrt_9d
+    while True:
+        x, _, state = normal_pair(state)
+        v = 1.0 + c * x
+        if v <= 0.0:
+            continue
+        v = v * v * v
+        u, state = uniform(state)
+        x2 = x * x
+        if u < 1.0 - 0.0331 * x2 * x2 or np.log(u) < 0.5 * x2 + d * (1.0 - v + np.log(v)):
+            value = d * v * scale
+            break
+    if boost_exponent > 0.0:
+        u, state = uniform(state)
+        value *= u**boost_exponent
+    return value, state
+
+
+def gamma_constants(shape: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per-shape constants ``(d, c, boost_exponent)`` of :func:`gamma`, arrays like ``shape``."""
+    shape = np.asarray(shape, dtype=np.float64)
+    if np.any(~np.isfinite(shape) | (shape <= 0)):
+        raise ValueError(f"gamma shapes must be finite and positive, got {shape}")
+    boosted = shape < 1.0
+    d = np.where(boosted, shape + 1.0, shape) - 1.0 / 3.0
+    return d, 1.0 / np.sqrt(9.0 * d), np.where(boosted, 1.0 / shape, 0.0)
+
+
+@njit(cache=True)
+def vonmises(mean, r, concentration, state):
+    """One von Mises angle in ``(-pi, pi]`` (Best & Fisher) and the advanced state.
+
+    ``r = (1 + rho^2) / (2 rho)`` is precomputed by :func:`vonmises_constants`; a zero
+    concentration gives the uniform circle, a very large one (``r == 0``) the normal limit.
+    """
+    if concentration < 1e-8:
+        u, state = uniform(state)
+        return np.pi * (2.0 * u - 1.0), state
+    if r == 0.0:
+        z, _, state = normal_pair(state)
+        angle = mean + z / np.sqrt(concentration)
+    else:
+        while True:
+            u1, state = uniform(state)
+            z = np.cos(np.pi * u1)
+            f = (1.0 + r * z) / (r + z)
+            c = concentration * (r - f)
+            u2, state = uniform(state)
+            if c * (2.0 - c) - u2 > 0.0 or np.log(c / u2) + 1.0 - c >= 0.0:
+                break
+        u3, state = uniform(state)
+        f = min(max(f, -1.0), 1.0)
+        angle = mean + np.arccos(f) if u3 > 0.5 else mean - np.arccos(f)
+    angle = np.mod(angle + np.pi, 2.0 * np.pi) - np.pi
+    if angle == -np.pi:
+        angle = np.pi
+    return angle, state
+
+
+def vonmises_constants(concentration: np.ndarray) -> np.ndarray:
+    """Per-concentration constant ``r`` of :func:`vonmises` (0 selects the normal limit)."""
+    kappa = np.asarray(concentration, dtype=np.float64)
+    if np.any(~np.isfinite(kappa) | (kappa < 0)):
+        raise ValueError(f"von Mises concentrations must be finite and >= 0, got {kappa}")
+    safe = np.clip(kappa, 1e-5, 1e6)
+    tau = 1.0 + np.sqrt(1.0 + 4.0 * safe * safe)
+    rho = (tau - np.sqrt(2.0 * tau)) / (2.0 * safe)
+    small = np.clip(kappa, 1e-8, 1e-5)  # rho ~ kappa / 2 loses all digits below 1e-5
+    r = np.where(kappa < 1e-5, 1.0 / small + 0.25 * small, (1.0 + rho * rho) / (2.0 * rho))
+    return np.where(kappa > 1e6, 0.0, r)
+
+
+@njit(cache=True, inline="always")
+def categorical(cumulative_row, state):
+    """Index ``j`` with probability ``row[j]``, given the row's cumulative sums (last = 1)."""
+    u, state = uniform(state)
+    k = cumulative_row.size
+    for j in range(k - 1):
+        if u <= cumulative_row[j]:
+            return j, state
+    return k - 1, state
+
+
+@njit(cache=True)
+def draw_uniforms(streams, n_per_stream):
+    """``(n_per_stream, N)`` uniforms, advancing ``streams`` (N,) in place."""
+    out = np.empty((n_per_stream, streams.size))
+    for i in range(streams.size):
+        s = streams[i]
+        for k in range(n_per_stream):
+            out[k, i], s = uniform(s)
+        streams[i] = s
+    return out
+
+
+@njit(cache=True)
+def draw_normal_pairs(streams):
+    """One standard normal pair per stream, ``(2, N)``, advancing ``streams`` in place."""
+    out = np.empty((2, streams.size))
+    for i in range(streams.size):
+        out[0, i], out[1, i], streams[i] = normal_pair(streams[i])
+    return out
+
+
+@njit(cache=True)
+def _draw_gamma(streams, d, c, boost, scale):
+    out = np.empty(streams.size)
+    for i in range(streams.size):
+        out[i], streams[i] = gamma(d, c, boost, scale, streams[i])
+    return out
+
+
+def draw_gamma(streams: np.ndarray, shape: float, scale: float) -> np.ndarray:
+    """One Gamma(shape, scale) draw per stream, (N,), advancing ``streams`` in place."""
+    d, c, boost = gamma_constants(np.array([shape]))
+    return _draw_gamma(streams, d[0], c[0], boost[0], float(scale))
+
+
+@njit(cache=True)
+def _draw_vonmises(streams, mean, r, concentration):
+    out = np.empty(streams.size)
+    for i in range(streams.size):
+        out[i], streams[i] = vonmises(mean, r, concentration, streams[i])
+    return out
+
+
+def draw_vonmises(streams: np.ndarray, mean: float, concentration: float) -> np.ndarray:
+    """One von Mises(mean, concentration) draw per stream, (N,), advancing ``streams``."""
+    r = vonmises_constants(np.array([concentration]))[0]
+    return _draw_vonmises(streams, float(mean), r, float(concentration))

@@ -1,0 +1,79 @@
+"""Tests of the realistic-clock scenario generators."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from hmmtrack.clock import local_period_ppm, schedule_wander
+from hmmtrack.clock_scenarios import Multipath, WanderingPeriodClock, moored_array
+
+
+def test_wandering_clock_has_the_stated_wander_and_jitter():
+    clean = WanderingPeriodClock(8.0, schedule_wander=0.8, jitter_sd=0.0).emission_times(
+        np.random.default_rng(0), 0.0, 7200.0
+    )
+    jittered = WanderingPeriodClock(8.0, schedule_wander=0.8, jitter_sd=65e-6).emission_times(
+        np.random.default_rng(0), 0.0, 7200.0
+    )
+    assert clean.size == 900
+    assert schedule_wander(clean) == pytest.approx(0.8, rel=1e-9)
+    jitter = jittered - clean
+    assert np.std(jitter) == pytest.approx(65e-6, rel=0.1)
+    assert np.mean(np.diff(clean)) == pytest.approx(8.0, rel=1e-4)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_local_period_excursions_are_of_the_real_tags_size(seed):
+    """Over 800 s blocks (400 pings of the real 2 s tag, 100 of an 8 s tag) the real tag's
+    local period ranged over about -700..+360 ppm; ours must span hundreds of ppm, not
+    thousands."""
+    times = WanderingPeriodClock(8.0, 0.8, 0.0).emission_times(
+        np.random.default_rng(seed), 0.0, 7200.0
+    )
+    ppm = local_period_ppm(times, block=100)
+    spread = ppm.max() - ppm.min()
+    assert 200 < spread < 3000
+
+
+def test_moored_array_is_reproducible_and_consistent_with_its_truth():
+    a = moored_array(11, duration=1800.0)
+    b = moored_array(11, duration=1800.0)
+    assert a.scenario.detections.equals(b.scenario.detections)
+    sc = a.scenario
+    pings = sc.pings
+    # logged times are the true arrivals through each receiver's clock, plus multipath
+    for name, clock in a.receiver_clocks.items():
+        rows = pings["receiver"] == name
+        expected = clock.to_recorded(pings.loc[rows, "arrival_time"].to_numpy())
+        got = pings.loc[rows, "logged_time"].to_numpy() - pings.loc[rows, "multipath_delay"]
+        np.testing.assert_allclose(got, expected, atol=1e-6)  # float64 at 1.6e9 s: 2.4e-7 s
+    # arrival - emission = range / sound speed
+    np.testing.assert_allclose(
+        pings["arrival_time"] - pings["emission_time"], pings["range"] / sc.sound_speed, atol=1e-6
+    )
+    # corrected detections are within the calibration error of the true arrival (+ multipath)
+    detected = pings[pings["detected"]].sort_values("logged_time")
+    corrected = a.corrected_detections()
+    assert len(corrected) == len(detected)
+    direct = detected["multipath_delay"].to_numpy() == 0
+    error = np.sort(corrected["time"].to_numpy()) - np.sort(
+        (detected["arrival_time"] + detected["multipath_delay"]).to_numpy()
+    )
+    assert np.max(np.abs(error)) < 1e-3
+    assert direct.mean() > 0.9
+    # the search box does not depend on the true start position beyond the receivers
+    xmin, xmax, ymin, ymax = a.search_bounds
+    assert xmin < sc.truth["x"].min() and xmax > sc.truth["x"].max()
+    assert ymin < sc.truth["y"].min() and ymax > sc.truth["y"].max()
+
+
+def test_multipath_delays_a_share_of_pings():
+    import pandas as pd
+
+    pings = pd.DataFrame({"logged_time": np.zeros(20_000)})
+    out = Multipath(fraction=0.05, mean_delay=0.02).apply(np.random.default_rng(5), pings)
+    late = out["multipath_delay"] > 0
+    assert late.mean() == pytest.approx(0.05, abs=0.005)
+    assert out.loc[late, "multipath_delay"].mean() == pytest.approx(0.02, rel=0.1)
+    np.testing.assert_allclose(out["logged_time"], out["multipath_delay"])

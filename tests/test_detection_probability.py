@@ -1,0 +1,79 @@
+"""Tests of the logistic detection curve, its fit, and the information in a silence."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from hmmtrack.clock_scenarios import moored_array
+from hmmtrack.detection_probability import (
+    LogisticDetection,
+    expected_pings,
+    fit_detection_probability,
+    silence_loglik,
+)
+from hmmtrack.receivers import ReceiverTracks
+
+
+@given(r=st.floats(-1e4, 1e5), r50=st.floats(10, 5000), width=st.floats(1, 1000))
+def test_probabilities_of_hearing_and_missing_add_to_one(r, r50, width):
+    curve = LogisticDetection(r50, width)
+    total = np.exp(curve.log_probability(r)) + np.exp(curve.log_miss_probability(r))
+    assert total == pytest.approx(1.0, abs=1e-12)
+    assert curve(r) == pytest.approx(np.exp(curve.log_probability(r)), rel=1e-9, abs=1e-300)
+
+
+def test_fit_recovers_the_curve():
+    rng = np.random.default_rng(0)
+    truth = LogisticDetection(range_50=650.0, width=90.0)
+    r = rng.uniform(0, 1500, 20_000)
+    heard = rng.random(r.size) < truth.probability(r)
+    fit = fit_detection_probability(r, heard)
+    # standard errors here are about 2 m and 1.5 m; allow 5 of them
+    assert fit.range_50 == pytest.approx(650.0, abs=10.0)
+    assert fit.width == pytest.approx(90.0, abs=7.5)
+
+
+def test_fit_refuses_data_without_information():
+    with pytest.raises(ValueError, match="both heard and missed"):
+        fit_detection_probability([1.0, 2.0], [True, True])
+    with pytest.raises(ValueError, match="rows \\[1\\]"):
+        fit_detection_probability([1.0, np.nan], [True, False])
+    r = np.linspace(0, 1000, 200)
+    with pytest.raises(ValueError, match="do not fall off"):
+        fit_detection_probability(r, r > 500)  # heard only far away
+
+
+def test_expected_pings_reproduce_the_simulated_detections():
+    case = moored_array(3, duration=1800.0)
+    sc = case.scenario
+    truth_x = np.interp(case.emission_times, sc.truth["time"], sc.truth["x"])
+    truth_y = np.interp(case.emission_times, sc.truth["time"], sc.truth["y"])
+    receivers = ReceiverTracks.from_frame(sc.receivers_truth)
+    table = expected_pings(
+        case.emission_times,
+        truth_x,
+        truth_y,
+        receivers,
+        case.corrected_detections(),
+        sc.sound_speed,
+        tolerance=0.5,
+    )
+    pings = sc.pings.sort_values(["receiver", "ping"])
+    merged = table.sort_values(["receiver", "emission_time"])
+    np.testing.assert_array_equal(merged["heard"].to_numpy(), pings["detected"].to_numpy())
+    np.testing.assert_allclose(merged["range"].to_numpy(), pings["range"].to_numpy(), atol=0.5)
+
+
+def test_silence_counts_only_due_and_unheard_pings():
+    curve = LogisticDetection(range_50=500.0, width=50.0)
+    expected = np.array([10.2, 10.7, 11.5, 10.9])
+    r = np.array([100.0, 100.0, 100.0, 900.0])
+    heard = np.array([10.21, 20.0])
+    got = silence_loglik(expected, r, heard, 10.0, 11.0, curve, tolerance=0.05)
+    want = np.array([0.0, np.log1p(-curve(100.0)), 0.0, np.log1p(-curve(900.0))])
+    np.testing.assert_allclose(got, want, rtol=1e-12)
+    assert pd.isna(got).sum() == 0

@@ -1,0 +1,98 @@
+"""Tests of hmmtrack.metrics: hand-computed values, eigenvalue oracle, mean ≤ RMS."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+
+from hmmtrack import metrics
+
+
+def estimates_table(times, x, y, spread):
+    return pd.DataFrame({"time": times, "x": x, "y": y, "sqrt_lambda1": spread})
+
+
+def test_position_error_interpolates_the_truth():
+    truth = pd.DataFrame({"time": [0.0, 10.0], "x": [0.0, 100.0], "y": [0.0, 0.0]})
+    estimates = estimates_table([0.0, 2.5, 10.0], [3.0, 25.0, 100.0], [4.0, 6.0, -1.0], 1.0)
+    # truth at 2.5 s is (25, 0)
+    np.testing.assert_allclose(metrics.position_error(estimates, truth), [5.0, 6.0, 1.0])
+
+
+def test_single_row_truth_is_a_stationary_tag():
+    truth = pd.DataFrame({"time": [123.0], "x": [10.0], "y": [20.0]})
+    estimates = estimates_table([0.0, 500.0], [13.0, 10.0], [24.0, 20.0], 1.0)
+    np.testing.assert_allclose(metrics.position_error(estimates, truth), [5.0, 0.0])
+
+
+def test_estimates_outside_the_truth_span_are_an_error():
+    truth = pd.DataFrame({"time": [0.0, 10.0], "x": [0.0, 1.0], "y": [0.0, 1.0]})
+    with pytest.raises(ValueError, match="outside the truth's span"):
+        metrics.position_error(estimates_table([5.0, 11.0], [0, 0], [0, 0], 1.0), truth)
+    with pytest.raises(ValueError, match=r"non-finite 'x' in row\(s\) \[1\]"):
+        metrics.position_error(estimates_table([5.0, 6.0], [0, np.nan], [0, 0], 1.0), truth)
+
+
+def test_time_to_convergence_hand_values():
+    times = np.array([100.0, 101.0, 102.0, 103.0, 104.0])
+    conv = metrics.time_to_convergence(times, [50.0, 12.0, 9.9, 30.0, 5.0])
+    assert conv == metrics.Convergence(time_to_convergence=2.0, converged=True, index=2)
+    # at the threshold is not below it
+    assert metrics.time_to_convergence(times, [10.0] * 5).converged is False
+
+
+def test_never_converged_is_zero_as_in_the_paper_but_flagged():
+    conv = metrics.time_to_convergence([0.0, 1.0, 2.0], [20.0, 15.0, 11.0])
+    assert conv == metrics.Convergence(time_to_convergence=0.0, converged=False, index=0)
+    # converging at the first estimate also gives 0 s, but is told apart
+    first = metrics.time_to_convergence([0.0, 1.0], [3.0, 3.0])
+    assert first.time_to_convergence == 0.0 and first.converged
+
+
+def test_errors_after_convergence_hand_values():
+    conv = metrics.Convergence(time_to_convergence=2.0, converged=True, index=2)
+    errors = [100.0, 50.0, 3.0, 4.0, 5.0, 0.0]
+    assert metrics.mean_error_after_convergence(errors, conv) == pytest.approx(3.0)
+    assert metrics.rmse_after_convergence(errors, conv) == pytest.approx(np.sqrt(12.5))
+
+
+def test_tracking_metrics_of_a_run():
+    times = np.arange(6.0)
+    truth = pd.DataFrame({"time": [0.0], "x": [0.0], "y": [0.0]})
+    estimates = estimates_table(
+        times, [80, 40, 3, 0, 0, 6], [60, 30, 4, 0, 8, 8], [90, 40, 9, 5, 5, 5]
+    )
+    result = metrics.tracking_metrics(estimates, truth)
+    assert result.time_to_convergence == 2.0 and result.converged
+    assert result.n_estimates_after_convergence == 4
+    assert result.mean_error_after_convergence == pytest.approx((5 + 0 + 8 + 10) / 4)
+    assert result.rmse_after_convergence == pytest.approx(np.sqrt((25 + 0 + 64 + 100) / 4))
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    arrays(float, st.integers(1, 50), elements=st.just(0.0) | st.floats(1e-6, 1e4)),
+    st.integers(0, 49),
+)
+def test_mean_error_never_exceeds_rmse(errors, index):
+    conv = metrics.Convergence(0.0, True, min(index, errors.size - 1))
+    mean = metrics.mean_error_after_convergence(errors, conv)
+    rms = metrics.rmse_after_convergence(errors, conv)
+    assert mean <= rms * (1 + 1e-12)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.floats(0.0, 1e6),
+    st.floats(0.0, 1e6),
+    st.floats(-1.0, 1.0),
+)
+def test_sqrt_largest_eigenvalue_matches_eigvalsh(var_x, var_y, correlation):
+    cov = correlation * np.sqrt(var_x * var_y)
+    expected = np.sqrt(np.linalg.eigvalsh([[var_x, cov], [cov, var_y]])[-1].clip(0))
+    got = metrics.sqrt_largest_eigenvalue(var_x, var_y, cov)
+    assert got == pytest.approx(expected, rel=1e-7, abs=1e-6)

@@ -1,0 +1,98 @@
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from hmmtrack.resampling import (
+    RESAMPLERS,
+    effective_sample_size,
+    get_resampler,
+    multinomial,
+    residual,
+    systematic,
+)
+
+WEIGHTS = np.array([0.05, 0.4, 0.01, 0.3, 0.24])
+
+
+def _counts(ancestors, m):
+    return np.bincount(ancestors, minlength=m)
+
+
+@pytest.mark.parametrize("name", sorted(RESAMPLERS))
+def test_expected_counts_are_n_times_weights(name):
+    """Unbiasedness: over many draws the mean number of copies of i is n * w_i."""
+    resample = get_resampler(name)
+    rng = np.random.default_rng(3)
+    n, reps = 20, 4000
+    counts = np.array([_counts(resample(rng, WEIGHTS, n), WEIGHTS.size) for _ in range(reps)])
+    assert (counts.sum(axis=1) == n).all()
+    expected = n * WEIGHTS
+    # multinomial variance bounds every scheme's variance
+    standard_error = np.sqrt(n * WEIGHTS * (1 - WEIGHTS) / reps)
+    assert np.all(np.abs(counts.mean(axis=0) - expected) < 5 * standard_error + 1e-12)
+
+
+def test_multinomial_counts_have_multinomial_variance():
+    rng = np.random.default_rng(4)
+    n, reps = 20, 4000
+    counts = np.array([_counts(multinomial(rng, WEIGHTS, n), 5) for _ in range(reps)])
+    np.testing.assert_allclose(counts.var(axis=0), n * WEIGHTS * (1 - WEIGHTS), rtol=0.1)
+
+
+weights_strategy = st.lists(
+    st.floats(min_value=0.0, max_value=1.0, allow_nan=False), min_size=1, max_size=30
+).filter(lambda w: sum(w) > 1e-6)
+
+
+@settings(max_examples=200, deadline=None)
+@given(weights=weights_strategy, n=st.integers(1, 60), seed=st.integers(0, 2**32 - 1))
+def test_systematic_counts_within_floor_and_ceil(weights, n, seed):
+    w = np.array(weights) / np.sum(weights)
+    counts = _counts(systematic(np.random.default_rng(seed), w, n), w.size)
+    expected = n * w
+    assert counts.sum() == n
+    assert np.all(counts >= np.floor(expected - 1e-9))
+    assert np.all(counts <= np.ceil(expected + 1e-9))
+
+
+@settings(max_examples=200, deadline=None)
+@given(weights=weights_strategy, n=st.integers(1, 60), seed=st.integers(0, 2**32 - 1))
+def test_residual_keeps_deterministic_copies_and_never_picks_zero_weight(weights, n, seed):
+    w = np.array(weights) / np.sum(weights)
+    for name, resample in RESAMPLERS.items():
+        counts = _counts(resample(np.random.default_rng(seed), w, n), w.size)
+        assert counts.sum() == n, name
+        assert np.all(counts[w == 0] == 0), name
+    counts = _counts(residual(np.random.default_rng(seed), w, n), w.size)
+    assert np.all(counts >= np.floor(n * w - 1e-9))
+
+
+@pytest.mark.parametrize("name", sorted(RESAMPLERS))
+def test_same_seed_same_ancestors(name):
+    resample = get_resampler(name)
+    a = resample(np.random.default_rng(9), WEIGHTS, 50)
+    b = resample(np.random.default_rng(9), WEIGHTS, 50)
+    assert a.dtype == np.int64 and np.array_equal(a, b)
+
+
+def test_bad_weights_and_names_are_refused():
+    rng = np.random.default_rng(0)
+    with pytest.raises(ValueError, match="indices \\[1\\]"):
+        multinomial(rng, np.array([0.5, np.nan]), 3)
+    with pytest.raises(ValueError, match="sum to zero"):
+        systematic(rng, np.zeros(3), 3)
+    with pytest.raises(ValueError, match="unknown resampling scheme 'nope'"):
+        get_resampler("nope")
+
+
+def test_effective_sample_size_oracles():
+    assert effective_sample_size(np.zeros(7)) == pytest.approx(7.0)
+    assert effective_sample_size(np.array([0.0, -np.inf, -np.inf])) == pytest.approx(1.0)
+    assert effective_sample_size(np.full(4, -np.inf)) == 0.0
+    lw = np.random.default_rng(1).normal(size=50) * 3
+    w = np.exp(lw) / np.exp(lw).sum()
+    assert effective_sample_size(lw) == pytest.approx(1 / np.sum(w**2))
+    assert effective_sample_size(lw - 1e4) == pytest.approx(1 / np.sum(w**2))
+    with pytest.raises(ValueError, match="NaN"):
+        effective_sample_size(np.array([0.0, np.nan]))

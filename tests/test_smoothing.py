@@ -1,0 +1,88 @@
+"""Tests of the fixed-lag smoother against whole-path ancestry tracing by brute force."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from hmmtrack.smoothing import FixedLagSmoother, smoothed_table, trace_ancestry, weighted_moments
+
+
+def random_run(seed, n_steps=40, n=30):
+    rng = np.random.default_rng(seed)
+    x = rng.normal(0, 10, (n_steps, n))
+    y = rng.normal(0, 10, (n_steps, n))
+    log_weight = rng.normal(0, 1, (n_steps, n))
+    parents = rng.integers(0, n, (n_steps, n))
+    resampled = rng.random(n_steps) < 0.6  # steps with no resampling keep the identity
+    parents[~resampled] = np.arange(n)
+    return x, y, log_weight, parents, resampled
+
+
+def brute_force_ancestor(parents, final_step, particle, step):
+    index = particle
+    for t in range(final_step, step, -1):
+        index = parents[t, index]
+    return index
+
+
+def test_trace_ancestry_equals_following_each_particle_back():
+    _, _, _, parents, _ = random_run(0)
+    lineage = trace_ancestry(parents)
+    for particle in range(parents.shape[1]):
+        for step in range(parents.shape[0]):
+            assert lineage[step, particle] == brute_force_ancestor(
+                parents, parents.shape[0] - 1, particle, step
+            )
+
+
+@pytest.mark.parametrize("lag", [0, 1, 7, 39, 60])
+def test_fixed_lag_rows_equal_brute_force(lag):
+    x, y, log_weight, parents, resampled = random_run(1)
+    n_steps, n = x.shape
+    smoother = FixedLagSmoother(lag)
+    rows = []
+    for t in range(n_steps):
+        row = smoother.push(
+            float(t), x[t], y[t], log_weight[t], parents[t] if resampled[t] else None
+        )
+        if row is not None:
+            rows.append(row)
+    rows += smoother.finish()
+    table = smoothed_table(rows)
+    assert table["time"].tolist() == list(range(n_steps))
+    for t in range(n_steps):
+        source = min(t + lag, n_steps - 1)  # the step whose particles smooth time t
+        index = [brute_force_ancestor(parents, source, i, t) for i in range(n)]
+        mx, my, vx, vy, cxy = weighted_moments(x[t, index], y[t, index], log_weight[source])
+        got = table.iloc[t]
+        np.testing.assert_allclose(
+            [got.x, got.y, got.var_x, got.var_y, got.cov_xy], [mx, my, vx, vy, cxy], rtol=1e-12
+        )
+        assert got.n_ancestors == len(set(index))
+    # lag 0 is the filter itself
+    if lag == 0:
+        np.testing.assert_allclose(
+            table["x"], [weighted_moments(x[t], y[t], log_weight[t])[0] for t in range(n_steps)]
+        )
+
+
+def test_weighted_moments_against_numpy():
+    rng = np.random.default_rng(3)
+    x, y, lw = rng.normal(size=50), rng.normal(size=50), rng.normal(size=50)
+    w = np.exp(lw) / np.exp(lw).sum()
+    cov = np.cov(np.vstack([x, y]), aweights=w, bias=True)
+    mx, my, vx, vy, cxy = weighted_moments(x, y, lw)
+    np.testing.assert_allclose([mx, my], [w @ x, w @ y])
+    np.testing.assert_allclose([vx, vy, cxy], [cov[0, 0], cov[1, 1], cov[0, 1]])
+
+
+def test_smoother_refuses_bad_input():
+    with pytest.raises(ValueError, match="lag"):
+        FixedLagSmoother(-1)
+    smoother = FixedLagSmoother(2)
+    smoother.push(0.0, np.zeros(3), np.zeros(3), np.zeros(3))
+    with pytest.raises(ValueError, match="particles"):
+        smoother.push(1.0, np.zeros(4), np.zeros(4), np.zeros(4))
+    with pytest.raises(ValueError, match="parent"):
+        smoother.push(1.0, np.zeros(3), np.zeros(3), np.zeros(3), parent=np.zeros(2, int))
