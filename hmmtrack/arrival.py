@@ -19,22 +19,20 @@ position moved back along its velocity from the filter time to ``arrival − ran
 the receiver's position is taken at the arrival time. Ranges are 3-D when a depth is
 known (particle field ``depth``, or a ``depth`` column of the detections from a depth
 sensor) and receivers may have a ``receiver_depth`` column; otherwise both are at the
-surface. Detection times are mapped to true time with each receiver's
-:class:`hmmtrack.clock.ReceiverClock` when one is given.
+surface. Detection times must be on the common (true) time base: map receiver clocks
+first with :func:`hmmtrack.clock.to_common_time`.
 
 This module only scores; it does not move particles, resample, or build observations.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 import numpy as np
 import pandas as pd
 from scipy.special import log_ndtr
-
-from hmmtrack.clock import ReceiverClock
 
 #: speed of sound in sea water used by the paper (m/s); fresh water is about 1416-1450
 SOUND_SPEED = 1460.0
@@ -111,17 +109,21 @@ class ArrivalLikelihood:
         if self.late_fraction + self.uniform_fraction >= 1:
             raise ValueError("late_fraction + uniform_fraction must be below 1")
 
-    def logpdf(self, residual, period) -> np.ndarray:
-        """Log density (log 1/s) of residuals ``residual`` (s); ``period`` (s) broadcasts."""
-        eps = np.asarray(residual, dtype=float)
-        z = eps / self.sigma
-        core = (
+    def core_logpdf(self, residual) -> np.ndarray:
+        """Log of the direct-arrival (Gaussian core) term of the density, with its weight."""
+        z = np.asarray(residual, dtype=float) / self.sigma
+        return (
             np.log1p(-self.late_fraction - self.uniform_fraction)
             - np.log(self.sigma)
             - _LOG_SQRT_2PI
             - 0.5 * z * z
         )
-        out = core
+
+    def logpdf(self, residual, period) -> np.ndarray:
+        """Log density (log 1/s) of residuals ``residual`` (s); ``period`` (s) broadcasts."""
+        eps = np.asarray(residual, dtype=float)
+        z = eps / self.sigma
+        out = self.core_logpdf(eps)
         if self.late_fraction > 0:
             rate_sigma = self.sigma / self.late_mean
             late = (
@@ -207,23 +209,20 @@ class ArrivalTimeMeasurement:
         Density of arrival-time residuals.
     sound_speed : float
         Speed of sound (m/s).
-    receiver_clocks : mapping of str to ReceiverClock
-        Clock of each receiver whose times are not on the true time base; receivers not
-        listed are taken as synchronised.
 
     Notes
     -----
     Particles need fields ``x``, ``y``, ``heading``, ``speed`` (velocity along the
     heading), ``emission_time`` and ``period`` (see :class:`hmmtrack.clock.EmissionClockModel`),
     and optionally ``depth`` (m, positive down). Observations are rows of a table with
-    columns ``time`` (arrival time as recorded, s), ``receiver``, ``receiver_x``,
+    columns ``time`` (arrival time on the common time base, s), ``receiver``, ``receiver_x``,
     ``receiver_y`` (m, at the arrival time) and optionally ``depth`` (the tag's depth from
     its sensor, m) and ``receiver_depth`` (m).
     """
 
     likelihood: ArrivalLikelihood = field(default_factory=ArrivalLikelihood)
     sound_speed: float = SOUND_SPEED
-    receiver_clocks: Mapping[str, ReceiverClock] = field(default_factory=dict)
+    columns: ClassVar[tuple[str, ...]] = ("receiver_x", "receiver_y")
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.sound_speed) and 1000.0 < self.sound_speed < 2000.0):
@@ -231,18 +230,8 @@ class ArrivalTimeMeasurement:
                 f"sound_speed must be a speed of sound in water (m/s), got {self.sound_speed}"
             )
 
-    def true_arrival_times(self, obs: pd.DataFrame) -> np.ndarray:
-        """Arrival times of ``obs`` on the true time base (s), shape (len(obs),)."""
-        times = obs["time"].to_numpy(dtype=float).copy()
-        receivers = obs["receiver"].astype(str).to_numpy()
-        for name, clock in self.receiver_clocks.items():
-            rows = receivers == name
-            if rows.any():
-                times[rows] = clock.to_true(times[rows])
-        return times
-
-    def residuals(self, particles, obs: pd.DataFrame, time: float | None = None) -> np.ndarray:
-        """Arrival-time residual of every particle for every observation (s), shape (N, M).
+    def match(self, particles, obs: pd.DataFrame, time: float | None = None):
+        """Each particle's residual and matched ping for every observation.
 
         Parameters
         ----------
@@ -253,15 +242,23 @@ class ArrivalTimeMeasurement:
         time : float, optional
             Filter time at which the particles are (s); the default is each detection's
             own arrival time (no motion between arrival and filter time).
+
+        Returns
+        -------
+        residual : numpy.ndarray, shape (N, M)
+            Arrival-time residuals (s), see :func:`wrap_to_ping`.
+        ping : numpy.ndarray, shape (N, M)
+            Whole periods from the particle's ``emission_time`` to the matched ping.
         """
         check_arrival_observations(obs)
-        arrival = self.true_arrival_times(obs)
+        arrival = obs["time"].to_numpy(dtype=float)
         rx = obs["receiver_x"].to_numpy(dtype=float)
         ry = obs["receiver_y"].to_numpy(dtype=float)
         n = np.shape(particles.x)[0]
         vx = particles.speed * np.cos(particles.heading)
         vy = particles.speed * np.sin(particles.heading)
-        out = np.empty((n, len(obs)))
+        residual = np.empty((n, len(obs)))
+        ping = np.empty((n, len(obs)))
         for j in range(len(obs)):
             lag = 0.0 if time is None else float(time) - arrival[j]
             r = emission_range(
@@ -275,10 +272,14 @@ class ArrivalTimeMeasurement:
                 _vertical(particles, obs, j, n),
                 self.sound_speed,
             )
-            out[:, j], _ = wrap_to_ping(
+            residual[:, j], ping[:, j] = wrap_to_ping(
                 arrival[j] - r / self.sound_speed, particles.emission_time, particles.period
             )
-        return out
+        return residual, ping
+
+    def residuals(self, particles, obs: pd.DataFrame, time: float | None = None) -> np.ndarray:
+        """Arrival-time residuals (s), shape (N, M); see :meth:`match`."""
+        return self.match(particles, obs, time)[0]
 
     def loglik(self, particles, obs: pd.DataFrame, time: float | None = None) -> np.ndarray:
         """Sum over detections of the log density of each particle's residual, shape (N,)."""

@@ -7,11 +7,11 @@ times in their own clocks, which differ from true time by an offset and a drift 
 of ppm. This module holds the three small models the arrival-time filter needs:
 
 * :class:`ReceiverClock` - the map between true time and a receiver's recorded time
-  (offset + linear drift), used to put detections on the common time base;
-* :class:`EmissionClockModel` - the particle-filter process model of the transmitter's clock:
-  each particle carries ``emission_time`` (true time of its last emission, s) and
-  ``period`` (s), the period a random walk from ping to ping (as YAPS treats "stable"
-  burst intervals);
+  (offset + linear drift), and :func:`to_common_time`, which puts detections on the
+  common time base;
+* :class:`EmissionClockModel` - the linear-Gaussian model of the transmitter's clock that
+  the filter carries per particle: a reference emission time and the period (s), the
+  period a random walk from ping to ping (as YAPS treats "stable" burst intervals);
 * :func:`local_period_ppm` and :func:`schedule_wander` - the two summaries by which a
   simulated or estimated emission schedule is compared with real tags.
 
@@ -21,9 +21,11 @@ It is not for scoring detections (:mod:`hmmtrack.arrival`) nor for simulating th
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
+import pandas as pd
 
 PPM = 1e-6
 
@@ -66,33 +68,59 @@ class ReceiverClock:
         return self.reference_time + (recorded_time - self.offset - self.reference_time) / rate
 
 
+def to_common_time(detections: pd.DataFrame, clocks: Mapping[str, ReceiverClock]) -> pd.DataFrame:
+    """Detections with ``time`` mapped from each receiver's clock to true time.
+
+    Parameters
+    ----------
+    detections : pandas.DataFrame
+        Columns ``time`` (as logged, s) and ``receiver``; other columns are kept.
+    clocks : mapping of str to ReceiverClock
+        Clocks of the receivers that are not synchronised; others are left as they are.
+
+    Returns
+    -------
+    pandas.DataFrame
+        A copy sorted by the corrected time (stable), with a fresh index.
+    """
+    out = detections.copy()
+    times = out["time"].to_numpy(dtype=float).copy()
+    receivers = out["receiver"].astype(str).to_numpy()
+    for name, clock in clocks.items():
+        rows = receivers == name
+        times[rows] = clock.to_true(times[rows])
+    out["time"] = times
+    return out.sort_values(["time", "receiver"], kind="stable").reset_index(drop=True)
+
+
 @dataclass(frozen=True)
 class EmissionClockModel:
-    """Process model of the transmitter's emission clock carried by each particle.
+    """Linear-Gaussian model of the transmitter's emission clock, ping to ping.
 
-    A particle's clock is ``(emission_time, period)``: the true time of the last emission
-    at or before the filter time and the current period. When the filter time passes
-    ``emission_time + period`` the next ping is emitted: ``emission_time += period``, then
-    the period takes a random-walk step ``N(0, period_step_sd²)`` and the emission time a
-    phase step ``N(0, phase_step_sd²)`` (roughening that keeps clock diversity after
-    resampling).
+    The clock is ``(e, P)``: the true time ``e`` of a reference emission and the period
+    ``P`` (s). From one ping to the next ``e ← e + P`` and then the period takes a random
+    walk step, ``P ← P + N(0, period_step_sd²)``, and the emission time a phase step
+    ``N(0, phase_step_sd²)`` (timing noise that does not persist in the period). The
+    clock-aware filter keeps, per particle, the mean of ``(e, P)`` and one covariance
+    shared by all particles (a Rao-Blackwellised clock: a Kalman filter conditioned on the
+    particle's path).
 
     Parameters
     ----------
     nominal_period : float
-        The tag's nominal period (s); initial periods are drawn around it.
+        The tag's nominal period (s): the prior mean of ``P``.
     period_step_sd : float
         Standard deviation of the period's change from one ping to the next (s).
     phase_step_sd : float
         Standard deviation of the extra emission-time step per ping (s).
     initial_period_sd : float
-        Standard deviation of the initial period about ``nominal_period`` (s).
+        Prior standard deviation of ``P`` about ``nominal_period`` (s).
     """
 
     nominal_period: float
-    period_step_sd: float = 20e-6
-    phase_step_sd: float = 50e-6
-    initial_period_sd: float = 2e-3
+    period_step_sd: float = 3e-4
+    phase_step_sd: float = 1e-4
+    initial_period_sd: float = 8e-3
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.nominal_period) and self.nominal_period > 0):
@@ -100,38 +128,35 @@ class EmissionClockModel:
         for name in ("period_step_sd", "phase_step_sd", "initial_period_sd"):
             value = getattr(self, name)
             if not (np.isfinite(value) and value >= 0):
-                raise ValueError(f"EmissionClock.{name} must be >= 0 (s), got {value}")
+                raise ValueError(f"EmissionClockModel.{name} must be >= 0 (s), got {value}")
         if self.initial_period_sd > 0.1 * self.nominal_period:
             raise ValueError(
                 f"initial_period_sd={self.initial_period_sd} s is not small against the "
                 f"nominal period {self.nominal_period} s; the ping wrapping needs it to be"
             )
 
-    def initial_periods(self, rng: np.random.Generator, n: int) -> np.ndarray:
-        """Draw ``n`` initial periods (s), shape (n,)."""
-        return self.nominal_period + self.initial_period_sd * rng.standard_normal(n)
+    def initial_covariance(self, emission_sd: float) -> np.ndarray:
+        """Covariance (2, 2) of ``(e, P)`` after ``e`` is fixed to ``emission_sd`` seconds."""
+        return np.diag([emission_sd**2, self.initial_period_sd**2])
 
-    def advance(
-        self, rng: np.random.Generator, emission_time: np.ndarray, period: np.ndarray, t: float
-    ) -> None:
-        """Emit every ping due by time ``t`` (s): update ``emission_time`` and ``period`` in place.
+    def predict_covariance(self, covariance: np.ndarray, n_pings: int) -> np.ndarray:
+        """Covariance (2, 2) of ``(e, P)`` moved ``n_pings`` pings ahead (0: unchanged).
 
         Parameters
         ----------
-        rng : numpy.random.Generator
-        emission_time, period : numpy.ndarray, shape (N,)
-            Particles' last emission times and periods (s); modified in place.
-        t : float
-            Filter time to advance to (s).
+        covariance : numpy.ndarray, shape (2, 2)
+            Covariance of the clock at the reference emission (s², s², s²).
+        n_pings : int
+            Pings between the reference emission and the new one, >= 0.
         """
-        due = np.flatnonzero(emission_time + period <= t)
-        while due.size:
-            emission_time[due] += period[due]
-            if self.phase_step_sd > 0:
-                emission_time[due] += self.phase_step_sd * rng.standard_normal(due.size)
-            if self.period_step_sd > 0:
-                period[due] += self.period_step_sd * rng.standard_normal(due.size)
-            due = due[emission_time[due] + period[due] <= t]
+        if n_pings < 0:
+            raise ValueError(f"n_pings must be >= 0, got {n_pings}")
+        transition = np.array([[1.0, 1.0], [0.0, 1.0]])
+        noise = np.diag([self.phase_step_sd**2, self.period_step_sd**2])
+        out = np.array(covariance, dtype=float)
+        for _ in range(int(n_pings)):
+            out = transition @ out @ transition.T + noise
+        return out
 
 
 def _as_schedule(emission_times) -> np.ndarray:

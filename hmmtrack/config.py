@@ -8,7 +8,7 @@ keys are the field names, e.g.::
     {"period": 8.179, "r0": {"VR2W-1": 12.0, "VR2W-2": 230.0},
      "measurement_covariance": [[25.0, 0.0], [0.0, 0.25]], "n_particles": 5000}
 
-Command-line arguments override file values with :meth:`TrackingConfig.replace`.
+Command-line arguments override file values (:meth:`TrackingConfig.override`).
 
 It is not for running anything: :mod:`hmmtrack.tracking` uses it.
 """
@@ -23,10 +23,16 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
+import pandas as pd
+
 from hmmtrack.ranging import SOUND_SPEED
 
 #: depth policies that are not a number (see :attr:`TrackingConfig.depth`)
 DEPTH_POLICIES = ("none", "sensor")
+
+#: free-text keys a configuration file may carry and that tracking ignores (the
+#: ``scenario.json`` written by ``hmmtrack simulate`` has them)
+DESCRIPTIVE_KEYS = ("name", "description", "files", "synthetic")
 
 
 def _positive(name: str, value) -> float:
@@ -60,6 +66,10 @@ class TrackingConfig:
         :func:`hmmtrack.tracking.search_bounds`).
     bounds_margin : float
         Margin added around derived bounds (m).
+    velocity_window : float
+        Width (s) of the window over which receiver velocities are averaged from their GPS
+        tracks (see :class:`hmmtrack.receivers.ReceiverTracks`); 0 takes the slope of the
+        GPS segment, as noisy as the fixes.
     measurement_covariance : 2×2 nested sequence
         Σ_z of (range m, range_rate m/s): ``[[var_r, cov], [cov, var_rdot]]``; symmetric
         positive definite. Estimate it with
@@ -74,6 +84,9 @@ class TrackingConfig:
     shallower : {"raise", "clip"}
         What a depth correction does with a range shorter than the depth (see
         :func:`hmmtrack.ranging.depth_correction`).
+    start, end : float, str or None
+        Time window of the run: UTC epoch seconds or ISO 8601 text with a UTC offset
+        (stored as seconds); ``None`` uses the first and last detection.
     """
 
     period: float
@@ -82,6 +95,7 @@ class TrackingConfig:
     transmitter: str | None = None
     bounds: tuple[float, float, float, float] | None = None
     bounds_margin: float = 100.0
+    velocity_window: float = 20.0
     measurement_covariance: tuple[tuple[float, float], tuple[float, float]] = (
         (25.0, 0.0),
         (0.0, 0.25),
@@ -90,6 +104,8 @@ class TrackingConfig:
     prediction_step: float = 1.0
     depth: str | float = "none"
     shallower: str = "raise"
+    start: float | None = None
+    end: float | None = None
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
@@ -128,10 +144,11 @@ class TrackingConfig:
                     f"got {self.bounds!r}"
                 )
             set_(self, "bounds", bounds)
-        margin = float(self.bounds_margin)
-        if not math.isfinite(margin) or margin < 0:
-            raise ValueError(f"bounds_margin must be a non-negative number (m), got {margin!r}")
-        set_(self, "bounds_margin", margin)
+        for name in ("bounds_margin", "velocity_window"):
+            value = float(getattr(self, name))
+            if not math.isfinite(value) or value < 0:
+                raise ValueError(f"{name} must be a non-negative number, got {value!r}")
+            set_(self, name, value)
         set_(self, "measurement_covariance", _covariance(self.measurement_covariance))
         n = self.n_particles
         if isinstance(n, bool) or not isinstance(n, numbers.Real) or n != int(n) or n < 1:
@@ -140,9 +157,13 @@ class TrackingConfig:
         set_(self, "depth", _depth(self.depth))
         if self.shallower not in ("raise", "clip"):
             raise ValueError(f"shallower must be 'raise' or 'clip', got {self.shallower!r}")
+        for name in ("start", "end"):
+            set_(self, name, _instant(name, getattr(self, name)))
+        if self.start is not None and self.end is not None and not self.start < self.end:
+            raise ValueError(f"start ({self.start}) must be before end ({self.end})")
 
-    def replace(self, **changes) -> TrackingConfig:
-        """A copy with ``changes`` applied (``None`` values are ignored), validated."""
+    def override(self, **changes) -> TrackingConfig:
+        """A validated copy with ``changes`` applied; ``None`` values mean "not given"."""
         return dataclasses.replace(self, **{k: v for k, v in changes.items() if v is not None})
 
     def to_dict(self) -> dict:
@@ -159,6 +180,7 @@ class TrackingConfig:
         if not isinstance(data, Mapping):
             raise ValueError(f"{source}: expected a JSON object of settings, got {type(data)}")
         known = [f.name for f in dataclasses.fields(cls)]
+        data = {k: v for k, v in data.items() if k not in DESCRIPTIVE_KEYS}
         unknown = sorted(set(data) - set(known))
         if unknown:
             raise ValueError(f"{source}: unknown key(s) {unknown}; known keys are {known}")
@@ -199,6 +221,26 @@ def _covariance(value) -> tuple[tuple[float, float], tuple[float, float]]:
     if not all(map(math.isfinite, (a, b, c, d))) or b != c or a <= 0 or a * d - b * c <= 0:
         raise ValueError(message)
     return rows
+
+
+def _instant(name: str, value) -> float | None:
+    if value is None:
+        return None
+    if isinstance(value, str):
+        try:
+            stamp = pd.Timestamp(value)
+        except ValueError:
+            stamp = None
+        if stamp is None or stamp.tzinfo is None:
+            raise ValueError(
+                f"{name} must be UTC epoch seconds or ISO 8601 text with a UTC offset "
+                f"(e.g. 2022-06-08T17:00:00Z), got {value!r}"
+            )
+        return stamp.as_unit("ns").value / 1e9
+    seconds = float(value)
+    if not math.isfinite(seconds):
+        raise ValueError(f"{name} must be finite, got {value!r}")
+    return seconds
 
 
 def _depth(value) -> str | float:

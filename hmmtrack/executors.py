@@ -67,8 +67,9 @@ def get_executor(kind: str | Any = "serial", max_workers: int | None = None) -> 
         ``"serial"`` runs tasks in this process; ``"processes"`` uses a local
         :class:`~concurrent.futures.ProcessPoolExecutor` whose workers start clean (no
         fork of this process, whose OpenMP threads may already be running) and run compiled
-        kernels on one thread each (one process per core, no oversubscription); a Dask ``distributed.Client`` (any
-        object with a ``get_executor`` method) sends the tasks to its cluster; an existing
+        kernels on one thread each (one process per core, no oversubscription); a Dask
+        ``distributed.Client`` (any object with a ``get_executor`` method) sends the tasks
+        to its cluster; an existing
         :class:`~concurrent.futures.Executor` is returned as it is.
     max_workers : int, optional
         Worker processes for ``"processes"`` (default :func:`default_workers`, i.e. all

@@ -28,39 +28,59 @@ sweep) finishes in under 10 minutes on a 2-core machine (``benchmarks/bench_repr
 from __future__ import annotations
 
 import time as _time
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
 import numpy as np
 import pandas as pd
 
-from hmmtrack import metrics, ranging, scenarios
+from hmmtrack import metrics, ranging, scenarios, tracking
+from hmmtrack.config import TrackingConfig
 from hmmtrack.executors import get_executor, map_ordered
-from hmmtrack.random import SeedLike
+from hmmtrack.filter import ParticleFilter
+from hmmtrack.measurement import RangeRateMeasurement
+from hmmtrack.random import SeedLike, as_generator
 from hmmtrack.scenarios import Scenario
 
 __all__ = [
     "DEFAULT_PARTICLES",
-    "MOTIONS",
+    "HMM_VARIANT",
     "LOSS_BANDS",
-    "TrialResult",
+    "LOSS_FRACTIONS",
+    "MOTIONS",
+    "PAPER_SCENARIOS",
+    "Cell",
     "DepthAnalysis",
+    "ExampleRun",
+    "TrialResult",
+    "compare_motion_models",
+    "depth_analysis",
+    "example_run",
+    "experiment_seed",
+    "loss_bands",
+    "loss_sweep",
+    "paper_scenarios",
     "run_trial",
     "run_trials",
-    "compare_motion_models",
-    "loss_sweep",
-    "loss_bands",
-    "depth_analysis",
+    "summarise_trials",
+    "track_scenario",
     "trials_table",
-    "experiment_seed",
+    "truncate",
 ]
 
 #: the paper's three motion models, in its order
 MOTIONS = ("baseline", "velocity", "hmm")
 
+#: how the HMM motion model runs a model fitted at a time step other than the filter's 1 s
+#: (see :class:`hmmtrack.motion.HMMMotion`): the bundled white-shark HMM is fitted on a 60 s
+#: grid, so its transition matrix and step/turn draws are made consistent with 1 s
+#: predictions. (The "paper" variant, a new state and new draws every second from the 60 s
+#: model, switches behaviour 60 times too often and loses the shark on our analogue.)
+HMM_VARIANT = "time_consistent"
+
 #: particles per filter run when none is given (the paper does not say; see module doc)
-DEFAULT_PARTICLES = 500
+DEFAULT_PARTICLES = 1000
 
 #: spacing of the stored error-over-time curve of each trial (s); the metrics use every
 #: estimate, this only keeps tables of many trials small
@@ -171,23 +191,28 @@ def trials_table(results: Iterable[TrialResult]) -> pd.DataFrame:
     correction and trial, so the table does not depend on the order trials finished in.
     """
     table = pd.DataFrame([r.row() for r in results], columns=list(TRIAL_COLUMNS))
-    table = table.astype({"trial": int, "n_particles": int, "converged": bool,
-                          "depth_correction": bool})
+    table = table.astype(
+        {"trial": int, "n_particles": int, "converged": bool, "depth_correction": bool}
+    )
     keys = ["scenario", "motion", "loss_fraction", "depth_correction", "trial"]
     order = {name: i for i, name in enumerate(pd.unique(table["scenario"]))}
     motion_order = {name: i for i, name in enumerate(MOTIONS)}
     return table.sort_values(
         keys,
         key=lambda col: (
-            col.map(order) if col.name == "scenario"
-            else col.map(lambda m: motion_order.get(m, len(MOTIONS))) if col.name == "motion"
+            col.map(order)
+            if col.name == "scenario"
+            else col.map(lambda m: motion_order.get(m, len(MOTIONS)))
+            if col.name == "motion"
             else col
         ),
         kind="stable",
     ).reset_index(drop=True)
 
 
-def summarise_trials(table: pd.DataFrame, by: Sequence[str] = ("scenario", "motion")) -> pd.DataFrame:
+def summarise_trials(
+    table: pd.DataFrame, by: Sequence[str] = ("scenario", "motion")
+) -> pd.DataFrame:
     """Per-group means of a trials table, as the paper reports them.
 
     Parameters
@@ -208,16 +233,21 @@ def summarise_trials(table: pd.DataFrame, by: Sequence[str] = ("scenario", "moti
     """
     groups = table.groupby(list(by), sort=False)
     converged_times = table["time_to_convergence"].where(table["converged"])
-    summary = pd.DataFrame({
-        "n_trials": groups.size(),
-        "n_converged": groups["converged"].sum().astype(int),
-        "mean_error_after_convergence": groups["mean_error_after_convergence"].mean(),
-        "median_error_after_convergence": groups["mean_error_after_convergence"].median(),
-        "rmse_after_convergence": groups["rmse_after_convergence"].mean(),
-        "time_to_convergence": converged_times.groupby([table[c] for c in by], sort=False).mean(),
-        "max_time_to_convergence": converged_times.groupby(
-            [table[c] for c in by], sort=False).max(),
-    })
+    summary = pd.DataFrame(
+        {
+            "n_trials": groups.size(),
+            "n_converged": groups["converged"].sum().astype(int),
+            "mean_error_after_convergence": groups["mean_error_after_convergence"].mean(),
+            "median_error_after_convergence": groups["mean_error_after_convergence"].median(),
+            "rmse_after_convergence": groups["rmse_after_convergence"].mean(),
+            "time_to_convergence": converged_times.groupby(
+                [table[c] for c in by], sort=False
+            ).mean(),
+            "max_time_to_convergence": converged_times.groupby(
+                [table[c] for c in by], sort=False
+            ).max(),
+        }
+    )
     return summary.reset_index()
 
 
@@ -264,6 +294,134 @@ def loss_bands(table: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame.from_dict(rows, orient="index")
 
 
+#: moments of the example runs' particle snapshots: seconds after the start, and the end
+SNAPSHOT_SECONDS = (0.0, 15.0, 40.0, 300.0)
+
+
+def track_scenario(
+    scenario: Scenario,
+    motion_name: str,
+    seed: SeedLike,
+    n_particles: int = DEFAULT_PARTICLES,
+    *,
+    loss_fraction: float = 0.0,
+    depth_correction: bool = False,
+    snapshot_times: Sequence[float] = (),
+):
+    """Track the tag of ``scenario`` with one motion model (no scoring).
+
+    Parameters
+    ----------
+    scenario : Scenario
+    motion_name : {"baseline", "velocity", "hmm"}
+        :func:`hmmtrack.tracking.motion_model` with its defaults; the HMM (the bundled
+        white-shark model) in the :data:`HMM_VARIANT` variant.
+    seed : int, SeedSequence or Generator
+    n_particles : int
+    loss_fraction : float
+        Fraction (0–1) of detections dropped with :func:`hmmtrack.scenarios.thin_evenly`.
+    depth_correction : bool
+        Correct the ranges with the tag's depth sensor.
+    snapshot_times : sequence of float
+        UTC seconds at which to keep the particles.
+
+    Returns
+    -------
+    hmmtrack.tracking.TrackingResult or hmmtrack.filter.FilterResult
+        Estimates every second from ``scenario.start`` to ``scenario.end``, and snapshots.
+        When no detection is left (``loss_fraction = 1``) the filter runs on its motion
+        model alone and its own result is returned (no observations to report).
+    """
+    detections = scenario.detections
+    if loss_fraction > 0:
+        detections = scenarios.thin_evenly(detections, loss_fraction)
+    config = TrackingConfig(
+        period=scenario.period,
+        r0=scenario.r0,
+        sound_speed=scenario.sound_speed,
+        transmitter=scenario.transmitter,
+        bounds=scenario.bounds,
+        n_particles=n_particles,
+        depth="sensor" if depth_correction else "none",
+        shallower="clip",
+        start=scenario.start,
+        end=scenario.end,
+    )
+    if detections.empty:  # everything dropped: the filter runs on its motion model alone
+        pf = ParticleFilter(
+            _motion(motion_name),
+            RangeRateMeasurement(np.array(config.measurement_covariance)),
+            n_particles=n_particles,
+            bounds=scenario.bounds,
+            rng=as_generator(seed),
+        )
+        no_data = pd.DataFrame(columns=list(tracking.OBSERVATION_COLUMNS), dtype=float)
+        return pf.run(no_data, scenario.start, scenario.end, snapshot_times)
+    return tracking.track(
+        detections,
+        scenario.receivers,
+        config,
+        _motion(motion_name),
+        seed=seed,
+        snapshot_times=snapshot_times,
+    )
+
+
+def _motion(motion_name: str):
+    """The motion model of a trial: tracking's defaults, the HMM in :data:`HMM_VARIANT`."""
+    if motion_name == "hmm":
+        return tracking.motion_model("hmm", variant=HMM_VARIANT)
+    return tracking.motion_model(motion_name)
+
+
+@dataclass(frozen=True)
+class ExampleRun:
+    """One scored run with particle snapshots, for the paper's single-trial figures.
+
+    Attributes
+    ----------
+    scenario : Scenario
+    result : hmmtrack.tracking.TrackingResult
+        Estimates, snapshots and observations of the run.
+    errors : numpy.ndarray, shape (n,)
+        Position error at each estimate (m).
+    convergence : hmmtrack.metrics.Convergence
+    """
+
+    scenario: Scenario
+    result: Any
+    errors: np.ndarray
+    convergence: metrics.Convergence
+
+
+def example_run(
+    scenario: Scenario,
+    seed: SeedLike,
+    n_particles: int = DEFAULT_PARTICLES,
+    motion_name: str = "hmm",
+) -> ExampleRun:
+    """One run with particle snapshots, for the error-over-time figures.
+
+    Snapshots at :data:`SNAPSHOT_SECONDS` after the start (those inside the run) and at the
+    end.
+
+    Returns
+    -------
+    ExampleRun
+    """
+    times = [scenario.start + s for s in SNAPSHOT_SECONDS if scenario.start + s < scenario.end]
+    result = track_scenario(
+        scenario, motion_name, seed, n_particles, snapshot_times=[*times, scenario.end]
+    )
+    estimates = result.estimates
+    return ExampleRun(
+        scenario=scenario,
+        result=result,
+        errors=metrics.position_error(estimates, scenario.truth),
+        convergence=metrics.time_to_convergence(estimates["time"], estimates["sqrt_lambda1"]),
+    )
+
+
 def run_trial(
     scenario: Scenario,
     motion_name: str,
@@ -297,8 +455,12 @@ def run_trial(
     """
     clock = _time.perf_counter()
     run = track_scenario(
-        scenario, motion_name, seed, n_particles,
-        loss_fraction=loss_fraction, depth_correction=depth_correction,
+        scenario,
+        motion_name,
+        seed,
+        n_particles,
+        loss_fraction=loss_fraction,
+        depth_correction=depth_correction,
     )
     runtime = _time.perf_counter() - clock
     estimates = run.estimates
@@ -338,8 +500,13 @@ class _Batch:
 def _run_batch(batch: _Batch) -> list[TrialResult]:
     return [
         run_trial(
-            batch.scenario, batch.motion, seed, batch.n_particles, trial=k,
-            loss_fraction=batch.loss_fraction, depth_correction=batch.depth_correction,
+            batch.scenario,
+            batch.motion,
+            seed,
+            batch.n_particles,
+            trial=k,
+            loss_fraction=batch.loss_fraction,
+            depth_correction=batch.depth_correction,
         )
         for k, seed in batch.trials
     ]
@@ -399,10 +566,14 @@ def run_trials(
         raise ValueError(f"n_trials and batch_size must be positive, got {n_trials}, {batch_size}")
     batches = [
         _Batch(
-            scenario=_lean(cell.scenario), motion=cell.motion, n_particles=int(n_particles),
-            loss_fraction=float(cell.loss_fraction), depth_correction=cell.depth_correction,
-            trials=tuple((k, _child(cell.seed, k)) for k in range(start, min(start + batch_size,
-                                                                              n_trials))),
+            scenario=_lean(cell.scenario),
+            motion=cell.motion,
+            n_particles=int(n_particles),
+            loss_fraction=float(cell.loss_fraction),
+            depth_correction=cell.depth_correction,
+            trials=tuple(
+                (k, _child(cell.seed, k)) for k in range(start, min(start + batch_size, n_trials))
+            ),
         )
         for cell in cells
         for start in range(0, n_trials, batch_size)
@@ -496,9 +667,7 @@ def paper_scenarios(
     else:
         unknown = [n for n in names if n not in PAPER_SCENARIOS]
         if unknown:
-            raise ValueError(
-                f"unknown scenario(s) {unknown}; expected some of {PAPER_SCENARIOS}"
-            )
+            raise ValueError(f"unknown scenario(s) {unknown}; expected some of {PAPER_SCENARIOS}")
         built = {
             name: getattr(scenarios, name)(_child(root, 3, PAPER_SCENARIOS.index(name)))
             for name in names
@@ -550,9 +719,15 @@ def compare_motion_models(
         for i, scenario in enumerate(scenario_list)
         for j, motion in enumerate(motions)
     ]
-    results = run_trials(cells, n_trials, n_particles, executor=executor,
-                         max_workers=max_workers, progress=progress,
-                         description="motion-model trials")
+    results = run_trials(
+        cells,
+        n_trials,
+        n_particles,
+        executor=executor,
+        max_workers=max_workers,
+        progress=progress,
+        description="motion-model trials",
+    )
     return trials_table(results)
 
 
@@ -602,12 +777,17 @@ def loss_sweep(
     if scenario is None:
         scenario = paper_scenarios(root, names=("shark_pursuit",))["shark_pursuit"]
     cells = [
-        Cell(scenario, motion, _child(root, 1, i), loss_fraction=f)
-        for i, f in enumerate(fractions)
+        Cell(scenario, motion, _child(root, 1, i), loss_fraction=f) for i, f in enumerate(fractions)
     ]
-    results = run_trials(cells, n_trials, n_particles, executor=executor,
-                         max_workers=max_workers, progress=progress,
-                         description="loss sweep")
+    results = run_trials(
+        cells,
+        n_trials,
+        n_particles,
+        executor=executor,
+        max_workers=max_workers,
+        progress=progress,
+        description="loss sweep",
+    )
     return trials_table(results)
 
 
@@ -691,17 +871,26 @@ def depth_analysis(
         Cell(diving, motion, _child(root, 2, int(correct)), depth_correction=correct)
         for correct in (False, True)
     ]
-    results = run_trials(cells, n_trials, n_particles, executor=executor,
-                         max_workers=max_workers, progress=progress,
-                         description="diving shark")
+    results = run_trials(
+        cells,
+        n_trials,
+        n_particles,
+        executor=executor,
+        max_workers=max_workers,
+        progress=progress,
+        description="diving shark",
+    )
     labels = {False: "without depth correction", True: "with depth correction"}
-    curves = {
-        labels[r.depth_correction]: (r.error_time, r.error) for r in results if r.trial == 0
-    }
+    curves = {labels[r.depth_correction]: (r.error_time, r.error) for r in results if r.trial == 0}
     truth = diving.truth
     elapsed = truth["time"].to_numpy(dtype=float) - float(truth["time"].iloc[0])
     profile = truth["depth"].to_numpy(dtype=float)
     return DepthAnalysis(
-        depth=depth, ranges=ranges, percent_error=percent, max_depth=float(profile.max()),
-        depth_profile=(elapsed, profile), trials=trials_table(results), curves=curves,
+        depth=depth,
+        ranges=ranges,
+        percent_error=percent,
+        max_depth=float(profile.max()),
+        depth_profile=(elapsed, profile),
+        trials=trials_table(results),
+        curves=curves,
     )

@@ -38,17 +38,17 @@ from __future__ import annotations
 import logging
 import warnings
 from collections.abc import Iterator, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numba
 import numpy as np
 import pandas as pd
-from scipy.special import logsumexp
 
 from hmmtrack import streams as rs
 from hmmtrack.particles import Particles, as_bounds
 from hmmtrack.random import SeedLike, as_generator
-from hmmtrack.resampling import effective_sample_size, get_resampler
+from hmmtrack.resampling import effective_sample_size, get_resampler, log_normalise
 
 __all__ = [
     "ESTIMATE_COLUMNS",
@@ -79,8 +79,7 @@ def sqrt_largest_eigenvalue(var_x, var_y, cov_xy):
     return np.sqrt(half_sum + np.hypot(half_diff, cov_xy))
 
 
-@dataclass(frozen=True)
-class Estimate:
+class Estimate(NamedTuple):
     """The filter's summary at one time.
 
     Attributes
@@ -320,7 +319,7 @@ class ParticleFilter:
             )
         log_weight = p.log_weight + loglik
         if np.isfinite(log_weight.max()):
-            p.log_weight = log_weight - logsumexp(log_weight)
+            p.log_weight = log_normalise(log_weight)
         else:
             self._recover(obs)
         return self.estimate()
@@ -349,7 +348,7 @@ class ParticleFilter:
             p.speed, p.turn_rate = np.zeros(p.n), np.zeros(p.n)
             log_weight = np.asarray(self.measurement.loglik(p, obs, time=self.time), dtype=float)
             if np.isfinite(log_weight.max()) and not np.any(np.isnan(log_weight)):
-                p.log_weight = log_weight - logsumexp(log_weight)
+                p.log_weight = log_normalise(log_weight)
                 action = f"reinitialised on the {ranges[j]:.1f} m range ring of receiver " + (
                     str(np.asarray(obs["receiver"])[j]) if "receiver" in obs else f"row {j}"
                 )
@@ -518,9 +517,7 @@ class ParticleFilter:
     ) -> FilterResult:
         """Run :meth:`iterate` to the end; estimates, snapshots and events together."""
         snapshots: dict[float, pd.DataFrame] = {}
-        rows = [
-            asdict(e) for e in self.iterate(observations, start, end, snapshot_times, snapshots)
-        ]
+        rows = list(self.iterate(observations, start, end, snapshot_times, snapshots))
         return FilterResult(
             estimates=pd.DataFrame(rows, columns=list(ESTIMATE_COLUMNS)),
             snapshots=snapshots,

@@ -98,7 +98,8 @@ def truth_at(truth: pd.DataFrame, times) -> tuple[np.ndarray, np.ndarray]:
     Parameters
     ----------
     truth : pandas.DataFrame
-        ``time`` (s), ``x``, ``y`` (m). A single row is a stationary tag, valid at any time.
+        ``time`` (s), ``x``, ``y`` (m). A single row is a stationary tag, valid at any time
+        (its ``time`` may be missing).
     times : array_like, shape (n,)
         Times (s), inside the truth's time span unless the truth has one row.
 
@@ -107,10 +108,11 @@ def truth_at(truth: pd.DataFrame, times) -> tuple[np.ndarray, np.ndarray]:
     x, y : numpy.ndarray, shape (n,)
         Interpolated positions (m).
     """
-    t_true, x_true, y_true = _columns(truth, "truth", ("time", "x", "y"))
+    x_true, y_true = _columns(truth, "truth", ("x", "y"))
     times = np.asarray(times, dtype=float)
-    if t_true.size == 1:
+    if x_true.size == 1:
         return np.full(times.shape, x_true[0]), np.full(times.shape, y_true[0])
+    (t_true,) = _columns(truth, "truth", ("time",))
     order = np.argsort(t_true, kind="stable")
     t_true, x_true, y_true = t_true[order], x_true[order], y_true[order]
     outside = np.flatnonzero((times < t_true[0]) | (times > t_true[-1]))

@@ -412,7 +412,7 @@ class _Schedule:
 def _hmm_kernel(
     x, y, heading, c, s, v, w, behaviour, clock, streams, n_steps, n_sub, sub_step,
     draw_interval, fitted_dt, cumulative, gamma_d, gamma_c, gamma_boost, gamma_scale,
-    zero_mass, vm_mean, vm_r, vm_kappa, weights, ox, oy,
+    zero_mass, vonmises_tables, weights, ox, oy,
 ):  # fmt: skip
     n = x.size
     sums = np.zeros((N_CHUNKS, n_steps, N_MOMENTS))
@@ -424,7 +424,6 @@ def _hmm_kernel(
             k, clk, state = behaviour[i], clock[i], streams[i]
             for t in range(n_steps):
                 for _ in range(n_sub):
-                    k, state = rs.categorical(cumulative[k], state)
                     if clk >= due:
                         step = 0.0
                         u = 1.0
@@ -434,12 +433,13 @@ def _hmm_kernel(
                             step, state = rs.gamma(
                                 gamma_d[k], gamma_c[k], gamma_boost[k], gamma_scale[k], state
                             )
-                        angle, state = rs.vonmises(vm_mean[k], vm_r[k], vm_kappa[k], state)
+                        angle, state = rs.vonmises(vonmises_tables, k, state)
                         vi = step / fitted_dt
                         wi = angle / fitted_dt
                         clk = clk - draw_interval if clk < 2.0 * draw_interval else 0.0
                     xi, yi, ci, si = _arc(xi, yi, ci, si, vi, wi, sub_step)
                     clk += sub_step
+                    k, state = rs.categorical(cumulative[k], state)
                 _accumulate(sums, chunk, t, weights[i], xi - ox, yi - oy)
             x[i], y[i], v[i], w[i] = xi, yi, vi, wi
             behaviour[i], clock[i], streams[i] = k, clk, state
@@ -460,28 +460,34 @@ class HMMMotion:
     from the step and angle distributions of the particle's state; the particle then moves
     along the constant-turn-rate arc (as :class:`VelocityMotion`).
 
+    Each (sub-)step of length ``h`` does, per particle: (1) if a draw is due, draw speed and
+    turn rate from the current state; (2) move along the arc for ``h``; (3) move the
+    behavioural state one step of the chain. Particles start at rest with a state drawn
+    from ``model.initial`` (:meth:`initialise`) and a draw due at the first step.
+
     Variants
     --------
     ``"paper"``
-        What the paper does: at every prediction step (1 s in the filter) each particle
-        draws a new state from the fitted transition matrix ``Gamma`` *as fitted*, then a
-        new speed and turn rate from that state, then moves for the step. When the HMM was
-        fitted at ``model.dt`` != 1 s this runs the behavioural chain ``model.dt`` times too
-        fast and replaces speed and turn rate more often than the data did, so the
-        displacement statistics depend on the prediction step.
+        What the paper does: every prediction step (1 s in the filter) each particle draws
+        a new speed and turn rate and then a new state from the transition matrix ``Gamma``
+        *as fitted*. When the HMM was fitted at ``model.dt`` != 1 s this runs the
+        behavioural chain ``model.dt`` times too fast and replaces speed and turn rate more
+        often than the data did, so the displacement statistics depend on the prediction
+        step (``tests/test_motion.py`` shows it).
     ``"time_consistent"``
         Respects the fitted time step. The behavioural state moves every sub-step ``h`` with
         ``Gamma ** (h / model.dt)`` (:func:`transition_for_step`, with its documented
         fallback), and speed and turn rate are held between draws: a particle redraws them,
         from its current state, only when ``model.dt`` seconds have passed on its own clock
-        (``Particles.time_since_draw``). The state sampled at draw times is therefore a
-        Markov chain with matrix ``Gamma`` and each fitted step is an arc with one
-        (speed, turn rate) drawn from its state -- the fitted HMM itself, integrated along
-        arcs. When the prediction step divides ``model.dt`` (or is a multiple of it: it is
-        then split into sub-steps of ``model.dt``), the trajectory law over any horizon is
-        the same whatever the prediction step. Otherwise draws are made at the first
-        sub-step boundary after ``model.dt`` has elapsed, carrying the remainder, so that
-        draws still happen once per ``model.dt`` on average.
+        (``Particles.time_since_draw``). The states at draw times therefore form a Markov
+        chain with matrix ``Gamma`` and each fitted step is one arc with one (speed, turn
+        rate) drawn from its state: the fitted HMM itself, integrated along arcs. When the
+        prediction step divides ``model.dt``, or is a multiple of it (it is then split into
+        sub-steps of ``model.dt``), the law of the trajectory over any horizon does not
+        depend on the prediction step, and at ``dt == model.dt`` both variants coincide.
+        Otherwise speed and turn rate are redrawn at the first sub-step boundary after
+        ``model.dt`` has elapsed, carrying the excess over, so that draws still happen once
+        per ``model.dt`` on average.
 
     Parameters
     ----------
@@ -494,6 +500,7 @@ class HMMMotion:
 
     model: object
     variant: str = "paper"
+    # per prediction step: _Schedule; under "samplers": the kernel's sampler constants
     _schedules: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -558,9 +565,6 @@ class HMMMotion:
         plan = self.schedule(dt)
         p = particles
         for _ in range(plan.n_sub):
-            u = rng.random(p.n)
-            p.state = (u[:, None] > plan.cumulative[p.state]).sum(axis=1).astype(np.int64)
-            p.state = np.minimum(p.state, plan.cumulative.shape[0] - 1)
             due = np.flatnonzero(p.time_since_draw >= plan.draw_interval * (1.0 - 1e-9))
             if due.size:
                 states = p.state[due]
@@ -572,6 +576,9 @@ class HMMMotion:
                 )
             _move_along_arc(p, plan.sub_step)
             p.time_since_draw += plan.sub_step
+            u = rng.random(p.n)
+            p.state = (u[:, None] > plan.cumulative[p.state]).sum(axis=1).astype(np.int64)
+            p.state = np.minimum(p.state, plan.cumulative.shape[0] - 1)
 
     def advance(self, particles, streams, n_steps, dt, weights, origin) -> np.ndarray:
         """``n_steps`` steps of ``dt`` s, compiled; weighted moments ``(n_steps, 5)``."""
@@ -581,18 +588,21 @@ class HMMMotion:
                 f"{self.model.angle.name} angles; use ParticleFilter(backend='numpy')"
             )
         plan = self.schedule(dt)
-        step, angle = self.model.step, self.model.angle
-        d, c, boost = rs.gamma_constants(step.shape)
-        zero_mass = np.zeros(d.size) if step.zero_mass is None else np.asarray(step.zero_mass)
-        kappa = np.asarray(angle.concentration, dtype=np.float64)
+        if "samplers" not in self._schedules:
+            step, angle = self.model.step, self.model.angle
+            d, c, boost = rs.gamma_constants(step.shape)
+            zero_mass = np.zeros(d.size) if step.zero_mass is None else step.zero_mass
+            self._schedules["samplers"] = (
+                d, c, boost, np.asarray(step.scale, dtype=np.float64),
+                np.asarray(zero_mass, dtype=np.float64),
+                rs.VonMisesTables.build(angle.mean, angle.concentration).as_tuple(),
+            )  # fmt: skip
         p = particles
         return _moments(
             _hmm_kernel(
                 p.x, p.y, p.heading, p.cos_heading, p.sin_heading, p.speed, p.turn_rate,
                 p.state, p.time_since_draw, streams, n_steps, plan.n_sub, plan.sub_step,
-                plan.draw_interval, float(self.model.dt), plan.cumulative, d, c, boost,
-                np.asarray(step.scale, dtype=np.float64), zero_mass.astype(np.float64),
-                np.asarray(angle.mean, dtype=np.float64), rs.vonmises_constants(kappa), kappa,
-                weights, *origin,
+                plan.draw_interval, float(self.model.dt), plan.cumulative,
+                *self._schedules["samplers"], weights, *origin,
             )
         )  # fmt: skip

@@ -82,7 +82,7 @@ class Particles:
 
     def __post_init__(self) -> None:
         n = np.shape(self.x)
-        for name in self.array_names():
+        for name in _ARRAY_NAMES:
             dtype = np.int64 if name == "state" else np.float64
             value = np.require(getattr(self, name), dtype=dtype, requirements=("C", "W", "A"))
             if value.shape != n or value.ndim != 1:
@@ -99,11 +99,6 @@ class Particles:
         if name in extra:
             return extra[name]
         raise AttributeError(f"Particles has no field {name!r}")
-
-    @classmethod
-    def array_names(cls) -> tuple[str, ...]:
-        """Names of the built-in per-particle arrays (all fields but ``extra``)."""
-        return tuple(f.name for f in fields(cls) if f.name != "extra")
 
     @property
     def n(self) -> int:
@@ -173,13 +168,19 @@ class Particles:
 
     def copy(self) -> Particles:
         """Deep copy."""
-        return self.take(slice(None))
+        return self.take(np.arange(self.n))
 
-    def take(self, indices: np.ndarray | slice) -> Particles:
-        """New particles ``self[indices]`` for every field (used after resampling)."""
+    def take(self, indices: np.ndarray) -> Particles:
+        """New particles ``self[indices]`` for every field (used after resampling).
+
+        Parameters
+        ----------
+        indices : (M,) int array
+            Ancestor of each new particle.
+        """
         return Particles(
-            **{name: getattr(self, name)[indices].copy() for name in self.array_names()},
-            extra={name: value[indices].copy() for name, value in self.extra.items()},
+            **{name: getattr(self, name)[indices] for name in _ARRAY_NAMES},
+            extra={name: value[indices] for name, value in self.extra.items()},
         )
 
     def normalised_weights(self) -> np.ndarray:
@@ -201,3 +202,6 @@ class Particles:
                 "weight": self.normalised_weights(),
             }
         )
+
+
+_ARRAY_NAMES = tuple(f.name for f in fields(Particles) if f.name != "extra")

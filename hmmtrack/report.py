@@ -41,6 +41,9 @@ from hmmtrack.experiments import (
     paper_scenarios,
     summarise_trials,
 )
+from hmmtrack.scenarios import white_shark_tracks
+from hmmtrack.scenarios.historical import WHITE_SHARK_TRACKS_SEED
+from hmmtrack.scenarios.white_shark_hmm import load_white_shark_hmm, prepare_white_shark_tracks
 
 __all__ = [
     "PAPER",
@@ -109,7 +112,12 @@ class Finding:
 def _fmt(value: float, digits: int = 3) -> str:
     if value is None or (isinstance(value, float) and math.isnan(value)):
         return "–"
-    return f"{value:.{digits}g}" if abs(value) < 10 ** digits else f"{value:.0f}"
+    return f"{value:.{digits}g}" if abs(value) < 10**digits else f"{value:.0f}"
+
+
+def _paper(value: float) -> str:
+    """A number of the paper, as the paper prints it."""
+    return "–" if math.isnan(value) else f"{value:g}"
 
 
 def _markdown_table(headers: Sequence[str], rows: Sequence[Sequence[object]]) -> str:
@@ -150,33 +158,40 @@ def check_findings(
     """
     findings = []
     summary = None if comparison is None else summarise_trials(comparison)
-    cells = {} if summary is None else {
-        m: _cell(summary, "shark-pursuit", m) for m in MOTIONS
-    }
+    cells = {} if summary is None else {m: _cell(summary, "shark-pursuit", m) for m in MOTIONS}
     if all(c is not None for c in cells.values()) and cells:
         errors = {m: float(c["mean_error_after_convergence"]) for m, c in cells.items()}
         evidence = ", ".join(f"{m} {_fmt(e)} m" for m, e in errors.items())
-        findings.append(Finding(
-            "Shark pursuit: the HMM motion model has the lowest error after convergence.",
-            min(errors, key=errors.get) == "hmm",
-            f"mean error after convergence: {evidence}",
-        ))
+        findings.append(
+            Finding(
+                "Shark pursuit: the HMM motion model has the lowest error after convergence.",
+                min(errors, key=errors.get) == "hmm",
+                f"mean error after convergence: {evidence}",
+            )
+        )
         shark = comparison[comparison["scenario"] == "shark-pursuit"]
         share = {
             m: float(np.mean(g["mean_error_after_convergence"] > DIVERGED_ERROR))
             for m, g in shark.groupby("motion")
         }
-        findings.append(Finding(
-            "Shark pursuit: the baseline (random-walk) model diverges.",
-            errors["baseline"] > DIVERGED_ERROR and errors["baseline"] > 5 * errors["hmm"],
-            f"baseline mean error {_fmt(errors['baseline'])} m vs HMM {_fmt(errors['hmm'])} m; "
-            "share of trials with error above "
-            f"{DIVERGED_ERROR:g} m: "
-            + ", ".join(f"{m} {100 * share.get(m, math.nan):.0f} %" for m in MOTIONS),
-        ))
+        findings.append(
+            Finding(
+                "Shark pursuit: the baseline (random-walk) model diverges.",
+                errors["baseline"] > DIVERGED_ERROR and errors["baseline"] > 5 * errors["hmm"],
+                f"baseline mean error {_fmt(errors['baseline'])} m vs HMM {_fmt(errors['hmm'])} m; "
+                "share of trials with error above "
+                f"{DIVERGED_ERROR:g} m: "
+                + ", ".join(f"{m} {100 * share.get(m, math.nan):.0f} %" for m in MOTIONS),
+            )
+        )
     else:
-        findings.append(Finding("Shark pursuit: HMM lowest error, baseline diverges.", None,
-                                "no shark-pursuit trials of all three models"))
+        findings.append(
+            Finding(
+                "Shark pursuit: HMM lowest error, baseline diverges.",
+                None,
+                "no shark-pursuit trials of all three models",
+            )
+        )
     if loss is not None and len(loss):
         bands = loss_bands(loss)
         mid = bands.loc[LOSS_BANDS[1]]
@@ -185,34 +200,43 @@ def check_findings(
             and mid["n_converged"] >= 0.9 * mid["n_trials"]
             and mid["error_mean"] < DIVERGED_ERROR
         )
-        findings.append(Finding(
-            "The filter stays usable up to 80 % measurement loss.",
-            bool(usable),
-            f"20–80 % band: {int(mid['n_converged'])}/{int(mid['n_trials'])} trials converged, "
-            f"mean error after convergence {_fmt(mid['error_mean'])} m "
-            f"(max {_fmt(mid['error_max'])} m), mean time to convergence "
-            f"{_fmt(mid['convergence_mean'])} s",
-        ))
+        findings.append(
+            Finding(
+                "The filter stays usable up to 80 % measurement loss.",
+                bool(usable),
+                f"20–80 % band: {int(mid['n_converged'])}/{int(mid['n_trials'])} trials converged, "
+                f"mean error after convergence {_fmt(mid['error_mean'])} m "
+                f"(max {_fmt(mid['error_max'])} m), mean time to convergence "
+                f"{_fmt(mid['convergence_mean'])} s",
+            )
+        )
         low, high = bands.loc[LOSS_BANDS[0]], bands.loc[LOSS_BANDS[2]]
-        findings.append(Finding(
-            "Below 20 % loss the filter is robust; above 80 % error and convergence time grow "
-            "drastically.",
-            bool(low["error_mean"] <= mid["error_mean"] and high["error_mean"] > mid["error_mean"]
-                 and high["convergence_mean"] > low["convergence_mean"]),
-            "mean error after convergence by band: "
-            + ", ".join(f"{b} {_fmt(bands.loc[b, 'error_mean'])} m" for b in LOSS_BANDS)
-            + "; mean time to convergence: "
-            + ", ".join(f"{b} {_fmt(bands.loc[b, 'convergence_mean'])} s" for b in LOSS_BANDS),
-        ))
+        findings.append(
+            Finding(
+                "Below 20 % loss the filter is robust; above 80 % error and convergence time grow "
+                "drastically.",
+                bool(
+                    low["error_mean"] <= mid["error_mean"]
+                    and high["error_mean"] > mid["error_mean"]
+                    and high["convergence_mean"] > low["convergence_mean"]
+                ),
+                "mean error after convergence by band: "
+                + ", ".join(f"{b} {_fmt(bands.loc[b, 'error_mean'])} m" for b in LOSS_BANDS)
+                + "; mean time to convergence: "
+                + ", ".join(f"{b} {_fmt(bands.loc[b, 'convergence_mean'])} s" for b in LOSS_BANDS),
+            )
+        )
     if depth_trials is not None and len(depth_trials):
         by = depth_trials.groupby("depth_correction")["mean_error_after_convergence"].mean()
         if {True, False} <= set(by.index):
-            findings.append(Finding(
-                "Correcting ranges with the tag's depth removes the error a deep dive causes.",
-                bool(by[True] < by[False]),
-                f"diving shark, mean error after convergence: without correction "
-                f"{_fmt(by[False])} m, with correction {_fmt(by[True])} m",
-            ))
+            findings.append(
+                Finding(
+                    "Correcting ranges with the tag's depth removes the error a deep dive causes.",
+                    bool(by[True] < by[False]),
+                    f"diving shark, mean error after convergence: without correction "
+                    f"{_fmt(by[False])} m, with correction {_fmt(by[True])} m",
+                )
+            )
     return findings
 
 
@@ -223,25 +247,33 @@ def _comparison_section(comparison: pd.DataFrame) -> str:
         scenario, motion = cell["scenario"], cell["motion"]
         paper_error = PAPER["error"].get(scenario, {}).get(motion, math.nan)
         paper_tc = PAPER["convergence"].get(scenario, {}).get(motion, math.nan)
-        rows.append([
-            PAPER["datasets"].get(scenario, scenario),
-            motion,
-            _fmt(cell["mean_error_after_convergence"]),
-            _fmt(paper_error),
-            _fmt(cell["median_error_after_convergence"]),
-            _fmt(cell["rmse_after_convergence"]),
-            _fmt(cell["time_to_convergence"]),
-            _fmt(paper_tc),
-            f"{int(cell['n_converged'])}/{int(cell['n_trials'])}",
-        ])
+        rows.append(
+            [
+                PAPER["datasets"].get(scenario, scenario),
+                motion,
+                _fmt(cell["mean_error_after_convergence"]),
+                _paper(paper_error),
+                _fmt(cell["median_error_after_convergence"]),
+                _fmt(cell["rmse_after_convergence"]),
+                _fmt(cell["time_to_convergence"]),
+                _paper(paper_tc),
+                f"{int(cell['n_converged'])}/{int(cell['n_trials'])}",
+            ]
+        )
     headers = [
-        "dataset", "motion model", "mean error after conv. (m)", "paper (m)",
-        "median (m)", "true RMSE after conv. (m)", "time to conv. (s)", "paper (s)",
+        "dataset",
+        "motion model",
+        "mean error after conv. (m)",
+        "paper (m)",
+        "median (m)",
+        "true RMSE after conv. (m)",
+        "time to conv. (s)",
+        "paper (s)",
         "converged",
     ]
     return (
         "## Motion-model comparison\n\n"
-        "Per trial: the paper's \"RMSE\" (the *mean* position error from convergence to the "
+        'Per trial: the paper\'s "RMSE" (the *mean* position error from convergence to the '
         "end), the true root-mean-square error over the same span, and the time until "
         "√λ₁ < 10 m. Table: means over trials (time to convergence over converged trials; "
         "a trial that never converges is scored over its whole run, as the paper does).\n\n"
@@ -256,7 +288,7 @@ def _loss_section(loss: pd.DataFrame) -> str:
         [
             band,
             f"{int(ours.loc[band, 'n_converged'])}/{int(ours.loc[band, 'n_trials'])}",
-            *(f"{_fmt(ours.loc[band, c])} ({_fmt(paper.loc[band, c])})" for c in paper.columns),
+            *(f"{_fmt(ours.loc[band, c])} ({_paper(paper.loc[band, c])})" for c in paper.columns),
         ]
         for band in LOSS_BANDS
     ]
@@ -268,8 +300,14 @@ def _loss_section(loss: pd.DataFrame) -> str:
         f"{100 * fractions.min():.0f} % to {100 * fractions.max():.0f} % dropped, "
         f"{per_fraction} trials each. Ours (paper); statistics over converged trials.\n\n"
         + _markdown_table(
-            ["band dropped", "converged", "mean conv. (s)", "max conv. (s)",
-             "mean error (m)", "max error (m)"],
+            [
+                "band dropped",
+                "converged",
+                "mean conv. (s)",
+                "max conv. (s)",
+                "mean error (m)",
+                "max error (m)",
+            ],
             rows,
         )
         + "\n"
@@ -279,7 +317,7 @@ def _loss_section(loss: pd.DataFrame) -> str:
 def _depth_section(depth) -> str:
     paper = PAPER["depth_percent_error"]
     ours = dict(zip(depth.ranges, depth.percent_error, strict=True))
-    rows = [[f"{r:g}", _fmt(ours.get(r, math.nan), 2), _fmt(p, 2)] for r, p in paper.items()]
+    rows = [[f"{r:g}", f"{ours.get(r, math.nan):.2f}", _paper(p)] for r, p in paper.items()]
     text = (
         "## Depth\n\n"
         f"Percent error of taking a slant range as horizontal, tag at {depth.depth:g} m:\n\n"
@@ -289,17 +327,29 @@ def _depth_section(depth) -> str:
     if depth.trials is not None and len(depth.trials):
         summary = summarise_trials(depth.trials, by=("depth_correction",))
         rows = [
-            ["with" if c["depth_correction"] else "without",
-             _fmt(c["mean_error_after_convergence"]), _fmt(c["rmse_after_convergence"]),
-             _fmt(c["time_to_convergence"]), f"{int(c['n_converged'])}/{int(c['n_trials'])}"]
+            [
+                "with" if c["depth_correction"] else "without",
+                _fmt(c["mean_error_after_convergence"]),
+                _fmt(c["rmse_after_convergence"]),
+                _fmt(c["time_to_convergence"]),
+                f"{int(c['n_converged'])}/{int(c['n_trials'])}",
+            ]
             for _, c in summary.iterrows()
         ]
         text += (
             f"\nDiving shark (max depth {depth.max_depth:.0f} m, depth-sensor tag), HMM "
             "model, with and without the depth correction (not in the paper, which only "
             "argues the correction):\n\n"
-            + _markdown_table(["depth correction", "mean error after conv. (m)",
-                               "true RMSE (m)", "time to conv. (s)", "converged"], rows)
+            + _markdown_table(
+                [
+                    "depth correction",
+                    "mean error after conv. (m)",
+                    "true RMSE (m)",
+                    "time to conv. (s)",
+                    "converged",
+                ],
+                rows,
+            )
             + "\n"
         )
     return text
@@ -364,8 +414,9 @@ def write_summary(
     if figures:
         parts.append(
             "## Figures\n\n"
-            + "\n\n".join(f"**{caption}**\n\n![{caption}]({name})"
-                          for caption, name in figures.items())
+            + "\n\n".join(
+                f"**{caption}**\n\n![{caption}]({name})" for caption, name in figures.items()
+            )
             + "\n"
         )
     path.write_text("\n".join(parts))
@@ -387,6 +438,9 @@ class RunSize:
     depth_trials : int
         Diving-shark trials per variant (with / without depth correction).
     n_particles : int
+    shark_tracks_sharks : int or None
+        Sharks of the bundled synthetic white-shark tracks drawn under the HMM's densities
+        (``None``: all 22).
     """
 
     n_trials: int
@@ -394,12 +448,13 @@ class RunSize:
     loss_trials: int
     depth_trials: int
     n_particles: int
+    shark_tracks_sharks: int | None = None
 
 
 #: the paper-scale run (900 comparison trials plus the loss sweep and the diving shark)
 FULL = RunSize(100, LOSS_FRACTIONS, 5, 10, DEFAULT_PARTICLES)
 #: a first try: a few trials of everything, under a minute on two cores
-QUICK = RunSize(2, (0.0, 0.25, 0.5, 0.75, 0.9, 1.0), 1, 1, 200)
+QUICK = RunSize(2, (0.0, 0.25, 0.5, 0.75, 0.9, 1.0), 1, 1, 300, shark_tracks_sharks=3)
 
 #: how the particle snapshots of the example trials are spaced: seconds after the start
 SNAPSHOT_FRACTIONS = (0.0, 0.01, 0.03, 0.3, 1.0)
@@ -421,6 +476,7 @@ def save_figures(
     depth,
     datasets: Mapping[str, object],
     examples: Mapping[str, object],
+    shark_tracks: pd.DataFrame,
 ) -> dict[str, str]:
     """Draw and save every report figure as PNG in ``out``.
 
@@ -433,19 +489,19 @@ def save_figures(
     depth : hmmtrack.experiments.DepthAnalysis
     datasets : mapping of str to Scenario
         The paper's three datasets.
-    examples : mapping of str to (Scenario, tracking run)
+    examples : mapping of str to hmmtrack.experiments.ExampleRun
         One HMM-model run per dataset with particle snapshots, for the error-over-time
         figures.
+    shark_tracks : pandas.DataFrame
+        Prepared synthetic white-shark tracks (``speed``, ``angular_velocity``), drawn under
+        the bundled HMM's densities.
 
     Returns
     -------
     dict of str to str
         Caption → file name, in reading order.
     """
-    from hmmtrack.hmm import MovementHMM
-    from hmmtrack.plots import hmm as hmm_plots
     from hmmtrack.plots import results as plots
-    from hmmtrack.plots import tracking as tracking_plots
     from hmmtrack.plots.experiments import plot_scenario
 
     figures = {}
@@ -455,28 +511,41 @@ def save_figures(
         ax.set_title(PAPER["datasets"].get(scenario.name, scenario.name) + " analogue")
     figures["Dataset overviews (synthetic analogues)"] = _save(fig, out, "datasets.png")
 
-    model = MovementHMM.load(bundled_hmm_path())
-    fig = hmm_plots.plot_state_densities(model)
+    fig = plots.motion_hmm_figure(load_white_shark_hmm(), shark_tracks)
     figures["State-dependent densities of the bundled white-shark HMM"] = _save(
-        fig, out, "white_shark_hmm.png")
+        fig, out, "white_shark_hmm.png"
+    )
 
     fig = plots.comparison_figure(comparison, titles=PAPER["datasets"])
     figures["Error after convergence and time to convergence per motion model"] = _save(
-        fig, out, "motion_model_comparison.png")
+        fig, out, "motion_model_comparison.png"
+    )
 
-    for name, (scenario, run) in examples.items():
-        fig = tracking_plots.plot_run(run, scenario.truth, receivers=scenario.receivers)
+    for name, example in examples.items():
+        fig = plots.example_figure(example)
         figures[f"One HMM-model trial on {PAPER['datasets'].get(name, name)}"] = _save(
-            fig, out, f"example_{name}.png")
+            fig, out, f"example_{name}.png"
+        )
 
     fig = plots.loss_figure(loss, PAPER["loss_bands"])
     figures["Measurement loss: time to convergence and error after convergence"] = _save(
-        fig, out, "measurement_loss.png")
+        fig, out, "measurement_loss.png"
+    )
 
     fig = plots.depth_figure(depth, PAPER["depth_percent_error"])
     figures["Depth: percent error of ignoring depth; diving shark with and without correction"] = (
-        _save(fig, out, "depth.png"))
+        _save(fig, out, "depth.png")
+    )
     return figures
+
+
+def _shark_tracks(n_sharks: int | None) -> pd.DataFrame:
+    """The bundled synthetic white-shark tracks (or their first sharks), prepared as for the
+    fit of the bundled HMM."""
+    tracks = white_shark_tracks(WHITE_SHARK_TRACKS_SEED)
+    if n_sharks is not None:
+        tracks = tracks[tracks["id"].isin(pd.unique(tracks["id"])[:n_sharks])]
+    return prepare_white_shark_tracks(tracks)
 
 
 def reproduce(
@@ -512,8 +581,9 @@ def reproduce(
         ``loss_sweep_trials.csv`` and ``depth_trials.csv``.
     """
     size = QUICK if quick else FULL
-    size = replace(size, n_trials=n_trials or size.n_trials,
-                   n_particles=n_particles or size.n_particles)
+    size = replace(
+        size, n_trials=n_trials or size.n_trials, n_particles=n_particles or size.n_particles
+    )
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     clock = time.perf_counter()
@@ -521,23 +591,36 @@ def reproduce(
     common = {"seed": seed, "n_particles": size.n_particles, "progress": progress}
     pool = get_executor(executor, max_workers)
     try:
-        comparison = compare_motion_models(list(datasets.values()), n_trials=size.n_trials,
-                                           executor=pool, **common)
-        loss = loss_sweep(datasets["shark_pursuit"], fractions=size.loss_fractions,
-                          n_trials=size.loss_trials, executor=pool, **common)
+        comparison = compare_motion_models(
+            list(datasets.values()), n_trials=size.n_trials, executor=pool, **common
+        )
+        loss = loss_sweep(
+            datasets["shark_pursuit"],
+            fractions=size.loss_fractions,
+            n_trials=size.loss_trials,
+            executor=pool,
+            **common,
+        )
         depth = depth_analysis(n_trials=size.depth_trials, executor=pool, **common)
     finally:
         if pool is not executor:
             pool.shutdown()
     examples = {
-        scenario.name: (scenario, example_run(scenario, seed, size.n_particles))
+        scenario.name: example_run(scenario, seed, size.n_particles)
         for scenario in datasets.values()
     }
     comparison.to_csv(out / "motion_model_trials.csv", index=False)
     loss.to_csv(out / "loss_sweep_trials.csv", index=False)
     depth.trials.to_csv(out / "depth_trials.csv", index=False)
-    figures = save_figures(out, comparison=comparison, loss=loss, depth=depth,
-                           datasets=datasets, examples=examples)
+    figures = save_figures(
+        out,
+        comparison=comparison,
+        loss=loss,
+        depth=depth,
+        datasets=datasets,
+        examples=examples,
+        shark_tracks=_shark_tracks(size.shark_tracks_sharks),
+    )
     run = {
         "seed": seed,
         "size": "quick" if quick else "paper scale",
@@ -549,5 +632,6 @@ def reproduce(
         "executor": type(pool).__name__,
         "wall time": f"{time.perf_counter() - clock:.0f} s",
     }
-    return write_summary(out / "summary.md", comparison=comparison, loss=loss, depth=depth,
-                         figures=figures, run=run)
+    return write_summary(
+        out / "summary.md", comparison=comparison, loss=loss, depth=depth, figures=figures, run=run
+    )

@@ -21,12 +21,13 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
-from scipy.special import logsumexp
+from numba import njit
 
 __all__ = [
     "RESAMPLERS",
     "effective_sample_size",
     "get_resampler",
+    "log_normalise",
     "multinomial",
     "residual",
     "stratified",
@@ -50,15 +51,34 @@ def _checked_weights(weights: np.ndarray) -> np.ndarray:
     return w / total
 
 
-def _inverse_cdf(weights: np.ndarray, sorted_uniforms: np.ndarray) -> np.ndarray:
-    """Ancestors for sorted points in ``[0, 1)`` by inverting the weights' cumulative sum."""
+@njit(cache=True)
+def _merge(cumulative, sorted_points):
+    """For ascending points, the first index with ``cumulative > point`` (one linear pass)."""
+    out = np.empty(sorted_points.size, dtype=np.int64)
+    j = 0
+    for k in range(sorted_points.size):
+        while cumulative[j] <= sorted_points[k]:
+            j += 1
+        out[k] = j
+    return out
+
+
+def _inverse_cdf(weights: np.ndarray, sorted_points: np.ndarray) -> np.ndarray:
+    """Ancestors for ascending points in ``[0, 1)`` by inverting the weights' cumulative sum.
+
+    Equal to ``np.searchsorted(cumsum(weights), points, side="right")``, in linear time.
+    """
     cumulative = np.cumsum(weights)
     cumulative[-1] = 1.0  # guard against rounding: every point in [0, 1) finds an index
-    return np.searchsorted(cumulative, sorted_uniforms, side="right").astype(np.int64)
+    return _merge(cumulative, np.ascontiguousarray(sorted_points, dtype=np.float64))
 
 
 def multinomial(rng: np.random.Generator, weights: np.ndarray, n: int) -> np.ndarray:
     """Draw ``n`` ancestors independently with probabilities ``weights``.
+
+    The ``n`` uniforms are drawn already sorted (normalised cumulative sums of ``n + 1``
+    standard exponentials are the order statistics of ``n`` uniforms), so inverting the
+    cumulative weights takes one linear pass.
 
     Parameters
     ----------
@@ -73,8 +93,9 @@ def multinomial(rng: np.random.Generator, weights: np.ndarray, n: int) -> np.nda
     (n,) int64 array of indices into ``weights``, sorted ascending.
     """
     w = _checked_weights(weights)
-    counts = rng.multinomial(n, w)
-    return np.repeat(np.arange(w.size, dtype=np.int64), counts)
+    spacings = rng.standard_exponential(n + 1)
+    points = np.cumsum(spacings[:-1]) / spacings.sum()
+    return _inverse_cdf(w, points)
 
 
 def stratified(rng: np.random.Generator, weights: np.ndarray, n: int) -> np.ndarray:
@@ -147,7 +168,26 @@ def effective_sample_size(log_weights: np.ndarray) -> float:
     lw = np.asarray(log_weights, dtype=np.float64)
     if np.any(np.isnan(lw)) or np.any(lw == np.inf):
         raise ValueError("log weights must be finite or -inf, got NaN or +inf")
-    if not np.isfinite(lw.max()):
+    top = lw.max()
+    if not np.isfinite(top):
         return 0.0
-    log_w = lw - logsumexp(lw)
-    return float(np.exp(-logsumexp(2.0 * log_w)))
+    w = np.exp(lw - top)
+    return float(w.sum() ** 2 / (w @ w))
+
+
+def log_normalise(log_weights: np.ndarray) -> np.ndarray:
+    """Log weights minus their log-sum-exp, so that their exponentials sum to one.
+
+    Parameters
+    ----------
+    log_weights : (M,) array of float, with a finite maximum
+
+    Returns
+    -------
+    (M,) float array; ``-inf`` entries stay ``-inf``.
+    """
+    lw = np.asarray(log_weights, dtype=np.float64)
+    top = lw.max()
+    if not np.isfinite(top):
+        raise ValueError(f"cannot normalise log weights whose maximum is {top}")
+    return lw - (top + np.log(np.exp(lw - top).sum()))

@@ -10,13 +10,16 @@ slot when particles are resampled, so copies of one ancestor diverge.
 The scalar samplers below (uniform, standard normal pairs, gamma, von Mises, categorical)
 are ``numba.njit`` functions that take and return the stream state. They are written from
 the textbook algorithms: a 256-layer ziggurat for normals and Marsaglia & Tsang (2000) for
-gamma, Best & Fisher (1979) for von Mises. :func:`draw_uniforms` and the other ``draw_*``
+gamma, and for von Mises exact rejection from a 256-bin piecewise-constant envelope
+whose bins are drawn with Walker's alias method. :func:`draw_uniforms` and the other ``draw_*``
 helpers expose them as array functions so that tests can compare them with SciPy.
 
 This module does not move particles; it only makes random numbers for those that do.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
@@ -173,48 +176,112 @@ def gamma_constants(shape: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarr
     return d, 1.0 / np.sqrt(9.0 * d), np.where(boosted, 1.0 / shape, 0.0)
 
 
-@njit(cache=True)
-def vonmises(mean, r, concentration, state):
-    """One von Mises angle in ``(-pi, pi]`` (Best & Fisher) and the advanced state.
+#: bins of the piecewise-constant envelope of the von Mises sampler (a power of two)
+VONMISES_BINS = 256
+#: the envelope stops this many standard deviations (1/sqrt(kappa)) from the mean when
+#: that is inside the circle; the density beyond is below exp(-72) ~ 5e-32 of its peak
+_VONMISES_REACH = 12.0
 
-    ``r = (1 + rho^2) / (2 rho)`` is precomputed by :func:`vonmises_constants`; a zero
-    concentration gives the uniform circle, a very large one (``r == 0``) the normal limit.
+
+@dataclass(frozen=True)
+class VonMisesTables:
+    """Per-state tables of :func:`vonmises`, each of shape ``(K, VONMISES_BINS)``.
+
+    The deviation ``d = |angle - mean|`` has density ``f(d) = exp(kappa (cos d - 1))`` on
+    ``[0, reach]``; bin ``b`` of width ``reach / VONMISES_BINS`` is enveloped by its left
+    height ``f_left`` (``f`` decreases) and squeezed by its right height ``f_right``. Bins
+    are chosen with Walker's alias method (``alias_cut``, ``alias``).
     """
-    if concentration < 1e-8:
+
+    mean: np.ndarray  # (K,)
+    concentration: np.ndarray  # (K,)
+    width: np.ndarray  # (K,) bin width, rad
+    f_left: np.ndarray
+    f_right: np.ndarray
+    alias_cut: np.ndarray
+    alias: np.ndarray
+
+    @classmethod
+    def build(cls, mean, concentration) -> VonMisesTables:
+        """Tables for von Mises distributions with the given means and concentrations (K,)."""
+        mean = np.atleast_1d(np.asarray(mean, dtype=np.float64))
+        kappa = np.atleast_1d(np.asarray(concentration, dtype=np.float64))
+        if np.any(~np.isfinite(kappa) | (kappa < 0)) or np.any(~np.isfinite(mean)):
+            raise ValueError(
+                f"von Mises means must be finite and concentrations finite and >= 0, "
+                f"got means {mean}, concentrations {kappa}"
+            )
+        reach = np.minimum(np.pi, _VONMISES_REACH / np.sqrt(np.maximum(kappa, 1e-300)))
+        edges = reach[:, None] * np.arange(VONMISES_BINS + 1)[None, :] / VONMISES_BINS
+        height = np.exp(kappa[:, None] * (np.cos(edges) - 1.0))
+        cut, alias = zip(*(alias_table(row) for row in height[:, :-1]), strict=True)
+        return cls(
+            mean=mean,
+            concentration=kappa,
+            width=reach / VONMISES_BINS,
+            f_left=height[:, :-1].copy(),
+            f_right=height[:, 1:].copy(),
+            alias_cut=np.array(cut),
+            alias=np.array(alias),
+        )
+
+    def as_tuple(self) -> tuple:
+        """The arrays in the order :func:`vonmises` unpacks them."""
+        return (
+            self.mean,
+            self.concentration,
+            self.width,
+            self.f_left,
+            self.f_right,
+            self.alias_cut,
+            self.alias,
+        )
+
+
+def alias_table(weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Walker/Vose alias table of ``weights`` (M,): draw ``b`` uniform, keep it with
+    probability ``cut[b]``, else take ``alias[b]``; returns ``(cut, alias)``."""
+    p = np.asarray(weights, dtype=np.float64)
+    m = p.size
+    scaled = p * m / p.sum()
+    cut = np.ones(m)
+    alias = np.arange(m)
+    small = [i for i in range(m) if scaled[i] < 1.0]
+    large = [i for i in range(m) if scaled[i] >= 1.0]
+    while small and large:
+        s, g = small.pop(), large.pop()
+        cut[s], alias[s] = scaled[s], g
+        scaled[g] -= 1.0 - scaled[s]
+        (small if scaled[g] < 1.0 else large).append(g)
+    return cut, alias
+
+
+@njit(cache=True)
+def vonmises(tables_row, k, state):
+    """One von Mises angle in ``(-pi, pi]`` for state ``k`` and the advanced state.
+
+    Exact rejection sampling from the piecewise-constant envelope of
+    :class:`VonMisesTables` (``tables_row`` is its tuple of arrays); the squeeze accepts
+    most draws without evaluating the density.
+    """
+    mean, kappa, width, f_left, f_right, cut, alias = tables_row
+    while True:
+        z, state = _bits(state)
+        b = np.int64(z & _LAYER)
+        if (z >> _S11) * _TWO_M53 >= cut[k, b]:
+            b = alias[k, b]
         u, state = uniform(state)
-        return np.pi * (2.0 * u - 1.0), state
-    if r == 0.0:
-        z, _, state = normal_pair(state)
-        angle = mean + z / np.sqrt(concentration)
-    else:
-        while True:
-            u1, state = uniform(state)
-            z = np.cos(np.pi * u1)
-            f = (1.0 + r * z) / (r + z)
-            c = concentration * (r - f)
-            u2, state = uniform(state)
-            if c * (2.0 - c) - u2 > 0.0 or np.log(c / u2) + 1.0 - c >= 0.0:
-                break
-        u3, state = uniform(state)
-        f = min(max(f, -1.0), 1.0)
-        angle = mean + np.arccos(f) if u3 > 0.5 else mean - np.arccos(f)
-    angle = np.mod(angle + np.pi, 2.0 * np.pi) - np.pi
-    if angle == -np.pi:
-        angle = np.pi
+        v, state = uniform(state)
+        x = (b + 1.0 - u) * width[k]  # 1 - u is in [0, 1)
+        y = v * f_left[k, b]
+        if y <= f_right[k, b] or y <= np.exp(kappa[k] * (np.cos(x) - 1.0)):
+            break
+    angle = mean[k] - x if (z >> _S8) & _ONE else mean[k] + x
+    if angle > np.pi:
+        angle -= 2.0 * np.pi
+    elif angle <= -np.pi:
+        angle += 2.0 * np.pi
     return angle, state
-
-
-def vonmises_constants(concentration: np.ndarray) -> np.ndarray:
-    """Per-concentration constant ``r`` of :func:`vonmises` (0 selects the normal limit)."""
-    kappa = np.asarray(concentration, dtype=np.float64)
-    if np.any(~np.isfinite(kappa) | (kappa < 0)):
-        raise ValueError(f"von Mises concentrations must be finite and >= 0, got {kappa}")
-    safe = np.clip(kappa, 1e-5, 1e6)
-    tau = 1.0 + np.sqrt(1.0 + 4.0 * safe * safe)
-    rho = (tau - np.sqrt(2.0 * tau)) / (2.0 * safe)
-    small = np.clip(kappa, 1e-8, 1e-5)  # rho ~ kappa / 2 loses all digits below 1e-5
-    r = np.where(kappa < 1e-5, 1.0 / small + 0.25 * small, (1.0 + rho * rho) / (2.0 * rho))
-    return np.where(kappa > 1e6, 0.0, r)
 
 
 @njit(cache=True, inline="always")
@@ -264,14 +331,13 @@ def draw_gamma(streams: np.ndarray, shape: float, scale: float) -> np.ndarray:
 
 
 @njit(cache=True)
-def _draw_vonmises(streams, mean, r, concentration):
+def _draw_vonmises(streams, tables_row):
     out = np.empty(streams.size)
     for i in range(streams.size):
-        out[i], streams[i] = vonmises(mean, r, concentration, streams[i])
+        out[i], streams[i] = vonmises(tables_row, 0, streams[i])
     return out
 
 
 def draw_vonmises(streams: np.ndarray, mean: float, concentration: float) -> np.ndarray:
     """One von Mises(mean, concentration) draw per stream, (N,), advancing ``streams``."""
-    r = vonmises_constants(np.array([concentration]))[0]
-    return _draw_vonmises(streams, float(mean), r, float(concentration))
+    return _draw_vonmises(streams, VonMisesTables.build([mean], [concentration]).as_tuple())

@@ -48,7 +48,7 @@ analysis = experiments.depth_analysis(
     duration=duration,
     progress=True,
 )
-curve = dict(zip(analysis.ranges, analysis.percent_error))
+curve = dict(zip(analysis.ranges, analysis.percent_error, strict=True))
 pd.DataFrame(
     {
         "ours (%)": [curve.get(r) for r in PAPER["depth_percent_error"]],

@@ -18,7 +18,6 @@ from hmmtrack.arrival import (
     emission_range,
     wrap_to_ping,
 )
-from hmmtrack.clock import ReceiverClock
 from hmmtrack.ranging import ranges
 
 C = 1460.0
@@ -39,7 +38,7 @@ def particles(x, y, heading=0.0, speed=0.0, emission_time=0.0, period=8.0, depth
     return out
 
 
-def brute_force_loglik(p, obs, time, likelihood, clocks, tag_depth_column=True):
+def brute_force_loglik(p, obs, time, likelihood, tag_depth_column=True):
     """Scalar loops: exact emission range by iteration, nearest ping by search, scipy densities."""
     total = np.zeros(p.x.size)
     for i in range(p.x.size):
@@ -47,8 +46,6 @@ def brute_force_loglik(p, obs, time, likelihood, clocks, tag_depth_column=True):
         vy = p.speed[i] * math.sin(p.heading[i])
         for _, row in obs.iterrows():
             arrival = row["time"]
-            if row["receiver"] in clocks:
-                arrival = clocks[row["receiver"]].to_true(arrival)
             depth = row["depth"] if tag_depth_column and "depth" in obs else 0.0
             r = 0.0
             for _ in range(50):  # emitted at arrival - r/C, the tag then at x - v * (time - that)
@@ -94,10 +91,9 @@ def test_loglik_equals_brute_force_for_a_few_particles():
         }
     )
     likelihood = ArrivalLikelihood(sigma=4e-3, late_fraction=0.05, late_mean=0.02)
-    clocks = {"b": ReceiverClock(offset=0.3, drift_ppm=25.0, reference_time=900.0)}
-    model = ArrivalTimeMeasurement(likelihood, sound_speed=C, receiver_clocks=clocks)
+    model = ArrivalTimeMeasurement(likelihood, sound_speed=C)
     got = model.loglik(p, obs, time=1109.0)
-    want = brute_force_loglik(p, obs, 1109.0, likelihood, clocks)
+    want = brute_force_loglik(p, obs, 1109.0, likelihood)
     np.testing.assert_allclose(got, want, rtol=1e-7, atol=1e-7)
 
 
@@ -107,7 +103,7 @@ def test_particle_depth_takes_precedence_over_the_depth_column():
     model = ArrivalTimeMeasurement(ArrivalLikelihood(late_fraction=0.0, uniform_fraction=0.0))
     obs["time"] = 0.06
     flat = model.loglik(p, obs.assign(depth=[50.0]))
-    want = brute_force_loglik(p, obs, 0.06, model.likelihood, {}, tag_depth_column=False)
+    want = brute_force_loglik(p, obs, 0.06, model.likelihood, tag_depth_column=False)
     np.testing.assert_allclose(flat, want, rtol=1e-9)
 
 

@@ -3,12 +3,19 @@
 from __future__ import annotations
 
 import numpy as np
+import pandas as pd
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import stats
 
-from hmmtrack.clock import EmissionClockModel, ReceiverClock, local_period_ppm, schedule_wander
+from hmmtrack.clock import (
+    EmissionClockModel,
+    ReceiverClock,
+    local_period_ppm,
+    schedule_wander,
+    to_common_time,
+)
 
 
 @settings(max_examples=100, deadline=None)
@@ -79,3 +86,15 @@ def test_local_period_ppm_of_two_known_blocks():
     np.testing.assert_allclose(local_period_ppm(times, block=400), [100.0, -100.0], atol=1e-6)
     with pytest.raises(ValueError, match="increasing"):
         local_period_ppm(times[::-1])
+
+
+def test_to_common_time_maps_each_receiver_and_keeps_the_rest():
+    clocks = {"a": ReceiverClock(offset=1.0, drift_ppm=0.0), "b": ReceiverClock(offset=-0.5)}
+    detections = pd.DataFrame(
+        {"time": [10.0, 10.2, 10.4], "receiver": ["a", "b", "c"], "depth": [1.0, 2.0, 3.0]}
+    )
+    out = to_common_time(detections, clocks)
+    assert out["receiver"].tolist() == ["a", "c", "b"]
+    np.testing.assert_allclose(out["time"], [9.0, 10.4, 10.7])
+    np.testing.assert_allclose(out["depth"], [1.0, 3.0, 2.0])
+    assert detections["time"].tolist() == [10.0, 10.2, 10.4]

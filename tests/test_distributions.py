@@ -113,10 +113,72 @@ def test_angle_logpdf_matches_scipy_and_integrates(dist):
     np.testing.assert_array_equal(out[np.isnan(x)], 0.0)
 
 
+@pytest.mark.parametrize("dist", STEP_EXAMPLES, ids=lambda d: d.name)
+def test_step_cdf_matches_scipy_and_zero_mass(dist):
+    x = np.array([1e-3, 0.2, 1.0, 4.0, np.nan, 25.0])
+    out = dist.cdf(x)
+    for k in range(2):
+        np.testing.assert_allclose(out[:, k], scipy_step(dist, k).cdf(x), rtol=1e-10)
+    inflated = dist._replace(zero_mass=np.array([0.2, 0.05]))
+    out = inflated.cdf(np.array([0.0, 1.0, np.nan]))
+    np.testing.assert_allclose(out[0], [0.2, 0.05])
+    np.testing.assert_allclose(
+        out[1], [0.2, 0.05] + np.array([0.8, 0.95]) * dist.cdf(np.ones(1))[0]
+    )
+    assert np.isnan(out[2]).all()
+
+
+@pytest.mark.parametrize("dist", ANGLE_EXAMPLES, ids=lambda d: f"{d.name}-{d.estimate_mean}")
+def test_angle_cdf_integrates_the_density(dist):
+    # angles live on (-pi, pi]: -pi itself is the angle pi, with cdf 1
+    x = np.array([-np.pi + 1e-9, -2.9, -1.0, 0.0, 0.5, 2.0, 3.1, np.pi, np.nan])
+    out = dist.cdf(x)
+    for k in range(2):
+        for i in range(x.size - 1):
+            area, _ = integrate.quad(
+                lambda t, k=k: np.exp(dist.logpdf(np.array([t]))[0, k]),
+                -np.pi,
+                x[i],
+                points=[dist.mean[k]] if -np.pi < dist.mean[k] < x[i] else None,
+                limit=200,
+            )
+            assert out[i, k] == pytest.approx(area, abs=1e-8)
+    np.testing.assert_allclose(out[0], 0.0, atol=1e-8)
+    np.testing.assert_allclose(out[-2], 1.0, atol=1e-12)
+    assert np.isnan(out[-1]).all()
+
+
 def test_angle_density_is_periodic():
     d = D.VonMises(mean=[0.5], concentration=[2.0])
     x = np.array([0.3, -1.0])
     np.testing.assert_allclose(d.logpdf(x + 2 * np.pi), d.logpdf(x), rtol=1e-12)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    family=st.sampled_from(sorted(D.STEP_FAMILIES)),
+    a=st.floats(0.05, 50.0),
+    b=st.floats(0.05, 50.0),
+    x=st.lists(st.floats(1e-12, 1e5), min_size=1, max_size=20),
+)
+def test_step_logpdf_is_never_nan(family, a, b, x):
+    dist = D.STEP_FAMILIES[family].from_moments([a], [b], zero_mass=[0.1])
+    out = dist.logpdf(np.array([*x, 0.0, np.nan]))
+    assert not np.isnan(out).any() and (out < np.inf).all()
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    family=st.sampled_from(sorted(D.ANGLE_FAMILIES)),
+    mean=st.floats(-np.pi, np.pi),
+    conc=st.floats(0.0, 0.999999999),
+    x=st.lists(st.floats(-np.pi, np.pi), min_size=1, max_size=20),
+)
+def test_angle_logpdf_is_never_nan(family, mean, conc, x):
+    if family == "vonmises":
+        conc = 1e4 * conc
+    out = D.ANGLE_FAMILIES[family]([mean], [conc]).logpdf(np.array([*x, mean]))
+    assert np.isfinite(out).all()
 
 
 # --- weighted maximum likelihood ---------------------------------------------------------
@@ -215,12 +277,14 @@ def test_zero_mass_is_the_weighted_share_of_zeros():
 
 @pytest.mark.parametrize("dist", STEP_EXAMPLES + ANGLE_EXAMPLES, ids=lambda d: d.name)
 def test_parameter_recovery_from_weighted_mixture(dist):
-    """Soft weights from the true posterior of a 2-state mixture recover both states."""
+    """Soft weights (the true posterior of a 2-state mixture) recover both states."""
     rng = np.random.default_rng(5)
     states = rng.integers(0, 2, 20000)
     x = dist.sample(rng, states)
-    w = np.eye(2)[states]
-    start = dist.from_dict(dist.to_dict())
+    log_density = dist.logpdf(x)
+    w = np.exp(log_density - np.logaddexp(log_density[:, :1], log_density[:, 1:]))
+    assert 0.05 < np.mean((w > 0.01) & (w < 0.99))  # the weights really are soft
+    start = dist.with_working(dist.to_working() + 0.3)  # the fit does not start at the truth
     fit = start.fit_weighted(x, w)
     for name in dist._parameters:
         truth, got = getattr(dist, name), getattr(fit, name)
@@ -409,6 +473,12 @@ def test_bad_input_raises_clear_errors():
         D.Gamma([1.0, 2.0], [1.0])
     with pytest.raises(ValueError, match="all 0 when estimate_mean is False"):
         D.VonMises([0.5], [1.0], estimate_mean=False)
+    with pytest.raises(ValueError, match="estimate_mean must be True or False"):
+        D.from_dict(
+            {"family": "vonmises", "mean": [0.0], "concentration": [1.0], "estimate_mean": 1}
+        )
+    with pytest.raises(ValueError, match="Gamma.sd must be an array of numbers"):
+        D.from_dict({"family": "gamma", "mean": [1.0], "sd": ["wide"]})
     with pytest.raises(ValueError, match=r"in \[0, 1\)"):
         D.WrappedCauchy([0.0], [1.0])
     with pytest.raises(ValueError, match="unknown distribution family 'normal'"):

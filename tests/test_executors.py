@@ -7,6 +7,7 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from hmmtrack.executors import SerialExecutor, default_workers, get_executor, map_ordered
@@ -74,22 +75,43 @@ def test_bad_arguments_are_refused():
     assert default_workers() >= 1
 
 
-def test_dask_cluster_equals_serial_bit_for_bit():
+@pytest.fixture(scope="module")
+def dask_client():
     distributed = pytest.importorskip("distributed")
+    with (
+        distributed.LocalCluster(
+            n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+        ) as cluster,
+        distributed.Client(cluster) as client,
+    ):
+        yield client
+
+
+def test_dask_cluster_equals_serial_bit_for_bit(dask_client):
     import cloudpickle
 
     # the workers cannot import this test module, so its functions travel by value
     cloudpickle.register_pickle_by_value(sys.modules[__name__])
     try:
-        with (
-            distributed.LocalCluster(
-                n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
-            ) as cluster,
-            distributed.Client(cluster) as client,
-        ):
-            with get_executor(client) as ex:
-                out = map_ordered(ex, noisy_walk, SEEDS)
+        with get_executor(dask_client) as ex:
+            out = map_ordered(ex, noisy_walk, SEEDS)
     finally:
         cloudpickle.unregister_pickle_by_value(sys.modules[__name__])
     for got, want in zip(out, _serial_reference(), strict=True):
         np.testing.assert_array_equal(got, want)
+
+
+def test_filter_trials_on_dask_and_processes_equal_serial_bit_for_bit(dask_client):
+    from hmmtrack import experiments
+
+    datasets = experiments.paper_scenarios(4, names=("swimmer", "shark_pursuit"))
+    scenarios = [datasets["swimmer"], experiments.truncate(datasets["shark_pursuit"], 400.0)]
+    kwargs = {"n_trials": 2, "seed": 8, "n_particles": 80}
+    serial = experiments.compare_motion_models(scenarios, **kwargs)
+    on_dask = experiments.compare_motion_models(scenarios, executor=dask_client, **kwargs)
+    on_processes = experiments.compare_motion_models(
+        scenarios, executor="processes", max_workers=2, **kwargs
+    )
+    assert len(serial) == 12
+    for other in (on_dask, on_processes):
+        pd.testing.assert_frame_equal(serial.drop(columns="runtime"), other.drop(columns="runtime"))

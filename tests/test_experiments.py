@@ -47,16 +47,18 @@ def test_experiment_seed_refuses_a_generator():
 
 
 def test_loss_bands_on_hand_data():
-    table = _table([
-        (0.0, True, 10.0, 5.0),
-        (0.1, True, 30.0, 7.0),
-        (0.15, False, 0.0, 900.0),   # never converged: counted, not averaged
-        (0.2, True, 50.0, 20.0),     # an edge belongs to the middle band
-        (0.5, True, 70.0, 40.0),
-        (0.8, True, 90.0, 60.0),
-        (0.85, True, 1000.0, 300.0),
-        (1.0, False, 0.0, 5000.0),
-    ])
+    table = _table(
+        [
+            (0.0, True, 10.0, 5.0),
+            (0.1, True, 30.0, 7.0),
+            (0.15, False, 0.0, 900.0),  # never converged: counted, not averaged
+            (0.2, True, 50.0, 20.0),  # an edge belongs to the middle band
+            (0.5, True, 70.0, 40.0),
+            (0.8, True, 90.0, 60.0),
+            (0.85, True, 1000.0, 300.0),
+            (1.0, False, 0.0, 5000.0),
+        ]
+    )
     bands = ex.loss_bands(table)
     assert list(bands.index) == list(ex.LOSS_BANDS)
     assert bands["n_trials"].tolist() == [3, 3, 2]
@@ -73,8 +75,12 @@ def test_loss_bands_reject_fractions_outside_unit_interval():
 
 
 def test_summarise_trials_means_over_trials_and_converged_times():
-    table = pd.concat([_table([(0.0, True, 10.0, 4.0), (0.0, False, 0.0, 8.0)]),
-                       _table([(0.0, True, 30.0, 1.0)]).assign(motion="baseline")])
+    table = pd.concat(
+        [
+            _table([(0.0, True, 10.0, 4.0), (0.0, False, 0.0, 8.0)]),
+            _table([(0.0, True, 30.0, 1.0)]).assign(motion="baseline"),
+        ]
+    )
     summary = ex.summarise_trials(table).set_index("motion")
     assert summary.loc["hmm", "n_trials"] == 2 and summary.loc["hmm", "n_converged"] == 1
     assert summary.loc["hmm", "mean_error_after_convergence"] == pytest.approx(6.0)
@@ -85,8 +91,9 @@ def test_summarise_trials_means_over_trials_and_converged_times():
 
 def test_trials_table_order_does_not_depend_on_finishing_order():
     def result(motion, trial):
-        return ex.TrialResult("s", motion, trial, 0.0, False, 10, 1.0, True, 2.0, 3.0, 0.1,
-                              np.zeros(1), np.zeros(1))
+        return ex.TrialResult(
+            "s", motion, trial, 0.0, False, 10, 1.0, True, 2.0, 3.0, 0.1, np.zeros(1), np.zeros(1)
+        )
 
     results = [result(m, k) for m in ("hmm", "baseline", "velocity") for k in (1, 0)]
     table = ex.trials_table(results)
@@ -102,3 +109,107 @@ def test_depth_percent_error_curve_matches_paper_points():
     assert curve[50.0] == pytest.approx(2.4, abs=0.05)
     assert curve[100.0] == pytest.approx(0.6, abs=0.05)
     assert np.all(np.diff(analysis.percent_error) < 0)
+
+
+# ------------------------------------------------------------------ real filter trials
+
+N_PARTICLES = 100
+
+
+@pytest.fixture(scope="module")
+def small_scenarios():
+    """The swimmer (349 s) and the first 10 minutes of the shark pursuit."""
+    built = ex.paper_scenarios(11, names=("swimmer", "shark_pursuit"))
+    return [built["swimmer"], ex.truncate(built["shark_pursuit"], 600.0)]
+
+
+def _without_runtime(table: pd.DataFrame) -> pd.DataFrame:
+    return table.drop(columns="runtime")
+
+
+def test_same_seed_same_table_serial_equals_processes(small_scenarios):
+    serial = ex.compare_motion_models(small_scenarios, n_trials=2, seed=5, n_particles=N_PARTICLES)
+    parallel = ex.compare_motion_models(
+        small_scenarios,
+        n_trials=2,
+        seed=5,
+        n_particles=N_PARTICLES,
+        executor="processes",
+        max_workers=2,
+    )
+    pd.testing.assert_frame_equal(_without_runtime(serial), _without_runtime(parallel))
+    assert len(serial) == 2 * 3 * 2
+    assert serial["scenario"].tolist()[:6] == ["swimmer"] * 6
+    # trials differ from each other, and another seed gives other numbers
+    assert serial["mean_error_after_convergence"].nunique() == len(serial)
+    other = ex.compare_motion_models(
+        small_scenarios[:1], motions=("hmm",), n_trials=1, seed=6, n_particles=N_PARTICLES
+    )
+    first = serial[(serial["motion"] == "hmm") & (serial["trial"] == 0)].iloc[0]
+    assert other["mean_error_after_convergence"].iloc[0] != first["mean_error_after_convergence"]
+
+
+def test_more_trials_only_append_rows(small_scenarios):
+    swimmer = small_scenarios[:1]
+    two = ex.compare_motion_models(
+        swimmer, motions=("velocity",), n_trials=2, seed=3, n_particles=N_PARTICLES
+    )
+    three = ex.compare_motion_models(
+        swimmer, motions=("velocity",), n_trials=3, seed=3, n_particles=N_PARTICLES
+    )
+    pd.testing.assert_frame_equal(_without_runtime(two), _without_runtime(three.iloc[:2]))
+
+
+def test_trial_scores_and_error_curve_match_metrics(small_scenarios):
+    from hmmtrack import metrics
+
+    swimmer = small_scenarios[0]
+    result = ex.run_trial(swimmer, "hmm", 9, N_PARTICLES)
+    run = ex.track_scenario(swimmer, "hmm", 9, N_PARTICLES)
+    scores = metrics.tracking_metrics(run.estimates, swimmer.truth)
+    assert result.mean_error_after_convergence == scores.mean_error_after_convergence
+    assert result.rmse_after_convergence == scores.rmse_after_convergence
+    assert result.time_to_convergence == scores.time_to_convergence
+    errors = metrics.position_error(run.estimates, swimmer.truth)
+    np.testing.assert_array_equal(result.error, errors[:: int(ex.ERROR_CURVE_SPACING)])
+    np.testing.assert_array_equal(np.diff(result.error_time), ex.ERROR_CURVE_SPACING)
+
+
+def test_loss_sweep_thins_detections_evenly(small_scenarios):
+    from dataclasses import replace
+
+    from hmmtrack.scenarios import thin_evenly
+
+    shark = small_scenarios[1]
+    sweep = ex.loss_sweep(
+        shark, fractions=(0.0, 0.5, 1.0), n_trials=1, seed=2, n_particles=N_PARTICLES
+    )
+    assert sweep["loss_fraction"].tolist() == [0.0, 0.5, 1.0]
+    # the half-loss trial is the trial of a scenario whose detections were thinned by hand
+    thinned = replace(shark, detections=thin_evenly(shark.detections, 0.5))
+    seed = ex._child(ex.experiment_seed(2), 1, 1, 0)
+    by_hand = ex.run_trial(thinned, "hmm", seed, N_PARTICLES)
+    half = sweep.iloc[1]
+    assert half["mean_error_after_convergence"] == by_hand.mean_error_after_convergence
+    assert half["time_to_convergence"] == by_hand.time_to_convergence
+    # and differs from the full-data trial; with every detection gone it cannot converge
+    assert sweep.iloc[0]["mean_error_after_convergence"] != by_hand.mean_error_after_convergence
+    assert not sweep.iloc[2]["converged"]
+
+
+def test_truncate_keeps_the_first_seconds(small_scenarios):
+    shark = small_scenarios[1]
+    assert shark.end - shark.start == 600.0
+    assert shark.detections["time"].max() <= shark.end
+    assert shark.truth["time"].iloc[-1] == shark.end
+    with pytest.raises(ValueError, match="duration"):
+        ex.truncate(shark, 0.0)
+
+
+def test_unknown_names_are_refused(small_scenarios):
+    with pytest.raises(ValueError, match="unknown motion"):
+        ex.compare_motion_models(small_scenarios, motions=("kalman",), n_trials=1)
+    with pytest.raises(ValueError, match="unknown scenario"):
+        ex.paper_scenarios(0, names=("long_beach",))
+    with pytest.raises(ValueError, match=r"\[0, 1\]"):
+        ex.loss_sweep(small_scenarios[1], fractions=(1.5,), n_trials=1)

@@ -285,3 +285,9 @@ def test_malformed_input_raises():
         viterbi(log_initial, log_transition, bad)
     with pytest.raises(ValueError, match="log-probabilities"):
         forward_backward(log_initial, -log_transition, log_lik)
+    varying = np.log(np.full((4, 2, 2), 0.5))
+    varying[2, 1] = np.log([0.5, 0.6])
+    with pytest.raises(ValueError, match=r"log_transition must sum to 1 .* not at \[\[2, 1\]\]"):
+        forward_backward(log_initial, varying, log_lik)
+    with pytest.raises(ValueError, match="log_initial must sum to 1"):
+        viterbi(np.log([0.2, 0.2]), log_transition, log_lik)

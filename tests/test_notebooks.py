@@ -27,8 +27,13 @@ CASES = {
         ["motion_model_comparison.png", "example_trial.png"],
     ),
     "03_measurement_loss.py": (
-        {"n_trials": 1, "n_particles": 100, "workers": 1, "fractions": [0.0, 0.5, 0.9],
-         "duration": 900.0},
+        {
+            "n_trials": 1,
+            "n_particles": 100,
+            "workers": 1,
+            "fractions": [0.0, 0.5, 0.9],
+            "duration": 900.0,
+        },
         ["measurement_loss.png"],
     ),
     "04_depth_correction.py": (

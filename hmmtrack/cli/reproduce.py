@@ -20,21 +20,45 @@ def register(subparsers) -> None:
         help="rerun the paper's experiments; write figures and summary.md",
         description=__doc__.split("\n\n")[1],
     )
-    parser.add_argument("--quick", action="store_true",
-                        help="small run for a first try (a few trials, fewer particles)")
+    parser.add_argument(
+        "--quick",
+        action="store_true",
+        help="small run for a first try (a few trials, fewer particles)",
+    )
     parser.add_argument("--out", default="reports", help="output folder (default: reports)")
-    parser.add_argument("--trials", type=int, default=None,
-                        help="trials per motion model per dataset (default 100; quick: 2)")
-    parser.add_argument("--particles", type=int, default=None,
-                        help="particles per filter run (default: the library's default)")
-    parser.add_argument("--workers", type=int, default=None,
-                        help="local worker processes (default: all cores; 1 = serial)")
-    parser.add_argument("--dask-scheduler", default=None, metavar="ADDRESS",
-                        help="run trials on a Dask cluster at ADDRESS (needs hmmtrack[dask])")
+    parser.add_argument(
+        "--trials",
+        type=int,
+        default=None,
+        help="trials per motion model per dataset (default 100; quick: 2)",
+    )
+    parser.add_argument(
+        "--particles",
+        type=int,
+        default=None,
+        help="particles per filter run (default: the library's default)",
+    )
+    parser.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        help="local worker processes (default: all cores; 1 = serial)",
+    )
+    parser.add_argument(
+        "--dask-scheduler",
+        default=None,
+        metavar="ADDRESS",
+        help="run trials on a Dask cluster at ADDRESS (needs hmmtrack[dask])",
+    )
     parser.add_argument("--seed", type=int, default=0, help="experiment seed (default 0)")
     progress = parser.add_mutually_exclusive_group()
-    progress.add_argument("--progress", dest="progress", action="store_true", default=None,
-                          help="show progress bars (default: when attached to a terminal)")
+    progress.add_argument(
+        "--progress",
+        dest="progress",
+        action="store_true",
+        default=None,
+        help="show progress bars (default: when attached to a terminal)",
+    )
     progress.add_argument("--no-progress", dest="progress", action="store_false")
     parser.set_defaults(func=run)
 

@@ -71,9 +71,7 @@ def design_matrix(frame: pd.DataFrame | Mapping, scaling: Mapping[str, tuple[flo
         First column ones (intercept).
     """
     n_rows = len(frame) if isinstance(frame, pd.DataFrame) else len(next(iter(frame.values())))
-    columns = [
-        (_covariate_column(frame, name) - mean) / sd for name, (mean, sd) in scaling.items()
-    ]
+    columns = [(_covariate_column(frame, name) - mean) / sd for name, (mean, sd) in scaling.items()]
     return np.column_stack([np.ones(n_rows), *columns])
 
 

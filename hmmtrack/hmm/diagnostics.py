@@ -6,8 +6,9 @@
   a correct model each series is independent standard normal.
 * :func:`qq_points`, :func:`autocorrelation` -- their QQ coordinates and ACF (statsmodels).
 * :func:`confidence_intervals` -- Wald intervals: the Hessian of the log-likelihood on the
-  working scale by central differences of its gradient, mapped to the natural scale by the
-  delta method.
+  working scale by central differences of its gradient, standard errors on the natural scale
+  by the delta method, limits on the logit / log scale for probabilities / positive
+  parameters so that they stay in range.
 * :func:`model_selection_table` -- log-likelihood, parameters, AIC and BIC of several models.
 
 Not for fitting (:mod:`hmmtrack.hmm.fit`) or drawing (:mod:`hmmtrack.plots.hmm`).
@@ -17,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 import pandas as pd
-from scipy import stats
+from scipy import special, stats
 from statsmodels.graphics.gofplots import ProbPlot
 from statsmodels.tsa.stattools import acf
 
@@ -96,7 +97,9 @@ def pseudo_residuals(model: MovementHMM, data: pd.DataFrame) -> pd.DataFrame:
     log_transition = model.log_transition_for(observations.covariates, len(log_lik))
     with np.errstate(divide="ignore"):
         log_initial = np.log(model.initial)
-    forecast = forward_backward(log_initial, log_transition, log_lik, observations.lengths).predicted
+    forecast = forward_backward(
+        log_initial, log_transition, log_lik, observations.lengths
+    ).predicted
     out = {}
     for name, dist, x, cdf in (
         ("step", model.step, observations.step, step_cdf),
@@ -212,17 +215,37 @@ def confidence_intervals(model: MovementHMM, data: pd.DataFrame, level: float = 
         down = natural_parameters(likelihood.unpack(theta - shift))[1]
         jacobian[:, i] = (up - down) / 2e-6
     se = np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", jacobian, covariance, jacobian), 0.0))
-    z = stats.norm.ppf(0.5 + level / 2)
+    lower, upper = _interval(names, values, se, stats.norm.ppf(0.5 + level / 2))
     return pd.DataFrame(
         {
             "parameter": [n for n, _ in names],
             "index": [i for _, i in names],
             "estimate": values,
             "se": se,
-            "lower": values - z * se,
-            "upper": values + z * se,
+            "lower": lower,
+            "upper": upper,
         }
     )
+
+
+def _interval(names, values, se, z):
+    """Wald limits on a scale that respects each parameter's range, mapped back.
+
+    Probabilities (transition, initial, zero mass): logit scale; positive parameters (step
+    parameters, concentrations): log scale; real ones (angle means, log-normal location,
+    coefficients): as they are. The standard error on the transformed scale is the delta
+    method's ``se / |d transform^-1|``.
+    """
+    lower, upper = np.empty_like(values), np.empty_like(values)
+    for i, ((name, _), value, s) in enumerate(zip(names, values, se, strict=True)):
+        if name in ("transition", "initial", "step.zero_mass") and 0 < value < 1:
+            centre, spread = np.log(value / (1 - value)), z * s / (value * (1 - value))
+            lower[i], upper[i] = special.expit(centre - spread), special.expit(centre + spread)
+        elif name.startswith(("angle.mean", "step.location", "beta.")) or not value > 0:
+            lower[i], upper[i] = value - z * s, value + z * s
+        else:
+            lower[i], upper[i] = value * np.exp(-z * s / value), value * np.exp(z * s / value)
+    return lower, upper
 
 
 def model_selection_table(models: dict[str, MovementHMM]) -> pd.DataFrame:
@@ -241,3 +264,40 @@ def model_selection_table(models: dict[str, MovementHMM]) -> pd.DataFrame:
             }
         )
     return pd.DataFrame(rows).sort_values("aic", ignore_index=True)
+
+
+def summary(model: MovementHMM, intervals: pd.DataFrame | None = None) -> str:
+    """Readable text: parameters (with intervals), transition matrix, log-likelihood, AIC/BIC.
+
+    Parameters
+    ----------
+    model : MovementHMM
+    intervals : DataFrame, optional
+        Output of :func:`confidence_intervals`; without it only estimates are shown.
+    """
+    lines = [
+        f"{model.n_states}-state movement HMM: step {model.step.name} ({model.step_unit}), "
+        f"angle {model.angle.name} (rad); "
+        + (f"time step {model.dt:g} s" if np.isfinite(model.dt) else "no time step (no times)"),
+        f"log-likelihood {model.log_likelihood:.4f}   AIC {model.aic:.4f}   BIC {model.bic:.4f}"
+        f"   rows {model.n_obs}",
+        "",
+    ]
+    if intervals is None:
+        names, values = natural_parameters(fit.parameters_of(model))
+        intervals = pd.DataFrame(
+            {"parameter": [n for n, _ in names], "index": [i for _, i in names], "estimate": values}
+        )
+    table = intervals.copy()
+    for i, name in enumerate(model.covariate_names, start=1):
+        table["parameter"] = table["parameter"].replace(f"beta.{i}", f"beta.{name}")
+    table["parameter"] = table["parameter"].replace("beta.0", "beta.intercept")
+    lines.append(table.to_string(index=False, float_format=lambda v: f"{v:.6g}"))
+    lines.append("")
+    lines.append("transition matrix" + (" at the covariate means" if model.covariate_names else ""))
+    gamma = model.transition_matrix()
+    labels = [f"state {k + 1}" for k in range(model.n_states)]
+    lines.append(pd.DataFrame(gamma, index=labels, columns=labels).to_string(float_format="%.4f"))
+    stationary = "  ".join(f"{p:.4f}" for p in model.stationary())
+    lines.append(f"stationary distribution: {stationary}")
+    return "\n".join(lines)

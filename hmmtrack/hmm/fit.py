@@ -10,7 +10,7 @@
    E-step is :func:`hmmtrack.hmm.inference.forward_backward`, the M-step the weighted
    maximum-likelihood fits of the emission families, the initial distribution and the
    transition matrix (closed form) or its logit coefficients (:mod:`~hmmtrack.hmm.covariates`);
-2. the best start is *polished*: L-BFGS on the full log-likelihood over the working
+2. the best start is *polished*: BFGS on the full log-likelihood over the working
    parameters (the scale moveHMM's ``nlm`` maximises on), with the gradient from Fisher's
    identity (one forward-backward pass plus the emission scores), so that the optimum is
    the same one moveHMM reaches;
@@ -26,6 +26,7 @@ diagnostics; those live in the sibling modules.
 from __future__ import annotations
 
 import concurrent.futures
+import logging
 import multiprocessing
 from dataclasses import dataclass, replace
 
@@ -39,8 +40,11 @@ from hmmtrack.hmm.inference import forward_backward, log_likelihood
 from hmmtrack.hmm.model import MovementHMM, Observations
 from hmmtrack.random import as_generator, spawn
 
+logger = logging.getLogger(__name__)
+
 _TINY = 1e-12  # floor of probabilities whose log is a working parameter
 _FD_STEP = 1e-5  # central-difference step of the emission scores (working scale)
+_POLISH_GTOL = 1e-6  # polish stops when no gradient entry of the per-row log-lik exceeds this
 
 
 # ---------------------------------------------------------------------------------------------
@@ -121,7 +125,9 @@ class Parameters:
             transition=None if self.transition is None else self.transition[np.ix_(order, order)],
             coefficients=None
             if self.coefficients is None
-            else self.coefficients[[position[order[i], order[j]] for i, j in zip(rows, cols)]],
+            else self.coefficients[
+                [position[order[i], order[j]] for i, j in zip(rows, cols, strict=True)]
+            ],
             step=_permute_distribution(self.step, order),
             angle=_permute_distribution(self.angle, order),
         )
@@ -208,7 +214,10 @@ class WorkingLikelihood:
         with np.errstate(divide="ignore"):
             log_initial = np.log(params.initial)
         return log_likelihood(
-            log_initial, params.log_transition(data), params.log_likelihood_matrix(data), data.lengths
+            log_initial,
+            params.log_transition(data),
+            params.log_likelihood_matrix(data),
+            data.lengths,
         )
 
     def value_and_gradient(self, theta: np.ndarray) -> tuple[float, np.ndarray]:
@@ -240,16 +249,23 @@ class WorkingLikelihood:
 
 
 def _emission_score(template, theta: np.ndarray, x: np.ndarray, weights: np.ndarray):
-    """Gradient of ``sum(weights * logpdf(x))`` w.r.t. the working vector, central differences."""
+    """Gradient of ``sum(weights * logpdf(x))`` w.r.t. the working vector, central differences.
+
+    The working vectors of :mod:`~hmmtrack.hmm.distributions` are parameter-major blocks of
+    ``K`` entries, entry ``k`` of a block acting on state ``k`` only. So one block is shifted
+    for all states at once and column ``k`` of the log densities gives state ``k``'s entry:
+    ``2 * n_blocks`` density evaluations instead of ``2 * n_blocks * K``.
+    """
     observed = ~np.isnan(x)
     x, weights = x[observed], weights[observed]
+    n_states = weights.shape[1]
     score = np.empty(theta.size)
-    for i in range(theta.size):
+    for block in range(theta.size // n_states):
         shift = np.zeros(theta.size)
-        shift[i] = _FD_STEP
-        up = np.sum(weights * template.with_working(theta + shift).logpdf(x))
-        down = np.sum(weights * template.with_working(theta - shift).logpdf(x))
-        score[i] = (up - down) / (2 * _FD_STEP)
+        shift[block * n_states : (block + 1) * n_states] = _FD_STEP
+        up = np.sum(weights * template.with_working(theta + shift).logpdf(x), axis=0)
+        down = np.sum(weights * template.with_working(theta - shift).logpdf(x), axis=0)
+        score[block * n_states : (block + 1) * n_states] = (up - down) / (2 * _FD_STEP)
     return score
 
 
@@ -298,8 +314,11 @@ class StartResult:
     parameters : Parameters
         After EM (and after the polish, for the chosen start), states in ascending mean step.
     log_likelihood : float
+        ``-inf`` for a start that failed.
     monitor : ConvergenceMonitor
     polished : bool
+    error : str or None
+        Why the start failed (its ``parameters`` are then its starting values).
     """
 
     index: int
@@ -307,6 +326,7 @@ class StartResult:
     log_likelihood: float
     monitor: ConvergenceMonitor
     polished: bool = False
+    error: str | None = None
 
 
 def m_step(params: Parameters, data: FitData, post) -> Parameters:
@@ -358,14 +378,18 @@ def run_em(params: Parameters, data: FitData, max_iter: int, tol: float):
 
 
 def polish(params: Parameters, data: FitData, max_iter: int = 500):
-    """Maximise the full log-likelihood over the working parameters with L-BFGS.
+    """Maximise the full log-likelihood over the working parameters with BFGS.
 
-    Returns the polished parameters and log-likelihood, or the inputs if L-BFGS did not
+    BFGS rather than L-BFGS: a transition probability that tends to 0 with a covariate sends
+    a coefficient off towards -inf, along which L-BFGS crawls for hundreds of iterations.
+    Returns the polished parameters and log-likelihood, or the inputs if BFGS did not
     improve on them.
     """
     likelihood = WorkingLikelihood(params, data)
     start = likelihood.pack(params)
     start_value = likelihood.value(start)
+
+    scale = 1.0 / data.n_obs  # per-row log-likelihood: one gradient tolerance for any size
 
     def objective(theta):
         try:
@@ -374,15 +398,16 @@ def polish(params: Parameters, data: FitData, max_iter: int = 500):
             return np.inf, np.zeros_like(theta)
         if not np.isfinite(value):
             return np.inf, np.zeros_like(theta)
-        return -value, -gradient
+        return -scale * value, -scale * gradient
 
     result = minimize(
         objective,
         start,
         jac=True,
-        method="L-BFGS-B",
-        options={"maxiter": max_iter, "gtol": 1e-6, "ftol": 1e-12},
+        method="BFGS",
+        options={"maxiter": max_iter, "gtol": _POLISH_GTOL},
     )
+    result.fun /= scale
     if np.isfinite(result.fun) and -result.fun > start_value:
         return likelihood.unpack(result.x), float(-result.fun)
     return params, float(start_value)
@@ -411,9 +436,7 @@ class FitSpec:
     tol: float
 
 
-def initial_parameters(
-    rng: np.random.Generator | None, data: FitData, spec: FitSpec
-) -> Parameters:
+def initial_parameters(rng: np.random.Generator | None, data: FitData, spec: FitSpec) -> Parameters:
     """Starting values for one start.
 
     Emission distributions come from :func:`hmmtrack.hmm.distributions.initial_guess` (steps
@@ -451,8 +474,14 @@ def run_start(index: int, seed: np.random.SeedSequence, data: FitData, spec: Fit
     Start 0 uses the deterministic equal-count starting values, the others random ones drawn
     with a generator from ``seed``.
     """
-    params = initial_parameters(None if index == 0 else as_generator(seed), data, spec)
-    params, log_likelihood, monitor = run_em(params, data, spec.max_iter, spec.tol)
+    start = initial_parameters(None if index == 0 else as_generator(seed), data, spec)
+    try:
+        params, log_likelihood, monitor = run_em(start, data, spec.max_iter, spec.tol)
+    except (ValueError, FloatingPointError, np.linalg.LinAlgError) as exc:
+        monitor = ConvergenceMonitor((), 0, False, spec.tol)
+        return StartResult(index, start, -np.inf, monitor, error=f"{type(exc).__name__}: {exc}")
+    if not np.isfinite(log_likelihood):
+        return StartResult(index, params, -np.inf, monitor, error="log-likelihood not finite")
     return StartResult(index, order_by_mean_step(params), log_likelihood, monitor)
 
 
@@ -551,7 +580,7 @@ class MovementHMMEstimator:
     tol : float
         EM stops when an iteration gains less than ``tol`` log-likelihood per row.
     polish : bool
-        Maximise the full likelihood with L-BFGS from the best EM result.
+        Maximise the full likelihood with BFGS from the best EM result.
     dt : float or None
         Time step of the data (s); None takes the median of the table's ``dt`` column (NaN
         if it has none).
@@ -604,12 +633,12 @@ class MovementHMMEstimator:
         self.step_unit = step_unit
 
     def _spec(self, data: FitData) -> FitSpec:
-        if self.step not in distributions.STEP_FAMILIES:
-            raise ValueError(f"step family {self.step!r} unknown; choose from {list(distributions.STEP_FAMILIES)}")
-        if self.angle not in distributions.ANGLE_FAMILIES:
-            raise ValueError(
-                f"angle family {self.angle!r} unknown; choose from {list(distributions.ANGLE_FAMILIES)}"
-            )
+        for kind, name, known in (
+            ("step", self.step, distributions.STEP_FAMILIES),
+            ("angle", self.angle, distributions.ANGLE_FAMILIES),
+        ):
+            if name not in known:
+                raise ValueError(f"{kind} family {name!r} unknown; choose from {list(known)}")
         if int(self.n_states) < 1 or int(self.n_starts) < 1 or int(self.n_jobs) < 1:
             raise ValueError("n_states, n_starts and n_jobs must be positive integers")
         has_zero = bool(np.any(data.step == 0))
@@ -649,6 +678,12 @@ class MovementHMMEstimator:
             raise ValueError("no observed step in the data")
         spec = self._spec(data)
         starts = run_starts(data, spec, int(self.n_starts), self.seed, int(self.n_jobs))
+        failed = [s for s in starts if s.error is not None]
+        if len(failed) == len(starts):
+            errors = "; ".join(f"start {s.index}: {s.error}" for s in failed)
+            raise ValueError(f"every EM start failed ({errors})")
+        for s in failed:
+            logger.warning("EM start %d failed and is left out: %s", s.index, s.error)
         best = max(starts, key=lambda s: (s.log_likelihood, -s.index))
         params, log_likelihood = best.parameters, best.log_likelihood
         if self.polish:
@@ -694,15 +729,18 @@ class MovementHMMEstimator:
 
     def predict(self, X, lengths=None) -> np.ndarray:
         """Viterbi states (T,) of ``X`` (same forms as :meth:`fit`)."""
-        return self.model_.viterbi(self._table(X, lengths))
+        table = self._table(X, lengths)
+        return self.model_.viterbi(table)
 
     def predict_proba(self, X, lengths=None) -> np.ndarray:
         """Posterior state probabilities (T, K) of ``X``."""
-        return self.model_.state_probabilities(self._table(X, lengths))
+        table = self._table(X, lengths)
+        return self.model_.state_probabilities(table)
 
     def score(self, X, lengths=None) -> float:
         """Log-likelihood of ``X`` under the fitted model."""
-        return self.model_.score(self._table(X, lengths))
+        table = self._table(X, lengths)
+        return self.model_.score(table)
 
     def sample(self, n: int, seed=None) -> pd.DataFrame:
         """Simulate ``n`` rows (state, step, angle) from the fitted model."""

@@ -108,15 +108,19 @@ def _prepare(log_initial, log_transition, log_lik, lengths):
     for name, arr in (("log_initial", log_initial), ("log_transition", log_transition)):
         if np.isnan(arr).any() or (arr > 1e-9).any():
             raise ValueError(f"{name} must hold log-probabilities (<= 0, no NaN)")
+        off = np.abs(np.exp(arr).sum(axis=-1) - 1.0) > 1e-6  # as the model-file loader
+        if off.any():
+            where = np.argwhere(np.atleast_1d(off))[:5].tolist()
+            raise ValueError(f"{name} must sum to 1 over its last axis; not at {where}")
     starts, ends = _track_bounds(lengths, n_obs)
     if not time_varying:
         log_transition = log_transition[None]
     return log_initial, log_transition, time_varying, log_lik, starts, ends
 
 
-def _check_rows(status: np.ndarray) -> None:
-    """Raise on rows the kernel flagged as NaN/+inf (status 1)."""
-    bad = np.flatnonzero(status == 1)
+def _check_rows(flagged: np.ndarray) -> None:
+    """Raise on rows flagged (bool (T,)) as holding NaN or +inf."""
+    bad = np.flatnonzero(flagged)
     if bad.size:
         raise ValueError(f"log_lik has NaN or +inf at rows {bad[:10].tolist()} (of {bad.size})")
 
@@ -127,37 +131,45 @@ def _check_rows(status: np.ndarray) -> None:
 
 
 @njit(cache=True)
-def _forward_kernel(initial, transition, time_varying, log_lik, starts, ends):
-    """Scaled forward pass.
+def _shift_kernel(log_lik):
+    """Row maxima ``shift`` (T,) and ``log_lik - shift`` (T,K) (exponentiated by numpy).
 
-    Returns the shifted likelihoods ``lik`` (T,K) = exp(log_lik - shift), ``shift`` (T,) the
-    row maxima, ``filtered`` and ``predicted`` (T,K), the normalisers ``scale`` (T,) (the
-    log-likelihood is sum(log scale + shift)) and ``status`` (T,) int: 0 fine, 1 NaN or +inf
-    in the row, 2 the row has probability 0 under every path (the rest of its track is
-    then left at 0).
+    ``bad`` (T,) bool flags rows holding NaN or +inf. A row that is -inf in every state
+    keeps shift -inf and differences -inf (likelihood 0).
     """
     n_obs, n_states = log_lik.shape
-    lik = np.empty((n_obs, n_states))
+    shifted = np.empty((n_obs, n_states))
     shift = np.empty(n_obs)
-    filtered = np.zeros((n_obs, n_states))
-    predicted = np.zeros((n_obs, n_states))
-    scale = np.zeros(n_obs)
-    status = np.zeros(n_obs, dtype=np.int64)
+    bad = np.zeros(n_obs, dtype=np.bool_)
     for t in range(n_obs):
         m = -np.inf
         for j in range(n_states):
             v = log_lik[t, j]
-            if np.isnan(v) or v == np.inf:
-                status[t] = 1
-            elif v > m:
-                m = v
+            if not v < np.inf:  # NaN or +inf
+                bad[t] = True
+            m = max(m, v)
         shift[t] = m
-        for j in range(n_states):
-            v = log_lik[t, j]
-            if v == m:  # saves one exp per row (half of them when K = 2)
-                lik[t, j] = 1.0 if m > -np.inf else 0.0
-            else:
-                lik[t, j] = np.exp(v - m)
+        if m == -np.inf:
+            for j in range(n_states):
+                shifted[t, j] = -np.inf
+        else:
+            for j in range(n_states):
+                shifted[t, j] = log_lik[t, j] - m
+    return shifted, shift, bad
+
+
+@njit(cache=True)
+def _forward_kernel(initial, transition, time_varying, lik, starts, ends):
+    """Scaled forward pass on likelihoods ``lik`` (T,K) (each row scaled by its maximum).
+
+    Returns ``filtered`` and ``predicted`` (T,K) and the normalisers ``scale`` (T,), so that
+    the log-likelihood is sum(log scale + shift). A row with probability 0 under every path
+    gets scale 0, and the rest of its track is left at 0.
+    """
+    n_obs, n_states = lik.shape
+    filtered = np.empty((n_obs, n_states))
+    predicted = np.empty((n_obs, n_states))
+    scale = np.empty(n_obs)
     for track in range(starts.size):
         for t in range(starts[track], ends[track]):
             if t == starts[track]:
@@ -175,13 +187,15 @@ def _forward_kernel(initial, transition, time_varying, log_lik, starts, ends):
                 filtered[t, j] = predicted[t, j] * lik[t, j]
                 total += filtered[t, j]
             if not total > 0.0:
-                status[t] = max(status[t], 2)
+                filtered[t : ends[track]] = 0.0
+                predicted[t + 1 : ends[track]] = 0.0
+                scale[t : ends[track]] = 0.0
                 break
             scale[t] = total
             inverse = 1.0 / total
             for j in range(n_states):
                 filtered[t, j] *= inverse
-    return lik, shift, filtered, predicted, scale, status
+    return filtered, predicted, scale
 
 
 @njit(cache=True)
@@ -255,14 +269,34 @@ def _viterbi_kernel(log_initial, log_transition, time_varying, log_lik, starts, 
 
 
 def _forward(log_initial, log_transition, log_lik, lengths):
-    """Validate, run the forward kernel; raise on NaN/+inf rows."""
+    """Validate, scale and exponentiate the likelihoods, run the forward kernel.
+
+    Returns (transition, time_varying, starts, ends, lik, shift, filtered, predicted, scale);
+    raises on NaN / +inf rows.
+    """
     log_initial, log_transition, time_varying, log_lik, starts, ends = _prepare(
         log_initial, log_transition, log_lik, lengths
     )
+    lik, shift, bad = _shift_kernel(log_lik)
+    _check_rows(bad)
+    np.exp(lik, out=lik)  # numpy's vectorised exp: several times faster than a numba loop
     transition = np.exp(log_transition)
-    out = _forward_kernel(np.exp(log_initial), transition, time_varying, log_lik, starts, ends)
-    _check_rows(out[-1])
-    return transition, time_varying, starts, ends, out
+    filtered, predicted, scale = _forward_kernel(
+        np.exp(log_initial), transition, time_varying, lik, starts, ends
+    )
+    return transition, time_varying, starts, ends, lik, shift, filtered, predicted, scale
+
+
+def _impossible_rows(scale: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
+    """First row of each track whose normaliser is 0 (probability 0 under every path)."""
+    if scale.all():
+        return np.empty(0, dtype=np.int64)
+    rows = []
+    for s, e in zip(starts, ends, strict=True):
+        zero = np.flatnonzero(scale[s:e] == 0)
+        if zero.size:
+            rows.append(s + zero[0])
+    return np.array(rows, dtype=np.int64)
 
 
 def _per_track(scale, shift, starts) -> np.ndarray:
@@ -308,11 +342,10 @@ def forward_backward(
         On malformed input, or when some observation has probability 0 under every state
         path (the posterior is then undefined); :func:`log_likelihood` returns -inf instead.
     """
-    transition, time_varying, starts, ends, forward = _forward(
+    transition, time_varying, starts, ends, lik, shift, filtered, predicted, scale = _forward(
         log_initial, log_transition, log_lik, lengths
     )
-    lik, shift, filtered, predicted, scale, status = forward
-    rows = np.flatnonzero(status == 2)
+    rows = _impossible_rows(scale, starts, ends)
     if rows.size:
         raise ValueError(
             f"observations at rows {rows[:10].tolist()} have probability 0 under every state "
@@ -345,9 +378,10 @@ def log_likelihood(
     Returns -inf (explicitly, never NaN) when some observation is impossible under every
     state path.
     """
-    _, _, starts, _, forward = _forward(log_initial, log_transition, log_lik, lengths)
-    _, shift, _, _, scale, status = forward
-    if np.any(status == 2):
+    *_, starts, ends, _, shift, _, _, scale = _forward(
+        log_initial, log_transition, log_lik, lengths
+    )
+    if _impossible_rows(scale, starts, ends).size:
         return -np.inf
     return float(_per_track(scale, shift, starts).sum())
 
@@ -370,7 +404,7 @@ def viterbi(
     log_initial, log_transition, time_varying, log_lik, starts, ends = _prepare(
         log_initial, log_transition, log_lik, lengths
     )
-    _check_rows(np.where(np.isnan(log_lik).any(axis=1) | (log_lik == np.inf).any(axis=1), 1, 0))
+    _check_rows(~(log_lik < np.inf).all(axis=1))
     path, failed = _viterbi_kernel(log_initial, log_transition, time_varying, log_lik, starts, ends)
     if failed >= 0:
         raise ValueError(

@@ -53,7 +53,7 @@ class Observations:
     covariates: pd.DataFrame
 
     @classmethod
-    def from_frame(cls, frame: pd.DataFrame, covariate_names=(), source: str = "table"):
+    def from_frame(cls, frame: pd.DataFrame, covariate_names=(), source: str | None = None):
         """Read ``step``, ``angle``, ``segment`` (and covariates) from a prepared-track table.
 
         Parameters
@@ -62,9 +62,11 @@ class Observations:
             Prepared track (see :func:`hmmtrack.tracks.prepare`). Without a ``segment``
             column the table is one sequence. Each segment's rows must be contiguous.
         covariate_names : sequence of str
-        source : str
-            Name of the table's origin (a file name) used in error messages.
+        source : str, optional
+            Name of the table's origin used in error messages; by default the file name that
+            :mod:`hmmtrack.io` keeps in ``frame.attrs["source"]``, else ``"table"``.
         """
+        source = source or frame.attrs.get("source", "table")
         missing = [c for c in ("step", "angle", *covariate_names) if c not in frame.columns]
         if missing:
             raise ValueError(
@@ -213,7 +215,7 @@ class MovementHMM:
         gamma = self.transition_matrix(covariates)
         k = self.n_states
         system = np.swapaxes(np.eye(k) - gamma + 1.0, -1, -2)
-        return np.linalg.solve(system, np.ones(gamma.shape[:-1]))
+        return np.linalg.solve(system, np.ones(gamma.shape[:-1])[..., None])[..., 0]
 
     def log_transition_for(self, covariates: pd.DataFrame, n_rows: int) -> np.ndarray:
         """Log transition argument for the recursions: ``(K, K)`` or ``(T-1, K, K)``.
@@ -377,13 +379,17 @@ class MovementHMM:
         if document.get("transition") is not None:
             transition = reader.probabilities("transition", (n_states, n_states))
         else:
+            if document.get("coefficients") is None:
+                reader.fail("coefficients", "is missing; a model needs 'transition' or it")
             block = reader.get("coefficients", dict)
             names = tuple(block.get("covariates", ()))
             if not all(isinstance(n, str) for n in names):
                 reader.fail("coefficients.covariates", "expected a list of names")
             try:
-                scaling = {n: (float(block["scaling"][n]["mean"]), float(block["scaling"][n]["sd"]))
-                           for n in names}
+                scaling = {
+                    n: (float(block["scaling"][n]["mean"]), float(block["scaling"][n]["sd"]))
+                    for n in names
+                }
                 coefficients = np.array(block["values"], dtype=float)
             except (KeyError, TypeError, ValueError) as exc:
                 reader.fail("coefficients", f"malformed ({exc!r})")
@@ -446,14 +452,17 @@ class _Reader:
         return float(value)
 
     def probabilities(self, name: str, shape: tuple[int, ...]) -> np.ndarray:
+        values = self.get(name, list)
         try:
-            values = np.array(self.get(name, list), dtype=float)
+            values = np.array(values, dtype=float)
         except (TypeError, ValueError):
             self.fail(name, "is not an array of numbers")
         if values.shape != shape:
             self.fail(name, f"has shape {values.shape}; expected {shape}")
-        if np.any(~np.isfinite(values)) or np.any(values < 0) or np.any(
-            np.abs(values.sum(axis=-1) - 1) > 1e-6
+        if (
+            np.any(~np.isfinite(values))
+            or np.any(values < 0)
+            or np.any(np.abs(values.sum(axis=-1) - 1) > 1e-6)
         ):
             self.fail(name, "must hold non-negative numbers with each row summing to 1")
         return values

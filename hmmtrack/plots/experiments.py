@@ -51,8 +51,11 @@ def plot_scenario(scenario: Scenario, ax: Axes | None = None) -> Axes:
         ax.plot(x[0], y[0], marker="o", ms=6, color=colour)
         ax.plot(x[-1], y[-1], marker="x", ms=7, mew=2, color=colour)
     duration = scenario.end - scenario.start
-    ax.set_title(f"{scenario.name} ({duration / 60:.0f} min)" if duration >= 600 else
-                 f"{scenario.name} ({duration:.0f} s)")  # fmt: skip
+    ax.set_title(
+        f"{scenario.name} ({duration / 60:.0f} min)"
+        if duration >= 600
+        else f"{scenario.name} ({duration:.0f} s)"
+    )
     ax.set_xlabel("x (m, east)")
     ax.set_ylabel("y (m, north)")
     ax.set_aspect("equal", adjustable="datalim")

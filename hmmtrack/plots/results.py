@@ -24,6 +24,7 @@ import numpy as np
 import pandas as pd
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
+from matplotlib.ticker import FormatStrFormatter, LogLocator, NullFormatter
 
 from hmmtrack.experiments import LOSS_BAND_EDGES, LOSS_BANDS
 
@@ -35,6 +36,8 @@ __all__ = [
     "comparison_figure",
     "loss_figure",
     "depth_figure",
+    "example_figure",
+    "motion_hmm_figure",
 ]
 
 #: colours of the motion models, the same in every figure
@@ -51,6 +54,15 @@ def _axes(ax: Axes | None) -> Axes:
     return plt.subplots()[1] if ax is None else ax
 
 
+def _log_scale(ax: Axes, axis: str = "y") -> None:
+    """Log scale with plain numbers at 1, 2 and 5 times powers of ten."""
+    getattr(ax, f"set_{axis}scale")("log")
+    target = ax.xaxis if axis == "x" else ax.yaxis
+    target.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
+    target.set_major_formatter(FormatStrFormatter("%g"))
+    target.set_minor_formatter(NullFormatter())
+
+
 def _require(table: pd.DataFrame, columns: Sequence[str], name: str) -> None:
     missing = [c for c in columns if c not in table.columns]
     if missing:
@@ -65,6 +77,9 @@ def error_histograms(
     ax: Axes | None = None,
 ) -> Axes:
     """Histogram of a per-trial metric for each motion model, on a log-spaced axis.
+
+    For ``time_to_convergence`` only trials that converged are counted (the legend says
+    how many); the paper's 0 s of a run that never converged is not a time.
 
     Parameters
     ----------
@@ -92,6 +107,11 @@ def error_histograms(
     rows = table[table["scenario"] == scenario]
     if rows.empty:
         raise ValueError(f"no trials of scenario {scenario!r}; the table has {list(names)}")
+    if quantity == "time_to_convergence" and "converged" in rows.columns:
+        total = rows.groupby("motion", sort=False).size()
+        rows = rows[rows["converged"].to_numpy(dtype=bool)]
+    else:
+        total = None
     ax = _axes(ax)
     values = rows[quantity].to_numpy(dtype=float)
     positive = values[values > 0]
@@ -99,6 +119,9 @@ def error_histograms(
     edges = np.geomspace(low / 1.05, high * 1.05, bins + 1)
     for motion, group in rows.groupby("motion", sort=False):
         data = group[quantity].to_numpy(dtype=float)
+        label = f"{motion} (mean {np.mean(data):.3g})"
+        if total is not None:
+            label = f"{motion} (mean {np.mean(data):.3g}; {len(data)}/{total[motion]} conv.)"
         ax.hist(
             np.clip(data, edges[0], edges[-1]),
             bins=edges,
@@ -106,9 +129,9 @@ def error_histograms(
             alpha=0.45,
             color=MOTION_COLOURS.get(motion),
             edgecolor=MOTION_COLOURS.get(motion),
-            label=f"{motion} (mean {np.mean(data):.3g})",
+            label=label,
         )
-    ax.set_xscale("log")
+    _log_scale(ax, "x")
     ax.set_xlabel(_QUANTITY_LABELS.get(quantity, quantity))
     ax.set_ylabel("trials")
     ax.set_title(str(scenario))
@@ -148,11 +171,18 @@ def loss_sweep(
     converged = table["converged"].to_numpy(dtype=bool)
     floor = np.nanmin(values[values > 0]) / 2 if np.any(values > 0) else 1.0
     shown = np.where(values > 0, values, floor)
-    ax.scatter(percent[converged], shown[converged], s=12, color="tab:green", alpha=0.6,
-               label="trial")
+    ax.scatter(
+        percent[converged], shown[converged], s=12, color="tab:green", alpha=0.6, label="trial"
+    )
     if np.any(~converged):
-        ax.scatter(percent[~converged], shown[~converged], s=16, facecolors="none",
-                   edgecolors="tab:red", label="never converged")
+        ax.scatter(
+            percent[~converged],
+            shown[~converged],
+            s=16,
+            facecolors="none",
+            edgecolors="tab:red",
+            label="never converged",
+        )
     means = (
         pd.DataFrame({"percent": percent[converged], "value": values[converged]})
         .groupby("percent")["value"]
@@ -166,9 +196,15 @@ def loss_sweep(
         spans = {band: (bounds[i], bounds[i + 1]) for i, band in enumerate(LOSS_BANDS)}
         for i, (band, value) in enumerate(paper.items()):
             start, stop = spans[band]
-            ax.hlines(value, start, stop, colors="tab:purple", lw=2.5,
-                      label="paper, band mean" if i == 0 else None)
-    ax.set_yscale("log")
+            ax.hlines(
+                value,
+                start,
+                stop,
+                colors="tab:purple",
+                lw=2.5,
+                label="paper, band mean" if i == 0 else None,
+            )
+    _log_scale(ax)
     ax.set_xlabel("detections dropped (%)")
     ax.set_ylabel(_QUANTITY_LABELS.get(quantity, quantity))
     ax.set_xlim(-2, 102)
@@ -204,12 +240,12 @@ def depth_percent_error(
     ax = _axes(ax)
     ax.plot(ranges, percent_error, color="tab:blue", label=f"depth {depth:g} m")
     if paper:
-        ax.scatter(list(paper), list(paper.values()), color="tab:red", zorder=3,
-                   label="paper")
+        ax.scatter(list(paper), list(paper.values()), color="tab:red", zorder=3, label="paper")
         for r, p in paper.items():
-            ax.annotate(f"{p:g} %", (r, p), textcoords="offset points", xytext=(6, 6),
-                        fontsize="small")
-    ax.set_yscale("log")
+            ax.annotate(
+                f"{p:g} %", (r, p), textcoords="offset points", xytext=(6, 6), fontsize="small"
+            )
+    _log_scale(ax)
     ax.set_xlabel("measured range (m)")
     ax.set_ylabel("range error (%)")
     ax.grid(True, which="both", alpha=0.3)
@@ -241,13 +277,16 @@ def depth_comparison(
     colours = ("tab:red", "tab:green", "tab:blue", "tab:orange")
     for (label, (time, error)), colour in zip(curves.items(), colours, strict=False):
         ax.plot(np.asarray(time) / 60.0, error, color=colour, lw=1, label=label)
-    ax.set_yscale("log")
+    _log_scale(ax)
     ax.set_xlabel("time (min)")
     ax.set_ylabel("position error (m)")
     if depth_profile is not None:
         twin = ax.twinx()
-        twin.fill_between(np.asarray(depth_profile[0]) / 60.0, depth_profile[1], color="grey",
-                          alpha=0.2, lw=0)
+        ax.set_zorder(twin.get_zorder() + 1)  # error lines above the depth shading
+        ax.patch.set_visible(False)
+        twin.fill_between(
+            np.asarray(depth_profile[0]) / 60.0, depth_profile[1], color="grey", alpha=0.2, lw=0
+        )
         twin.set_ylim(max(np.max(depth_profile[1]), 1.0) * 3, 0)
         twin.set_ylabel("tag depth (m)", color="grey")
     ax.legend(fontsize="small", loc="upper right")
@@ -304,8 +343,7 @@ def loss_figure(table: pd.DataFrame, paper: pd.DataFrame | None = None) -> Figur
         ("convergence_mean", "error_mean"),
         strict=True,
     ):
-        loss_sweep(table, quantity, paper=None if paper is None else paper[column].to_dict(),
-                   ax=ax)
+        loss_sweep(table, quantity, paper=None if paper is None else paper[column].to_dict(), ax=ax)
     fig.tight_layout()
     return fig
 
@@ -324,10 +362,64 @@ def depth_figure(analysis, paper: Mapping[float, float] | None = None) -> Figure
     """
     panels = 2 if analysis.curves else 1
     fig, axes = plt.subplots(1, panels, figsize=(5.5 * panels, 4), squeeze=False)
-    depth_percent_error(analysis.ranges, analysis.percent_error, analysis.depth, paper=paper,
-                        ax=axes[0, 0])
+    depth_percent_error(
+        analysis.ranges, analysis.percent_error, analysis.depth, paper=paper, ax=axes[0, 0]
+    )
     if analysis.curves:
         depth_comparison(analysis.curves, analysis.depth_profile, ax=axes[0, 1])
         axes[0, 1].set_title("diving shark, first trial of each")
+    fig.tight_layout()
+    return fig
+
+
+def example_figure(example) -> Figure:
+    """One trial: error over time above, particle snapshots below (the paper's run figures).
+
+    Parameters
+    ----------
+    example : hmmtrack.experiments.ExampleRun
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    from hmmtrack.plots.tracking import plot_tracking_run
+
+    run, scenario = example.result, example.scenario
+    return plot_tracking_run(
+        run.estimates,
+        run.snapshots,
+        scenario.receivers,
+        observations=run.observations,
+        truth=scenario.truth,
+        errors=(run.estimates["time"], example.errors),
+        convergence=example.convergence,
+    )
+
+
+def motion_hmm_figure(model, prepared: pd.DataFrame) -> Figure:
+    """The paper's state-dependent densities: speed and angular velocity per state.
+
+    Parameters
+    ----------
+    model : hmmtrack.hmm.MovementHMM
+        A fitted 2-state gamma / von Mises model with a time step ``dt`` (s).
+    prepared : pandas.DataFrame
+        The prepared tracks it was fitted to (``speed`` m/s, ``angular_velocity`` rad/s),
+        drawn as histograms under the densities.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    from hmmtrack.plots.hmm import emission_density_plot
+
+    _require(prepared, ("speed", "angular_velocity"), "prepared track")
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4))
+    emission_density_plot(model, prepared["speed"].to_numpy(), "step", per_second=True, ax=axes[0])
+    emission_density_plot(
+        model, prepared["angular_velocity"].to_numpy(), "angle", per_second=True, ax=axes[1]
+    )
+    axes[1].set_xlim(-0.06, 0.06)
     fig.tight_layout()
     return fig

@@ -9,7 +9,10 @@ models. One module per job:
 * :mod:`~hmmtrack.scenarios.detection` — emission clocks, acoustic paths, detection loss, GPS;
 * :mod:`~hmmtrack.scenarios.scenario` — the :class:`Scenario` container;
 * :mod:`~hmmtrack.scenarios.paper` — the paper's three datasets;
-* :mod:`~hmmtrack.scenarios.thinning` — even measurement thinning for the loss sweep.
+* :mod:`~hmmtrack.scenarios.thinning` — even measurement thinning for the loss sweep;
+* :mod:`~hmmtrack.scenarios.white_shark_hmm` — the bundled motion model: fit, load, compare
+  with the ground truth (imports :mod:`hmmtrack.hmm`, so it is not imported here);
+* :mod:`~hmmtrack.scenarios.export` — write a scenario as the files ``hmmtrack track`` reads.
 """
 
 from hmmtrack.scenarios.detection import (

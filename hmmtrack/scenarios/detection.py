@@ -281,7 +281,7 @@ def simulate_pings(
                 }
             )
         )
-    return pd.concat(frames, ignore_index=True)
+    return pd.concat(frames, ignore_index=True)[list(PING_COLUMNS)]
 
 
 def detections_from_pings(
@@ -357,7 +357,7 @@ def receiver_positions(
     rng: np.random.Generator,
     receivers: Mapping[str, Trajectory],
     time: np.ndarray,
-    gps: GpsNoise,
+    gps: GpsNoise | None,
 ) -> pd.DataFrame:
     """The logged receiver positions table, with GPS noise.
 
@@ -370,7 +370,8 @@ def receiver_positions(
     receivers : mapping of str to Trajectory
     time : (m,) float array
         Times (UTC s) at which moving hydrophones log their position (e.g. 1 Hz).
-    gps : GpsNoise
+    gps : GpsNoise or None
+        ``None`` gives the exact positions (and draws nothing from ``rng``).
 
     Returns
     -------
@@ -381,6 +382,8 @@ def receiver_positions(
     for name, path in receivers.items():
         t = np.array([np.nan]) if path.time.size == 1 else np.asarray(time, dtype=float)
         x, y, _ = path.position(np.nan_to_num(t, nan=path.start))
-        ex, ey = gps.sample(rng, np.nan_to_num(t, nan=0.0))
-        frames.append(pd.DataFrame({"receiver": name, "time": t, "x": x + ex, "y": y + ey}))
+        if gps is not None:
+            ex, ey = gps.sample(rng, np.nan_to_num(t, nan=0.0))
+            x, y = x + ex, y + ey
+        frames.append(pd.DataFrame({"receiver": name, "time": t, "x": x, "y": y}))
     return pd.concat(frames, ignore_index=True)

@@ -8,6 +8,8 @@ such an array positions animals (:class:`ArraySampling`):
 
 * each shark makes *visits* to the array (exponential length, mean 6 h), starting anywhere in
   a 16 km x 1.4 km coastal strip, placed at random non-overlapping times in the season;
+  paths are mirrored at the shore (a straight east-west line) and only fixes inside the
+  array's 20 km x 3 km coverage are recorded;
 * within a visit, fixes come 60-180 s apart (``60 + 120 * Beta(1.2, 5)``, mean 83 s), each
   with a Gaussian position error of 3 m per axis;
 * after any fix, with probability 1/12, the next pings are lost for ``180 s + Exp(15 min)``:
@@ -65,6 +67,13 @@ class ArraySampling:
         Mean length (s) of a visit to the array (exponential, at least 30 min).
     area : (float, float, float, float)
         ``(xmin, xmax, ymin, ymax)`` (m, EPSG:32611) where visits start.
+    coastline : float
+        Northing (m) of the shore, a straight east-west line (land to the north); paths are
+        mirrored at it, which keeps steps and, von Mises turns being symmetric, the turning
+        angle distribution unchanged.
+    coverage : (float, float, float, float)
+        ``(xmin, xmax, ymin, ymax)`` (m) of the area the array can position an animal in;
+        fixes outside it are not recorded.
     """
 
     min_interval: float = 60.0
@@ -76,6 +85,27 @@ class ArraySampling:
     mean_dropout: float = 900.0
     mean_visit: float = 6 * 3600.0
     area: tuple[float, float, float, float] = (250_000.0, 266_000.0, 3_808_300.0, 3_809_700.0)
+    coastline: float = 3_809_800.0
+    coverage: tuple[float, float, float, float] = (
+        248_000.0,
+        268_000.0,
+        3_806_800.0,
+        3_809_800.0,
+    )
+
+    def __post_init__(self) -> None:
+        (axmin, axmax, aymin, aymax), (cxmin, cxmax, cymin, cymax) = self.area, self.coverage
+        if not (cxmin <= axmin <= axmax <= cxmax and cymin <= aymin <= aymax <= cymax):
+            raise ValueError(
+                f"ArraySampling: the area where visits start {self.area} must lie inside the "
+                f"coverage {self.coverage}, so that every visit's first fix is recorded"
+            )
+        if aymax > self.coastline:
+            raise ValueError(f"ArraySampling: area {self.area} reaches past the coastline")
+        if not 0 < self.min_interval <= self.max_interval <= self.max_gap_within_stretch:
+            raise ValueError(
+                "ArraySampling: need 0 < min_interval <= max_interval <= max_gap_within_stretch"
+            )
 
     def fix_times(self, rng: np.random.Generator, duration: float) -> np.ndarray:
         """Fix times (s from the start of a visit, whole seconds) within ``[0, duration]``.
@@ -116,14 +146,17 @@ def _visit(
     )
     time = sampling.fix_times(rng, duration)
     x, y, _ = path.position(time)
+    y = sampling.coastline - np.abs(sampling.coastline - y)  # mirrored at the shore
     error = rng.normal(0.0, sampling.position_error, (2, time.size))
     step = np.minimum((time // model.dt).astype(np.int64), states.size - 1)
+    cxmin, cxmax, cymin, cymax = sampling.coverage
+    seen = (x >= cxmin) & (x <= cxmax) & (y >= cymin) & (y <= cymax)
     return pd.DataFrame(
         {
-            "time": time,
-            "x": np.round(x + error[0], 1),
-            "y": np.round(y + error[1], 1),
-            "true_state": states[step],
+            "time": time[seen],
+            "x": np.round(x + error[0], 1)[seen],
+            "y": np.round(y + error[1], 1)[seen],
+            "true_state": states[step][seen],
         }
     )
 

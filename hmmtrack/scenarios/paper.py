@@ -160,8 +160,8 @@ def _swimmer_path(rng: np.random.Generator, time: np.ndarray) -> Trajectory:
     for k in range(1, n):
         target = np.clip(-0.02 * (y[k - 1] - 50.0), -0.8, 0.8)  # alongshore, back to 50 m
         heading[k] = heading[k - 1] + (target - heading[k - 1]) / 60.0 + 0.08 * shocks[k, 0]
-        speed[k] = np.clip(speed[k - 1] + (0.5 - speed[k - 1]) / 30.0 + 0.03 * shocks[k, 1],
-                           0.1, 1.0)  # fmt: skip
+        drift = (0.5 - speed[k - 1]) / 30.0 + 0.03 * shocks[k, 1]  # back to 0.5 m/s
+        speed[k] = np.clip(speed[k - 1] + drift, 0.1, 1.0)
         x[k] = x[k - 1] + speed[k] * np.cos(heading[k])
         y[k] = y[k - 1] + speed[k] * np.sin(heading[k])
     return Trajectory(time, x, y)
@@ -189,7 +189,7 @@ def _drifting_boat(
     motoring = False
     for k in range(1, time.size):
         dt = time[k] - time[k - 1]
-        if time[k] >= reposition_at and not motoring and time[k - 1] < reposition_at:
+        if time[k - 1] < reposition_at <= time[k]:
             motoring = True
         if motoring:
             gap = np.array([sx[k], sy[k]]) + station - position[k - 1]

@@ -1,9 +1,10 @@
 """The :class:`Scenario` container and the one routine that turns simulated paths into one.
 
 A scenario is everything a tracking run needs plus its ground truth: the detection log, the
-logged hydrophone positions, the true tag path, the transmitter period, the true initial
-ranges ``r0`` and a box to initialise particles in (``docs/interfaces.md``). The paper's
-three datasets are built in :mod:`hmmtrack.scenarios.paper`; this module only assembles.
+logged hydrophone positions, the true tag path, the transmitter period, the true range ``r0``
+of each hydrophone's first detection and a box to initialise particles in
+(``docs/interfaces.md``). The paper's three datasets are built in
+:mod:`hmmtrack.scenarios.paper`; this module only assembles.
 """
 
 from __future__ import annotations
@@ -47,10 +48,12 @@ class Scenario:
     period : float
         Nominal transmitter period (s).
     r0 : dict of str to float
-        True range (m, 3-D) from each hydrophone to the tag at ``start``.
+        True range (m, 3-D) of each hydrophone's first detection: from the tag at that ping's
+        emission to the hydrophone at its arrival, the range that anchors the paper's
+        accumulated ΔTOF ranges. Hydrophones that never detect the tag have no entry.
     bounds : tuple of float
-        ``(xmin, xmax, ymin, ymax)`` (m): every point within ``r0 + 100 m`` of a hydrophone at
-        ``start``, the box the paper's filter initialises particles in.
+        ``(xmin, xmax, ymin, ymax)`` (m): every point within ``r0 + 100 m`` of a hydrophone
+        where it first detected the tag, the box the paper's filter initialises particles in.
     sound_speed : float
         m/s.
     start, end : float
@@ -118,6 +121,7 @@ def assemble_scenario(
     end: float,
     transmitter: str,
     sound_speed: float = SOUND_SPEED,
+    receiver_clocks: Mapping[str, Callable[[np.ndarray], np.ndarray]] | None = None,
 ) -> Scenario:
     """Simulate emissions, detections and logged positions for given paths.
 
@@ -143,29 +147,43 @@ def assemble_scenario(
         UTC s.
     sound_speed : float
         m/s.
+    receiver_clocks : mapping of str to callable, optional
+        Per hydrophone, true arrival time -> logged time (see
+        :func:`~hmmtrack.scenarios.detection.simulate_pings`); perfect clocks by default.
 
     Returns
     -------
     Scenario
     """
     pings = simulate_pings(
-        rng, tag, receivers, emission_time, detection_probability, sound_speed=sound_speed
+        rng,
+        tag,
+        receivers,
+        emission_time,
+        detection_probability,
+        sound_speed=sound_speed,
+        receiver_clocks=receiver_clocks,
     )
     detections = detections_from_pings(pings, transmitter, tag)
     seconds = start + np.arange(int(np.floor(end - start)) + 1, dtype=float)
     logged = receiver_positions(rng, receivers, seconds, gps)
-    exact = receiver_positions(rng, receivers, seconds, GpsNoise(sd=0.0))
+    exact = receiver_positions(rng, receivers, seconds, gps=None)
     x, y, depth = tag.position(seconds)
     truth = pd.DataFrame({"time": seconds, "x": x, "y": y})
     if tag.depth is not None:
         truth["depth"] = depth
-    tx, ty, tz = tag.position(np.array([start]))
+    detected = pings[pings["detected"]].sort_values("logged_time", kind="stable")
+    first = detected.drop_duplicates("receiver").set_index("receiver")
     r0, boxes = {}, []
-    for receiver, path in receivers.items():
-        rx, ry, rz = path.position(np.array([start]))
-        r0[receiver] = float(np.sqrt((tx - rx) ** 2 + (ty - ry) ** 2 + (tz - rz) ** 2)[0])
+    for receiver, path in receivers.items():  # in the order of ``receivers``
+        if receiver not in first.index:
+            continue
+        r0[receiver] = float(first.at[receiver, "range"])
+        rx, ry, _ = path.position(np.array([first.at[receiver, "arrival_time"]]))
         reach = r0[receiver] + BOUNDS_MARGIN
         boxes.append((rx[0] - reach, rx[0] + reach, ry[0] - reach, ry[0] + reach))
+    if not boxes:
+        raise ValueError(f"assemble_scenario: no receiver of scenario {name!r} detected the tag")
     boxes = np.array(boxes)
     bounds = (
         float(boxes[:, 0].min()),

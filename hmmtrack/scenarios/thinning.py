@@ -22,7 +22,9 @@ def thin_evenly(detections: pd.DataFrame, fraction: float) -> pd.DataFrame:
     ``i = 0 .. n-1`` in time order, detection ``i`` is dropped when
     ``floor((i + 1) * fraction) > floor(i * fraction)``. Exactly ``floor(n * fraction)`` of
     the stream go, and they are as evenly spaced as whole detections allow: at 0.5 the 2nd,
-    4th, 6th ... go; at 0.25 every 4th; at 0.75 all but every 4th; at 1 all. ``fraction`` is
+    4th, 6th ... go; at 0.25 every 4th; at 0.75 all but every 4th; at 1 all. The first
+    detection of a stream is kept for any fraction below 1, so accumulated ranges stay
+    anchored to the scenario's ``r0`` (the range of that first detection). ``fraction`` is
     read as the nearest ratio with denominator at most :data:`MAX_DENOMINATOR`, so that 0.3
     means exactly 3/10.
 

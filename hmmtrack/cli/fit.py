@@ -1,0 +1,132 @@
+"""``hmmtrack fit``: fit a movement HMM to a track file and save it as JSON.
+
+Example::
+
+    hmmtrack fit data/example_tracks.csv --states 2 --starts 5 --seed 1 -o model.json
+
+reads the tracks (plain CSV in metres, or Movebank lon/lat with ``--format movebank``),
+computes steps and turning angles (:func:`hmmtrack.tracks.prepare`), fits
+(:class:`hmmtrack.hmm.MovementHMMEstimator`), prints the parameters with Wald intervals, the
+transition matrix, the log-likelihood and AIC, and writes the model file. The reading options
+defined here are shared with ``hmmtrack decode``.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+import pandas as pd
+
+from hmmtrack import io, tracks
+from hmmtrack.hmm import MovementHMMEstimator, diagnostics, distributions
+
+
+def add_track_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options that say how to read a track file (shared by ``fit`` and ``decode``)."""
+    parser.add_argument("tracks", help="track CSV file")
+    group = parser.add_argument_group("reading the tracks")
+    group.add_argument("--format", choices=("plain", "movebank"), default="plain")
+    group.add_argument(
+        "--id-col",
+        help="animal id column (plain: id; movebank: "
+        "individual-local-identifier); 'none' for a single animal",
+    )
+    group.add_argument(
+        "--time-col",
+        help="time column (plain: time; movebank: timestamp); 'none' when the data have no times",
+    )
+    group.add_argument("--x-col", default="x", help="east coordinate column, m (plain)")
+    group.add_argument("--y-col", default="y", help="north coordinate column, m (plain)")
+    group.add_argument("--lon-col", default="location-long", help="longitude column (movebank)")
+    group.add_argument("--lat-col", default="location-lat", help="latitude column (movebank)")
+    group.add_argument("--tz", help="time zone of times written without an offset")
+    group.add_argument(
+        "--max-gap", type=float, help="split tracks at gaps longer than this many seconds"
+    )
+    group.add_argument(
+        "--scale",
+        type=float,
+        default=1.0,
+        help="length unit in metres of steps (1000 fits kilometres, as moveHMM's elk example)",
+    )
+
+
+def _column(value: str | None, default: str | None) -> str | None:
+    if value is None:
+        return default
+    return None if value.lower() == "none" else value
+
+
+def read_prepared(args: argparse.Namespace) -> pd.DataFrame:
+    """Read and prepare the tracks named by :func:`add_track_arguments` options."""
+    if args.format == "movebank":
+        table = io.read_movebank(
+            args.tracks,
+            id_col=_column(args.id_col, "individual-local-identifier"),
+            time_col=_column(args.time_col, "timestamp"),
+            lon_col=args.lon_col,
+            lat_col=args.lat_col,
+            tz=args.tz or "UTC",
+        )
+    else:
+        table = io.read_tracks(
+            args.tracks,
+            id_col=_column(args.id_col, "id"),
+            time_col=_column(args.time_col, "time"),
+            x_col=args.x_col,
+            y_col=args.y_col,
+            tz=args.tz,
+        )
+    return tracks.prepare(table, scale=args.scale, max_gap=args.max_gap)
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "fit",
+        help="fit a movement HMM (step length, turning angle) to tracks",
+        description="Fit an N-state movement HMM by EM with multi-start and save it as JSON.",
+    )
+    add_track_arguments(parser)
+    parser.add_argument("--states", type=int, default=2, help="number of states (default 2)")
+    parser.add_argument("--step", default="gamma", choices=sorted(distributions.STEP_FAMILIES))
+    parser.add_argument("--angle", default="vonmises", choices=sorted(distributions.ANGLE_FAMILIES))
+    parser.add_argument(
+        "--fix-angle-mean", action="store_true", help="fix the turning-angle means at 0"
+    )
+    parser.add_argument(
+        "--covariates",
+        nargs="+",
+        default=[],
+        metavar="COLUMN",
+        help="columns on the transition probabilities (standardised, multinomial logit)",
+    )
+    parser.add_argument("--starts", type=int, default=5, help="EM starts (default 5)")
+    parser.add_argument("--seed", type=int, default=1, help="seed of the starts (default 1)")
+    parser.add_argument("--jobs", type=int, default=1, help="processes for the starts")
+    parser.add_argument("--level", type=float, default=0.95, help="confidence level")
+    parser.add_argument("-o", "--output", required=True, help="model JSON file to write")
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    prepared = read_prepared(args)
+    estimator = MovementHMMEstimator(
+        n_states=args.states,
+        step=args.step,
+        angle=args.angle,
+        estimate_angle_mean=not args.fix_angle_mean,
+        covariates=tuple(args.covariates),
+        n_starts=args.starts,
+        seed=args.seed,
+        n_jobs=args.jobs,
+        step_unit={1.0: "m", 1000.0: "km"}.get(args.scale, f"{args.scale:g} m"),
+    ).fit(prepared)
+    model = estimator.model_
+    model.save(args.output)
+    intervals = diagnostics.confidence_intervals(model, prepared, level=args.level)
+    print(f"{args.tracks}: {len(prepared)} rows, {prepared['segment'].nunique()} segments")
+    print(diagnostics.summary(model, intervals))
+    starts = ", ".join(f"{s.log_likelihood:.4f}" for s in estimator.starts_)
+    print(f"starts (log-likelihood after EM): {starts}")
+    print(f"wrote {args.output}")
+    return 0

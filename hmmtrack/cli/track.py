@@ -1,0 +1,205 @@
+"""``hmmtrack track``: estimate a tagged animal's positions from detection logs.
+
+Reads detections (VUE, Fathom or plain CSV) and receiver positions (x/y or lon/lat), runs
+:func:`hmmtrack.tracking.track` and writes one estimate per second as CSV (``time`` ISO
+8601 UTC, ``x``, ``y``, ``lon``, ``lat`` when the receivers were given in lon/lat, the x-y
+covariance, ``sqrt_lambda1`` and ``n_eff``). With ``--truth`` it prints the paper's metrics;
+with ``--plot`` it draws the error over time and particle snapshots.
+
+Settings come from ``--config`` (a JSON file, see :mod:`hmmtrack.config`) and are
+overridden by the command-line options.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from hmmtrack import io, metrics, tracking
+from hmmtrack.cli import UserInputError
+from hmmtrack.config import TrackingConfig
+
+
+def _r0_pair(text: str) -> tuple[str, float]:
+    name, sep, value = text.rpartition("=")
+    if not sep or not name:
+        raise argparse.ArgumentTypeError(f"expected RECEIVER=METRES, got {text!r}")
+    try:
+        return name, float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"r0 of {name!r} is not a number: {value!r}") from None
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "track",
+        help="estimate positions of a tag from detection logs (particle filter)",
+        description=(
+            "Track an acoustic tag from the detection times logged by hydrophones: ranges "
+            "from the tag period (the paper's ΔTOF), a particle filter with the chosen "
+            "motion model, one estimate per second written as CSV."
+        ),
+    )
+    parser.add_argument("--detections", required=True, help="detection log (VUE, Fathom, plain)")
+    parser.add_argument(
+        "--receivers", required=True, help="receiver positions CSV (x/y or lon/lat)"
+    )
+    parser.add_argument("-o", "--output", required=True, help="estimates CSV to write")
+    parser.add_argument("--config", help="JSON file of settings (keys of TrackingConfig)")
+    parser.add_argument("--period", type=float, help="transmitter period T (s), e.g. 8.179")
+    parser.add_argument(
+        "--r0",
+        type=_r0_pair,
+        action="append",
+        metavar="RECEIVER=METRES",
+        help="range at the receiver's first detection (m); once per receiver",
+    )
+    parser.add_argument(
+        "--motion", choices=tracking.MOTIONS, default="hmm", help="motion model (default hmm)"
+    )
+    parser.add_argument(
+        "--model", help="movement HMM JSON for --motion hmm (default: bundled white shark)"
+    )
+    parser.add_argument(
+        "--hmm-variant",
+        choices=("paper", "time_consistent"),
+        default="paper",
+        help="HMM motion variant (default: the paper's, new draws every second)",
+    )
+    parser.add_argument("--particles", type=int, help="number of particles")
+    parser.add_argument("--sound-speed", type=float, help="speed of sound (m/s, default 1460)")
+    parser.add_argument("--transmitter", help="transmitter to track when the log holds several")
+    parser.add_argument(
+        "--depth", help="depth correction: none (default), sensor, or a depth in metres"
+    )
+    parser.add_argument("--seed", type=int, help="random seed (printed when not given)")
+    parser.add_argument(
+        "--truth", help="true positions CSV (time, x, y or lon, lat): print metrics"
+    )
+    parser.add_argument("--plot", help="PNG: error over time (with --truth) and particle snapshots")
+    parser.set_defaults(func=run)
+
+
+def build_config(args: argparse.Namespace) -> TrackingConfig:
+    """The run's settings: ``--config`` file (if any) overridden by the options."""
+    overrides = {
+        "period": args.period,
+        "r0": dict(args.r0) if args.r0 else None,
+        "n_particles": args.particles,
+        "sound_speed": args.sound_speed,
+        "transmitter": args.transmitter,
+        "depth": args.depth,
+    }
+    if args.config:
+        return TrackingConfig.from_json(args.config, **overrides)
+    missing = [f"--{k.replace('_', '-')}" for k in ("period", "r0") if overrides[k] is None]
+    if missing:
+        raise UserInputError(f"give {' and '.join(missing)}, or a --config file with them")
+    return TrackingConfig.from_dict(
+        {k: v for k, v in overrides.items() if v is not None}, source="command line"
+    )
+
+
+def read_truth(path: str | Path, projection: io.Projection | None) -> pd.DataFrame:
+    """Truth table from a CSV of ``time`` and ``x``, ``y`` (m) or ``lon``, ``lat`` (degrees)."""
+    table = pd.read_csv(path)
+    table.attrs["source"] = str(path)
+    if "time" not in table.columns:
+        raise ValueError(f"{path}: truth needs a 'time' column; found {list(table.columns)}")
+    if {"x", "y"} <= set(table.columns):
+        x, y = table["x"].to_numpy(dtype=float), table["y"].to_numpy(dtype=float)
+    elif {"lon", "lat"} <= set(table.columns):
+        if projection is None:
+            raise ValueError(f"{path}: truth in lon/lat needs receivers in lon/lat too")
+        x, y = projection.to_xy(table["lon"], table["lat"])
+    else:
+        raise ValueError(
+            f"{path}: truth needs x, y or lon, lat columns; found {list(table.columns)}"
+        )
+    time = io.parse_times(table, "time", tz=None)
+    if len(table) > 1 and not np.isfinite(time).all():
+        raise ValueError(f"{path}: empty time in a truth with several rows")
+    return pd.DataFrame({"time": time, "x": x, "y": y})
+
+
+def _within_truth(estimates: pd.DataFrame, truth: pd.DataFrame) -> pd.DataFrame:
+    if len(truth) == 1:
+        return estimates
+    inside = estimates["time"].between(truth["time"].min(), truth["time"].max())
+    if not inside.all():
+        print(
+            f"metrics over the {int(inside.sum())} of {len(estimates)} estimates inside the "
+            "truth's time span",
+            file=sys.stderr,
+        )
+    if not inside.any():
+        raise ValueError("no estimate lies inside the truth's time span")
+    return estimates.loc[inside].reset_index(drop=True)
+
+
+def run(args: argparse.Namespace) -> int:
+    config = build_config(args)
+    if args.model and args.motion != "hmm":
+        raise UserInputError("--model is used with --motion hmm only")
+    seed = args.seed
+    if seed is None:
+        seed = int(np.random.SeedSequence().entropy % 2**63)
+        print(f"seed: {seed} (pass --seed {seed} to repeat this run)", file=sys.stderr)
+    detections = io.read_detections(args.detections)
+    receivers = io.read_receivers(args.receivers)
+    projection = io.Projection.from_frame(receivers)
+    motion = tracking.motion_model(args.motion, args.model, variant=args.hmm_variant)
+    snapshot_times = ()
+    if args.plot:
+        from hmmtrack.plots.tracking import snapshot_times as choose_snapshots
+
+        times = detections["time"].to_numpy(dtype=float)
+        first = config.start if config.start is not None else float(np.floor(times.min()))
+        last = config.end if config.end is not None else float(np.ceil(times.max()))
+        snapshot_times = choose_snapshots(first, last)
+    result = tracking.track(
+        detections, receivers, config, motion, seed=seed, snapshot_times=snapshot_times
+    )
+    io.write_estimates(result.estimates, args.output, projection=projection)
+    print(f"wrote {len(result.estimates)} estimates to {args.output}")
+    for event in result.events.itertuples(index=False):
+        if event.kind != "anchor_detection":
+            print(f"event at {event.time}: {event.kind}: {event.detail}", file=sys.stderr)
+    truth = errors = convergence = None
+    if args.truth:
+        truth = read_truth(args.truth, projection)
+        scored = _within_truth(result.estimates, truth)
+        summary = metrics.tracking_metrics(scored, truth)
+        converged = "" if summary.converged else " (never converged; 0 by the paper's rule)"
+        print(f"time to convergence: {summary.time_to_convergence:.0f} s{converged}")
+        print(
+            "mean error after convergence (the paper's 'RMSE'): "
+            f"{summary.mean_error_after_convergence:.2f} m"
+        )
+        print(f"root-mean-square error after convergence: {summary.rmse_after_convergence:.2f} m")
+        errors = (scored["time"].to_numpy(), metrics.position_error(scored, truth))
+        convergence = metrics.time_to_convergence(
+            scored["time"].to_numpy(), scored["sqrt_lambda1"].to_numpy()
+        )
+    if args.plot:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        from hmmtrack.plots.tracking import plot_tracking_run
+
+        figure = plot_tracking_run(
+            result.estimates,
+            result.snapshots,
+            receivers,
+            observations=result.observations,
+            truth=truth,
+            errors=errors,
+            convergence=convergence,
+        )
+        figure.savefig(args.plot, dpi=120, bbox_inches="tight")
+        print(f"wrote {args.plot}")
+    return 0

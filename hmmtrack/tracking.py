@@ -1,0 +1,423 @@
+"""The tracking pipeline: detections + receiver positions + configuration → position estimates.
+
+:func:`build_observations` turns a detections table into the filter's observations table
+(``docs/interfaces.md``): ranges and range-rates from :mod:`hmmtrack.ranging` (optionally
+depth-corrected), each joined with the detecting receiver's position and velocity at the
+detection time from :class:`hmmtrack.receivers.ReceiverTracks`.
+
+:func:`track` runs the paper's particle filter (:class:`hmmtrack.filter.ParticleFilter`
+with :class:`hmmtrack.measurement.RangeRateMeasurement`) on those observations with one
+of the paper's motion models chosen by name (:func:`motion_model`): ``"baseline"``,
+``"velocity"`` or ``"hmm"`` (a saved :class:`hmmtrack.hmm.MovementHMM`, by default the
+bundled white-shark model ``hmmtrack/data/white_shark_hmm.json``).
+
+The first detection of each receiver anchors its ranges (its range is the given ``r0``)
+but has no range-rate, so it is not passed to the paper's (range, range-rate) likelihood;
+:func:`track` records each such detection as an ``"anchor_detection"`` event.
+
+This module reads no files and computes no metrics (see :mod:`hmmtrack.io`,
+:mod:`hmmtrack.metrics`).
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from hmmtrack import ranging
+from hmmtrack.config import TrackingConfig
+from hmmtrack.filter import ParticleFilter
+from hmmtrack.measurement import RangeRateMeasurement
+from hmmtrack.motion import BaselineMotion, HMMMotion, VelocityMotion
+from hmmtrack.random import SeedLike, as_generator
+from hmmtrack.receivers import ReceiverTracks
+
+__all__ = [
+    "MOTIONS",
+    "OBSERVATION_COLUMNS",
+    "TrackingResult",
+    "build_observations",
+    "bundled_model_path",
+    "check_bounds",
+    "motion_model",
+    "search_bounds",
+    "select_transmitter",
+    "track",
+]
+
+logger = logging.getLogger(__name__)
+
+#: the paper's motion models, by name
+MOTIONS = ("baseline", "velocity", "hmm")
+
+#: random-walk step spread of the baseline model (m per √s); the paper gives no value
+BASELINE_SIGMA = 1.0
+#: spreads of the velocity model's speed (m/s per √s) and turn-rate (rad/s per √s)
+#: increments; the paper gives no values
+VELOCITY_SIGMA_SPEED = 0.1
+VELOCITY_SIGMA_TURN_RATE = 0.1
+
+#: columns of the observations table, in order (``docs/interfaces.md`` plus the
+#: transmitter and the pings missed since the receiver's previous detection)
+OBSERVATION_COLUMNS = (
+    "time",
+    "receiver",
+    "transmitter",
+    "range",
+    "range_rate",
+    "missed_pings",
+    "receiver_x",
+    "receiver_y",
+    "receiver_vx",
+    "receiver_vy",
+)
+
+
+def bundled_model_path() -> Path:
+    """Path of the bundled white-shark movement HMM (``hmmtrack/data/white_shark_hmm.json``)."""
+    path = Path(str(resources.files("hmmtrack") / "data" / "white_shark_hmm.json"))
+    if not path.is_file():
+        raise FileNotFoundError(f"the bundled white-shark model is missing: {path}")
+    return path
+
+
+def motion_model(name: str, model: str | Path | object | None = None, variant: str = "paper"):
+    """One of the paper's motion models, by name, with hmmtrack's default parameters.
+
+    Parameters
+    ----------
+    name : {"baseline", "velocity", "hmm"}
+        ``baseline``: :class:`~hmmtrack.motion.BaselineMotion` with ``sigma`` =
+        :data:`BASELINE_SIGMA`; ``velocity``: :class:`~hmmtrack.motion.VelocityMotion` with
+        :data:`VELOCITY_SIGMA_SPEED` and :data:`VELOCITY_SIGMA_TURN_RATE`; ``hmm``:
+        :class:`~hmmtrack.motion.HMMMotion` of ``model``.
+    model : path, MovementHMM or None
+        For ``hmm`` only: a saved model file, a fitted model, or ``None`` for the bundled
+        white-shark model.
+    variant : {"paper", "time_consistent"}
+        For ``hmm`` only, see :class:`~hmmtrack.motion.HMMMotion`.
+
+    Returns
+    -------
+    A motion model for :class:`hmmtrack.filter.ParticleFilter`.
+    """
+    if name not in MOTIONS:
+        raise ValueError(f"motion must be one of {MOTIONS}, got {name!r}")
+    if name != "hmm" and model is not None:
+        raise ValueError(f"a movement model file is used by motion 'hmm' only, not {name!r}")
+    if name == "baseline":
+        return BaselineMotion(sigma=BASELINE_SIGMA)
+    if name == "velocity":
+        return VelocityMotion(
+            sigma_speed=VELOCITY_SIGMA_SPEED, sigma_turn_rate=VELOCITY_SIGMA_TURN_RATE
+        )
+    from hmmtrack.hmm import MovementHMM
+
+    if model is None:
+        model = bundled_model_path()
+    if isinstance(model, str | Path):
+        model = MovementHMM.load(model)
+    return HMMMotion(model, variant=variant)
+
+
+def select_transmitter(detections: pd.DataFrame, transmitter: str | None) -> pd.DataFrame:
+    """The detections of one transmitter.
+
+    Parameters
+    ----------
+    detections : pandas.DataFrame
+        Detections table.
+    transmitter : str or None
+        Transmitter to keep; ``None`` requires the table to hold exactly one.
+
+    Returns
+    -------
+    pandas.DataFrame
+        The rows of that transmitter (the others are counted in a log message).
+    """
+    if "transmitter" not in detections.columns:
+        raise ValueError("detections table lacks column 'transmitter'")
+    found = sorted(detections["transmitter"].astype(str).unique())
+    if transmitter is None:
+        if len(found) != 1:
+            raise ValueError(
+                f"the detections hold {len(found)} transmitters {found[:20]}; choose one "
+                "(configuration key 'transmitter' or --transmitter)"
+            )
+        return detections
+    keep = (detections["transmitter"].astype(str) == transmitter).to_numpy()
+    if not keep.any():
+        raise ValueError(
+            f"no detections of transmitter {transmitter!r}; the table has {found[:20]}"
+        )
+    if not keep.all():
+        logger.info(
+            "tracking transmitter %s: %d detections, %d of other transmitters not used",
+            transmitter,
+            int(keep.sum()),
+            int((~keep).sum()),
+        )
+    return detections.loc[keep]
+
+
+def _depth_corrected(table: pd.DataFrame, detections: pd.DataFrame, config: TrackingConfig):
+    """Replace ranges by horizontal ranges and recompute range-rates, per receiver."""
+    if config.depth == "none":
+        return table
+    if config.depth == "sensor":
+        if "depth" not in detections.columns:
+            raise ValueError(
+                "depth policy 'sensor' needs a 'depth' column (m) in the detections; "
+                f"found {list(detections.columns)}"
+            )
+        depth_of = detections[["time", "receiver", "depth"]].astype({"receiver": str})
+        merged = table.merge(depth_of, on=["time", "receiver"], how="left", validate="1:1")
+        depth = merged["depth"].to_numpy(dtype=float)
+        missing = np.flatnonzero(~np.isfinite(depth))
+        if missing.size:
+            raise ValueError(
+                f"depth policy 'sensor': no depth reading for detection(s) at times "
+                f"{table['time'].iloc[missing[:10]].tolist()} (receivers "
+                f"{table['receiver'].iloc[missing[:10]].tolist()})"
+            )
+    else:
+        depth = np.full(len(table), float(config.depth))
+    table = table.copy()
+    table["range"] = ranging.depth_correction(
+        table["range"].to_numpy(), depth, shallower=config.shallower
+    )
+    for _, rows in table.groupby(["receiver", "transmitter"], sort=False).groups.items():
+        table.loc[rows, "range_rate"] = ranging.range_rates(
+            table.loc[rows, "time"].to_numpy(), table.loc[rows, "range"].to_numpy()
+        )
+    return table
+
+
+def build_observations(
+    detections: pd.DataFrame, receivers: pd.DataFrame | ReceiverTracks, config: TrackingConfig
+) -> pd.DataFrame:
+    """Observations table of the filter from detections, receiver positions and config.
+
+    Parameters
+    ----------
+    detections : pandas.DataFrame
+        Detections table (``time`` s, ``receiver``, ``transmitter``; ``depth`` m for the
+        ``"sensor"`` depth policy).
+    receivers : pandas.DataFrame or ReceiverTracks
+        Receiver positions table (``docs/interfaces.md``), turned into tracks with
+        ``config.velocity_window``, or tracks built from it.
+    config : TrackingConfig
+        Period, sound speed, ``r0`` per receiver, transmitter, depth policy.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per detection of the tracked transmitter, sorted by time, with
+        :data:`OBSERVATION_COLUMNS`: ``range`` (m), ``range_rate`` (m/s; NaN on each
+        receiver's first detection), ``missed_pings``, and the receiver's position (m) and
+        velocity (m/s) at the detection time.
+
+    Raises
+    ------
+    ValueError
+        When the transmitter is ambiguous, a receiver lacks ``r0`` or positions at a
+        detection time, or a depth correction is impossible (messages name what and where).
+    """
+    tracks = (
+        receivers
+        if isinstance(receivers, ReceiverTracks)
+        else ReceiverTracks.from_frame(receivers, velocity_window=config.velocity_window)
+    )
+    chosen = select_transmitter(detections, config.transmitter)
+    table = ranging.range_table(chosen, config.period, config.r0, config.sound_speed)
+    table = _depth_corrected(table, chosen, config)
+    unknown = sorted(set(table["receiver"]) - set(tracks.names))
+    if unknown:
+        raise ValueError(
+            f"no positions for receiver(s) {unknown} of the detections; receiver positions "
+            f"are known for {list(tracks.names)}"
+        )
+    state = np.empty((len(table), 4))
+    for receiver, rows in table.groupby("receiver", sort=False).indices.items():
+        state[rows] = np.column_stack(tracks.state(receiver, table["time"].to_numpy()[rows]))
+    for k, column in enumerate(("receiver_x", "receiver_y", "receiver_vx", "receiver_vy")):
+        table[column] = state[:, k]
+    return table[list(OBSERVATION_COLUMNS)]
+
+
+def search_bounds(
+    observations: pd.DataFrame, r0: dict[str, float], margin: float
+) -> tuple[float, float, float, float]:
+    """Box that holds the tag at the start: each receiver's first position ± (r0 + margin).
+
+    Parameters
+    ----------
+    observations : pandas.DataFrame
+        Observations table (:func:`build_observations`).
+    r0 : dict of str to float
+        Range at each receiver's first detection (m).
+    margin : float
+        Extra margin (m).
+
+    Returns
+    -------
+    (xmin, xmax, ymin, ymax) : tuple of float
+        The union of the receivers' squares (m): the tag lies inside each receiver's square
+        at that receiver's first detection.
+    """
+    if observations.empty:
+        raise ValueError("no observations to derive search bounds from; give bounds explicitly")
+    first = observations.drop_duplicates("receiver", keep="first")
+    reach = first["receiver"].map(r0).to_numpy(dtype=float) + margin
+    x, y = first["receiver_x"].to_numpy(), first["receiver_y"].to_numpy()
+    return (
+        float((x - reach).min()),
+        float((x + reach).max()),
+        float((y - reach).min()),
+        float((y + reach).max()),
+    )
+
+
+def check_bounds(
+    bounds: tuple[float, float, float, float],
+    observations: pd.DataFrame,
+    r0: dict[str, float],
+    margin: float,
+) -> None:
+    """Refuse search bounds that cannot hold the tag at the receivers' first detections.
+
+    At its first detection, receiver ``j`` is ``r0[j]`` from the tag, so the box must come
+    within ``r0[j] + margin`` of where the receiver was (e.g. bounds given in another frame
+    than the receivers fail this).
+
+    Raises
+    ------
+    ValueError
+        Naming the receiver, its position and the bounds.
+    """
+    xmin, xmax, ymin, ymax = bounds
+    first = observations.drop_duplicates("receiver", keep="first")
+    for name, x, y in first[["receiver", "receiver_x", "receiver_y"]].itertuples(index=False):
+        gap = np.hypot(max(xmin - x, 0.0, x - xmax), max(ymin - y, 0.0, y - ymax))
+        if gap > r0[name] + margin:
+            raise ValueError(
+                f"search bounds {tuple(bounds)} lie {gap:.0f} m from receiver {name!r} at "
+                f"({x:.1f}, {y:.1f}) m, farther than its r0 ({r0[name]:.1f} m) + margin "
+                f"({margin:.0f} m): are the bounds in the receivers' frame?"
+            )
+
+
+@dataclass(frozen=True)
+class TrackingResult:
+    """What :func:`track` returns.
+
+    Attributes
+    ----------
+    estimates : pandas.DataFrame
+        One row per prediction step: ``time`` (s), ``x``, ``y`` (m), ``var_x``, ``var_y``,
+        ``cov_xy`` (m²), ``sqrt_lambda1`` (m), ``n_eff``.
+    snapshots : dict of float to pandas.DataFrame
+        Particles (``x``, ``y``, ..., ``weight``) at the requested snapshot times.
+    events : pandas.DataFrame
+        ``time``, ``kind``, ``detail``: the filter's events (degenerate weights, ...) and
+        the anchor detections not passed to the likelihood.
+    observations : pandas.DataFrame
+        The observations table built from the detections (all of them, anchors included).
+    bounds : (xmin, xmax, ymin, ymax)
+        Search box the particles started in (m).
+    """
+
+    estimates: pd.DataFrame
+    snapshots: dict
+    events: pd.DataFrame
+    observations: pd.DataFrame
+    bounds: tuple[float, float, float, float]
+
+
+def track(
+    detections: pd.DataFrame,
+    receivers: pd.DataFrame | ReceiverTracks,
+    config: TrackingConfig,
+    motion: str | object = "hmm",
+    *,
+    model: str | Path | object | None = None,
+    seed: SeedLike = None,
+    start: float | None = None,
+    end: float | None = None,
+    snapshot_times: Sequence[float] = (),
+) -> TrackingResult:
+    """Estimate the tag's position every ``config.prediction_step`` seconds.
+
+    Parameters
+    ----------
+    detections, receivers, config
+        See :func:`build_observations`.
+    motion : {"baseline", "velocity", "hmm"} or motion model
+        A name for :func:`motion_model`, or a motion model object.
+    model : path or MovementHMM, optional
+        Movement HMM for ``motion="hmm"``; the bundled white-shark model when ``None``.
+    seed : int, SeedSequence or Generator
+        Seed of every random draw of the filter; the same seed gives the same estimates.
+    start, end : float, optional
+        Time window (s); by default ``config.start`` and ``config.end``, and when those are
+        unset the first and last detection of the tracked transmitter, in whole seconds.
+    snapshot_times : sequence of float
+        Times (s) at which to keep copies of the particles.
+
+    Returns
+    -------
+    TrackingResult
+    """
+    observations = build_observations(detections, receivers, config)
+    if observations.empty:
+        raise ValueError("no detections to track from")
+    if isinstance(motion, str):
+        motion = motion_model(motion, model)
+    elif model is not None:
+        raise ValueError("model is used only with motion='hmm' given by name")
+    bounds = config.bounds or search_bounds(observations, config.r0, config.bounds_margin)
+    check_bounds(bounds, observations, config.r0, config.bounds_margin)
+    times = observations["time"].to_numpy()
+    start = config.start if start is None else start
+    end = config.end if end is None else end
+    start = float(np.floor(times[0])) if start is None else float(start)
+    end = float(np.ceil(times[-1])) if end is None else float(end)
+    anchors = observations["range_rate"].isna().to_numpy()
+    pf = ParticleFilter(
+        motion,
+        RangeRateMeasurement(np.array(config.measurement_covariance)),
+        n_particles=config.n_particles,
+        bounds=bounds,
+        rng=as_generator(seed),
+        dt=config.prediction_step,
+    )
+    result = pf.run(observations.loc[~anchors], start, end, snapshot_times)
+    anchor_events = pd.DataFrame(
+        {
+            "time": observations.loc[anchors, "time"].to_numpy(),
+            "kind": "anchor_detection",
+            "detail": [
+                f"first detection of receiver {r}: range r0 = {d:.1f} m anchors its ranges; "
+                "no range-rate, not used in the likelihood"
+                for r, d in observations.loc[anchors, ["receiver", "range"]].itertuples(index=False)
+            ],
+        }
+    )
+    events = pd.concat(
+        [df for df in (anchor_events, result.events) if not df.empty]
+        or [pd.DataFrame(columns=["time", "kind", "detail"])],
+        ignore_index=True,
+    ).sort_values("time", kind="stable", ignore_index=True)
+    return TrackingResult(
+        estimates=result.estimates,
+        snapshots=result.snapshots,
+        events=events,
+        observations=observations,
+        bounds=tuple(float(b) for b in bounds),
+    )

@@ -1,0 +1,154 @@
+"""End-to-end tests of ``hmmtrack fit`` and ``hmmtrack decode`` on a small track file."""
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from hmmtrack import tracks
+from hmmtrack.cli import main
+from hmmtrack.hmm import Gamma, MovementHMM, VonMises
+
+TRUE = MovementHMM(
+    initial=np.array([0.5, 0.5]),
+    transition=np.array([[0.9, 0.1], [0.15, 0.85]]),
+    step=Gamma(np.array([20.0, 120.0]), np.array([12.0, 40.0])),
+    angle=VonMises(np.array([0.0, 0.0]), np.array([0.6, 8.0])),
+)
+
+
+@pytest.fixture
+def track_file(tmp_path):
+    """Two animals, one fix a minute, positions built from simulated steps and turns."""
+    rng = np.random.default_rng(6)
+    rows = []
+    for animal in ("a", "b"):
+        sim = TRUE.simulate(rng, 400)
+        heading = np.cumsum(sim["angle"].to_numpy())
+        x = np.concatenate([[0.0], np.cumsum(sim["step"] * np.cos(heading))])[:-1]
+        y = np.concatenate([[0.0], np.cumsum(sim["step"] * np.sin(heading))])[:-1]
+        times = pd.date_range("2024-06-01", periods=400, freq="60s", tz="UTC")
+        rows.append(
+            pd.DataFrame(
+                {"id": animal, "time": times.strftime("%Y-%m-%dT%H:%M:%SZ"), "x": x, "y": y}
+            )
+        )
+    path = tmp_path / "tracks.csv"
+    pd.concat(rows).to_csv(path, index=False)
+    return path
+
+
+def test_fit_then_decode(track_file, tmp_path, capsys):
+    model_path = tmp_path / "model.json"
+    code = main(
+        [
+            "fit",
+            str(track_file),
+            "--states",
+            "2",
+            "--starts",
+            "2",
+            "--seed",
+            "1",
+            "-o",
+            str(model_path),
+        ]
+    )
+    assert code == 0
+    printed = capsys.readouterr().out
+    for words in ("log-likelihood", "AIC", "transition matrix", "step.mean", "upper"):
+        assert words in printed
+    document = json.loads(model_path.read_text())
+    assert document["schema"] == "hmmtrack.movement_hmm" and document["dt"] == 60.0
+    model = MovementHMM.load(model_path)
+    np.testing.assert_allclose(model.step.mean, TRUE.step.mean, rtol=0.2)
+    np.testing.assert_allclose(model.transition, TRUE.transition, atol=0.08)
+
+    states_path = tmp_path / "states.csv"
+    code = main(["decode", str(track_file), "--model", str(model_path), "-o", str(states_path)])
+    assert code == 0
+    decoded = pd.read_csv(states_path)
+    assert len(decoded) == 800
+    assert {
+        "id",
+        "time",
+        "x",
+        "y",
+        "segment",
+        "step",
+        "angle",
+        "state",
+        "p_state1",
+        "p_state2",
+    } <= set(decoded.columns)
+    assert decoded["time"].iloc[0] == "2024-06-01T00:00:00.000Z"
+    np.testing.assert_allclose(decoded[["p_state1", "p_state2"]].sum(axis=1), 1.0)
+    raw = pd.read_csv(track_file)
+    raw["time"] = pd.to_datetime(raw["time"]).astype("int64") / 1e9
+    expected = model.viterbi(tracks.prepare(raw)) + 1
+    np.testing.assert_array_equal(decoded["state"], expected)
+
+
+def test_fit_reads_renamed_columns_without_times(track_file, tmp_path, capsys):
+    renamed = pd.read_csv(track_file).drop(columns="time")
+    renamed.columns = ["animal", "east", "north"]
+    path = tmp_path / "no_time.csv"
+    renamed.to_csv(path, index=False)
+    model_path = tmp_path / "m.json"
+    code = main(
+        [
+            "fit",
+            str(path),
+            "--id-col",
+            "animal",
+            "--time-col",
+            "none",
+            "--x-col",
+            "east",
+            "--y-col",
+            "north",
+            "--scale",
+            "1000",
+            "--starts",
+            "1",
+            "-o",
+            str(model_path),
+        ]
+    )
+    assert code == 0
+    model = MovementHMM.load(model_path)
+    assert np.isnan(model.dt) and model.step_unit == "km"
+    assert model.step.mean[1] == pytest.approx(0.12, rel=0.2)
+
+
+def test_errors_are_reported_without_traceback(track_file, tmp_path, capsys):
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"schema": "hmmtrack.movement_hmm", "version": 7}')
+    code = main(["decode", str(track_file), "--model", str(bad), "-o", str(tmp_path / "s.csv")])
+    assert code == 2
+    err = capsys.readouterr().err
+    assert "bad.json" in err and "'version'" in err
+    code = main(["fit", str(tmp_path / "absent.csv"), "-o", str(tmp_path / "m.json")])
+    assert code == 2
+
+
+def test_fit_reads_movebank_lon_lat(track_file, tmp_path):
+    table = pd.read_csv(track_file)
+    lat0 = 33.7
+    movebank = pd.DataFrame(
+        {
+            "timestamp": pd.to_datetime(table["time"]).dt.strftime("%Y-%m-%d %H:%M:%S.000"),
+            "location-long": -118.2 + table["x"] / (111_320.0 * np.cos(np.radians(lat0))),
+            "location-lat": lat0 + table["y"] / 110_574.0,
+            "individual-local-identifier": table["id"],
+        }
+    )
+    path = tmp_path / "movebank.csv"
+    movebank.to_csv(path, index=False)
+    model_path = tmp_path / "m.json"
+    code = main(["fit", str(path), "--format", "movebank", "--starts", "1", "-o", str(model_path)])
+    assert code == 0
+    model = MovementHMM.load(model_path)
+    assert model.dt == 60.0
+    np.testing.assert_allclose(model.step.mean, TRUE.step.mean, rtol=0.2)

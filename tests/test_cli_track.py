@@ -1,0 +1,225 @@
+"""Tests of ``hmmtrack track`` and its configuration (hmmtrack.cli.track, hmmtrack.config).
+
+End to end on the files ``hmmtrack simulate`` writes for the stationary-tag scenario: the
+estimate CSV's columns, one row per second with ISO 8601 UTC times, the printed metrics,
+the lon/lat round trip and the plot.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+from pyproj import Transformer
+
+from hmmtrack import io, metrics
+from hmmtrack.cli import main
+from hmmtrack.config import TrackingConfig
+from hmmtrack.scenarios import stationary_tag
+from hmmtrack.scenarios.export import write_scenario
+
+ESTIMATE_COLUMNS = ["time", "x", "y", "var_x", "var_y", "cov_xy", "sqrt_lambda1"]
+#: a UTM zone 11N origin off Long Beach, CA (m): scenario metres are shifted by it
+ORIGIN = (390_000.0, 3_730_000.0)
+UTM_11N = "EPSG:32611"
+
+
+@pytest.fixture(scope="module")
+def scenario_files(tmp_path_factory):
+    directory = tmp_path_factory.mktemp("stationary")
+    scenario = stationary_tag(11)
+    return scenario, write_scenario(scenario, directory)
+
+
+def track_args(paths, output, *extra):
+    return [
+        "track",
+        "--config",
+        str(paths["metadata"]),
+        "--detections",
+        str(paths["detections"]),
+        "--receivers",
+        str(paths["receivers"]),
+        "-o",
+        str(output),
+        "--particles",
+        "1000",
+        "--seed",
+        "3",
+        *extra,
+    ]
+
+
+def printed_number(text: str, label: str) -> float:
+    line = next(line for line in text.splitlines() if line.startswith(label))
+    return float(line.split(":")[-1].split()[0])
+
+
+def test_track_writes_one_row_per_second_and_prints_the_metrics(scenario_files, tmp_path, capsys):
+    scenario, paths = scenario_files
+    output = tmp_path / "estimate.csv"
+    args = track_args(paths, output, "--motion", "velocity", "--truth", str(paths["truth"]))
+    assert main(args) == 0
+    printed = capsys.readouterr().out
+    table = pd.read_csv(output)
+    assert list(table.columns[:7]) == ESTIMATE_COLUMNS
+    assert len(table) == int(scenario.end - scenario.start) + 1
+    assert table["time"].str.fullmatch(r"\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d\.\d{3}Z").all()
+    seconds = io.parse_times(table, "time", tz=None)
+    np.testing.assert_allclose(np.diff(seconds), 1.0)
+    assert seconds[0] == scenario.start
+    assert np.isfinite(table[ESTIMATE_COLUMNS[1:]].to_numpy()).all()
+    # the printed metrics are those of the written estimates against the truth
+    estimates = table.assign(time=seconds)
+    scores = metrics.tracking_metrics(estimates, scenario.truth)
+    assert printed_number(printed, "time to convergence") == round(scores.time_to_convergence)
+    assert printed_number(printed, "mean error after convergence") == pytest.approx(
+        scores.mean_error_after_convergence, abs=0.006
+    )
+    assert printed_number(printed, "root-mean-square error") == pytest.approx(
+        scores.rmse_after_convergence, abs=0.006
+    )
+    assert scores.converged and scores.mean_error_after_convergence < 10.0
+
+
+def to_lonlat(table: pd.DataFrame) -> pd.DataFrame:
+    """Scenario metres, shifted to the UTM origin, as lon/lat columns."""
+    transform = Transformer.from_crs(UTM_11N, "EPSG:4326", always_xy=True)
+    lon, lat = transform.transform(table["x"] + ORIGIN[0], table["y"] + ORIGIN[1])
+    return table.drop(columns=["x", "y"]).assign(lon=lon, lat=lat)
+
+
+def test_lonlat_inputs_give_lonlat_outputs(scenario_files, tmp_path, capsys):
+    scenario, paths = scenario_files
+    receivers = to_lonlat(pd.read_csv(paths["receivers"]))
+    truth = to_lonlat(pd.read_csv(paths["truth"]))
+    lonlat = dict(paths)
+    settings = json.loads(paths["metadata"].read_text())
+    assert settings.pop("bounds")  # in the scenario's metres: derive them from the receivers
+    lonlat["metadata"] = tmp_path / "scenario_lonlat.json"
+    lonlat["metadata"].write_text(json.dumps(settings))
+    lonlat["receivers"] = tmp_path / "receivers_lonlat.csv"
+    receivers.to_csv(lonlat["receivers"], index=False, float_format="%.9f")
+    truth_path = tmp_path / "truth_lonlat.csv"
+    truth.to_csv(truth_path, index=False, float_format="%.9f")
+    output = tmp_path / "estimate.csv"
+    args = track_args(lonlat, output, "--motion", "velocity", "--truth", str(truth_path))
+    assert main(args) == 0
+    printed = capsys.readouterr().out
+    table = pd.read_csv(output)
+    assert list(table.columns[:5]) == ["time", "x", "y", "lon", "lat"]
+    # x, y are in the receivers' projected frame (UTM 11N, chosen from the data) and lon/lat
+    # are those same points
+    x, y = Transformer.from_crs("EPSG:4326", UTM_11N, always_xy=True).transform(
+        table["lon"], table["lat"]
+    )
+    np.testing.assert_allclose(x, table["x"], atol=1e-3)
+    np.testing.assert_allclose(y, table["y"], atol=1e-3)
+    # and they land where the tag is: the origin of the shifted scenario
+    after = table.iloc[len(table) // 2 :]
+    assert np.hypot(after["x"] - ORIGIN[0], after["y"] - ORIGIN[1]).mean() < 10.0
+    assert printed_number(printed, "mean error after convergence") < 10.0
+
+
+def test_plot_is_written(scenario_files, tmp_path):
+    _, paths = scenario_files
+    picture = tmp_path / "run.png"
+    args = track_args(
+        paths, tmp_path / "e.csv", "--motion", "velocity", "--truth", str(paths["truth"])
+    )
+    assert main([*args, "--plot", str(picture)]) == 0
+    assert picture.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_hmm_without_model_uses_the_bundled_model(scenario_files, tmp_path):
+    _, paths = scenario_files
+    output = tmp_path / "hmm.csv"
+    assert main(track_args(paths, output, "--motion", "hmm")) == 0
+    assert len(pd.read_csv(output)) > 1000
+
+
+def test_options_without_a_config_file(scenario_files, tmp_path, capsys):
+    scenario, paths = scenario_files
+    output = tmp_path / "plain.csv"
+    r0 = [f"--r0={name}={metres}" for name, metres in scenario.r0.items()]
+    args = [
+        "track",
+        "--detections",
+        str(paths["detections"]),
+        "--receivers",
+        str(paths["receivers"]),
+        "--period",
+        str(scenario.period),
+        *r0,
+        "--motion",
+        "baseline",
+        "--particles",
+        "300",
+        "-o",
+        str(output),
+    ]
+    assert main(args) == 0
+    assert "seed: " in capsys.readouterr().err  # an unseeded run says how to repeat it
+    table = pd.read_csv(output)
+    # without start/end the run spans the detections, in whole seconds
+    first, last = scenario.detections["time"].min(), scenario.detections["time"].max()
+    assert len(table) == int(np.ceil(last) - np.floor(first)) + 1
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        (["--period", "-1"], "period must be a positive"),
+        (["--model", "x.json", "--motion", "baseline"], "--motion hmm only"),
+        (["--depth", "deep"], "depth must be one of"),
+    ],
+)
+def test_bad_options_are_clear_errors(scenario_files, tmp_path, capsys, change, message):
+    _, paths = scenario_files
+    assert main([*track_args(paths, tmp_path / "e.csv"), *change]) == 2
+    assert message in capsys.readouterr().err
+
+
+def test_missing_settings_and_bad_config_files(scenario_files, tmp_path, capsys):
+    _, paths = scenario_files
+    base = ["track", "--detections", str(paths["detections"]), "--receivers"]
+    base += [str(paths["receivers"]), "-o", str(tmp_path / "e.csv")]
+    assert main([*base, "--period", "8.179"]) == 2
+    assert "give --r0" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main([*base, "--period", "8.179", "--r0", "auv:20"])
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps({"period": 8.179, "r0": {"auv": 20}, "particles": 10}))
+    assert main([*base, "--config", str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert str(bad) in err and "unknown key(s) ['particles']" in err
+
+
+def test_config_round_trip_and_validation():
+    config = TrackingConfig(
+        period=8.179,
+        r0={"a": 1.5, "b": 30},
+        bounds=(0, 10, -5, 5),
+        measurement_covariance=[[9.0, 0.3], [0.3, 0.04]],
+        depth="10.7",
+        start="2022-06-08T17:00:00Z",
+        end=1654708800,
+    )
+    assert config.depth == 10.7 and config.start == 1654707600.0
+    assert TrackingConfig.from_dict(json.loads(json.dumps(config.to_dict()))) == config
+    assert config.override(n_particles=None, period=5.0).period == 5.0
+    bad = [
+        ({"r0": {"a": -1}}, "r0 of receiver 'a'"),
+        ({"measurement_covariance": [[1, 2], [2, 1]]}, "positive definite"),
+        ({"measurement_covariance": [[1, 0.1], [0, 1]]}, "symmetric"),
+        ({"bounds": (10, 0, 0, 1)}, "xmin < xmax"),
+        ({"n_particles": 2.5}, "positive integer"),
+        ({"start": "2022-06-08T17:00:00"}, "UTC offset"),
+        ({"start": 10.0, "end": 5.0}, "before end"),
+        ({"shallower": "ignore"}, "shallower"),
+    ]
+    for change, message in bad:
+        with pytest.raises(ValueError, match=message):
+            TrackingConfig(**({"period": 8.179, "r0": {"a": 1.0}} | change))

@@ -1,0 +1,263 @@
+import warnings
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from hmmtrack.filter import ESTIMATE_COLUMNS, ParticleFilter, sqrt_largest_eigenvalue
+from hmmtrack.hmm import Gamma, MovementHMM, VonMises
+from hmmtrack.measurement import RangeRateMeasurement
+from hmmtrack.motion import BaselineMotion, HMMMotion, VelocityMotion
+
+TAG = np.array([30.0, -20.0])
+T0 = 1.7e9
+BOUNDS = (-500.0, 500.0, -500.0, 500.0)
+MEASUREMENT = RangeRateMeasurement.from_std(2.0, 0.1)
+
+
+def _observe(t, hx, hy, hvx, hvy, receiver, rng):
+    dx, dy = hx - TAG[0], hy - TAG[1]
+    r = np.hypot(dx, dy)
+    return pd.DataFrame(
+        {
+            "time": T0 + t,
+            "receiver": receiver,
+            "range": r + rng.normal(0.0, 1.0, t.size),
+            "range_rate": (dx * hvx + dy * hvy) / r + rng.normal(0.0, 0.05, t.size),
+            "receiver_x": hx,
+            "receiver_y": hy,
+            "receiver_vx": hvx,
+            "receiver_vy": hvy,
+        }
+    )
+
+
+def circling_observations(seed=0, duration=900.0, period=8.0, radius=200.0, speed=2.0):
+    """A stationary tag at TAG; a ping every period s heard by a receiver circling the
+    origin and, every other ping, by one anchored at (-150, 100)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(4.0, duration, period) + 0.3
+    omega = speed / radius
+    circling = _observe(
+        t,
+        radius * np.cos(omega * t),
+        radius * np.sin(omega * t),
+        -speed * np.sin(omega * t),
+        speed * np.cos(omega * t),
+        "auv1",
+        rng,
+    )
+    a = t[::2]
+    anchored = _observe(a, np.full(a.size, -150.0), np.full(a.size, 100.0), 0.0, 0.0, "moor", rng)
+    return pd.concat([circling, anchored], ignore_index=True).sort_values("time", kind="stable")
+
+
+def slow_fish_model():
+    return MovementHMM(
+        initial=np.array([0.5, 0.5]),
+        transition=np.array([[0.95, 0.05], [0.1, 0.9]]),
+        step=Gamma(mean=np.array([0.2, 1.0]), sd=np.array([0.15, 0.5])),
+        angle=VonMises(mean=np.zeros(2), concentration=np.array([1.0, 10.0])),
+        dt=1.0,
+    )
+
+
+MOTIONS = {
+    "baseline": BaselineMotion(sigma=0.5),
+    "velocity": VelocityMotion(sigma_speed=0.05, sigma_turn_rate=0.01),
+    "hmm": HMMMotion(slow_fish_model(), "paper"),
+    "hmm_time_consistent": HMMMotion(slow_fish_model(), "time_consistent"),
+}
+
+
+def make_filter(motion="velocity", n=2000, seed=1, **options):
+    return ParticleFilter(MOTIONS[motion], MEASUREMENT, n, BOUNDS, rng=seed, **options)
+
+
+@pytest.mark.parametrize(
+    ("motion", "backend"),
+    [(m, "auto") for m in MOTIONS] + [("velocity", "numpy"), ("hmm", "numpy")],
+)
+def test_stationary_tag_with_a_circling_receiver_converges(motion, backend):
+    result = make_filter(motion, backend=backend).run(circling_observations(), start=T0)
+    e = result.estimates
+    assert list(e.columns) == list(ESTIMATE_COLUMNS)
+    assert (
+        e["time"].iloc[0] == T0 and e["time"].iloc[-1] == T0 + 893
+    )  # pings at +4.3, +12.3, ... +892.3
+    assert np.allclose(np.diff(e["time"]), 1.0)
+    assert np.isfinite(e.to_numpy()).all()
+    error = np.hypot(e["x"] - TAG[0], e["y"] - TAG[1])
+    assert e["sqrt_lambda1"].iloc[0] > 200  # uniform start
+    converged = e["sqrt_lambda1"] < 10.0
+    assert converged.iloc[-300:].all()
+    first = int(np.argmax(converged.to_numpy()))
+    assert error.iloc[first:].mean() < 10.0
+    assert result.events.empty
+
+
+def test_same_seed_same_answer_whatever_the_threads():
+    obs = circling_observations(duration=300.0)
+    a = make_filter("hmm", seed=3, threads=1).run(obs).estimates
+    b = make_filter("hmm", seed=3, threads=2).run(obs).estimates
+    c = make_filter("hmm", seed=4).run(obs).estimates
+    pd.testing.assert_frame_equal(a, b)
+    assert not np.allclose(a["x"], c["x"])
+
+
+def test_online_steps_reproduce_the_offline_run():
+    obs = circling_observations(duration=200.0)
+    offline = make_filter("velocity", seed=6).run(obs, start=T0).estimates.set_index("time")
+    online = make_filter("velocity", seed=6)
+    online.step(T0)
+    for time, rows in obs.groupby(np.rint(obs["time"] - T0)):
+        estimate = online.step(T0 + time, rows)
+        row = offline.loc[T0 + time]
+        assert estimate.x == pytest.approx(row["x"], abs=1e-9)
+        assert estimate.sqrt_lambda1 == pytest.approx(row["sqrt_lambda1"], abs=1e-9)
+    with pytest.raises(ValueError, match="prediction grid"):
+        online.step(T0 + time + 0.5)
+
+
+@pytest.mark.parametrize("backend", ["numba", "numpy"])
+def test_predicted_estimates_are_the_particles_moments(backend):
+    pf = make_filter("hmm", n=3000, backend=backend)
+    pf.initialise(T0)
+    pf.correct(circling_observations().iloc[:1])
+    predicted = pf.predict(5)
+    now = pf.estimate()
+    assert [e.time for e in predicted] == [T0 + k for k in range(1, 6)]
+    for name in ("x", "y", "var_x", "var_y", "cov_xy", "sqrt_lambda1", "n_eff"):
+        assert getattr(predicted[-1], name) == pytest.approx(getattr(now, name), rel=1e-9)
+    w = pf.particles.normalised_weights()
+    cov = np.cov(np.vstack([pf.particles.x, pf.particles.y]), aweights=w, bias=True)
+    assert now.var_x == pytest.approx(cov[0, 0], rel=1e-9)
+    assert now.cov_xy == pytest.approx(cov[0, 1], rel=1e-9, abs=1e-9)
+    assert now.sqrt_lambda1 == pytest.approx(np.sqrt(np.linalg.eigvalsh(cov)[-1]), rel=1e-9)
+
+
+def test_sqrt_largest_eigenvalue_oracle():
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        a = rng.normal(size=(2, 2))
+        cov = a @ a.T
+        expected = np.sqrt(np.linalg.eigvalsh(cov)[-1])
+        assert sqrt_largest_eigenvalue(cov[0, 0], cov[1, 1], cov[0, 1]) == pytest.approx(expected)
+
+
+class GatedRangeRate:
+    """The paper's Gaussian, but impossible beyond a 50 m range gate (a hard constraint)."""
+
+    columns = MEASUREMENT.columns
+    covariance = MEASUREMENT.covariance
+
+    def __init__(self, impossible_at=()):
+        self.impossible_at = set(impossible_at)
+
+    def loglik(self, particles, obs, time=None):
+        if time in self.impossible_at:
+            return np.full(particles.n, -np.inf)
+        ll = MEASUREMENT.loglik(particles, obs)
+        r = np.hypot(
+            np.asarray(obs["receiver_x"])[None, :] - particles.x[:, None],
+            np.asarray(obs["receiver_y"])[None, :] - particles.y[:, None],
+        )
+        outside = (np.abs(r - np.asarray(obs["range"])[None, :]) > 50).any(axis=1)
+        return np.where(outside, -np.inf, ll)
+
+
+def test_degenerate_weights_recover_on_the_range_ring_without_nan():
+    obs = circling_observations(duration=400.0)
+    bad_row = 31  # heard by auv1 only
+    obs.loc[bad_row, "range"] += 400.0  # no particle can explain it any more
+    pf = ParticleFilter(MOTIONS["velocity"], GatedRangeRate(), 2000, BOUNDS, rng=2)
+    with pytest.warns(RuntimeWarning, match="degenerate_weights"):
+        result = pf.run(obs, snapshot_times=[obs["time"][bad_row]])
+    assert np.isfinite(result.estimates.drop(columns="time").to_numpy()).all()
+    # the outlier empties the filter; so does the next (good) ping, which is off that ring
+    assert set(result.events["kind"]) == {"degenerate_weights"}
+    ring = f"{obs['range'][bad_row]:.1f} m range ring of receiver auv1"
+    assert ring in result.events["detail"].iloc[0]
+    assert result.events["time"].iloc[0] == np.rint(obs["time"][bad_row])
+    last = result.estimates.iloc[-1]
+    assert np.hypot(last["x"] - TAG[0], last["y"] - TAG[1]) < 10  # and it reconverges
+    snapshot = next(iter(result.snapshots.values()))
+    distance = np.hypot(
+        snapshot["x"] - obs["receiver_x"][bad_row], snapshot["y"] - obs["receiver_y"][bad_row]
+    )
+    assert np.all(np.abs(distance - obs["range"][bad_row]) < 50)
+    assert snapshot["weight"].sum() == pytest.approx(1.0)
+
+
+def test_degenerate_weights_fall_back_to_uniform_and_record_it():
+    obs = circling_observations(duration=200.0)
+    impossible = float(np.rint(obs["time"][5]))
+    pf = ParticleFilter(MOTIONS["hmm"], GatedRangeRate([impossible]), 1000, BOUNDS, rng=2)
+    with pytest.warns(RuntimeWarning):
+        result = pf.run(obs)
+    assert np.isfinite(result.estimates.drop(columns="time").to_numpy()).all()
+    assert result.events["detail"].tolist() == ["reinitialised uniformly in the bounds"]
+    row = result.estimates.set_index("time").loc[impossible]
+    assert row["sqrt_lambda1"] > 200 and row["n_eff"] == pytest.approx(1000)
+
+
+def test_ess_resampling_only_when_the_sample_degenerates():
+    obs = circling_observations(duration=200.0)
+    ticks = {
+        name: make_filter("velocity", **options).run(obs).estimates
+        for name, options in {
+            "always": {},
+            "half": {"resample_when": "ess", "ess_threshold": 0.5},
+            "never": {"resample_when": "ess", "ess_threshold": 1e-9},
+        }.items()
+    }
+    between = ~np.isin(ticks["always"]["time"], np.rint(obs["time"]))  # prediction-only ticks
+    np.testing.assert_allclose(ticks["always"]["n_eff"][between], 2000)
+    # resampled whenever the sample fell below half: never below half between corrections
+    assert np.all(ticks["half"]["n_eff"][between] >= 0.5 * 2000 - 1e-6)
+    assert np.any(ticks["half"]["n_eff"][between] < 2000 - 1e-6)  # and sometimes kept weights
+    assert ticks["never"]["n_eff"].iloc[-1] < 0.05 * 2000
+
+
+@pytest.mark.parametrize("scheme", ["systematic", "stratified", "residual"])
+def test_other_resampling_schemes_converge(scheme):
+    e = make_filter("velocity", resampling=scheme).run(circling_observations()).estimates
+    assert e["sqrt_lambda1"].iloc[-1] < 10
+    assert np.hypot(e["x"].iloc[-1] - TAG[0], e["y"].iloc[-1] - TAG[1]) < 10
+
+
+def test_snapshots_and_window():
+    obs = circling_observations(duration=100.0)
+    pf = make_filter("baseline")
+    with pytest.warns(RuntimeWarning, match="observations_outside_window"):
+        result = pf.run(obs, start=T0 + 20, end=T0 + 60, snapshot_times=[T0 + 20, T0 + 41.2])
+    assert result.estimates["time"].tolist() == [T0 + k for k in range(20, 61)]
+    assert sorted(result.snapshots) == [T0 + 20, T0 + 41]
+    for frame in result.snapshots.values():
+        assert len(frame) == 2000 and frame["weight"].sum() == pytest.approx(1.0)
+    assert result.events["kind"].tolist() == ["observations_outside_window"]
+    with pytest.raises(ValueError, match="outside the run"):
+        pf.run(obs, snapshot_times=[T0 - 5])
+
+
+def test_bad_observations_name_rows_and_columns():
+    obs = circling_observations(duration=100.0)
+    obs.loc[3, "range_rate"] = np.nan
+    with pytest.raises(ValueError, match=r"\['range_rate'\] at row\(s\) \[3\]"):
+        make_filter().run(obs)
+    with pytest.raises(ValueError, match="lack column"):
+        make_filter().run(obs.drop(columns="receiver_vx"))
+    with pytest.raises(ValueError, match="backend"):
+        make_filter(backend="cuda")
+
+
+def test_measurement_returning_nan_is_an_error_not_a_result():
+    class Broken:
+        def loglik(self, particles, obs, time=None):
+            return np.full(particles.n, np.nan)
+
+    pf = ParticleFilter(MOTIONS["baseline"], Broken(), 100, BOUNDS, rng=0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(ValueError, match="NaN"):
+            pf.run(circling_observations(duration=50.0))

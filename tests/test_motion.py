@@ -1,0 +1,302 @@
+import numpy as np
+import pytest
+from scipy import stats
+
+from hmmtrack import streams as rs
+from hmmtrack.hmm import Gamma, MovementHMM, VonMises
+from hmmtrack.motion import (
+    BaselineMotion,
+    HMMMotion,
+    VelocityMotion,
+    arc_displacement,
+    transition_for_step,
+)
+from hmmtrack.particles import Particles
+
+TRANSITION = np.array([[0.9, 0.1], [0.2, 0.8]])
+
+
+def movement_model(dt=10.0, transition=TRANSITION, step_sd=(1.0, 5.0), kappa=(1.0, 20.0)):
+    """A two-state model shaped like a shark's: slow tortuous state, fast directed state."""
+    return MovementHMM(
+        initial=np.array([0.5, 0.5]),
+        transition=np.asarray(transition, dtype=float),
+        step=Gamma(mean=np.array([2.0, 15.0]), sd=np.asarray(step_sd, dtype=float)),
+        angle=VonMises(mean=np.zeros(2), concentration=np.asarray(kappa, dtype=float)),
+        dt=dt,
+    )
+
+
+def particles_at(n, heading=0.3, speed=1.5, turn_rate=0.0, seed=0):
+    rng = np.random.default_rng(seed)
+    return Particles.from_state(
+        x=rng.uniform(-100, 100, n),
+        y=rng.uniform(-100, 100, n),
+        heading=np.broadcast_to(heading, (n,)),
+        speed=speed,
+        turn_rate=turn_rate,
+    )
+
+
+def advance(motion, p, n_steps, dt, seed=1):
+    """Compiled steps; returns the per-step weighted moments."""
+    streams = rs.new_streams(np.random.default_rng(seed), p.n)
+    return motion.advance(p, streams, n_steps, dt, p.normalised_weights(), (0.0, 0.0))
+
+
+# ----------------------------------------------------------------------------- arc
+
+
+def paper_arc(x, y, theta, v, omega, dt):
+    """The paper's eqs. mm_xc..mm_theta verbatim, in extended precision."""
+    x, y, theta, v, omega = (np.longdouble(a) for a in (x, y, theta, v, omega))
+    xc = x - v / omega * np.sin(theta)
+    yc = y + v / omega * np.cos(theta)
+    theta1 = theta + omega * dt
+    return xc + v / omega * np.sin(theta1), yc - v / omega * np.cos(theta1), theta1
+
+
+@pytest.mark.parametrize("omega", [-2.0, -0.3, -0.01, 1e-3, 0.02, 0.2, 0.26, 1.0, 3.0])
+@pytest.mark.parametrize("path", ["numpy", "compiled"])
+def test_arc_matches_the_papers_closed_form(omega, path):
+    theta = np.array([-2.5, -0.4, 0.0, 1.1, 3.0])
+    v, dt = 1.7, 1.0
+    p = Particles.from_state(x=np.full(5, 10.0), y=np.full(5, -4.0), heading=theta, speed=v)
+    p.turn_rate[:] = omega
+    motion = VelocityMotion(sigma_speed=0.0, sigma_turn_rate=0.0)
+    if path == "numpy":
+        motion.propagate(np.random.default_rng(0), p, dt)
+    else:
+        advance(motion, p, 1, dt)
+    x1, y1, theta1 = paper_arc(10.0, -4.0, theta, v, omega, dt)
+    np.testing.assert_allclose(p.x, x1.astype(float), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(p.y, y1.astype(float), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(np.cos(p.heading), np.cos(theta1.astype(float)), atol=1e-12)
+    np.testing.assert_allclose(p.cos_heading, np.cos(p.heading), atol=1e-14)
+    np.testing.assert_allclose(p.sin_heading, np.sin(p.heading), atol=1e-14)
+
+
+def test_straight_line_limit_is_exact_and_continuous():
+    theta = np.linspace(-np.pi, np.pi, 9)
+    c, s = np.cos(theta), np.sin(theta)
+    dx0, dy0 = arc_displacement(c, s, 2.0, np.zeros(9))
+    np.testing.assert_array_equal(dx0, 2.0 * c)
+    np.testing.assert_array_equal(dy0, 2.0 * s)
+    # tiny turns: the third-order expansion of the arc (error O(phi^4) < 1e-20)
+    for phi in (1e-14, 1e-9, 1e-5):
+        dx, dy = arc_displacement(c, s, 2.0, np.full(9, phi))
+        sinc, cosc = 1 - phi**2 / 6, phi / 2 - phi**3 / 24
+        np.testing.assert_allclose(dx, 2.0 * (c * sinc - s * cosc), rtol=0, atol=1e-15)
+        np.testing.assert_allclose(dy, 2.0 * (s * sinc + c * cosc), rtol=0, atol=1e-15)
+    # around the numpy path's series threshold (|phi| = 0.01): the closed form
+    for phi in (0.00999, 0.01, 0.01001):
+        dx, dy = arc_displacement(c, s, 2.0, np.full(9, phi))
+        x1, y1, _ = paper_arc(0.0, 0.0, theta, 2.0, phi, 1.0)
+        np.testing.assert_allclose(dx, x1.astype(float), rtol=0, atol=1e-13)
+        np.testing.assert_allclose(dy, y1.astype(float), rtol=0, atol=1e-13)
+    # the compiled kernel switches to its series at |phi| < 0.25: continuous across it
+    for omega in (0.0, 1e-12, 0.2499999, 0.25, 0.2500001):
+        p = particles_at(9, heading=theta)
+        p.turn_rate[:] = omega
+        x1, y1, _ = paper_arc(p.x, p.y, theta, 1.5, omega if omega else 1e-300, 1.0)
+        advance(VelocityMotion(0.0, 0.0), p, 1, 1.0)
+        if omega:
+            np.testing.assert_allclose(p.x, x1.astype(float), atol=1e-12)
+            np.testing.assert_allclose(p.y, y1.astype(float), atol=1e-12)
+        else:
+            start = particles_at(9, heading=theta)
+            np.testing.assert_allclose(p.x - start.x, 1.5 * c, rtol=0, atol=1e-13)
+            np.testing.assert_allclose(p.y - start.y, 1.5 * s, rtol=0, atol=1e-13)
+
+
+# ----------------------------------------------------------------------------- kernels == numpy
+
+
+@pytest.mark.parametrize(
+    "motion", [BaselineMotion(sigma=0.8), VelocityMotion(sigma_speed=0.2, sigma_turn_rate=0.1)]
+)
+def test_compiled_kernel_equals_numpy_with_the_same_draws(motion):
+    n, n_steps, dt = 500, 3, 2.0
+    reference = particles_at(n, heading=np.random.default_rng(5).uniform(-3, 3, n), turn_rate=0.05)
+    compiled = reference.copy()
+    streams = rs.new_streams(np.random.default_rng(7), n)
+    draws = streams.copy()
+    weights = np.random.default_rng(8).dirichlet(np.ones(n))
+    moments = motion.advance(compiled, streams, n_steps, dt, weights, (3.0, -2.0))
+    for k in range(n_steps):
+        motion.apply(reference, dt, rs.draw_normal_pairs(draws))
+        dx, dy = reference.x - 3.0, reference.y + 2.0
+        expected = [
+            weights @ dx,
+            weights @ dy,
+            weights @ dx**2,
+            weights @ dy**2,
+            weights @ (dx * dy),
+        ]
+        np.testing.assert_allclose(moments[k], expected, rtol=1e-10)
+    assert np.array_equal(draws, streams)  # the kernel used exactly these draws
+    for name in ("x", "y", "speed", "turn_rate", "cos_heading", "sin_heading", "heading"):
+        np.testing.assert_allclose(getattr(compiled, name), getattr(reference, name), atol=1e-9)
+
+
+def test_hmm_kernel_equals_numpy_on_a_nearly_deterministic_model():
+    """Identity transitions, tiny step sd, huge concentration: both paths give one path."""
+    model = movement_model(dt=4.0, transition=np.eye(2), step_sd=(1e-7, 1e-7), kappa=(1e12, 1e12))
+    model = MovementHMM(
+        initial=model.initial,
+        transition=model.transition,
+        step=model.step,
+        angle=VonMises(mean=np.array([0.3, -0.1]), concentration=np.array([1e12, 1e12])),
+        dt=4.0,
+    )
+    for variant in ("paper", "time_consistent"):
+        motion = HMMMotion(model, variant)
+        compiled = particles_at(200, heading=np.linspace(-3, 3, 200))
+        motion.initialise(np.random.default_rng(1), compiled)
+        reference = compiled.copy()
+        advance(motion, compiled, 7, 1.0)
+        for _ in range(7):
+            motion.propagate(np.random.default_rng(2), reference, 1.0)
+        assert np.array_equal(compiled.state, reference.state)
+        for name in ("x", "y", "speed", "turn_rate", "cos_heading", "sin_heading"):
+            np.testing.assert_allclose(getattr(compiled, name), getattr(reference, name), atol=1e-4)
+        np.testing.assert_allclose(compiled.time_since_draw, reference.time_since_draw)
+
+
+# ----------------------------------------------------------------------------- baseline
+
+
+@pytest.mark.parametrize("path", ["numpy", "compiled"])
+def test_baseline_moments(path):
+    n, sigma, dt = 100_000, 0.7, 4.0
+    p = particles_at(n)
+    x0, y0 = p.x.copy(), p.y.copy()
+    heading0 = p.heading.copy()
+    motion = BaselineMotion(sigma)
+    if path == "numpy":
+        motion.propagate(np.random.default_rng(3), p, dt)
+    else:
+        advance(motion, p, 1, dt)
+    dx, dy = p.x - x0, p.y - y0
+    sd = sigma * np.sqrt(dt)
+    assert stats.kstest(dx / sd, "norm").pvalue > 1e-3
+    assert stats.kstest(dy / sd, "norm").pvalue > 1e-3
+    np.testing.assert_allclose(p.speed * dt, np.hypot(dx, dy), rtol=1e-12)
+    np.testing.assert_allclose(p.heading, np.arctan2(dy, dx), atol=1e-12)
+    turn = (p.heading - heading0 + np.pi) % (2 * np.pi) - np.pi
+    np.testing.assert_allclose(p.turn_rate * dt, turn, atol=1e-9)
+    assert p.speed.mean() == pytest.approx(sd * np.sqrt(np.pi / 2) / dt, rel=0.01)
+
+
+def test_baseline_and_velocity_spread_does_not_depend_on_step():
+    """sigma is per sqrt(second): 12 steps of 1 s spread like 3 steps of 4 s."""
+    spread = {}
+    for dt in (1.0, 4.0):
+        p = particles_at(40_000)
+        x0 = p.x.copy()
+        advance(BaselineMotion(0.5), p, int(12 / dt), dt, seed=int(dt))
+        spread[dt] = np.var(p.x - x0)
+    assert spread[1.0] == pytest.approx(0.25 * 12, rel=0.03)
+    assert spread[4.0] == pytest.approx(0.25 * 12, rel=0.03)
+
+
+def test_velocity_increments_have_the_given_spread():
+    p = particles_at(100_000, speed=1.0, turn_rate=0.01)
+    advance(VelocityMotion(sigma_speed=0.3, sigma_turn_rate=0.02), p, 4, 1.0)
+    assert np.std(p.speed) == pytest.approx(0.3 * 2, rel=0.02)
+    assert np.mean(p.speed) == pytest.approx(1.0, abs=0.01)
+    assert np.std(p.turn_rate) == pytest.approx(0.02 * 2, rel=0.02)
+
+
+# ----------------------------------------------------------------------------- HMM
+
+
+@pytest.mark.parametrize("variant", ["paper", "time_consistent"])
+@pytest.mark.parametrize("path", ["numpy", "compiled"])
+def test_hmm_long_run_state_frequencies_are_stationary(variant, path):
+    model = movement_model(dt=3.0)
+    motion = HMMMotion(model, variant)
+    n = 20_000
+    p = particles_at(n)
+    rng = np.random.default_rng(4)
+    motion.initialise(rng, p)
+    p.state[:] = 0  # start far from the stationary distribution
+    if path == "numpy":
+        for _ in range(60):
+            motion.propagate(rng, p, 1.0)
+    else:
+        advance(motion, p, 60, 1.0)
+    stationary = model.stationary()
+    frequencies = np.bincount(p.state, minlength=2) / n
+    standard_error = np.sqrt(stationary * (1 - stationary) / n)
+    assert np.all(np.abs(frequencies - stationary) < 4 * standard_error)
+
+
+def test_hmm_speed_and_turn_rate_come_from_the_state_distributions():
+    model = movement_model(dt=5.0, transition=np.eye(2))
+    motion = HMMMotion(model, "paper")
+    p = particles_at(40_000)
+    motion.initialise(np.random.default_rng(1), p)
+    advance(motion, p, 1, 1.0)
+    for k in range(2):
+        in_state = p.state == k
+        step = p.speed[in_state] * model.dt
+        angle = p.turn_rate[in_state] * model.dt
+        assert (
+            stats.kstest(step, "gamma", args=(model.step.shape[k], 0, model.step.scale[k])).pvalue
+            > 1e-3
+        )
+        assert stats.kstest(angle, stats.vonmises(model.angle.concentration[k]).cdf).pvalue > 1e-3
+
+
+def _displacements(variant, dt, horizon=60.0, n=20_000, seed=0):
+    motion = HMMMotion(movement_model(dt=10.0), variant)
+    p = Particles.from_state(x=np.zeros(n), y=np.zeros(n), heading=np.zeros(n))
+    motion.initialise(np.random.default_rng(seed), p)
+    advance(motion, p, int(round(horizon / dt)), dt, seed=seed + 1)
+    return p.x, p.y
+
+
+def test_time_consistent_displacement_statistics_do_not_depend_on_the_prediction_step():
+    reference = _displacements("time_consistent", 1.0, seed=10)
+    msd_reference = np.mean(reference[0] ** 2 + reference[1] ** 2)
+    for i, dt in enumerate((2.0, 5.0, 20.0)):
+        x, y = _displacements("time_consistent", dt, seed=20 + i)
+        msd = np.mean(x**2 + y**2)
+        assert msd == pytest.approx(msd_reference, rel=0.03), dt
+        assert np.mean(x) == pytest.approx(np.mean(reference[0]), rel=0.03), dt
+        assert stats.ks_2samp(np.hypot(x, y), np.hypot(*reference)).pvalue > 1e-3, dt
+
+
+def test_paper_variant_is_the_fitted_model_only_at_the_fitted_step():
+    """At the fitted step both variants are one process (same draws, same paths); at 1 s the
+    paper's variant moves differently -- the contrast that motivates the time-consistent one."""
+    paper = _displacements("paper", 10.0, seed=30)
+    consistent = _displacements("time_consistent", 10.0, seed=30)
+    np.testing.assert_array_equal(paper[0], consistent[0])
+    np.testing.assert_array_equal(paper[1], consistent[1])
+    x1, y1 = _displacements("paper", 1.0, seed=31)
+    # many times the 3 % tolerance of the time-consistent test above
+    assert np.mean(paper[0] ** 2 + paper[1] ** 2) > 1.4 * np.mean(x1**2 + y1**2)
+
+
+def test_matrix_root_and_its_fallback():
+    root = transition_for_step(TRANSITION, 0.2)
+    np.testing.assert_allclose(np.linalg.matrix_power(root, 5), TRANSITION, atol=1e-12)
+    assert np.all(root >= 0)
+    np.testing.assert_allclose(root.sum(axis=1), 1.0)
+    np.testing.assert_array_equal(transition_for_step(TRANSITION, 2.0), TRANSITION @ TRANSITION)
+    flip = np.array([[0.1, 0.9], [0.9, 0.1]])  # eigenvalue -0.8: no real stochastic root
+    with pytest.warns(UserWarning, match="not embeddable"):
+        fallback = transition_for_step(flip, 0.5)
+    assert np.all(fallback >= 0)
+    np.testing.assert_allclose(fallback.sum(axis=1), 1.0)
+
+
+def test_bad_models_are_refused():
+    with pytest.raises(ValueError, match="variant"):
+        HMMMotion(movement_model(), "fast")
+    with pytest.raises(ValueError, match="time step"):
+        HMMMotion(movement_model(dt=float("nan")))
+    with pytest.raises(ValueError, match="sigma"):
+        BaselineMotion(sigma=-1.0)

@@ -1,0 +1,86 @@
+"""``hmmtrack reproduce --quick`` writes the summary, the trial tables and every figure."""
+
+from __future__ import annotations
+
+import pandas as pd
+import pytest
+
+from hmmtrack.cli import main
+from hmmtrack.experiments import MOTIONS
+from hmmtrack.report import PAPER, QUICK
+
+FIGURES = (
+    "datasets.png",
+    "white_shark_hmm.png",
+    "motion_model_comparison.png",
+    "example_stationary-tag.png",
+    "example_swimmer.png",
+    "example_shark-pursuit.png",
+    "measurement_loss.png",
+    "depth.png",
+)
+
+
+@pytest.fixture(scope="module")
+def quick_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("reports")
+    code = main(
+        [
+            "reproduce",
+            "--quick",
+            "--out",
+            str(out),
+            "--trials",
+            "1",
+            "--particles",
+            "60",
+            "--workers",
+            "1",
+            "--seed",
+            "3",
+            "--no-progress",
+        ]
+    )
+    assert code == 0
+    return out
+
+
+def test_quick_run_writes_every_figure(quick_run):
+    for name in FIGURES:
+        path = quick_run / name
+        assert path.is_file(), f"missing {name}"
+        assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+        assert 10_000 < path.stat().st_size < 1_000_000
+
+
+def test_quick_run_tables_hold_every_trial(quick_run):
+    comparison = pd.read_csv(quick_run / "motion_model_trials.csv")
+    assert len(comparison) == 3 * len(MOTIONS)  # one trial per model per dataset
+    assert set(comparison["scenario"]) == set(PAPER["datasets"])
+    assert (comparison["n_particles"] == 60).all()
+    loss = pd.read_csv(quick_run / "loss_sweep_trials.csv")
+    assert sorted(loss["loss_fraction"]) == sorted(QUICK.loss_fractions)
+    assert (loss["motion"] == "hmm").all()
+    depth = pd.read_csv(quick_run / "depth_trials.csv")
+    assert sorted(depth["depth_correction"]) == [False, True]
+
+
+def test_summary_puts_our_numbers_beside_the_papers(quick_run):
+    text = (quick_run / "summary.md").read_text()
+    assert "synthetic analogues" in text
+    for number in ("5.42", "12.31", "970", "13.6", "43.8", "1342", "391.6", "18.4"):
+        assert number in text, number
+    comparison = pd.read_csv(quick_run / "motion_model_trials.csv")
+    hmm_shark = comparison[
+        (comparison["scenario"] == "shark-pursuit") & (comparison["motion"] == "hmm")
+    ]
+    ours = hmm_shark["mean_error_after_convergence"].iloc[0]
+    assert f"{ours:.3g}" in text
+    for name in FIGURES:
+        assert f"]({name})" in text
+    assert "The paper's findings on our analogues" in text
+
+
+def test_bad_arguments_are_reported_without_traceback(capsys):
+    assert main(["reproduce", "--trials", "0"]) == 2
+    assert "--trials must be a positive integer" in capsys.readouterr().err
