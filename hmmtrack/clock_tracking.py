@@ -100,7 +100,11 @@ def ambiguity(x, y, weights, min_separation: float = 20.0) -> tuple[float, float
     mx, my = w @ x, w @ y
     dx, dy = x - mx, y - my
     cov = np.array([[w @ (dx * dx), w @ (dx * dy)], [w @ (dx * dy), w @ (dy * dy)]])
-    _, vectors = np.linalg.eigh(cov)
+    values, vectors = np.linalg.eigh(cov)
+    if values[1] < 0.05 * 0.95 * min_separation**2:
+        # two clusters this far apart, the smaller with 5 % of the weight, would spread
+        # the cloud at least this much along the axis joining them
+        return 0.0, 0.0, False
     u = dx * vectors[0, 1] + dy * vectors[1, 1]
     order = np.argsort(u)
     cumulative = np.cumsum(w[order])
@@ -163,11 +167,11 @@ class SilenceModel:
     receivers: ReceiverTracks
     detection: LogisticDetection
     heard: dict[str, np.ndarray]
-    tolerance: float = 0.1
+    tolerance: float = 1.0
 
     @classmethod
     def from_observations(
-        cls, observations: pd.DataFrame, receivers: ReceiverTracks, detection, tolerance=0.1
+        cls, observations: pd.DataFrame, receivers: ReceiverTracks, detection, tolerance=1.0
     ) -> SilenceModel:
         """Build from the arrival-time observations table the filter runs on."""
         heard = {
@@ -303,6 +307,9 @@ class ClockAwareFilter(ParticleFilter):
             self.measurement.sound_speed,
         )
         p.extra["emission_time"] = arrival - r / self.measurement.sound_speed
+        if not self._clock_started:
+            # silences count from the first ping on: earlier pings may predate the tag
+            self._silence_from = float(np.min(p.emission_time))
         if not reacquire:
             p.extra["period"] = np.full(p.n, self.clock.nominal_period)
             self._clock_covariance = self.clock.initial_covariance(
@@ -507,6 +514,7 @@ class ClockAwareFilter(ParticleFilter):
 
     def resample_if_due(self) -> bool:
         """Resample per ``resample_when``, keeping the ancestry for the smoother."""
+        self._push_pending()  # the smoother records the corrected, not yet resampled, step
         p = self.particles
         if self.resample_when == "ess":
             w = p.normalised_weights()

@@ -131,6 +131,12 @@ def test_errors_are_reported_without_traceback(track_file, tmp_path, capsys):
     assert "bad.json" in err and "'version'" in err
     code = main(["fit", str(tmp_path / "absent.csv"), "-o", str(tmp_path / "m.json")])
     assert code == 2
+    model_path = tmp_path / "km.json"
+    main(["fit", str(track_file), "--scale", "1000", "--starts", "1", "-o", str(model_path)])
+    capsys.readouterr()
+    code = main(["decode", str(track_file), "--model", str(model_path), "-o", str(bad)])
+    assert code == 2
+    assert "fitted to steps in km; --scale 1 gives m" in capsys.readouterr().err
 
 
 def test_fit_reads_movebank_lon_lat(track_file, tmp_path):

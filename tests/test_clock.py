@@ -39,28 +39,22 @@ def test_receiver_clock_drift_accumulates_linearly():
         ReceiverClock(offset=np.nan)
 
 
-def test_advance_without_noise_lands_on_the_last_emission():
-    model = EmissionClockModel(nominal_period=8.0, period_step_sd=0.0, phase_step_sd=0.0)
-    emission = np.array([0.0, 3.0, 7.9, 8.0])
-    period = np.array([8.0, 8.0, 2.0, 8.0])
-    model.advance(np.random.default_rng(0), emission, period, 100.0)
-    # last emission at or before t = 100: 96, 99, 99.9, 96
-    np.testing.assert_allclose(emission, [96.0, 99.0, 99.9, 96.0])
-    np.testing.assert_allclose(period, [8.0, 8.0, 2.0, 8.0])
-
-
-def test_period_random_walk_has_the_stated_variance():
-    sd = 1e-4
-    model = EmissionClockModel(nominal_period=2.0, period_step_sd=sd, phase_step_sd=0.0)
-    n = 20_000
-    emission = np.zeros(n)
-    period = np.full(n, 2.0)
-    model.advance(np.random.default_rng(1), emission, period, 50.0)  # 25 pings each
-    variance = np.var(period - 2.0)
-    # chi-square interval at 1e-6 for the sample variance of 25 * sd^2
-    low, high = stats.chi2.ppf([1e-6, 1 - 1e-6], n - 1) / (n - 1)
-    assert low * 25 * sd**2 < variance < high * 25 * sd**2
-    assert np.all(emission <= 50.0) and np.all(emission + period > 50.0)
+def test_predicted_clock_covariance_matches_simulated_clocks():
+    """Oracle: simulate the ping-to-ping recursion of many clocks and compare covariances."""
+    model = EmissionClockModel(nominal_period=8.0, period_step_sd=2e-4, phase_step_sd=5e-4)
+    start = np.array([[1e-6, 2e-7], [2e-7, 4e-6]])
+    rng = np.random.default_rng(1)
+    n = 200_000
+    clock = rng.multivariate_normal([0.0, 8.0], start, size=n)
+    for _ in range(6):
+        clock[:, 0] += clock[:, 1] + 5e-4 * rng.standard_normal(n)
+        clock[:, 1] += 2e-4 * rng.standard_normal(n)
+    want = np.cov(clock.T)
+    got = model.predict_covariance(start, 6)
+    np.testing.assert_allclose(got, want, rtol=0.02)
+    np.testing.assert_array_equal(model.predict_covariance(start, 0), start)
+    with pytest.raises(ValueError, match="n_pings"):
+        model.predict_covariance(start, -1)
 
 
 def test_emission_clock_model_refuses_bad_settings():

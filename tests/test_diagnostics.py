@@ -210,3 +210,29 @@ def test_plots_draw_the_diagnostics_and_densities():
     ax = plots.decoded_track_plot(track, data["state"].to_numpy())
     assert sum(len(c.get_segments()) for c in ax.collections) == len(data) - 2
     matplotlib.pyplot.close("all")
+
+
+def test_confidence_intervals_of_covariate_coefficients():
+    rng = np.random.default_rng(17)
+    n = 4000
+    values = {"c": rng.normal(size=n)}
+    true = MovementHMM(
+        initial=np.array([0.5, 0.5]),
+        transition=None,
+        coefficients=np.array([[-2.0, 1.0], [-1.5, -0.5]]),
+        covariate_names=("c",),
+        covariate_scaling={"c": (0.0, 1.0)},
+        step=TRUE.step,
+        angle=TRUE.angle,
+    )
+    data = true.simulate(rng, n, values).assign(c=values["c"])
+    model = MovementHMMEstimator(2, covariates=["c"], seed=1).fit(data).model_
+    table = diagnostics.confidence_intervals(model, data).set_index(["parameter", "index"])
+    beta = table.loc["beta.c"]
+    assert list(beta.index) == ["1->2", "2->1"]
+    # the slope in standardised units: true slope times the sample sd of c
+    sd = model.covariate_scaling["c"][1]
+    for index, slope in zip(["1->2", "2->1"], true.coefficients[:, 1] * sd, strict=True):
+        lower, upper, se = beta.loc[index, ["lower", "upper", "se"]]
+        assert lower < slope < upper and 0.02 < se < 0.3
+    assert "beta.intercept" in diagnostics.summary(model, table.reset_index())

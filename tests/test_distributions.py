@@ -433,6 +433,37 @@ def test_angle_working_round_trip_property(mean, conc, family):
     assert back.concentration[0] == pytest.approx(conc, rel=1e-8)
 
 
+# --- prepared observations ----------------------------------------------------------------
+
+
+def test_prepared_observations_give_the_same_results():
+    rng = np.random.default_rng(12)
+    states = rng.integers(0, 2, 500)
+    w = rng.dirichlet([1.0, 1.0], size=500)
+    steps = STEP_EXAMPLES[0].sample(rng, states)
+    steps[[3, 40]] = np.nan
+    steps[[7, 8]] = 0.0
+    angles = ANGLE_EXAMPLES[1].sample(rng, states)
+    angles[[5, 99]] = np.nan
+    prepared_steps = D.prepare_steps(steps)
+    prepared_angles = D.VonMises([0.0], [1.0]).prepare(angles + 2 * np.pi)  # wrapped on the way
+    for dist in STEP_EXAMPLES:  # one preparation serves every step family
+        inflated = dist._replace(zero_mass=np.array([0.1, 0.2]))
+        np.testing.assert_array_equal(inflated.logpdf(prepared_steps), inflated.logpdf(steps))
+        np.testing.assert_array_equal(inflated.cdf(prepared_steps), inflated.cdf(steps))
+        assert inflated.fit_weighted(prepared_steps, w) == inflated.fit_weighted(steps, w)
+        with pytest.raises(ValueError, match="need zero-inflation"):
+            dist.logpdf(prepared_steps)
+    for dist in ANGLE_EXAMPLES:
+        np.testing.assert_allclose(dist.logpdf(prepared_angles), dist.logpdf(angles), atol=1e-12)
+        np.testing.assert_allclose(dist.cdf(prepared_angles), dist.cdf(angles), atol=1e-12)
+        a, b = dist.fit_weighted(prepared_angles, w), dist.fit_weighted(angles, w)
+        np.testing.assert_allclose(a.to_working(), b.to_working(), rtol=1e-9, atol=1e-12)
+    assert D.prepare_steps(prepared_steps) is prepared_steps
+    with pytest.raises(ValueError, match="read-only"):
+        prepared_steps.log_safe[0] = 0.0
+
+
 # --- starting values ------------------------------------------------------------------------
 
 

@@ -31,12 +31,14 @@ def _table(rows):
 def test_child_seeds_equal_spawned_children_and_do_not_depend_on_call_order():
     root = np.random.SeedSequence(123)
     spawned = np.random.SeedSequence(123).spawn(4)
-    later = ex._child(root, 3)
-    earlier = ex._child(root, 0)
+    later = ex.child_seed(root, 3)
+    earlier = ex.child_seed(root, 0)
     for got, want in ((earlier, spawned[0]), (later, spawned[3])):
         np.testing.assert_array_equal(got.generate_state(4), want.generate_state(4))
     grand = np.random.SeedSequence(123).spawn(3)[2].spawn(2)[1]
-    np.testing.assert_array_equal(ex._child(root, 2, 1).generate_state(4), grand.generate_state(4))
+    np.testing.assert_array_equal(
+        ex.child_seed(root, 2, 1).generate_state(4), grand.generate_state(4)
+    )
 
 
 def test_experiment_seed_refuses_a_generator():
@@ -187,7 +189,7 @@ def test_loss_sweep_thins_detections_evenly(small_scenarios):
     assert sweep["loss_fraction"].tolist() == [0.0, 0.5, 1.0]
     # the half-loss trial is the trial of a scenario whose detections were thinned by hand
     thinned = replace(shark, detections=thin_evenly(shark.detections, 0.5))
-    seed = ex._child(ex.experiment_seed(2), 1, 1, 0)
+    seed = ex.child_seed(ex.experiment_seed(2), 1, 1, 0)
     by_hand = ex.run_trial(thinned, "hmm", seed, N_PARTICLES)
     half = sweep.iloc[1]
     assert half["mean_error_after_convergence"] == by_hand.mean_error_after_convergence

@@ -273,3 +273,12 @@ def test_observations_from_frame_lengths_and_errors():
         Observations.from_frame(frame.drop(columns="angle"))
     with pytest.raises(ValueError, match=r"negative values at rows \[1\]"):
         Observations.from_frame(frame.assign(step=[1, -2, 0, 3, 4]))
+
+
+def test_constructor_checks_shapes():
+    with pytest.raises(ValueError, match=r"transition has shape \(3, 3\); expected \(2, 2\)"):
+        two_state_model(transition=np.full((3, 3), 1 / 3))
+    with pytest.raises(ValueError, match=r"angle has shape \(3,\); expected \(2,\)"):
+        two_state_model(angle=VonMises(np.zeros(3), np.ones(3)))
+    with pytest.raises(ValueError, match="exactly one of 'transition' and 'coefficients'"):
+        two_state_model(coefficients=np.zeros((2, 1)))

@@ -84,3 +84,52 @@ def test_summary_puts_our_numbers_beside_the_papers(quick_run):
 def test_bad_arguments_are_reported_without_traceback(capsys):
     assert main(["reproduce", "--trials", "0"]) == 2
     assert "--trials must be a positive integer" in capsys.readouterr().err
+
+
+def _trials(errors: dict[str, list[float]], scenario: str = "shark-pursuit") -> pd.DataFrame:
+    rows = [
+        {
+            "scenario": scenario,
+            "motion": motion,
+            "trial": k,
+            "loss_fraction": 0.0,
+            "depth_correction": False,
+            "n_particles": 10,
+            "time_to_convergence": 30.0,
+            "converged": True,
+            "mean_error_after_convergence": e,
+            "rmse_after_convergence": e,
+            "runtime": 0.0,
+        }
+        for motion, values in errors.items()
+        for k, e in enumerate(values)
+    ]
+    return pd.DataFrame(rows)
+
+
+def test_findings_hold_on_paper_like_tables_and_fail_otherwise():
+    from hmmtrack.report import check_findings
+
+    paper_like = _trials({"baseline": [900.0, 1100.0], "velocity": [30.0, 35.0], "hmm": [12, 15]})
+    verdicts = {f.claim: f.holds for f in check_findings(paper_like, None)}
+    assert all(verdicts.values()) and len(verdicts) == 2
+    # the baseline does not diverge, and the velocity model beats the HMM
+    unlike = _trials({"baseline": [40.0, 60.0], "velocity": [10.0, 11.0], "hmm": [12, 15]})
+    findings = check_findings(unlike, None)
+    assert [f.holds for f in findings] == [False, False]
+    assert "velocity 10.5 m" in findings[0].evidence
+
+
+def test_loss_findings_use_the_paper_bands():
+    from hmmtrack.report import check_findings
+
+    def sweep(error_by_fraction):
+        table = _trials({"hmm": list(error_by_fraction.values())})
+        return table.assign(loss_fraction=list(error_by_fraction))
+
+    usable = sweep({0.0: 15.0, 0.1: 16.0, 0.5: 40.0, 0.8: 60.0, 0.9: 400.0, 1.0: 1800.0})
+    loss = {f.claim: f.holds for f in check_findings(None, usable)}
+    assert list(loss.values())[1:] == [True, True]
+    broken = sweep({0.0: 15.0, 0.5: 400.0, 0.9: 300.0})
+    loss = {f.claim: f.holds for f in check_findings(None, broken)}
+    assert list(loss.values())[1:] == [False, False]

@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from hmmtrack import metrics, scenarios, tracking
+from hmmtrack import metrics, ranging, scenarios, tracking
 from hmmtrack.config import TrackingConfig
 from hmmtrack.receivers import ReceiverTracks
 
@@ -193,3 +193,40 @@ def test_bounds_in_another_frame_are_refused(stationary):
     config = scenario_config(stationary, bounds=(1e5, 1e5 + 300, 0.0, 300.0))
     with pytest.raises(ValueError, match="are the bounds in the receivers' frame"):
         tracking.track(stationary.detections, stationary.receivers, config, "baseline", seed=0)
+
+
+def test_expected_measurements_hand_values():
+    observations = pd.DataFrame(
+        {
+            "time": [0.0, 10.0],
+            "receiver_x": [0.0, 0.0],
+            "receiver_y": [0.0, 0.0],
+            "receiver_vx": [1.0, 0.0],
+            "receiver_vy": [0.0, 0.0],
+        }
+    )
+    fixed = pd.DataFrame({"time": [np.nan], "x": [3.0], "y": [4.0]})
+    # r = 5; r_dot = ((0 - 3)(1 - 0) + (0 - 4)(0 - 0)) / 5 = -0.6
+    np.testing.assert_allclose(
+        tracking.expected_measurements(observations, fixed), [[5.0, -0.6], [5.0, 0.0]]
+    )
+    # a tag moving at (0, 0.5) m/s from (3, 4): at 10 s it is at (3, 9), moving away
+    moving = pd.DataFrame({"time": [0.0, 20.0], "x": [3.0, 3.0], "y": [4.0, 14.0]})
+    expected = [[5.0, (-3 * 1 + -4 * -0.5) / 5], [np.hypot(3, 9), (-9 * -0.5) / np.hypot(3, 9)]]
+    np.testing.assert_allclose(tracking.expected_measurements(observations, moving), expected)
+
+
+def test_measurement_covariance_from_a_simulation(stationary):
+    """Σ_z from the scenario's truth: range error of the logged boat fix, small rate error."""
+    observations = tracking.build_observations(
+        stationary.detections, stationary.receivers, scenario_config(stationary)
+    )
+    rated = observations[observations["range_rate"].notna()]
+    sigma = ranging.estimate_measurement_covariance(
+        rated[["range", "range_rate"]], tracking.expected_measurements(rated, stationary.truth)
+    )
+    # the hydrophones' logged positions carry 1.5 m GPS noise and the tag 0.1 ms jitter, so
+    # range errors of a few metres and range-rate errors of a few tenths of a m/s; the
+    # default Σ_z (5 m, 0.5 m/s) covers them
+    assert 0.1 < np.sqrt(sigma[0, 0]) < 5.0
+    assert 0.01 < np.sqrt(sigma[1, 1]) < 0.5

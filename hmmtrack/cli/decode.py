@@ -7,7 +7,9 @@ Example::
 reads and prepares the tracks with the same options as ``hmmtrack fit``, loads the model file,
 and writes one row per fix: the track columns, ``segment``, ``step``, ``angle``, the Viterbi
 ``state`` (1 = the state with the smallest mean step, as moveHMM numbers them) and
-``p_state1`` ... ``p_stateK`` (posterior probabilities). Times are written as ISO 8601 UTC.
+``p_state1`` ... ``p_stateK`` (posterior probabilities). Times are written as ISO 8601 UTC;
+lengths (``x``, ``y``, ``step``) are in the unit set by ``--scale`` (metres by default), as the
+model was fitted.
 """
 
 from __future__ import annotations
@@ -17,7 +19,7 @@ import argparse
 import numpy as np
 
 from hmmtrack import io
-from hmmtrack.cli.fit import add_track_arguments, read_prepared
+from hmmtrack.cli.fit import add_track_arguments, read_prepared, step_unit
 from hmmtrack.hmm import MovementHMM
 
 
@@ -35,6 +37,11 @@ def register(subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     model = MovementHMM.load(args.model)
+    if model.step_unit != step_unit(args.scale):
+        raise ValueError(
+            f"{args.model} was fitted to steps in {model.step_unit}; --scale {args.scale:g} gives "
+            f"{step_unit(args.scale)} (pass the --scale used with hmmtrack fit)"
+        )
     prepared = read_prepared(args)
     states = model.viterbi(prepared)
     probabilities = model.state_probabilities(prepared)

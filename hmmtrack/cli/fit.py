@@ -57,6 +57,11 @@ def _column(value: str | None, default: str | None) -> str | None:
     return None if value.lower() == "none" else value
 
 
+def step_unit(scale: float) -> str:
+    """Name of the length unit of ``--scale`` metres (``"m"``, ``"km"`` or ``"<scale> m"``)."""
+    return {1.0: "m", 1000.0: "km"}.get(scale, f"{scale:g} m")
+
+
 def read_prepared(args: argparse.Namespace) -> pd.DataFrame:
     """Read and prepare the tracks named by :func:`add_track_arguments` options."""
     if args.format == "movebank":
@@ -119,7 +124,7 @@ def run(args: argparse.Namespace) -> int:
         n_starts=args.starts,
         seed=args.seed,
         n_jobs=args.jobs,
-        step_unit={1.0: "m", 1000.0: "km"}.get(args.scale, f"{args.scale:g} m"),
+        step_unit=step_unit(args.scale),
     ).fit(prepared)
     model = estimator.model_
     model.save(args.output)

@@ -146,14 +146,16 @@ def working_hessian(likelihood: fit.WorkingLikelihood, theta: np.ndarray, step: 
     return 0.5 * (hessian + hessian.T)
 
 
-def natural_parameters(params: fit.Parameters) -> tuple[list[tuple], np.ndarray]:
+def natural_parameters(
+    params: fit.Parameters, covariate_names=()
+) -> tuple[list[tuple], np.ndarray]:
     """Names and values of the natural parameters.
 
     Returns
     -------
     names : list of (parameter, index) tuples
-        ``("step.mean", "1")``, ``("transition", "1->2")``, ``("beta.dist_water", "1->2")``...
-        states numbered from 1 as moveHMM prints them.
+        ``("step.mean", "1")``, ``("transition", "1->2")``, ``("beta.intercept", "1->2")``,
+        ``("beta.dist_water", "1->2")``...; states numbered from 1 as moveHMM prints them.
     values : ndarray, shape (n,)
     """
     names, values = [], []
@@ -171,9 +173,9 @@ def natural_parameters(params: fit.Parameters) -> tuple[list[tuple], np.ndarray]
                 values.append(params.transition[i, j])
     else:
         rows, cols = np.nonzero(~np.eye(k, dtype=bool))
-        for c in range(params.coefficients.shape[1]):
+        for c, covariate in enumerate(("intercept", *covariate_names)):
             for r, (i, j) in enumerate(zip(rows, cols, strict=True)):
-                names.append((f"beta.{c}", f"{i + 1}->{j + 1}"))
+                names.append((f"beta.{covariate}", f"{i + 1}->{j + 1}"))
                 values.append(params.coefficients[r, c])
     for i in range(k):
         names.append(("initial", str(i + 1)))
@@ -197,22 +199,21 @@ def confidence_intervals(model: MovementHMM, data: pd.DataFrame, level: float = 
     -------
     DataFrame
         Columns ``parameter``, ``index``, ``estimate``, ``se``, ``lower``, ``upper``.
-        Coefficient rows are named ``beta.0`` (intercept), ``beta.1``... in the order of
-        ``model.covariate_names``. A parameter on the boundary (e.g. a zero mass of 0) gets
-        an interval that the working scale makes very wide or degenerate.
+        Coefficient rows are named ``beta.intercept`` and ``beta.<covariate>``. A parameter
+        on the boundary (e.g. a zero mass of 0) gets a degenerate interval.
     """
     params = fit.parameters_of(model)
     observations = Observations.from_frame(data, model.covariate_names)
     likelihood = fit.WorkingLikelihood(params, fit.fit_data(observations, model.covariate_scaling))
     theta = likelihood.pack(params)
     covariance = np.linalg.pinv(-working_hessian(likelihood, theta))
-    names, values = natural_parameters(params)
+    names, values = natural_parameters(params, model.covariate_names)
     jacobian = np.empty((values.size, theta.size))
     for i in range(theta.size):
         shift = np.zeros(theta.size)
         shift[i] = 1e-6
-        up = natural_parameters(likelihood.unpack(theta + shift))[1]
-        down = natural_parameters(likelihood.unpack(theta - shift))[1]
+        up = natural_parameters(likelihood.unpack(theta + shift), model.covariate_names)[1]
+        down = natural_parameters(likelihood.unpack(theta - shift), model.covariate_names)[1]
         jacobian[:, i] = (up - down) / 2e-6
     se = np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", jacobian, covariance, jacobian), 0.0))
     lower, upper = _interval(names, values, se, stats.norm.ppf(0.5 + level / 2))
@@ -284,15 +285,11 @@ def summary(model: MovementHMM, intervals: pd.DataFrame | None = None) -> str:
         "",
     ]
     if intervals is None:
-        names, values = natural_parameters(fit.parameters_of(model))
+        names, values = natural_parameters(fit.parameters_of(model), model.covariate_names)
         intervals = pd.DataFrame(
             {"parameter": [n for n, _ in names], "index": [i for _, i in names], "estimate": values}
         )
-    table = intervals.copy()
-    for i, name in enumerate(model.covariate_names, start=1):
-        table["parameter"] = table["parameter"].replace(f"beta.{i}", f"beta.{name}")
-    table["parameter"] = table["parameter"].replace("beta.0", "beta.intercept")
-    lines.append(table.to_string(index=False, float_format=lambda v: f"{v:.6g}"))
+    lines.append(intervals.to_string(index=False, float_format=lambda v: f"{v:.6g}"))
     lines.append("")
     lines.append("transition matrix" + (" at the covariate means" if model.covariate_names else ""))
     gamma = model.transition_matrix()

@@ -108,7 +108,8 @@ class Parameters:
     def log_transition(self, data: FitData) -> np.ndarray:
         """``(K, K)`` or, with covariates, ``(T-1, K, K)`` (entry t: row t -> t+1)."""
         if self.coefficients is None:
-            return np.log(np.maximum(self.transition, _TINY))
+            with np.errstate(divide="ignore"):
+                return np.log(self.transition)
         return cov.log_transition_matrices(self.coefficients, data.design[1:])
 
     def log_likelihood_matrix(self, data: FitData) -> np.ndarray:
@@ -134,6 +135,7 @@ class Parameters:
 
 
 def _permute_distribution(dist, order: np.ndarray):
+    """Reorder every per-state list of a distribution's dict (its ``(K,)`` parameters)."""
     document = dist.to_dict()
     k = dist.n_states
     for key, value in document.items():

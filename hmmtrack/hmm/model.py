@@ -168,6 +168,19 @@ class MovementHMM:
                     f"coefficients have {coefficients.shape[1]} columns; expected 1 + "
                     f"{len(self.covariate_names)} covariates"
                 )
+        k = initial.shape[0] if initial.ndim == 1 else -1
+        shapes = {
+            "initial": (initial.shape, (k,)),
+            "step": ((self.step.n_states,), (k,)),
+            "angle": ((self.angle.n_states,), (k,)),
+        }
+        if self.transition is not None:
+            shapes["transition"] = (self.transition.shape, (k, k))
+        else:
+            shapes["coefficients"] = (self.coefficients.shape[:1], (k * (k - 1),))
+        for name, (shape, expected) in shapes.items():
+            if shape != expected:
+                raise ValueError(f"{name} has shape {shape}; expected {expected} for K = {k}")
         object.__setattr__(self, "covariate_names", tuple(self.covariate_names))
         object.__setattr__(
             self,

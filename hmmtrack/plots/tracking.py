@@ -2,9 +2,9 @@
 
 * :func:`plot_error_over_time` — position error against seconds since the start, with the
   time to convergence marked;
-* :func:`plot_particles` — the particles at one instant (yellow), the estimated track so
-  far (gold), the true position (green), the hydrophones (orange, blue, ...) and their
-  latest measured ranges drawn as circles around them;
+* :func:`plot_particles` — the particles at one instant (yellow, area ∝ weight), the
+  estimated track so far (gold), the true position (green), the hydrophones (orange, blue,
+  ...) and their latest measured ranges drawn as circles around them;
 * :func:`plot_tracking_run` — the composite: error over time on top, snapshots below.
 
 They draw what :func:`hmmtrack.tracking.track` and :mod:`hmmtrack.metrics` return and
@@ -109,7 +109,7 @@ def plot_particles(
     Parameters
     ----------
     snapshot : pandas.DataFrame
-        Particles: ``x``, ``y`` (m), ``weight``.
+        Particles: ``x``, ``y`` (m), ``weight`` (normalised; drawn as the marker area).
     receivers : pandas.DataFrame
         Receiver positions table (``receiver``, ``time``, ``x``, ``y``).
     truth : pandas.DataFrame, optional
@@ -132,8 +132,10 @@ def plot_particles(
     """
     if ax is None:
         _, ax = plt.subplots(figsize=(5, 5))
+    # marker area proportional to the weight (2 pt² for an average particle)
+    area = np.clip(2.0 * len(snapshot) * snapshot["weight"].to_numpy(), 0.05, 30.0)
     ax.scatter(
-        snapshot["x"], snapshot["y"], s=2, color=PARTICLE_COLOUR, alpha=0.5, label="particles"
+        snapshot["x"], snapshot["y"], s=area, color=PARTICLE_COLOUR, alpha=0.5, label="particles"
     )
     if estimates is not None and time is not None:
         done = estimates[estimates["time"] <= time + 1e-9]

@@ -1,0 +1,98 @@
+"""Monte Carlo experiments of the paper's "Results" section.
+
+* :func:`run_trial` — one particle-filter run on a scenario with one motion model, scored
+  with :mod:`hmmtrack.metrics` (time to convergence, the paper's "RMSE", which is a mean
+  error after convergence, and the true RMSE after convergence);
+* :func:`compare_motion_models` — many trials per motion model per scenario (the paper's
+  300 trials per dataset), as a tidy table;
+* :func:`loss_sweep` and :func:`loss_bands` — detections thinned evenly from 0 to 100 %
+  on the shark pursuit, summarised in the paper's bands (<20 %, 20–80 %, >80 %);
+* :func:`depth_analysis` — the paper's percent-error curve of ignoring depth, and a
+  diving shark tracked with and without the depth correction.
+
+Seeding: one experiment seed becomes a :class:`numpy.random.SeedSequence`; the scenario
+datasets and the trials get children of it by ``SeedSequence.spawn`` (scenario ``i``,
+motion ``j``, trial ``k`` always get the same child), so a table does not depend on the
+executor, on the order in which trials finish, or on how they are batched, and asking
+for more trials only appends rows.
+
+Submodules: :mod:`~hmmtrack.experiments.trials` (one trial, its seed and score),
+:mod:`~hmmtrack.experiments.dispatch` (many trials on an executor),
+:mod:`~hmmtrack.experiments.tables` (trial tables, loss bands) and
+:mod:`~hmmtrack.experiments.studies` (the paper's datasets and studies).
+
+Trials are dispatched through :mod:`hmmtrack.executors` (serial, local processes or a Dask
+cluster). This package computes results; it draws nothing (see
+:mod:`hmmtrack.plots.results`) and writes no files (see :mod:`hmmtrack.report`).
+
+The default particle count, :data:`DEFAULT_PARTICLES`, is not given by the paper; it is
+chosen so that the paper-scale run (3 scenarios × 3 models × 100 trials, plus the loss
+sweep) finishes in under 10 minutes on a 2-core machine (``benchmarks/bench_reproduce.py``).
+"""
+
+from hmmtrack.experiments.dispatch import Cell, run_trials
+from hmmtrack.experiments.studies import (
+    LOSS_FRACTIONS,
+    PAPER_DEPTH,
+    PAPER_SCENARIOS,
+    DepthAnalysis,
+    compare_motion_models,
+    depth_analysis,
+    loss_sweep,
+    paper_scenarios,
+    truncate,
+)
+from hmmtrack.experiments.tables import (
+    LOSS_BAND_EDGES,
+    LOSS_BANDS,
+    loss_bands,
+    summarise_trials,
+    trials_table,
+)
+from hmmtrack.experiments.trials import (
+    DEFAULT_PARTICLES,
+    ERROR_CURVE_SPACING,
+    HMM_VARIANT,
+    MOTIONS,
+    SNAPSHOT_SECONDS,
+    TRIAL_COLUMNS,
+    ExampleRun,
+    TrialResult,
+    child_seed,
+    example_run,
+    experiment_seed,
+    run_trial,
+    track_scenario,
+)
+
+__all__ = [
+    "DEFAULT_PARTICLES",
+    "ERROR_CURVE_SPACING",
+    "HMM_VARIANT",
+    "LOSS_BAND_EDGES",
+    "LOSS_BANDS",
+    "LOSS_FRACTIONS",
+    "MOTIONS",
+    "PAPER_DEPTH",
+    "PAPER_SCENARIOS",
+    "SNAPSHOT_SECONDS",
+    "TRIAL_COLUMNS",
+    "Cell",
+    "DepthAnalysis",
+    "ExampleRun",
+    "TrialResult",
+    "child_seed",
+    "compare_motion_models",
+    "depth_analysis",
+    "example_run",
+    "experiment_seed",
+    "loss_bands",
+    "loss_sweep",
+    "paper_scenarios",
+    "run_trial",
+    "run_trials",
+    "summarise_trials",
+    "track_scenario",
+    "trials_table",
+    "truncate",
+]

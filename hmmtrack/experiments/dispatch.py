@@ -1,0 +1,122 @@
+"""Many trials at once: experiment cells, batches, and their dispatch to an executor.
+
+A :class:`Cell` is a scenario, a motion model and a treatment (loss fraction, depth
+correction) with its own seed; :func:`run_trials` runs ``n_trials`` trials of each cell on
+any executor of :mod:`hmmtrack.executors`, a few trials per task so that the scenario is
+pickled once per batch. Trial ``k`` of a cell is always seeded with child ``k`` of the
+cell's seed, so the results do not depend on the executor, the batching or the order in
+which tasks finish.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from hmmtrack.executors import get_executor, map_ordered
+from hmmtrack.experiments.trials import DEFAULT_PARTICLES, TrialResult, child_seed, run_trial
+from hmmtrack.scenarios import Scenario
+
+
+@dataclass(frozen=True)
+class Cell:
+    """One cell of an experiment: a scenario, a motion model and a treatment, with its seed.
+
+    Trial ``k`` of the cell is seeded with ``SeedSequence`` child ``k`` of ``seed``.
+    """
+
+    scenario: Scenario
+    motion: str
+    seed: np.random.SeedSequence
+    loss_fraction: float = 0.0
+    depth_correction: bool = False
+
+
+@dataclass(frozen=True)
+class _Batch:
+    """Some trials of one cell, sent to a worker together (one pickled scenario)."""
+
+    cell: Cell
+    n_particles: int
+    trials: tuple[int, ...]
+
+
+def _run_batch(batch: _Batch) -> list[TrialResult]:
+    cell = batch.cell
+    return [
+        run_trial(
+            cell.scenario,
+            cell.motion,
+            child_seed(cell.seed, k),
+            batch.n_particles,
+            trial=k,
+            loss_fraction=cell.loss_fraction,
+            depth_correction=cell.depth_correction,
+        )
+        for k in batch.trials
+    ]
+
+
+def run_trials(
+    cells: Sequence[Cell],
+    n_trials: int,
+    n_particles: int = DEFAULT_PARTICLES,
+    *,
+    executor: Any = "serial",
+    max_workers: int | None = None,
+    progress: bool = False,
+    batch_size: int = 4,
+    description: str | None = None,
+) -> list[TrialResult]:
+    """Run ``n_trials`` trials of every cell through an executor.
+
+    Parameters
+    ----------
+    cells : sequence of Cell
+    n_trials : int
+        Trials per cell.
+    n_particles : int
+    executor : "serial", "processes", distributed.Client or Executor
+        See :func:`hmmtrack.executors.get_executor`; an executor passed in is not shut down.
+    max_workers : int, optional
+        Local processes (default: all cores).
+    progress : bool
+        Progress bar over batches.
+    batch_size : int
+        Trials sent to a worker at once (the scenario is pickled once per batch). Does not
+        change the results.
+    description : str, optional
+        Progress-bar label.
+
+    Returns
+    -------
+    list of TrialResult
+        Cell by cell, trial by trial, whatever executor ran them.
+    """
+    if n_trials < 1 or batch_size < 1:
+        raise ValueError(f"n_trials and batch_size must be positive, got {n_trials}, {batch_size}")
+    lean = [replace(cell, scenario=_lean(cell.scenario)) for cell in cells]
+    batches = [
+        _Batch(cell, int(n_particles), tuple(range(start, min(start + batch_size, n_trials))))
+        for cell in lean
+        for start in range(0, n_trials, batch_size)
+    ]
+    pool = get_executor(executor, max_workers)
+    try:
+        done = map_ordered(pool, _run_batch, batches, progress=progress, description=description)
+    finally:
+        if pool is not executor:
+            pool.shutdown()
+    return [result for batch in done for result in batch]
+
+
+def _lean(scenario: Scenario) -> Scenario:
+    """The scenario without the tables a tracker never reads (cheaper to send to workers)."""
+    return replace(
+        scenario,
+        pings=scenario.pings.iloc[:0],
+        receivers_truth=scenario.receivers_truth.iloc[:0],
+    )

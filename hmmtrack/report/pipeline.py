@@ -1,0 +1,246 @@
+"""``hmmtrack reproduce``: datasets, experiments, figures, trial tables and summary in one call.
+
+:func:`reproduce` runs the studies of :mod:`hmmtrack.experiments` at a :class:`RunSize`
+(:data:`FULL`, the paper's scale, or :data:`QUICK`), saves every figure with
+:func:`save_figures` (each drawn by a :mod:`hmmtrack.plots` function) and writes
+``summary.md`` with :func:`hmmtrack.report.summary.write_summary`.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
+
+from hmmtrack.executors import get_executor
+from hmmtrack.experiments import (
+    DEFAULT_PARTICLES,
+    LOSS_FRACTIONS,
+    compare_motion_models,
+    depth_analysis,
+    example_run,
+    loss_sweep,
+    paper_scenarios,
+)
+from hmmtrack.report.paper import PAPER
+from hmmtrack.report.summary import write_summary
+from hmmtrack.scenarios import white_shark_tracks
+from hmmtrack.scenarios.historical import WHITE_SHARK_TRACKS_SEED
+from hmmtrack.scenarios.white_shark_hmm import load_white_shark_hmm, prepare_white_shark_tracks
+
+
+@dataclass(frozen=True)
+class RunSize:
+    """How big a reproduction run is.
+
+    Attributes
+    ----------
+    n_trials : int
+        Trials per motion model per dataset (the paper's 100).
+    loss_fractions : tuple of float
+        Fractions of detections dropped in the loss sweep (0–1).
+    loss_trials : int
+        Trials per loss fraction.
+    depth_trials : int
+        Diving-shark trials per variant (with / without depth correction).
+    n_particles : int
+    shark_tracks_sharks : int or None
+        Sharks of the bundled synthetic white-shark tracks drawn under the HMM's densities
+        (``None``: all 22).
+    """
+
+    n_trials: int
+    loss_fractions: tuple[float, ...]
+    loss_trials: int
+    depth_trials: int
+    n_particles: int
+    shark_tracks_sharks: int | None = None
+
+
+#: the paper-scale run (900 comparison trials plus the loss sweep and the diving shark)
+FULL = RunSize(100, LOSS_FRACTIONS, 5, 10, DEFAULT_PARTICLES)
+#: a first try: a few trials of everything, under a minute on two cores
+QUICK = RunSize(2, (0.0, 0.25, 0.5, 0.75, 0.9, 1.0), 1, 1, 300, shark_tracks_sharks=3)
+
+FIGURE_DPI = 100
+
+
+def _save(fig, out: Path, name: str) -> str:
+    fig.savefig(out / name, dpi=FIGURE_DPI, bbox_inches="tight")
+    plt.close(fig)
+    return name
+
+
+def save_figures(
+    out: Path,
+    *,
+    comparison: pd.DataFrame,
+    loss: pd.DataFrame,
+    depth,
+    datasets: Mapping[str, object],
+    examples: Mapping[str, object],
+    shark_tracks: pd.DataFrame,
+) -> dict[str, str]:
+    """Draw and save every report figure as PNG in ``out``.
+
+    Parameters
+    ----------
+    out : Path
+        Folder (must exist).
+    comparison, loss : pandas.DataFrame
+        Trials tables of the motion-model comparison and the loss sweep.
+    depth : hmmtrack.experiments.DepthAnalysis
+    datasets : mapping of str to Scenario
+        The paper's three datasets.
+    examples : mapping of str to hmmtrack.experiments.ExampleRun
+        One HMM-model run per dataset with particle snapshots, for the error-over-time
+        figures.
+    shark_tracks : pandas.DataFrame
+        Prepared synthetic white-shark tracks (``speed``, ``angular_velocity``), drawn under
+        the bundled HMM's densities.
+
+    Returns
+    -------
+    dict of str to str
+        Caption → file name, in reading order.
+    """
+    from hmmtrack.plots import results as plots
+    from hmmtrack.plots.experiments import plot_scenario
+
+    figures = {}
+    fig, axes = plt.subplots(1, len(datasets), figsize=(5 * len(datasets), 4.5))
+    for ax, scenario in zip(np.atleast_1d(axes), datasets.values(), strict=True):
+        plot_scenario(scenario, ax=ax)
+        ax.set_title(PAPER["datasets"].get(scenario.name, scenario.name) + " analogue")
+    figures["Dataset overviews (synthetic analogues)"] = _save(fig, out, "datasets.png")
+
+    fig = plots.motion_hmm_figure(load_white_shark_hmm(), shark_tracks)
+    figures["State-dependent densities of the bundled white-shark HMM"] = _save(
+        fig, out, "white_shark_hmm.png"
+    )
+
+    fig = plots.comparison_figure(comparison, titles=PAPER["datasets"])
+    figures["Error after convergence and time to convergence per motion model"] = _save(
+        fig, out, "motion_model_comparison.png"
+    )
+
+    for name, example in examples.items():
+        fig = plots.example_figure(example)
+        figures[f"One HMM-model trial on {PAPER['datasets'].get(name, name)}"] = _save(
+            fig, out, f"example_{name}.png"
+        )
+
+    fig = plots.loss_figure(loss, PAPER["loss_bands"])
+    figures["Measurement loss: time to convergence and error after convergence"] = _save(
+        fig, out, "measurement_loss.png"
+    )
+
+    fig = plots.depth_figure(depth, PAPER["depth_percent_error"])
+    figures["Depth: percent error of ignoring depth; diving shark with and without correction"] = (
+        _save(fig, out, "depth.png")
+    )
+    return figures
+
+
+def _shark_tracks(n_sharks: int | None) -> pd.DataFrame:
+    """The bundled synthetic white-shark tracks (or their first sharks), prepared as for the
+    fit of the bundled HMM."""
+    tracks = white_shark_tracks(WHITE_SHARK_TRACKS_SEED)
+    if n_sharks is not None:
+        tracks = tracks[tracks["id"].isin(pd.unique(tracks["id"])[:n_sharks])]
+    return prepare_white_shark_tracks(tracks)
+
+
+def reproduce(
+    out: str | Path = "reports",
+    *,
+    quick: bool = False,
+    n_trials: int | None = None,
+    n_particles: int | None = None,
+    seed: int = 0,
+    executor: Any = "processes",
+    max_workers: int | None = None,
+    progress: bool = False,
+) -> Path:
+    """Rerun the paper's experiments and write the figures, trial tables and summary.
+
+    Parameters
+    ----------
+    out : str or Path
+        Output folder; created.
+    quick : bool
+        :data:`QUICK` instead of :data:`FULL`.
+    n_trials, n_particles : int, optional
+        Override the run size's trials per model per dataset and particles.
+    seed : int
+        Experiment seed (datasets and trials derive from it).
+    executor, max_workers, progress
+        See :func:`hmmtrack.experiments.run_trials`.
+
+    Returns
+    -------
+    Path
+        ``out/summary.md``. Beside it: the PNG figures, ``motion_model_trials.csv``,
+        ``loss_sweep_trials.csv`` and ``depth_trials.csv``.
+    """
+    size = QUICK if quick else FULL
+    size = replace(
+        size, n_trials=n_trials or size.n_trials, n_particles=n_particles or size.n_particles
+    )
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    clock = time.perf_counter()
+    datasets = paper_scenarios(seed)
+    common = {"seed": seed, "n_particles": size.n_particles, "progress": progress}
+    pool = get_executor(executor, max_workers)
+    try:
+        comparison = compare_motion_models(
+            list(datasets.values()), n_trials=size.n_trials, executor=pool, **common
+        )
+        loss = loss_sweep(
+            datasets["shark_pursuit"],
+            fractions=size.loss_fractions,
+            n_trials=size.loss_trials,
+            executor=pool,
+            **common,
+        )
+        depth = depth_analysis(n_trials=size.depth_trials, executor=pool, **common)
+    finally:
+        if pool is not executor:
+            pool.shutdown()
+    examples = {
+        scenario.name: example_run(scenario, seed, size.n_particles)
+        for scenario in datasets.values()
+    }
+    comparison.to_csv(out / "motion_model_trials.csv", index=False)
+    loss.to_csv(out / "loss_sweep_trials.csv", index=False)
+    depth.trials.to_csv(out / "depth_trials.csv", index=False)
+    figures = save_figures(
+        out,
+        comparison=comparison,
+        loss=loss,
+        depth=depth,
+        datasets=datasets,
+        examples=examples,
+        shark_tracks=_shark_tracks(size.shark_tracks_sharks),
+    )
+    run = {
+        "seed": seed,
+        "size": "quick" if quick else "paper scale",
+        "trials per model per dataset": size.n_trials,
+        "particles": size.n_particles,
+        "loss fractions": len(size.loss_fractions),
+        "trials per loss fraction": size.loss_trials,
+        "diving-shark trials per variant": size.depth_trials,
+        "executor": type(pool).__name__,
+        "wall time": f"{time.perf_counter() - clock:.0f} s",
+    }
+    return write_summary(
+        out / "summary.md", comparison=comparison, loss=loss, depth=depth, figures=figures, run=run
+    )
