@@ -212,9 +212,10 @@ class ArrivalTimeMeasurement:
 
     Notes
     -----
-    Particles need fields ``x``, ``y``, ``heading``, ``speed`` (velocity along the
-    heading), ``emission_time`` and ``period`` (see :class:`hmmtrack.clock.EmissionClockModel`),
-    and optionally ``depth`` (m, positive down). Observations are rows of a table with
+    Particles need fields ``x``, ``y``, ``cos_heading``, ``sin_heading``, ``speed``
+    (velocity along the heading), ``emission_time`` and ``period`` (see
+    :class:`hmmtrack.clock.EmissionClockModel`), and optionally ``depth`` (m, positive
+    down). Observations are rows of a table with
     columns ``time`` (arrival time on the common time base, s), ``receiver``, ``receiver_x``,
     ``receiver_y`` (m, at the arrival time) and optionally ``depth`` (the tag's depth from
     its sensor, m) and ``receiver_depth`` (m).
@@ -229,6 +230,64 @@ class ArrivalTimeMeasurement:
             raise ValueError(
                 f"sound_speed must be a speed of sound in water (m/s), got {self.sound_speed}"
             )
+
+    def match_one(
+        self,
+        particles,
+        arrival: float,
+        receiver_x: float,
+        receiver_y: float,
+        vertical,
+        time: float | None = None,
+    ):
+        """Residual, matched ping and emission range of every particle for one detection.
+
+        Parameters
+        ----------
+        particles
+            Particles with the fields listed in the class notes, shape (N,) each.
+        arrival : float
+            Arrival time on the common time base (s).
+        receiver_x, receiver_y : float
+            Receiver position at the arrival (m).
+        vertical : float or numpy.ndarray, shape (N,)
+            Tag depth minus receiver depth (m).
+        time : float, optional
+            Filter time at which the particles are (s); default ``arrival``.
+
+        Returns
+        -------
+        residual, ping, range : numpy.ndarray, shape (N,)
+            Residual (s, see :func:`wrap_to_ping`), whole periods from the particle's
+            ``emission_time`` to the matched ping, and range at emission (m).
+        """
+        lag = 0.0 if time is None else float(time) - arrival
+        r = emission_range(
+            particles.x,
+            particles.y,
+            particles.speed * particles.cos_heading,
+            particles.speed * particles.sin_heading,
+            lag,
+            receiver_x,
+            receiver_y,
+            vertical,
+            self.sound_speed,
+        )
+        residual, ping = wrap_to_ping(
+            arrival - r / self.sound_speed, particles.emission_time, particles.period
+        )
+        return residual, ping, r
+
+    def rows(self, particles, obs: pd.DataFrame) -> list[tuple]:
+        """Checked ``(arrival, receiver_x, receiver_y, vertical)`` of each row of ``obs``."""
+        check_arrival_observations(obs)
+        arrival = obs["time"].to_numpy(dtype=float)
+        rx = obs["receiver_x"].to_numpy(dtype=float)
+        ry = obs["receiver_y"].to_numpy(dtype=float)
+        n = np.shape(particles.x)[0]
+        return [
+            (arrival[j], rx[j], ry[j], _vertical(particles, obs, j, n)) for j in range(len(obs))
+        ]
 
     def match(self, particles, obs: pd.DataFrame, time: float | None = None):
         """Each particle's residual and matched ping for every observation.
@@ -250,31 +309,12 @@ class ArrivalTimeMeasurement:
         ping : numpy.ndarray, shape (N, M)
             Whole periods from the particle's ``emission_time`` to the matched ping.
         """
-        check_arrival_observations(obs)
-        arrival = obs["time"].to_numpy(dtype=float)
-        rx = obs["receiver_x"].to_numpy(dtype=float)
-        ry = obs["receiver_y"].to_numpy(dtype=float)
+        rows = self.rows(particles, obs)
         n = np.shape(particles.x)[0]
-        vx = particles.speed * np.cos(particles.heading)
-        vy = particles.speed * np.sin(particles.heading)
-        residual = np.empty((n, len(obs)))
-        ping = np.empty((n, len(obs)))
-        for j in range(len(obs)):
-            lag = 0.0 if time is None else float(time) - arrival[j]
-            r = emission_range(
-                particles.x,
-                particles.y,
-                vx,
-                vy,
-                lag,
-                rx[j],
-                ry[j],
-                _vertical(particles, obs, j, n),
-                self.sound_speed,
-            )
-            residual[:, j], ping[:, j] = wrap_to_ping(
-                arrival[j] - r / self.sound_speed, particles.emission_time, particles.period
-            )
+        residual = np.empty((n, len(rows)))
+        ping = np.empty((n, len(rows)))
+        for j, row in enumerate(rows):
+            residual[:, j], ping[:, j], _ = self.match_one(particles, *row, time=time)
         return residual, ping
 
     def residuals(self, particles, obs: pd.DataFrame, time: float | None = None) -> np.ndarray:

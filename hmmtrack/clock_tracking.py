@@ -336,6 +336,8 @@ class ClockAwareFilter(ParticleFilter):
         Returns
         -------
         loglik : numpy.ndarray, shape (N,)
+            With a silence model, it includes ``log p(range)`` of each detection (heard
+            pings came from within detection range).
         emission_time, period : numpy.ndarray, shape (N,)
             Updated clock means.
         covariance : numpy.ndarray, shape (2, 2)
@@ -350,11 +352,12 @@ class ClockAwareFilter(ParticleFilter):
         loglik = np.zeros(p.n)
         weights = p.normalised_weights()
         lost = False
-        for j in range(len(obs)):
-            row = obs.iloc[j : j + 1]
+        heard = np.zeros(p.n)
+        for row in self.measurement.rows(p, obs):
             view = _ClockView(p, emission_time, period)
-            residual, ping = self.measurement.match(view, row, time=self.time)
-            residual, ping = residual[:, 0], ping[:, 0]
+            residual, ping, r = self.measurement.match_one(view, *row, time=self.time)
+            if self.silence is not None:
+                heard += self.silence.detection.log_probability(r)
             n_ahead = int(max(np.median(ping), 0))
             predicted = self.clock.predict_covariance(covariance, n_ahead)
             innovation_var = predicted[0, 0] + likelihood.sigma**2
@@ -369,26 +372,18 @@ class ClockAwareFilter(ParticleFilter):
             period = period + gain[1] * direct * residual
             accepted = float(weights @ direct)
             covariance = predicted - accepted * np.outer(gain, gain) * innovation_var
-        return loglik, emission_time, period, covariance, lost
+        return loglik + heard, emission_time, period, covariance, lost
 
     def _loglik(self, obs: pd.DataFrame):
         loglik, emission_time, period, covariance, lost = self._clock_update(obs)
         if self.silence is not None:
-            loglik = loglik + self._heard_loglik(obs) + self._silence_loglik()
+            loglik = loglik + self._silence_loglik()
         if loglik.shape != (self.particles.n,) or not np.all(np.isfinite(loglik)):
             raise ValueError(
                 f"arrival-time log-likelihood not finite at time {self.time} for "
                 f"observations:\n{obs}"
             )
         return loglik, (emission_time, period, covariance), lost
-
-    def _heard_loglik(self, obs: pd.DataFrame) -> np.ndarray:
-        """``log p(range)`` of every detection in ``obs``: heard pings came from nearby."""
-        p = self.particles
-        out = np.zeros(p.n)
-        for rx, ry in obs[["receiver_x", "receiver_y"]].itertuples(index=False):
-            out += self.silence.detection.log_probability(np.hypot(p.x - rx, p.y - ry))
-        return out
 
     def _silence_loglik(self) -> np.ndarray:
         """Unheard pings whose expected arrival fell since the last correction."""
@@ -588,7 +583,8 @@ def track_arrival_time(
     *,
     motion,
     period: float,
-    bounds,
+    bounds=None,
+    search_radius: float = 1000.0,
     measurement: ArrivalTimeMeasurement | None = None,
     clock: EmissionClockModel | None = None,
     n_particles: int = 5000,
@@ -610,8 +606,11 @@ def track_arrival_time(
         Motion model (:mod:`hmmtrack.motion`).
     period : float
         Nominal tag period (s).
-    bounds : (xmin, xmax, ymin, ymax)
-        Search box (m).
+    bounds : (xmin, xmax, ymin, ymax), optional
+        Search box (m); default: the receivers' positions at ``start`` (or at the first
+        detection) widened by ``search_radius`` (no initial range needed).
+    search_radius : float
+        See ``bounds`` (m): about the receivers' detection range.
     measurement : ArrivalTimeMeasurement, optional
         Default: :class:`ArrivalTimeMeasurement` with its default likelihood.
     clock : EmissionClockModel, optional
@@ -632,6 +631,16 @@ def track_arrival_time(
     """
     tracks = ReceiverTracks.from_frame(receivers, outside="clamp")
     obs = arrival_observations(detections, tracks)
+    if bounds is None:
+        at = float(obs["time"].min()) if start is None else float(start)
+        xs, ys = zip(*(tracks.state(name, at)[:2] for name in tracks.names), strict=True)
+        xs, ys = np.concatenate(xs), np.concatenate(ys)
+        bounds = (
+            xs.min() - search_radius,
+            xs.max() + search_radius,
+            ys.min() - search_radius,
+            ys.max() + search_radius,
+        )
     measurement = measurement or ArrivalTimeMeasurement()
     clock = clock or EmissionClockModel(period, 3e-4, 1e-4, 1e-3 * period)
     silence = None

@@ -33,6 +33,8 @@ def particles(x, y, heading=0.0, speed=0.0, emission_time=0.0, period=8.0, depth
         emission_time=np.broadcast_to(np.asarray(emission_time, dtype=float), (n,)).copy(),
         period=np.broadcast_to(np.asarray(period, dtype=float), (n,)).copy(),
     )
+    out.cos_heading = np.cos(out.heading)
+    out.sin_heading = np.sin(out.heading)
     if depth is not None:
         out.depth = np.broadcast_to(np.asarray(depth, dtype=float), (n,)).copy()
     return out

@@ -125,7 +125,8 @@ def test_loss_findings_use_the_paper_bands():
 
     def sweep(error_by_fraction):
         table = _trials({"hmm": list(error_by_fraction.values())})
-        return table.assign(loss_fraction=list(error_by_fraction))
+        fraction = pd.Series(list(error_by_fraction), dtype=float)
+        return table.assign(loss_fraction=fraction, time_to_convergence=40.0 + 1000 * fraction)
 
     usable = sweep({0.0: 15.0, 0.1: 16.0, 0.5: 40.0, 0.8: 60.0, 0.9: 400.0, 1.0: 1800.0})
     loss = {f.claim: f.holds for f in check_findings(None, usable)}
