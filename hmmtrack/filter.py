@@ -36,6 +36,7 @@ This module does not read files or build observations (:mod:`hmmtrack.tracking` 
 from __future__ import annotations
 
 import logging
+import math
 import warnings
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
@@ -44,6 +45,7 @@ from typing import NamedTuple
 import numba
 import numpy as np
 import pandas as pd
+from numba import njit
 
 from hmmtrack import streams as rs
 from hmmtrack.particles import Particles, as_bounds
@@ -122,6 +124,37 @@ def _estimate(time: float, origin: tuple[float, float], moments: np.ndarray, n_e
         sqrt_lambda1=float(sqrt_largest_eigenvalue(var_x, var_y, cov_xy)),
         n_eff=float(n_eff),
     )
+
+
+@njit(cache=True)
+def _weight_summary(x, y, log_weight):
+    """Normalised weights (N,) and the weighted mean, covariance and ESS, in three passes.
+
+    Returns ``(weights, mean_x, mean_y, var_x, var_y, cov_xy, n_eff)``; the same numbers as
+    ``np.average`` / ``np.cov(..., aweights=w, bias=True)`` and
+    :func:`hmmtrack.resampling.effective_sample_size` (tested).
+    """
+    n = x.size
+    top = log_weight.max()
+    weights = np.empty(n)
+    total = 0.0
+    for i in range(n):
+        weights[i] = math.exp(log_weight[i] - top)
+        total += weights[i]
+    mean_x = mean_y = sum_w2 = 0.0
+    for i in range(n):
+        weights[i] /= total
+        mean_x += weights[i] * x[i]
+        mean_y += weights[i] * y[i]
+        sum_w2 += weights[i] * weights[i]
+    var_x = var_y = cov_xy = 0.0
+    for i in range(n):
+        dx = x[i] - mean_x
+        dy = y[i] - mean_y
+        var_x += weights[i] * dx * dx
+        var_y += weights[i] * dy * dy
+        cov_xy += weights[i] * dx * dy
+    return weights, mean_x, mean_y, var_x, var_y, cov_xy, 1.0 / sum_w2
 
 
 def _weighted_moments(p: Particles, weights: np.ndarray, origin) -> np.ndarray:
@@ -257,10 +290,9 @@ class ParticleFilter:
     def estimate(self) -> Estimate:
         """Weighted estimate of the current particles at the current time."""
         p = self._require_particles()
-        weights = p.normalised_weights()
-        origin = (float(weights @ p.x), float(weights @ p.y))
-        moments = _weighted_moments(p, weights, origin)
-        return _estimate(self.time, origin, moments, effective_sample_size(p.log_weight))
+        _, mean_x, mean_y, var_x, var_y, cov_xy, n_eff = _weight_summary(p.x, p.y, p.log_weight)
+        origin = (mean_x, mean_y)
+        return _estimate(self.time, origin, np.array([0.0, 0.0, var_x, var_y, cov_xy]), n_eff)
 
     def _require_particles(self) -> Particles:
         if self.particles is None:
@@ -274,9 +306,8 @@ class ParticleFilter:
         p = self._require_particles()
         if n_steps <= 0:
             return []
-        weights = p.normalised_weights()
-        n_eff = effective_sample_size(p.log_weight)
-        origin = (float(weights @ p.x), float(weights @ p.y))
+        weights, mean_x, mean_y, _, _, _, n_eff = _weight_summary(p.x, p.y, p.log_weight)
+        origin = (mean_x, mean_y)
         if self.compiled:
             moments = self._advance(p, n_steps, weights, origin)
         else:

@@ -31,6 +31,8 @@ __all__ = [
     "draw_uniforms",
     "draw_vonmises",
     "new_streams",
+    "VonMisesTables",
+    "alias_table",
 ]
 
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
@@ -144,8 +146,10 @@ def gamma(shape_less_third, inv_sqrt_9d, boost_exponent, scale, state):
     """One gamma variate (Marsaglia & Tsang) and the advanced state.
 
     Parameters are precomputed per behavioural state by :func:`gamma_constants`:
-    ``d = max(shape, shape + 1) - 1/3``, ``c = 1 / sqrt(9 d)``, ``boost_exponent = 1/shape``
-    when ``shape < 1`` (then ``X * U**(1/shape)`` is drawn), else 0.
+    ``d = a - 1/3`` with ``a = shape`` (or ``shape + 1`` when ``shape < 1``),
+    ``c = 1 / sqrt(9 d)``, and ``boost_exponent = 1/shape`` when ``shape < 1`` (a
+    Gamma(shape + 1) draw times ``U**(1/shape)`` is Gamma(shape)), else 0. The result is
+    multiplied by ``scale``.
     """
     d = shape_less_third
     c = inv_sqrt_9d
@@ -178,9 +182,9 @@ def gamma_constants(shape: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarr
 
 #: bins of the piecewise-constant envelope of the von Mises sampler (a power of two)
 VONMISES_BINS = 256
-#: the envelope stops this many standard deviations (1/sqrt(kappa)) from the mean when
-#: that is inside the circle; the density beyond is below exp(-72) ~ 5e-32 of its peak
-_VONMISES_REACH = 12.0
+#: the envelope stops where the density has fallen to exp(-_VONMISES_DROP) ~ 5e-32 of its
+#: peak (when that happens before the antipode), i.e. ``kappa (1 - cos d) = 72``
+_VONMISES_DROP = 72.0
 
 
 @dataclass(frozen=True)
@@ -211,7 +215,9 @@ class VonMisesTables:
                 f"von Mises means must be finite and concentrations finite and >= 0, "
                 f"got means {mean}, concentrations {kappa}"
             )
-        reach = np.minimum(np.pi, _VONMISES_REACH / np.sqrt(np.maximum(kappa, 1e-300)))
+        far = kappa > _VONMISES_DROP / 2.0
+        cos_reach = 1.0 - _VONMISES_DROP / np.where(far, kappa, _VONMISES_DROP / 2.0)
+        reach = np.where(far, np.arccos(cos_reach), np.pi)
         edges = reach[:, None] * np.arange(VONMISES_BINS + 1)[None, :] / VONMISES_BINS
         height = np.exp(kappa[:, None] * (np.cos(edges) - 1.0))
         cut, alias = zip(*(alias_table(row) for row in height[:, :-1]), strict=True)

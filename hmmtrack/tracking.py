@@ -52,6 +52,7 @@ __all__ = [
     "motion_model",
     "search_bounds",
     "select_transmitter",
+    "time_window",
     "track",
 ]
 
@@ -144,7 +145,9 @@ def select_transmitter(detections: pd.DataFrame, transmitter: str | None) -> pd.
     detections : pandas.DataFrame
         Detections table.
     transmitter : str or None
-        Transmitter to keep; ``None`` requires the table to hold exactly one.
+        Transmitter to keep: full id (``A69-1602-15266``) or, when the table has a
+        ``transmitter_id`` column (VUE and Fathom logs), its ID part (``15266``); ``None``
+        requires the table to hold exactly one.
 
     Returns
     -------
@@ -162,6 +165,8 @@ def select_transmitter(detections: pd.DataFrame, transmitter: str | None) -> pd.
             )
         return detections
     keep = (detections["transmitter"].astype(str) == transmitter).to_numpy()
+    if not keep.any() and "transmitter_id" in detections.columns:  # "15266" of "A69-1602-15266"
+        keep = (detections["transmitter_id"].astype(str) == transmitter).to_numpy()
     if not keep.any():
         raise ValueError(
             f"no detections of transmitter {transmitter!r}; the table has {found[:20]}"
@@ -364,6 +369,28 @@ def check_bounds(
             )
 
 
+def time_window(
+    times, config: TrackingConfig, start: float | None = None, end: float | None = None
+) -> tuple[float, float]:
+    """Start and end (s) of a run: as given, else ``config.start``/``config.end``, else the
+    first detection time rounded down and the last rounded up to whole seconds.
+
+    Parameters
+    ----------
+    times : array_like, shape (n,)
+        Detection times of the tracked transmitter (s), n ≥ 1.
+    config : TrackingConfig
+    start, end : float, optional
+        Explicit window (s).
+    """
+    times = np.asarray(times, dtype=float)
+    start = config.start if start is None else start
+    end = config.end if end is None else end
+    start = float(np.floor(times.min())) if start is None else float(start)
+    end = float(np.ceil(times.max())) if end is None else float(end)
+    return start, end
+
+
 @dataclass(frozen=True)
 class TrackingResult:
     """What :func:`track` returns.
@@ -434,11 +461,7 @@ def track(
         raise ValueError("model is used only with motion='hmm' given by name")
     bounds = config.bounds or search_bounds(observations, config.r0, config.bounds_margin)
     check_bounds(bounds, observations, config.r0, config.bounds_margin)
-    times = observations["time"].to_numpy()
-    start = config.start if start is None else start
-    end = config.end if end is None else end
-    start = float(np.floor(times[0])) if start is None else float(start)
-    end = float(np.ceil(times[-1])) if end is None else float(end)
+    start, end = time_window(observations["time"].to_numpy(), config, start, end)
     anchors = observations["range_rate"].isna().to_numpy()
     pf = ParticleFilter(
         motion,

@@ -167,6 +167,20 @@ def test_options_without_a_config_file(scenario_files, tmp_path, capsys):
     # without start/end the run spans the detections, in whole seconds
     first, last = scenario.detections["time"].min(), scenario.detections["time"].max()
     assert len(table) == int(np.ceil(last) - np.floor(first)) + 1
+    # a window in ISO 8601, and a fixed tag's truth as one row without time
+    fixed = tmp_path / "tag.csv"
+    fixed.write_text("x,y\n0.0,0.0\n")
+    window = ["--start", "2022-06-08T17:01:00Z", "--end", "2022-06-08T17:06:00.000Z"]
+    with pytest.warns(RuntimeWarning, match="outside"):  # detections outside the window
+        assert main([*args, *window, "--seed", "2", "--truth", str(fixed)]) == 0
+    printed = capsys.readouterr()
+    assert "time to convergence" in printed.out
+    assert "observations_outside_window" in printed.err
+    table = pd.read_csv(output)
+    assert table["time"].iloc[[0, -1]].tolist() == [
+        "2022-06-08T17:01:00.000Z",
+        "2022-06-08T17:06:00.000Z",
+    ]
 
 
 @pytest.mark.parametrize(
@@ -277,8 +291,31 @@ def test_real_vue_export_runs_end_to_end(tmp_path, capsys):
     args += ["--motion", "velocity", "--particles", "300", "--seed", "1", "-o", str(output)]
     assert main(args) == 2  # nine transmitters in the file: which one?
     assert "choose one" in capsys.readouterr().err
-    assert main([*args, "--transmitter", "A69-1602-15266"]) == 0
+    assert main([*args, "--transmitter", "15266"]) == 0  # the ID part is enough
     table = pd.read_csv(output)
     span = np.ceil(detections["time"].max()) - np.floor(detections["time"].min())
     assert len(table) == int(span) + 1
     assert np.isfinite(table[ESTIMATE_COLUMNS[1:]].to_numpy()).all()
+
+
+def test_plot_functions_draw_what_they_are_given():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from hmmtrack.plots.tracking import plot_error_over_time, plot_particles, snapshot_times
+
+    np.testing.assert_array_equal(snapshot_times(100.0, 1300.0), [100.0, 110.0, 209.0, 1300.0])
+    convergence = metrics.Convergence(time_to_convergence=20.0, converged=True, index=20)
+    ax = plot_error_over_time(np.arange(50.0, 150.0), np.linspace(50, 1, 100), convergence)
+    assert ax.get_xlim() == (0.0, 99.0) and len(ax.lines) == 2
+    receivers = pd.DataFrame(
+        {"receiver": ["a", "b", "b"], "time": [np.nan, 0.0, 10.0], "x": [0, 50, 60], "y": [0, 0, 0]}
+    )
+    observations = pd.DataFrame({"time": [1.0, 2.0, 4.0], "receiver": ["a", "a", "b"]})
+    observations["range"] = [30.0, 31.0, 25.0]
+    snapshot = pd.DataFrame({"x": [1.0, 2.0], "y": [3.0, 4.0], "weight": [0.5, 0.5]})
+    truth = pd.DataFrame({"time": [np.nan], "x": [20.0], "y": [5.0]})
+    ax = plot_particles(snapshot, receivers, truth, time=5.0, observations=observations)
+    circles = sorted(patch.radius for patch in ax.patches)
+    assert circles == [25.0, 31.0]  # each receiver's latest range at or before 5 s
+    matplotlib.pyplot.close("all")

@@ -4,10 +4,16 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from hmmtrack.filter import ESTIMATE_COLUMNS, ParticleFilter, sqrt_largest_eigenvalue
+from hmmtrack.filter import (
+    ESTIMATE_COLUMNS,
+    ParticleFilter,
+    _weight_summary,
+    sqrt_largest_eigenvalue,
+)
 from hmmtrack.hmm import Gamma, MovementHMM, VonMises
 from hmmtrack.measurement import RangeRateMeasurement
 from hmmtrack.motion import BaselineMotion, HMMMotion, VelocityMotion
+from hmmtrack.resampling import effective_sample_size
 
 TAG = np.array([30.0, -20.0])
 T0 = 1.7e9
@@ -261,3 +267,20 @@ def test_measurement_returning_nan_is_an_error_not_a_result():
         warnings.simplefilter("error")
         with pytest.raises(ValueError, match="NaN"):
             pf.run(circling_observations(duration=50.0))
+
+
+def test_weight_summary_matches_numpy_far_from_the_origin():
+    """UTM-sized coordinates with a 1 m spread and impossible particles: no cancellation."""
+    rng = np.random.default_rng(2)
+    x = 5.0e5 + rng.normal(0, 1.0, 1000)
+    y = 4.2e6 + rng.normal(0, 2.0, 1000)
+    log_weight = rng.normal(0, 3.0, 1000) - 800.0
+    log_weight[:10] = -np.inf
+    weights, mean_x, mean_y, var_x, var_y, cov_xy, n_eff = _weight_summary(x, y, log_weight)
+    w = np.exp(log_weight - log_weight.max())
+    w /= w.sum()
+    np.testing.assert_allclose(weights, w, rtol=1e-12)
+    cov = np.cov(np.vstack([x - 5.0e5, y - 4.2e6]), aweights=w, bias=True)
+    assert (mean_x, mean_y) == pytest.approx((w @ x, w @ y), rel=1e-13)
+    np.testing.assert_allclose([var_x, var_y, cov_xy], [cov[0, 0], cov[1, 1], cov[0, 1]], rtol=1e-9)
+    assert n_eff == pytest.approx(effective_sample_size(log_weight), rel=1e-12)

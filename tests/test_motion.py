@@ -1,3 +1,5 @@
+import dataclasses
+
 import numpy as np
 import pytest
 from scipy import stats
@@ -293,6 +295,27 @@ def test_matrix_root_and_its_fallback():
     np.testing.assert_allclose(fallback.sum(axis=1), 1.0)
 
 
+@pytest.mark.parametrize("path", ["numpy", "compiled"])
+def test_steps_fitted_in_kilometres_become_metres_per_second(path):
+    metres = movement_model(dt=5.0, transition=np.eye(2))
+    kilometres = dataclasses.replace(
+        metres,
+        step=Gamma(mean=metres.step.mean / 1000, sd=metres.step.sd / 1000),
+        step_unit="km",
+    )
+    speeds = []
+    for model in (metres, kilometres):
+        motion = HMMMotion(model)
+        p = particles_at(2000)
+        motion.initialise(np.random.default_rng(1), p)
+        if path == "numpy":
+            motion.propagate(np.random.default_rng(2), p, 1.0)
+        else:
+            advance(motion, p, 1, 1.0)
+        speeds.append(p.speed)
+    np.testing.assert_allclose(speeds[1], speeds[0], rtol=1e-9)
+
+
 def test_bad_models_are_refused():
     with pytest.raises(ValueError, match="variant"):
         HMMMotion(movement_model(), "fast")
@@ -300,3 +323,5 @@ def test_bad_models_are_refused():
         HMMMotion(movement_model(dt=float("nan")))
     with pytest.raises(ValueError, match="sigma"):
         BaselineMotion(sigma=-1.0)
+    with pytest.raises(ValueError, match="'miles'"):
+        HMMMotion(dataclasses.replace(movement_model(), step_unit="miles"))

@@ -72,10 +72,14 @@ def register(subparsers) -> None:
     )
     parser.add_argument("--particles", type=int, help="number of particles")
     parser.add_argument("--sound-speed", type=float, help="speed of sound (m/s, default 1460)")
-    parser.add_argument("--transmitter", help="transmitter to track when the log holds several")
+    parser.add_argument(
+        "--transmitter", help="transmitter to track (full id or ID part) when the log holds several"
+    )
     parser.add_argument(
         "--depth", help="depth correction: none (default), sensor, or a depth in metres"
     )
+    parser.add_argument("--start", help="start of the run (ISO 8601 UTC; default first detection)")
+    parser.add_argument("--end", help="end of the run (ISO 8601 UTC; default last detection)")
     parser.add_argument("--seed", type=int, help="random seed (printed when not given)")
     parser.add_argument(
         "--truth", help="true positions CSV (time, x, y or lon, lat): print metrics"
@@ -93,6 +97,8 @@ def build_config(args: argparse.Namespace) -> TrackingConfig:
         "sound_speed": args.sound_speed,
         "transmitter": args.transmitter,
         "depth": args.depth,
+        "start": args.start,
+        "end": args.end,
     }
     if args.config:
         return TrackingConfig.from_json(args.config, **overrides)
@@ -105,11 +111,16 @@ def build_config(args: argparse.Namespace) -> TrackingConfig:
 
 
 def read_truth(path: str | Path, projection: io.Projection | None) -> pd.DataFrame:
-    """Truth table from a CSV of ``time`` and ``x``, ``y`` (m) or ``lon``, ``lat`` (degrees)."""
+    """Truth table from a CSV of ``time`` and ``x``, ``y`` (m) or ``lon``, ``lat`` (degrees).
+
+    A single row (``time`` empty or absent) is a fixed tag.
+    """
     table = pd.read_csv(path)
     table.attrs["source"] = str(path)
     if "time" not in table.columns:
-        raise ValueError(f"{path}: truth needs a 'time' column; found {list(table.columns)}")
+        if len(table) != 1:
+            raise ValueError(f"{path}: truth needs a 'time' column; found {list(table.columns)}")
+        table["time"] = np.nan  # one row without time: a fixed tag
     if {"x", "y"} <= set(table.columns):
         x, y = table["x"].to_numpy(dtype=float), table["y"].to_numpy(dtype=float)
     elif {"lon", "lat"} <= set(table.columns):
@@ -157,10 +168,8 @@ def run(args: argparse.Namespace) -> int:
     if args.plot:
         from hmmtrack.plots.tracking import snapshot_times as choose_snapshots
 
-        times = detections["time"].to_numpy(dtype=float)
-        first = config.start if config.start is not None else float(np.floor(times.min()))
-        last = config.end if config.end is not None else float(np.ceil(times.max()))
-        snapshot_times = choose_snapshots(first, last)
+        tracked = tracking.select_transmitter(detections, config.transmitter)
+        snapshot_times = choose_snapshots(*tracking.time_window(tracked["time"], config))
     result = tracking.track(
         detections, receivers, config, motion, seed=seed, snapshot_times=snapshot_times
     )

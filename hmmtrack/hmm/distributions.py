@@ -13,6 +13,9 @@ Each family is a small frozen dataclass holding one array of shape ``(K,)`` per 
 * ``to_dict()`` / ``from_dict()`` for the JSON model file;
 * ``to_working()`` / ``from_working()`` an unconstrained parameter vector (moveHMM's
   working scale) for direct likelihood optimisation and Wald intervals;
+* ``working_score(x, w) -> (n_working,)`` the gradient of the weighted log-likelihood
+  ``sum(w * logpdf(x))`` with respect to ``to_working()``, in closed form (the emission
+  part of the likelihood gradient by Fisher's identity);
 * ``prepare(x)``: the observations validated once with their transforms (log x; cos x and
   sin x), a :class:`PreparedSteps` / :class:`PreparedAngles` accepted wherever ``x`` is.
   Callers that evaluate the same data many times (EM, numerical derivatives) should pass
@@ -31,6 +34,7 @@ bookkeeping (``hmmtrack.hmm.fit``).
 from __future__ import annotations
 
 import dataclasses
+import functools
 from dataclasses import dataclass
 from typing import Any, ClassVar, Protocol, TypeVar
 
@@ -75,6 +79,10 @@ class StateDistribution(Protocol):
     def to_working(self) -> np.ndarray: ...
 
     def with_working(self, theta: np.ndarray) -> StateDistribution: ...
+
+    def working_score(
+        self, x: np.ndarray | PreparedSteps | PreparedAngles, w: np.ndarray
+    ) -> np.ndarray: ...
 
 
 # ----------------------------------------------------------------------------------------
@@ -202,6 +210,17 @@ class PreparedSteps:
     def n_obs(self) -> int:
         """Number of rows T."""
         return self.missing.size
+
+    @functools.cached_property
+    def positive_order(self) -> np.ndarray:
+        """Rows of the positive steps by increasing step (stable), (n_positive,) int.
+
+        Sorted on first use only (starting values of every start of a multi-start fit).
+        """
+        rows = np.flatnonzero(self.positive)
+        order = rows[np.argsort(self.safe[rows], kind="stable")]
+        order.setflags(write=False)
+        return order
 
 
 def prepare_steps(x: np.ndarray) -> PreparedSteps:
@@ -556,6 +575,26 @@ class _StepFamily(_Family):
     def _positive_to_working(self) -> np.ndarray:
         return np.log(np.concatenate([getattr(self, f) for f in self._parameters]))
 
+    def working_score(self, x: np.ndarray | PreparedSteps, w: np.ndarray) -> np.ndarray:
+        """Gradient of ``sum(w * logpdf(x))`` w.r.t. :meth:`to_working`, shape (n_working,).
+
+        ``x`` (T,) steps or :meth:`prepare` output, ``w`` (T, K) weights (posterior state
+        probabilities). Closed form: per-state weighted sums of the positive steps' features
+        for the positive part; for ``logit(zero_mass)`` ``(1 - z) W_zero - z W_positive``.
+        """
+        data = self._prepared(x)
+        w = _check_weights(w, data.n_obs, self.n_states, type(self).__name__)
+        wp = w if data.positive_x is data.safe else _rows_where(data.positive, w)
+        blocks = [self._positive_score(data.positive_x, data.positive_log_x, wp)]
+        if self.zero_mass is not None:
+            zeros = _weighted_sums(data.zero.astype(float), w)
+            blocks.append((1.0 - self.zero_mass) * zeros - self.zero_mass * _column_sums(wp))
+        return np.concatenate(blocks)
+
+    def _positive_score(self, x: np.ndarray, log_x: np.ndarray, w: np.ndarray) -> np.ndarray:
+        """Working-scale gradient (n_parameters * K,) of ``sum(w * log f(x))``, x > 0."""
+        raise NotImplementedError
+
     @classmethod
     def from_working(
         cls: type[D], theta: np.ndarray, n_states: int, zero_inflated: bool = False
@@ -649,6 +688,16 @@ class Gamma(_StepFamily):
         k = _gamma_shape_mle(np.log(mean) - mean_log)
         return {"mean": mean, "sd": mean / np.sqrt(k)}
 
+    def _positive_score(self, x: np.ndarray, log_x: np.ndarray, w: np.ndarray) -> np.ndarray:
+        # log f = (a - 1) log x - b x + a log b - gammaln(a), shape a = exp(2u - 2v), rate
+        # b = exp(u - 2v) with u = log mean, v = log sd: da/du = 2a, db/du = b, d./dv = -2 d./du
+        # for a and b alike; d log f / da = log x + log b - digamma(a), d log f / db = a/b - x
+        a, b = self.shape, self.mean / self.sd**2
+        total = _column_sums(w)
+        by_shape = 2.0 * a * (_weighted_sums(log_x, w) + total * (np.log(b) - special.digamma(a)))
+        by_rate = a * total - b * _weighted_sums(x, w)
+        return np.concatenate([by_shape + by_rate, -by_shape - 2.0 * by_rate])
+
     def _cdf_positive(self, x: np.ndarray, log_x: np.ndarray) -> np.ndarray:
         return special.gammainc(self.shape, np.divide.outer(x, self.scale))
 
@@ -728,6 +777,18 @@ class Weibull(_StepFamily):
         shape, log_scale = np.array(fits).T
         return {"shape": shape, "scale": np.exp(shift + log_scale)}
 
+    def _positive_score(self, x: np.ndarray, log_x: np.ndarray, w: np.ndarray) -> np.ndarray:
+        # log f = z - exp(z) - log x + log k with z = k (log x - log l):
+        # d/d log k = 1 + z (1 - e^z), d/d log l = k (e^z - 1)
+        n_states = self.n_states
+        by_shape, by_scale = np.empty(n_states), np.empty(n_states)
+        for k in range(n_states):
+            z = self.shape[k] * (log_x - np.log(self.scale[k]))
+            excess = np.expm1(z)  # e^z - 1
+            by_shape[k] = w[:, k].sum() - _dot(z * excess, w[:, k])
+            by_scale[k] = self.shape[k] * _dot(excess, w[:, k])
+        return np.concatenate([by_shape, by_scale])
+
     def _cdf_positive(self, x: np.ndarray, log_x: np.ndarray) -> np.ndarray:
         z = np.multiply.outer(log_x, self.shape) - self.shape * np.log(self.scale)
         return -np.expm1(-np.exp(z))
@@ -787,6 +848,16 @@ class LogNormal(_StepFamily):
         var = _weighted_means(log_x**2, w, total) - location**2
         return {"location": location, "scale": np.sqrt(np.maximum(var, _TINY))}
 
+    def _positive_score(self, x: np.ndarray, log_x: np.ndarray, w: np.ndarray) -> np.ndarray:
+        # z = (log x - location) / scale: d/d location = z / scale, d/d log scale = z^2 - 1
+        total, sum_log = _column_sums(w), _weighted_sums(log_x, w)
+        first = sum_log - self.location * total  # sum w (log x - location)
+        second = (  # sum w (log x - location)^2
+            _weighted_sums(log_x**2, w) - 2.0 * self.location * sum_log + self.location**2 * total
+        )
+        variance = self.scale**2
+        return np.concatenate([first / variance, second / variance - total])
+
     def _cdf_positive(self, x: np.ndarray, log_x: np.ndarray) -> np.ndarray:
         return special.ndtr(np.subtract.outer(log_x, self.location) / self.scale)
 
@@ -825,6 +896,10 @@ class Exponential(_StepFamily):
 
     def _fit_positive(self, x: np.ndarray, log_x: np.ndarray, w: np.ndarray) -> dict:
         return {"rate": 1.0 / _weighted_means(x, w, _column_sums(w))}
+
+    def _positive_score(self, x: np.ndarray, log_x: np.ndarray, w: np.ndarray) -> np.ndarray:
+        # d/d log rate of (log rate - rate x) = 1 - rate x
+        return _column_sums(w) - self.rate * _weighted_sums(x, w)
 
     def _cdf_positive(self, x: np.ndarray, log_x: np.ndarray) -> np.ndarray:
         return -np.expm1(np.multiply.outer(x, -self.rate))
@@ -887,6 +962,14 @@ class _AngleFamily(_Family):
 
     def _unwrapped_cdf(self, y: np.ndarray) -> np.ndarray:
         """Cumulative mass (T, K) from an arbitrary origin, growing by 1 per 2 pi of ``y``."""
+        raise NotImplementedError
+
+    def _polar_score(self, cos_x, sin_x, w) -> tuple[np.ndarray, np.ndarray]:
+        """Gradient of ``sum(w * logpdf)`` in polar working coordinates, two (K,) arrays.
+
+        ``(d/dr, (1/r) d/dmean)`` with ``r = _radial(concentration)``; the second is finite
+        at ``r = 0``.
+        """
         raise NotImplementedError
 
     @classmethod
@@ -964,6 +1047,28 @@ class _AngleFamily(_Family):
 
     def _structure(self) -> dict[str, Any]:
         return {"estimate_mean": self.estimate_mean}
+
+    def _deviations(self, k: int, cos_x, sin_x) -> tuple[np.ndarray, np.ndarray]:
+        """``cos(x - mean[k])`` and ``sin(x - mean[k])``, (T,) each."""
+        c, s = np.cos(self.mean[k]), np.sin(self.mean[k])
+        return cos_x * c + sin_x * s, sin_x * c - cos_x * s
+
+    def working_score(self, x: np.ndarray | PreparedAngles, w: np.ndarray) -> np.ndarray:
+        """Gradient of ``sum(w * logpdf(x))`` w.r.t. :meth:`to_working`, shape (n_working,).
+
+        ``x`` (T,) angles (rad) or :meth:`prepare` output, ``w`` (T, K) weights. The family
+        gives the polar derivatives (``_polar_score``); this maps them to the Cartesian
+        working coordinates ``(r cos mean, r sin mean)``, or to ``log r`` with a fixed mean.
+        """
+        data = prepare_angles(x)
+        w = _check_weights(w, data.n_obs, self.n_states, type(self).__name__)
+        if data.observed_cos is not data.cos:
+            w = _rows_where(~data.missing, w)
+        radial, tangential = self._polar_score(data.observed_cos, data.observed_sin, w)
+        if self.estimate_mean:
+            c, s = np.cos(self.mean), np.sin(self.mean)
+            return np.concatenate([c * radial - s * tangential, s * radial + c * tangential])
+        return self._radial(self.concentration) * radial
 
     def to_working(self) -> np.ndarray:
         """Working vector: ``[r cos mean (K), r sin mean (K)]`` or ``log r`` (K) if fixed."""
@@ -1055,6 +1160,15 @@ class VonMises(_AngleFamily):
     def _fit_angles(self, cos_x, sin_x, w):
         mean, resultant = self._trigonometric_moments(cos_x, sin_x, w)
         return {"mean": mean, "concentration": _a1_inverse(resultant)}
+
+    def _polar_score(self, cos_x, sin_x, w) -> tuple[np.ndarray, np.ndarray]:
+        # log f = kappa cos(x - mean) - log I0(kappa) - log 2 pi, r = kappa:
+        # d/dkappa = cos(x - mean) - A1(kappa), (1/kappa) d/dmean = sin(x - mean)
+        total = _column_sums(w)
+        sum_cos, sum_sin = _weighted_sums(cos_x, w), _weighted_sums(sin_x, w)
+        c, s = np.cos(self.mean), np.sin(self.mean)
+        radial = c * sum_cos + s * sum_sin - total * _a1(self.concentration)
+        return radial, c * sum_sin - s * sum_cos
 
     def _sample_deviation(self, rng: np.random.Generator, states: np.ndarray) -> np.ndarray:
         return rng.vonmises(0.0, self.concentration[states])
@@ -1198,6 +1312,23 @@ class WrappedCauchy(_AngleFamily):
         mean, rho = np.array(fits).T
         return {"mean": mean, "concentration": rho}
 
+    def _polar_score(self, cos_x, sin_x, w) -> tuple[np.ndarray, np.ndarray]:
+        # log f = log(1 - rho^2) - log D - log 2 pi, D = 1 + rho^2 - 2 rho cos(x - mean) and
+        # rho = tanh(r): d/dr = (1 - rho^2) d/drho = -2 rho + 2 (1 - rho^2) (cos - rho) / D;
+        # (1/r) d/dmean = (rho / r) 2 sin(x - mean) / D, rho / r -> 1 at r = 0
+        rho, r = self.concentration, self._radial(self.concentration)
+        radial, tangential = np.empty(self.n_states), np.empty(self.n_states)
+        for k in range(self.n_states):
+            cos_dev, sin_dev = self._deviations(k, cos_x, sin_x)
+            inverse = 1.0 / ((1.0 - rho[k]) ** 2 + 2.0 * rho[k] * np.maximum(1.0 - cos_dev, 0.0))
+            weighted = w[:, k] * inverse
+            radial[k] = -2.0 * rho[k] * w[:, k].sum() + 2.0 * (1.0 - rho[k] ** 2) * (
+                _dot(weighted, cos_dev) - rho[k] * weighted.sum()
+            )
+            shrink = rho[k] / r[k] if r[k] > 0 else 1.0
+            tangential[k] = 2.0 * shrink * _dot(weighted, sin_dev)
+        return radial, tangential
+
     def _sample_deviation(self, rng: np.random.Generator, states: np.ndarray) -> np.ndarray:
         rho = self.concentration[states]
         uniform = rho == 0
@@ -1253,7 +1384,7 @@ def _family(name_or_class: str | type, registry: dict[str, type], kind: str) -> 
 
 
 def initial_guess(
-    steps: np.ndarray,
+    steps: np.ndarray | PreparedSteps,
     angles: np.ndarray,
     n_states: int,
     step_family: str | type = "gamma",
@@ -1272,8 +1403,9 @@ def initial_guess(
 
     Parameters
     ----------
-    steps : (T,) float
-        Step lengths (>= 0, NaN missing), units of the data.
+    steps : (T,) float or PreparedSteps
+        Step lengths (>= 0, NaN missing), units of the data; prepared steps (see
+        :func:`prepare_steps`) are sorted once for all the calls that share them.
     angles : (T,) float
         Turning angles (rad, NaN missing), same rows as ``steps``.
     n_states : int
@@ -1293,21 +1425,21 @@ def initial_guess(
     """
     step_cls = _family(step_family, STEP_FAMILIES, "step")
     angle_cls = _family(angle_family, ANGLE_FAMILIES, "angle")
-    steps = _check_observations(steps, "initial_guess(steps)")
+    prepared = prepare_steps(steps)
+    steps = prepared.safe  # the steps on positive rows, which are the only ones used
     angles = _check_observations(angles, "initial_guess(angles)")
     if steps.shape != angles.shape:
         raise ValueError(f"initial_guess: steps {steps.shape} and angles {angles.shape} differ")
     if n_states < 1:
         raise ValueError(f"initial_guess: n_states must be >= 1, got {n_states}")
-    positive = np.flatnonzero(steps > 0)
-    if positive.size < 2 * n_states:
+    order = prepared.positive_order
+    if order.size < 2 * n_states:
         raise ValueError(
-            f"initial_guess: {positive.size} positive steps are too few for {n_states} states"
+            f"initial_guess: {order.size} positive steps are too few for {n_states} states"
         )
-    zero = steps == 0
+    zero = prepared.zero
     if zero_inflated is None:
         zero_inflated = bool(zero.any())
-    order = positive[np.argsort(steps[positive], kind="stable")]
     shares = np.full(n_states, 1.0 / n_states) if rng is None else rng.dirichlet(np.ones(n_states))
     # at least two rows per group so that every sd is defined
     sizes = 2 + np.floor(shares * (order.size - 2 * n_states)).astype(int)
@@ -1318,7 +1450,7 @@ def initial_guess(
     sds = np.array([max(steps[g].std(), 1e-3 * steps[g].mean()) for g in groups])
     zero_mass = None
     if zero_inflated:
-        share = zero.sum() / max((~np.isnan(steps)).sum(), 1)
+        share = zero.sum() / max((~prepared.missing).sum(), 1)
         zero_mass = np.full(n_states, min(max(share, 1e-3), 0.5))
     step_dist = step_cls.from_moments(means, sds, zero_mass=zero_mass)
 

@@ -28,7 +28,7 @@ from __future__ import annotations
 import concurrent.futures
 import logging
 import multiprocessing
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import pandas as pd
@@ -43,7 +43,6 @@ from hmmtrack.random import as_generator, spawn
 logger = logging.getLogger(__name__)
 
 _TINY = 1e-12  # floor of probabilities whose log is a working parameter
-_FD_STEP = 1e-5  # central-difference step of the emission scores (working scale)
 _POLISH_GTOL = 1e-6  # polish stops when no gradient entry of the per-row log-lik exceeds this
 
 
@@ -63,12 +62,22 @@ class FitData:
     lengths : ndarray, shape (n_sequences,)
     design : ndarray, shape (T, 1 + p) or None
         Standardised covariate design matrix (None without covariates).
+    prepared_step : PreparedSteps
+    prepared_angle : PreparedAngles
+        ``step`` and ``angle`` validated once with their transforms (log step, cos and sin
+        of the angle); every density evaluation, M-step and score of the fit uses these.
     """
 
     step: np.ndarray
     angle: np.ndarray
     lengths: np.ndarray
     design: np.ndarray | None = None
+    prepared_step: distributions.PreparedSteps = field(init=False, repr=False)
+    prepared_angle: distributions.PreparedAngles = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "prepared_step", distributions.prepare_steps(self.step))
+        object.__setattr__(self, "prepared_angle", distributions.prepare_angles(self.angle))
 
     @property
     def starts(self) -> np.ndarray:
@@ -114,7 +123,7 @@ class Parameters:
 
     def log_likelihood_matrix(self, data: FitData) -> np.ndarray:
         """Emission log densities, shape (T, K)."""
-        return self.step.logpdf(data.step) + self.angle.logpdf(data.angle)
+        return self.step.logpdf(data.prepared_step) + self.angle.logpdf(data.prepared_angle)
 
     def permuted(self, order: np.ndarray) -> Parameters:
         """The same model with state ``k`` of the result being state ``order[k]`` of this one."""
@@ -226,18 +235,18 @@ class WorkingLikelihood:
         """Log-likelihood and its gradient at ``theta`` (Fisher's identity).
 
         The gradient of the log-likelihood equals the expected gradient of the complete-data
-        log-likelihood under the posterior at ``theta``: closed forms for the initial and
-        transition parts, central differences of the posterior-weighted emission log
-        densities for the emission parts (cheap: no recursion inside).
+        log-likelihood under the posterior at ``theta``, all in closed form: the emission
+        families' ``working_score`` of the posterior-weighted log densities, and the
+        initial and transition parts.
         """
         params = self.unpack(theta)
-        post, _ = _posterior(params, self.data)
+        post = _posterior(params, self.data)
         weights = post.posterior
         data = self.data
         gradient = np.empty_like(theta)
         a, b = self.n_step, self.n_step + self.n_angle
-        gradient[:a] = _emission_score(self.template.step, theta[:a], data.step, weights)
-        gradient[a:b] = _emission_score(self.template.angle, theta[a:b], data.angle, weights)
+        gradient[:a] = params.step.working_score(data.prepared_step, weights)
+        gradient[a:b] = params.angle.working_score(data.prepared_angle, weights)
         c = b + int(np.prod(self.coefficient_shape))
         if data.design is None:
             xi, design = post.pair_counts[None], np.ones((1, 1))
@@ -250,33 +259,13 @@ class WorkingLikelihood:
         return post.log_likelihood, gradient
 
 
-def _emission_score(template, theta: np.ndarray, x: np.ndarray, weights: np.ndarray):
-    """Gradient of ``sum(weights * logpdf(x))`` w.r.t. the working vector, central differences.
-
-    The working vectors of :mod:`~hmmtrack.hmm.distributions` are parameter-major blocks of
-    ``K`` entries, entry ``k`` of a block acting on state ``k`` only. So one block is shifted
-    for all states at once and column ``k`` of the log densities gives state ``k``'s entry:
-    ``2 * n_blocks`` density evaluations instead of ``2 * n_blocks * K``.
-    """
-    observed = ~np.isnan(x)
-    x, weights = x[observed], weights[observed]
-    n_states = weights.shape[1]
-    score = np.empty(theta.size)
-    for block in range(theta.size // n_states):
-        shift = np.zeros(theta.size)
-        shift[block * n_states : (block + 1) * n_states] = _FD_STEP
-        up = np.sum(weights * template.with_working(theta + shift).logpdf(x), axis=0)
-        down = np.sum(weights * template.with_working(theta - shift).logpdf(x), axis=0)
-        score[block * n_states : (block + 1) * n_states] = (up - down) / (2 * _FD_STEP)
-    return score
-
-
 def _posterior(params: Parameters, data: FitData):
-    log_lik = params.log_likelihood_matrix(data)
+    """Forward-backward of ``data`` under ``params`` (a :class:`~.inference.Posterior`)."""
     with np.errstate(divide="ignore"):
         log_initial = np.log(params.initial)
-    post = forward_backward(log_initial, params.log_transition(data), log_lik, data.lengths)
-    return post, log_lik
+    return forward_backward(
+        log_initial, params.log_transition(data), params.log_likelihood_matrix(data), data.lengths
+    )
 
 
 # ---------------------------------------------------------------------------------------------
@@ -349,8 +338,8 @@ def m_step(params: Parameters, data: FitData, post) -> Parameters:
         initial=initial,
         transition=transition,
         coefficients=coefficients,
-        step=params.step.fit_weighted(data.step, weights),
-        angle=params.angle.fit_weighted(data.angle, weights),
+        step=params.step.fit_weighted(data.prepared_step, weights),
+        angle=params.angle.fit_weighted(data.prepared_angle, weights),
     )
 
 
@@ -367,11 +356,12 @@ def run_em(params: Parameters, data: FitData, max_iter: int, tol: float):
     """
     history = []
     converged = False
-    post, _ = _posterior(params, data)
+    post = _posterior(params, data)
     for _ in range(max_iter):
         history.append(post.log_likelihood)
         params = m_step(params, data, post)
-        post, _ = _posterior(params, data)
+        del post  # free its (T, K) arrays before the next E-step allocates the same again
+        post = _posterior(params, data)
         if post.log_likelihood - history[-1] < tol * data.n_obs:
             converged = True
             break
@@ -449,7 +439,7 @@ def initial_parameters(rng: np.random.Generator | None, data: FitData, spec: Fit
     """
     k = spec.n_states
     step, angle = distributions.initial_guess(
-        data.step,
+        data.prepared_step,
         data.angle,
         k,
         spec.step_family,
@@ -487,20 +477,35 @@ def run_start(index: int, seed: np.random.SeedSequence, data: FitData, spec: Fit
     return StartResult(index, order_by_mean_step(params), log_likelihood, monitor)
 
 
-def _run_start_packed(arguments):
-    return run_start(*arguments)
+_worker_data: FitData | None = None  # the data of a worker process, set once when it starts
+
+
+def _set_worker_data(data: FitData) -> None:
+    global _worker_data
+    _worker_data = data
+
+
+def _run_start_in_worker(task) -> StartResult:
+    index, seed, spec = task
+    return run_start(index, seed, _worker_data, spec)
 
 
 def run_starts(data: FitData, spec: FitSpec, n_starts: int, seed, n_jobs: int = 1):
-    """All starts, serially or in ``n_jobs`` processes; the same list either way."""
+    """All starts, serially or in ``n_jobs`` processes; the same list either way.
+
+    Worker processes are forked where the platform allows (no re-import, no copy of the
+    data: they inherit it) and receive the data once, through the pool's initializer,
+    rather than with every start.
+    """
     seeds = spawn(seed, n_starts)
-    tasks = [(i, s, data, spec) for i, s in enumerate(seeds)]
     if n_jobs == 1 or n_starts == 1:
-        return [run_start(*task) for task in tasks]
+        return [run_start(i, s, data, spec) for i, s in enumerate(seeds)]
     methods = multiprocessing.get_all_start_methods()
     context = multiprocessing.get_context("fork" if "fork" in methods else None)
-    with concurrent.futures.ProcessPoolExecutor(n_jobs, mp_context=context) as pool:
-        return list(pool.map(_run_start_packed, tasks))
+    with concurrent.futures.ProcessPoolExecutor(
+        min(n_jobs, n_starts), mp_context=context, initializer=_set_worker_data, initargs=(data,)
+    ) as pool:
+        return list(pool.map(_run_start_in_worker, [(i, s, spec) for i, s in enumerate(seeds)]))
 
 
 # ---------------------------------------------------------------------------------------------

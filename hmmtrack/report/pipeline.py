@@ -28,6 +28,8 @@ from hmmtrack.experiments import (
     loss_sweep,
     paper_scenarios,
 )
+from hmmtrack.plots import results as plots
+from hmmtrack.plots.experiments import plot_scenario
 from hmmtrack.report.paper import PAPER
 from hmmtrack.report.summary import write_summary
 from hmmtrack.scenarios import white_shark_tracks
@@ -110,14 +112,12 @@ def save_figures(
     dict of str to str
         Caption → file name, in reading order.
     """
-    from hmmtrack.plots import results as plots
-    from hmmtrack.plots.experiments import plot_scenario
-
     figures = {}
     fig, axes = plt.subplots(1, len(datasets), figsize=(5 * len(datasets), 4.5))
     for ax, scenario in zip(np.atleast_1d(axes), datasets.values(), strict=True):
         plot_scenario(scenario, ax=ax)
         ax.set_title(PAPER["datasets"].get(scenario.name, scenario.name) + " analogue")
+    fig.tight_layout()
     figures["Dataset overviews (synthetic analogues)"] = _save(fig, out, "datasets.png")
 
     fig = plots.motion_hmm_figure(load_white_shark_hmm(), shark_tracks)
