@@ -10,7 +10,8 @@ second of ``ParticleFilter`` with its compiled kernels and of the same filter wi
 ratio is measured in the same run.
 
 Run: ``python benchmarks/bench_filter.py`` (``--quick`` for a 600 s trial and N up to
-10,000; ``--repeat k`` keeps the best of k runs).
+10,000; ``--repeat k`` keeps the best of k runs; ``--threads t`` fixes the compiled
+filter's threads).
 """
 
 from __future__ import annotations
@@ -88,6 +89,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="600 s trial, N <= 10,000")
     parser.add_argument("--repeat", type=int, default=2, help="best of this many runs")
+    parser.add_argument(
+        "--threads", type=int, default=None, help="threads of the compiled filter (default: auto)"
+    )
     args = parser.parse_args()
     duration = 600.0 if args.quick else 3600.0
     sizes = (1_000, 10_000) if args.quick else (1_000, 10_000, 100_000)
@@ -99,7 +103,8 @@ def main() -> None:
     }
     print(
         f"{duration:.0f} s trial, {len(obs)} observations from 2 receivers, "
-        f"{numba.config.NUMBA_NUM_THREADS} numba threads; best of {args.repeat}"
+        f"threads={args.threads or 'auto'} of {numba.config.NUMBA_NUM_THREADS}; "
+        f"best of {args.repeat}"
     )
     print(f"{'model':<20}{'N':>8}{'compiled s':>12}{'M steps/s':>11}{'numpy s':>10}"
           f"{'M steps/s':>11}{'ratio':>8}")  # fmt: skip
@@ -110,7 +115,9 @@ def main() -> None:
         for n in sizes:
             steps = n * duration
             compiled = best_time(
-                lambda k, m=motion, n=n: ParticleFilter(m, MEASUREMENT, n, BOUNDS, rng=k),
+                lambda k, m=motion, n=n: ParticleFilter(
+                    m, MEASUREMENT, n, BOUNDS, rng=k, threads=args.threads
+                ),
                 obs, duration, args.repeat,
             )  # fmt: skip
             reference = best_time(

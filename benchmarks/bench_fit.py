@@ -15,21 +15,29 @@ log-likelihoods for
 
 Ratios are to the baseline measured in the same run and to moveHMM 1.12's 17.4 s for the
 20,000-observation fit (measured on this kind of machine, see issue 2). Wall-clock times
-depend on what else runs on the machine; the script prints the CPU count.
+depend on what else runs on the machine; the script prints the CPU count and the load
+average, and CPU seconds beside wall seconds.
+
+OpenBLAS is kept to one thread (``OPENBLAS_NUM_THREADS=1`` unless set, before numpy is
+imported) for both methods: with several processes on a shared machine its threads made
+products of long vectors randomly up to 1000x slower.
 """
 
 from __future__ import annotations
 
 import os
-import resource
-import time
 
-import numpy as np
-from hmmlearn.base import BaseHMM
-from scipy import special
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-from hmmtrack.hmm import Gamma, MovementHMM, MovementHMMEstimator, VonMises
-from hmmtrack.hmm.distributions import initial_guess
+import resource  # noqa: E402
+import time  # noqa: E402
+
+import numpy as np  # noqa: E402
+from hmmlearn.base import BaseHMM  # noqa: E402
+from scipy import special  # noqa: E402
+
+from hmmtrack.hmm import Gamma, MovementHMM, MovementHMMEstimator, VonMises  # noqa: E402
+from hmmtrack.hmm.distributions import initial_guess  # noqa: E402
 
 MOVEHMM_SECONDS_20K = 17.4
 TOL = 1e-9  # log-likelihood gain per observation that stops EM, for both methods
@@ -160,7 +168,11 @@ def best_of(function, repeats, *args, **kwargs):
 
 
 def main() -> None:
-    print(f"CPUs visible: {os.cpu_count()} (shared with other work; wall-clock times)")
+    load = ", ".join(f"{x:.2f}" for x in os.getloadavg())
+    print(
+        f"CPUs visible: {os.cpu_count()}, load average {load} (shared with other work); "
+        f"OPENBLAS_NUM_THREADS={os.environ['OPENBLAS_NUM_THREADS']}"
+    )
     X20, lengths20 = simulate(20_000, 1, seed=1)
     first = run_hmmtrack(X20[:2000], [2000])
     print(f"first call (2,000 obs, numba cache load included): {first[0]:.3f} s")
@@ -184,6 +196,7 @@ def main() -> None:
     multi = run_hmmtrack(X124, lengths124, n_starts=10, n_jobs=2)
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     child_cpu = (after.ru_utime + after.ru_stime) - (children.ru_utime + children.ru_stime)
+    serial = run_hmmtrack(X124, lengths124, n_starts=10, n_jobs=1)
     print("\n124,000 observations (10 tracks)")
     print(
         f"  hmmtrack 1 start : {ours1[0]:.3f} / {ours1[3]:.3f} s (wall / CPU), "
@@ -202,6 +215,10 @@ def main() -> None:
     print(
         f"    CPU: {multi[3]:.3f} s parent + {child_cpu:.3f} s workers = {cpu:.3f} s, i.e. "
         f"{cpu / 2:.3f} s wall on 2 otherwise idle cores"
+    )
+    print(
+        f"  hmmtrack 10 starts, 1 process: {serial[0]:.3f} / {serial[3]:.3f} s (wall / CPU), "
+        f"best log-lik {serial[2]:.4f}"
     )
 
 

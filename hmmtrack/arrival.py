@@ -27,11 +27,13 @@ This module only scores; it does not move particles, resample, or build observat
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
 import pandas as pd
+from numba import njit
 from scipy.special import log_ndtr
 
 #: speed of sound in sea water used by the paper (m/s); fresh water is about 1416-1450
@@ -119,8 +121,34 @@ class ArrivalLikelihood:
             - 0.5 * z * z
         )
 
+    def log_densities(self, residual, period) -> tuple[np.ndarray, np.ndarray]:
+        """Compiled :meth:`logpdf` and :meth:`core_logpdf` of 1-D ``residual``, together.
+
+        Parameters
+        ----------
+        residual, period : numpy.ndarray, shape (N,)
+            Residuals and the periods they were wrapped with (s).
+        """
+        residual = np.ascontiguousarray(residual, dtype=float)
+        period = np.ascontiguousarray(np.broadcast_to(period, residual.shape), dtype=float)
+        total = np.empty(residual.shape)
+        core = np.empty(residual.shape)
+        _density_kernel(
+            residual,
+            period,
+            self.sigma,
+            self.late_fraction,
+            self.late_mean,
+            self.uniform_fraction,
+            total,
+            core,
+        )
+        return total, core
+
     def logpdf(self, residual, period) -> np.ndarray:
-        """Log density (log 1/s) of residuals ``residual`` (s); ``period`` (s) broadcasts."""
+        """Log density (log 1/s) of residuals ``residual`` (s); ``period`` (s) broadcasts.
+
+        The NumPy reference of :meth:`log_densities` (any shape)."""
         eps = np.asarray(residual, dtype=float)
         z = eps / self.sigma
         out = self.core_logpdf(eps)
@@ -171,6 +199,71 @@ def emission_range(
         r = np.sqrt((x - vx * back - receiver_x) ** 2 + (y - vy * back - receiver_y) ** 2 + dz2)
         back = lag + r / sound_speed
     return r
+
+
+@njit(cache=True)
+def _log_ndtr(z: float) -> float:
+    """log Φ(z), the standard normal log CDF (erfc form; asymptotic series far left)."""
+    if z > -30.0:
+        return math.log(0.5 * math.erfc(-z / math.sqrt(2.0)))
+    z2 = z * z
+    return -0.5 * z2 - math.log(-z) - _LOG_SQRT_2PI + math.log1p(-1.0 / z2 + 3.0 / (z2 * z2))
+
+
+@njit(cache=True)
+def _log_add(a: float, b: float) -> float:
+    if a < b:
+        a, b = b, a
+    if b == -math.inf:
+        return a
+    return a + math.log1p(math.exp(b - a))
+
+
+@njit(cache=True)
+def _match_kernel(
+    x, y, vx, vy, emission_time, period, vertical, lag, arrival, receiver_x, receiver_y,
+    sound_speed, residual, ping, distance,
+):  # fmt: skip
+    """Compiled :func:`emission_range` + :func:`wrap_to_ping` for one detection."""
+    for i in range(x.size):
+        dz2 = vertical[i] * vertical[i]
+        back = lag
+        r = 0.0
+        for _ in range(3):
+            dx = x[i] - vx[i] * back - receiver_x
+            dy = y[i] - vy[i] * back - receiver_y
+            r = math.sqrt(dx * dx + dy * dy + dz2)
+            back = lag + r / sound_speed
+        offset = arrival - r / sound_speed - emission_time[i]
+        m = np.rint(offset / period[i])
+        residual[i] = offset - m * period[i]
+        ping[i] = m
+        distance[i] = r
+
+
+@njit(cache=True)
+def _density_kernel(
+    residual, period, sigma, late_fraction, late_mean, uniform_fraction, total, core
+):
+    """Compiled :meth:`ArrivalLikelihood.logpdf` and :meth:`ArrivalLikelihood.core_logpdf`."""
+    log_core_weight = math.log1p(-late_fraction - uniform_fraction) - math.log(sigma)
+    log_core_weight -= _LOG_SQRT_2PI
+    rate_sigma = sigma / late_mean
+    log_late_weight = -math.inf
+    if late_fraction > 0:
+        log_late_weight = math.log(late_fraction / late_mean) + 0.5 * rate_sigma * rate_sigma
+    log_uniform = -math.inf if uniform_fraction <= 0 else math.log(uniform_fraction)
+    for i in range(residual.size):
+        eps = residual[i]
+        z = eps / sigma
+        c = log_core_weight - 0.5 * z * z
+        out = c
+        if late_fraction > 0:
+            out = _log_add(out, log_late_weight - eps / late_mean + _log_ndtr(z - rate_sigma))
+        if uniform_fraction > 0:
+            out = _log_add(out, log_uniform - math.log(period[i]))
+        total[i] = out
+        core[i] = c
 
 
 def _vertical(particles, obs: pd.DataFrame, row: int, n: int):
@@ -261,26 +354,35 @@ class ArrivalTimeMeasurement:
             Residual (s, see :func:`wrap_to_ping`), whole periods from the particle's
             ``emission_time`` to the matched ping, and range at emission (m).
         """
-        lag = 0.0 if time is None else float(time) - arrival
-        r = emission_range(
+        n = np.shape(particles.x)[0]
+        out = np.empty((3, n))
+        _match_kernel(
             particles.x,
             particles.y,
             particles.speed * particles.cos_heading,
             particles.speed * particles.sin_heading,
-            lag,
-            receiver_x,
-            receiver_y,
-            vertical,
+            np.ascontiguousarray(particles.emission_time, dtype=float),
+            np.ascontiguousarray(particles.period, dtype=float),
+            np.ascontiguousarray(np.broadcast_to(np.asarray(vertical, dtype=float), (n,))),
+            0.0 if time is None else float(time) - float(arrival),
+            float(arrival),
+            float(receiver_x),
+            float(receiver_y),
             self.sound_speed,
+            out[0],
+            out[1],
+            out[2],
         )
-        residual, ping = wrap_to_ping(
-            arrival - r / self.sound_speed, particles.emission_time, particles.period
-        )
-        return residual, ping, r
+        return out[0], out[1], out[2]
 
-    def rows(self, particles, obs: pd.DataFrame) -> list[tuple]:
-        """Checked ``(arrival, receiver_x, receiver_y, vertical)`` of each row of ``obs``."""
-        check_arrival_observations(obs)
+    def rows(self, particles, obs: pd.DataFrame, check: bool = True) -> list[tuple]:
+        """``(arrival, receiver_x, receiver_y, vertical)`` of each row of ``obs``.
+
+        ``check=False`` skips :func:`check_arrival_observations` for tables already
+        checked as a whole (the filter checks its input once, up front).
+        """
+        if check:
+            check_arrival_observations(obs)
         arrival = obs["time"].to_numpy(dtype=float)
         rx = obs["receiver_x"].to_numpy(dtype=float)
         ry = obs["receiver_y"].to_numpy(dtype=float)
@@ -326,5 +428,7 @@ class ArrivalTimeMeasurement:
         if len(obs) == 0:
             return np.zeros(np.shape(particles.x)[0])
         residual = self.residuals(particles, obs, time)
-        period = np.asarray(particles.period, dtype=float)[:, None]
-        return self.likelihood.logpdf(residual, period).sum(axis=1)
+        total = np.zeros(residual.shape[0])
+        for j in range(residual.shape[1]):
+            total += self.likelihood.log_densities(residual[:, j], particles.period)[0]
+        return total

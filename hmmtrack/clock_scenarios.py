@@ -328,11 +328,14 @@ def moored_array(
 ) -> ClockScenario:
     """A resident shark inside a triangle of three moored receivers, with realistic clocks.
 
-    The tag follows :data:`RESIDENT_SHARK` (about 0.45 m/s, tortuous) from the centre of an
-    equilateral triangle of receivers ``array_radius`` from the centre; the detection
-    range is logistic with a 50 % range of 700 m (100 m fall-off); receiver positions are
-    surveyed to 0.5 m; receiver clocks have offsets of ~0.5 s and drifts of ~20 ppm,
-    calibrated to 0.1 ms and 0.02 ppm; 3 % of detections are multipath arrivals.
+    The tag follows :data:`RESIDENT_SHARK` (about 0.45 m/s, tortuous). The receivers stand
+    at the corners of an equilateral triangle around the shark's home range (the centre
+    of its path), each ``array_radius`` from the centre or, if the shark roams further,
+    1.2 times its largest distance from the centre, so that it stays inside the array;
+    the detection range is logistic with a 50 % range of 1.75 radii (fall-off a quarter
+    radius); receiver positions are surveyed to 0.5 m; receiver clocks have offsets of
+    ~0.5 s and drifts of ~20 ppm, calibrated to 0.1 ms and 0.02 ppm; 3 % of detections
+    are multipath arrivals.
 
     Parameters
     ----------
@@ -342,7 +345,7 @@ def moored_array(
     period : float
         Mean tag period (s).
     array_radius : float
-        Distance of each receiver from the array centre (m).
+        Smallest distance of each receiver from the array centre (m).
     schedule_wander : float
         See :class:`WanderingPeriodClock` (s).
     start : float
@@ -351,9 +354,11 @@ def moored_array(
     rng = as_generator(seed)
     n_steps = int(np.ceil(duration / RESIDENT_SHARK.dt))
     tag, _ = RESIDENT_SHARK.simulate_path(rng, n_steps, start_time=start)
+    cx, cy = float(np.mean(tag.x)), float(np.mean(tag.y))
+    radius = max(array_radius, 1.2 * float(np.max(np.hypot(tag.x - cx, tag.y - cy))))
     angles = np.pi / 2 + 2 * np.pi / 3 * np.arange(3)
     receivers = {
-        f"mooring-{k + 1}": Trajectory.fixed(array_radius * np.cos(a), array_radius * np.sin(a))
+        f"mooring-{k + 1}": Trajectory.fixed(cx + radius * np.cos(a), cy + radius * np.sin(a))
         for k, a in enumerate(angles)
     }
     return build_clock_scenario(
@@ -367,7 +372,7 @@ def moored_array(
         tag=tag,
         receivers=receivers,
         clock=WanderingPeriodClock(period, schedule_wander, phase=float(rng.uniform(0, period))),
-        detection=LogisticDetection(range_50=700.0, width=100.0),
+        detection=LogisticDetection(range_50=1.75 * radius, width=0.25 * radius),
         multipath=Multipath(),
         gps=GpsNoise(sd=0.5),
         start=start,

@@ -18,12 +18,11 @@ each through the parent's own steps (predict, correct, resample):
   against a particle cloud that may span kilometres, so when it would leave fewer than
   ``tempering_ess · N`` effective particles the likelihood is applied in powers
   ``β₁ + β₂ + … = 1``, each followed by resampling and a small Gaussian move of position
-  and emission time shaped by the particles' covariance (progressive correction with
-  regularisation);
+  shaped by the particles' covariance (progressive correction with regularisation);
 * what the filter cannot see, it reports: per correction, whether the particle cloud is
   split into two separated clusters (:func:`ambiguity`, the paper's two-intersection
-  case), and when no particle fits a detection's timing the clock is re-acquired from
-  that detection and the event recorded.
+  case), and when detections keep fitting no particle's clock (a clock jump, not
+  multipath) the clock is re-acquired from the latest one and the event recorded.
 
 Optionally it also records every step for the fixed-lag smoother
 (:mod:`hmmtrack.smoothing`) and counts silences against particles near a receiver
@@ -46,7 +45,12 @@ import numpy as np
 import pandas as pd
 from scipy.special import logsumexp
 
-from hmmtrack.arrival import ArrivalTimeMeasurement, emission_range, wrap_to_ping
+from hmmtrack.arrival import (
+    ArrivalTimeMeasurement,
+    check_arrival_observations,
+    emission_range,
+    wrap_to_ping,
+)
 from hmmtrack.clock import EmissionClockModel
 from hmmtrack.detection_probability import LogisticDetection, silence_loglik
 from hmmtrack.filter import FilterResult, ParticleFilter
@@ -107,23 +111,28 @@ def ambiguity(x, y, weights, min_separation: float = 20.0) -> tuple[float, float
         return 0.0, 0.0, False
     u = dx * vectors[0, 1] + dy * vectors[1, 1]
     order = np.argsort(u)
-    cumulative = np.cumsum(w[order])
-    lo = u[order][np.searchsorted(cumulative, 0.25)]
-    hi = u[order][min(np.searchsorted(cumulative, 0.75), u.size - 1)]
-    for _ in range(20):
-        right = np.abs(u - hi) < np.abs(u - lo)
-        w_right = w[right].sum()
-        if w_right <= 0 or w_right >= 1:
-            return 0.0, 0.0, False
-        lo_new = (w[~right] @ u[~right]) / (1 - w_right)
-        hi_new = (w[right] @ u[right]) / w_right
-        if lo_new == lo and hi_new == hi:
+    u, w = u[order], w[order]
+    # prefix sums make each 2-means iteration a binary search (the split is a threshold)
+    cw = np.concatenate([[0.0], np.cumsum(w)])
+    cwu = np.concatenate([[0.0], np.cumsum(w * u)])
+    cwu2 = np.concatenate([[0.0], np.cumsum(w * u * u)])
+    total, total_u, total_u2 = cw[-1], cwu[-1], cwu2[-1]
+    lo = u[min(np.searchsorted(cw[1:], 0.25 * total), u.size - 1)]
+    hi = u[min(np.searchsorted(cw[1:], 0.75 * total), u.size - 1)]
+    k = -1
+    for _ in range(50):
+        k_new = int(np.searchsorted(u, 0.5 * (lo + hi), side="right"))
+        if k_new == k:
             break
-        lo, hi = lo_new, hi_new
-    sd_lo = np.sqrt(w[~right] @ (u[~right] - lo) ** 2 / (1 - w_right))
-    sd_hi = np.sqrt(w[right] @ (u[right] - hi) ** 2 / w_right)
+        k = k_new
+        w_lo, w_hi = cw[k], total - cw[k]
+        if w_lo <= 0 or w_hi <= 0:
+            return 0.0, 0.0, False
+        lo, hi = cwu[k] / w_lo, (total_u - cwu[k]) / w_hi
+    sd_lo = np.sqrt(max(cwu2[k] / w_lo - lo * lo, 0.0))
+    sd_hi = np.sqrt(max((total_u2 - cwu2[k]) / w_hi - hi * hi, 0.0))
     separation = float(hi - lo)
-    minor = float(min(w_right, 1 - w_right))
+    minor = float(min(w_lo, w_hi) / total)
     split = minor >= 0.05 and separation > max(min_separation, 3.0 * (sd_lo + sd_hi))
     return separation, minor, bool(split)
 
@@ -287,41 +296,34 @@ class ClockAwareFilter(ParticleFilter):
     # ------------------------------------------------------------------ correct
 
     def _start_clock(self, obs: pd.DataFrame, reacquire: bool = False) -> None:
-        """Set every particle's emission time from the first detection of ``obs``."""
+        """Set every particle's emission time from the first detection of ``obs``.
+
+        Given a particle's position, a uniform prior on the phase and one arrival time
+        leave only the measurement noise on its emission time. A re-acquisition keeps the
+        particles' periods.
+        """
         p = self.particles
-        vx = p.speed * p.cos_heading
-        vy = p.speed * p.sin_heading
-        arrival = float(obs["time"].iat[0])
-        vertical = 0.0
-        if "depth" in obs.columns:
-            vertical = float(obs["depth"].iat[0])
+        arrival, receiver_x, receiver_y, vertical = self.measurement.rows(p, obs, check=False)[0]
         r = emission_range(
             p.x,
             p.y,
-            vx,
-            vy,
+            p.speed * p.cos_heading,
+            p.speed * p.sin_heading,
             self.time - arrival,
-            float(obs["receiver_x"].iat[0]),
-            float(obs["receiver_y"].iat[0]),
+            receiver_x,
+            receiver_y,
             vertical,
             self.measurement.sound_speed,
         )
         p.extra["emission_time"] = arrival - r / self.measurement.sound_speed
-        if not self._clock_started:
+        covariance = self.clock.initial_covariance(self.measurement.likelihood.sigma)
+        if reacquire:
+            covariance[1, 1] = max(covariance[1, 1], float(np.var(p.period)))
+        else:
+            p.extra["period"] = np.full(p.n, self.clock.nominal_period)
             # silences count from the first ping on: earlier pings may predate the tag
             self._silence_from = float(np.min(p.emission_time))
-        if not reacquire:
-            p.extra["period"] = np.full(p.n, self.clock.nominal_period)
-            self._clock_covariance = self.clock.initial_covariance(
-                self.measurement.likelihood.sigma
-            )
-        else:
-            self._clock_covariance = self.clock.initial_covariance(
-                self.measurement.likelihood.sigma
-            )
-            self._clock_covariance[1, 1] = max(
-                self._clock_covariance[1, 1], float(np.var(p.period))
-            )
+        self._clock_covariance = covariance
         self._clock_started = True
 
     def _clock_update(self, obs: pd.DataFrame):
@@ -353,18 +355,17 @@ class ClockAwareFilter(ParticleFilter):
         weights = p.normalised_weights()
         lost = False
         heard = np.zeros(p.n)
-        for row in self.measurement.rows(p, obs):
+        for row in self.measurement.rows(p, obs, check=False):
             view = _ClockView(p, emission_time, period)
             residual, ping, r = self.measurement.match_one(view, *row, time=self.time)
-            if self.silence is not None:
-                heard += self.silence.detection.log_probability(r)
             n_ahead = int(max(np.median(ping), 0))
             predicted = self.clock.predict_covariance(covariance, n_ahead)
             innovation_var = predicted[0, 0] + likelihood.sigma**2
             marginal = dataclasses.replace(likelihood, sigma=float(np.sqrt(innovation_var)))
+            total, core = marginal.log_densities(residual, period)
+            if self.silence is not None:
+                heard += self.silence.detection.log_probability(r)
             lost |= bool(np.min(np.abs(residual)) > self.lock_sigmas * marginal.sigma)
-            total = marginal.logpdf(residual, period)
-            core = marginal.core_logpdf(residual)
             direct = np.exp(core - total)  # probability that the arrival is direct
             loglik += total
             gain = predicted[:, 0] / innovation_var
@@ -391,6 +392,10 @@ class ClockAwareFilter(ParticleFilter):
         p = self.particles
         cut = self.time + 0.5 * self.dt - s.tolerance  # detections up to time + dt/2 are in
         out = np.zeros(p.n)
+        if cut <= self._silence_from:
+            return out
+        # pings of a particle whose arrival can fall in the window, with one to spare
+        n_back = min(int(np.ceil((cut - self._silence_from) / self.clock.nominal_period)) + 1, 8)
         for name in s.receivers.names:
             first, last = s.receivers.span(name)
             if not first <= self.time <= last:
@@ -399,7 +404,7 @@ class ClockAwareFilter(ParticleFilter):
             r = np.hypot(p.x - rx[0], p.y - ry[0])
             travel = r / self.measurement.sound_speed
             last = np.floor((cut - travel - p.emission_time) / p.period)
-            for back in range(4):  # the particle's last few pings before the cut
+            for back in range(n_back):  # the particle's last pings before the cut
                 expected = p.emission_time + (last - back) * p.period + travel
                 out += silence_loglik(
                     expected, r, s.heard[name], self._silence_from, cut, s.detection, s.tolerance
@@ -565,6 +570,7 @@ def arrival_observations(detections: pd.DataFrame, receivers: ReceiverTracks) ->
         )
     columns = ["time", "receiver"] + (["depth"] if "depth" in detections.columns else [])
     obs = detections[columns].copy()
+    check_arrival_observations(obs.assign(receiver_x=0.0, receiver_y=0.0), "detections")
     obs["receiver"] = obs["receiver"].astype(str)
     obs["receiver_x"] = np.nan
     obs["receiver_y"] = np.nan

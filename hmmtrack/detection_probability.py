@@ -215,3 +215,68 @@ def silence_loglik(
     missed = due & ~_any_within(heard_times, expected_arrival, tolerance)
     out[missed] = detection.log_miss_probability(range_m[missed])
     return out
+
+
+def emission_schedule(clock: pd.DataFrame, end: float) -> np.ndarray:
+    """Emission times (s) implied by a tracked clock, filled ping by ping up to ``end``.
+
+    Parameters
+    ----------
+    clock : pandas.DataFrame
+        Columns ``emission_time`` and ``period`` (s), one row per correction in time order,
+        as the clock table of :class:`hmmtrack.clock_tracking.ClockFilterResult`.
+    end : float
+        Last time to fill to (s).
+
+    Returns
+    -------
+    numpy.ndarray, shape (n,)
+        Sorted, one per ping: each row's emission time stepped by its period until the
+        next row's emission time (or ``end``).
+    """
+    emission = clock["emission_time"].to_numpy(dtype=float)
+    period = clock["period"].to_numpy(dtype=float)
+    stops = np.append(emission[1:], end)
+    pings = [
+        e + p * np.arange(max(int(np.round((stop - e) / p)), 1))
+        for e, p, stop in zip(emission, period, stops, strict=True)
+    ]
+    return np.unique(np.concatenate(pings)) if pings else np.empty(0)
+
+
+def fit_detection_probability_from_track(
+    estimates: pd.DataFrame,
+    clock: pd.DataFrame,
+    receivers: ReceiverTracks,
+    detections: pd.DataFrame,
+    sound_speed: float,
+    tolerance: float = 0.5,
+) -> LogisticDetection:
+    """Fit the detection curve from a tracking run: its track, its clock, the detections.
+
+    A first pass of the arrival-time filter (without detection probability) gives where
+    the tag was and when it pinged; every ping then has a range to every receiver and was
+    heard or not (:func:`expected_pings`), which is what :func:`fit_detection_probability`
+    needs. The fit is only as good as the track; pings are kept from the first correction.
+
+    Parameters
+    ----------
+    estimates : pandas.DataFrame
+        ``time``, ``x``, ``y`` of the track (m).
+    clock : pandas.DataFrame
+        ``emission_time``, ``period`` per correction (see :func:`emission_schedule`).
+    receivers : ReceiverTracks
+    detections : pandas.DataFrame
+        ``time`` (common time base) and ``receiver``.
+    sound_speed : float
+        m/s.
+    tolerance : float
+        s, see :func:`expected_pings`.
+    """
+    times = estimates["time"].to_numpy(dtype=float)
+    emissions = emission_schedule(clock, float(times[-1]))
+    emissions = emissions[(emissions >= times[0]) & (emissions <= times[-1])]
+    x = np.interp(emissions, times, estimates["x"].to_numpy(dtype=float))
+    y = np.interp(emissions, times, estimates["y"].to_numpy(dtype=float))
+    table = expected_pings(emissions, x, y, receivers, detections, sound_speed, tolerance)
+    return fit_detection_probability(table["range"], table["heard"])

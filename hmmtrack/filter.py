@@ -5,7 +5,8 @@
 * a motion model (:mod:`hmmtrack.motion`) moves the particles every ``dt`` (1 s) seconds;
 * a measurement model (:mod:`hmmtrack.measurement`, or any object with
   ``loglik(particles, obs, time) -> (N,)``) weighs them when observations arrive; the
-  log weights are normalised with ``logsumexp``;
+  log weights are normalised by their log-sum-exp (no underflow: only weights that are all
+  ``-inf``, every particle impossible, are degenerate -- they are recovered, never NaN);
 * a resampling scheme (:mod:`hmmtrack.resampling`) runs after every correction
   (``resample_when="always"``, the paper) or when the effective sample size falls below
   ``ess_threshold * N`` (``"ess"``).
@@ -35,7 +36,6 @@ This module does not read files or build observations (:mod:`hmmtrack.tracking` 
 
 from __future__ import annotations
 
-import logging
 import math
 import warnings
 from collections.abc import Iterator, Sequence
@@ -60,12 +60,13 @@ __all__ = [
     "sqrt_largest_eigenvalue",
 ]
 
-logger = logging.getLogger(__name__)
 
 #: columns of the estimates table (docs/interfaces.md plus the effective sample size)
 ESTIMATE_COLUMNS = ("time", "x", "y", "var_x", "var_y", "cov_xy", "sqrt_lambda1", "n_eff")
-#: below this many particle-steps per compiled call, one thread is faster than waking more
-PARALLEL_MIN_WORK = 400_000
+#: below this many particle-steps per compiled call the default is one thread: waking more
+#: costs more than it saves on short calls, and far more on a machine whose cores are busy
+#: (measured on the shared 2-core development machine; pass ``threads=`` to override)
+PARALLEL_MIN_WORK = 2_000_000
 BACKENDS = ("auto", "numba", "numpy")
 RESAMPLE_WHEN = ("always", "ess")
 
@@ -138,9 +139,13 @@ def _weight_summary(x, y, log_weight):
     top = log_weight.max()
     weights = np.empty(n)
     total = 0.0
-    for i in range(n):
-        weights[i] = math.exp(log_weight[i] - top)
-        total += weights[i]
+    if top == log_weight.min():  # equal weights (after resampling): no exponentials
+        weights[:] = 1.0
+        total = float(n)
+    else:
+        for i in range(n):
+            weights[i] = math.exp(log_weight[i] - top)
+            total += weights[i]
     mean_x = mean_y = sum_w2 = 0.0
     for i in range(n):
         weights[i] /= total
@@ -392,9 +397,8 @@ class ParticleFilter:
         self._record("degenerate_weights", action)
 
     def _record(self, kind: str, detail: str) -> None:
-        message = f"t={self.time}: {kind}: {detail}"
-        warnings.warn(message, RuntimeWarning, stacklevel=3)
-        logger.warning(message)
+        """Warn (``RuntimeWarning``) and append the event to :attr:`events`."""
+        warnings.warn(f"t={self.time}: {kind}: {detail}", RuntimeWarning, stacklevel=3)
         self.events.append({"time": self.time, "kind": kind, "detail": detail})
 
     def resample_if_due(self) -> bool:

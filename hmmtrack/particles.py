@@ -185,8 +185,7 @@ class Particles:
 
     def normalised_weights(self) -> np.ndarray:
         """Weights ``exp(log_weight)`` scaled to sum one, shape ``(N,)``."""
-        lw = self.log_weight - self.log_weight.max()
-        w = np.exp(lw)
+        w = np.exp(self.log_weight - self.log_weight.max())
         return w / w.sum()
 
     def to_frame(self) -> pd.DataFrame:

@@ -273,3 +273,40 @@ def test_missing_columns_and_bad_parameters_are_refused():
         ArrivalLikelihood(sigma=0.0)
     with pytest.raises(ValueError, match="below 1"):
         ArrivalLikelihood(late_fraction=0.6, uniform_fraction=0.5)
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    sigma=st.floats(1e-4, 1e-2),
+    late=st.floats(0.0, 0.3),
+    uniform=st.floats(0.0, 0.05),
+    late_mean=st.floats(1e-3, 0.1),
+)
+def test_compiled_densities_equal_the_numpy_reference(sigma, late, uniform, late_mean):
+    likelihood = ArrivalLikelihood(sigma, late, late_mean, uniform)
+    residual = np.concatenate([np.linspace(-4.0, 4.0, 401), np.linspace(-0.2, 0.2, 401)])
+    period = np.full(residual.size, 8.0)
+    total, core = likelihood.log_densities(residual, period)
+    np.testing.assert_allclose(total, likelihood.logpdf(residual, period), rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(core, likelihood.core_logpdf(residual), rtol=1e-12, atol=1e-9)
+
+
+def test_compiled_match_equals_emission_range_and_wrapping():
+    rng = np.random.default_rng(6)
+    n = 50
+    p = particles(
+        x=rng.uniform(-900, 900, n),
+        y=rng.uniform(-900, 900, n),
+        heading=rng.uniform(-np.pi, np.pi, n),
+        speed=rng.uniform(0, 2, n),
+        emission_time=rng.uniform(0, 8, n),
+        period=8.0 + rng.normal(0, 1e-3, n),
+    )
+    model = ArrivalTimeMeasurement(sound_speed=C)
+    residual, ping, r = model.match_one(p, 1234.5, 10.0, -20.0, 4.0, time=1235.1)
+    vx, vy = p.speed * np.cos(p.heading), p.speed * np.sin(p.heading)
+    want_r = emission_range(p.x, p.y, vx, vy, 0.6, 10.0, -20.0, 4.0, C)
+    want_residual, want_ping = wrap_to_ping(1234.5 - want_r / C, p.emission_time, p.period)
+    np.testing.assert_allclose(r, want_r, rtol=1e-12)
+    np.testing.assert_allclose(residual, want_residual, atol=1e-9)
+    np.testing.assert_array_equal(ping, want_ping)

@@ -156,3 +156,12 @@ def test_arrival_observations_name_unknown_receivers():
         arrival_observations(detections, receivers)
     obs = arrival_observations(detections.iloc[:1], receivers)
     assert obs[["receiver_x", "receiver_y"]].iloc[0].tolist() == [1.0, 2.0]
+
+
+def test_arrival_observations_refuse_missing_depths():
+    receivers = ReceiverTracks.from_frame(
+        pd.DataFrame({"receiver": ["a"], "time": [np.nan], "x": [1.0], "y": [2.0]})
+    )
+    detections = pd.DataFrame({"time": [5.0, 6.0], "receiver": ["a", "a"], "depth": [3.0, np.nan]})
+    with pytest.raises(ValueError, match=r"detections.*'depth'.*rows \[1\]"):
+        arrival_observations(detections, receivers)

@@ -77,3 +77,40 @@ def test_silence_counts_only_due_and_unheard_pings():
     want = np.array([0.0, np.log1p(-curve(100.0)), 0.0, np.log1p(-curve(900.0))])
     np.testing.assert_allclose(got, want, rtol=1e-12)
     assert pd.isna(got).sum() == 0
+
+
+def test_curve_fitted_from_a_tracking_run_is_close_to_the_truth():
+    """Two passes: track without detection probability, then fit p(range) from the track,
+    its clock and the detections. On a moored array the fitted 50 % range is within 10 %
+    of the simulated one."""
+    import warnings
+
+    from hmmtrack.clock_tracking import track_arrival_time
+    from hmmtrack.detection_probability import fit_detection_probability_from_track
+    from hmmtrack.motion import VelocityMotion
+
+    case = moored_array(2, duration=1800.0)
+    sc = case.scenario
+    detections = case.corrected_detections()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        result = track_arrival_time(
+            detections,
+            sc.receivers,
+            motion=VelocityMotion(0.05, 0.02),
+            period=sc.period,
+            n_particles=1500,
+            start=sc.start,
+            end=sc.end,
+            seed=0,
+        )
+    fitted = fit_detection_probability_from_track(
+        result.estimates,
+        result.clock,
+        ReceiverTracks.from_frame(sc.receivers),
+        detections,
+        sc.sound_speed,
+    )
+    truth = case.detection_probability
+    assert fitted.range_50 == pytest.approx(truth.range_50, rel=0.1)
+    assert fitted.width == pytest.approx(truth.width, rel=0.5)

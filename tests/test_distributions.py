@@ -421,6 +421,30 @@ def test_working_round_trip(dist):
     )
 
 
+@pytest.mark.parametrize("dist", ALL, ids=lambda d: d.name)
+def test_working_score_is_the_gradient_of_the_weighted_log_likelihood(dist):
+    rng = np.random.default_rng(13)
+    states = rng.integers(0, dist.n_states, 400)
+    x = dist.sample(rng, states)
+    x[[2, 30]] = np.nan
+    w = rng.dirichlet(np.ones(dist.n_states), size=x.size)
+    theta = dist.to_working()
+
+    def weighted_log_likelihood(t):
+        return np.sum(w * dist.with_working(t).logpdf(x))
+
+    numeric = np.array(
+        [
+            (weighted_log_likelihood(theta + h) - weighted_log_likelihood(theta - h)) / 2e-6
+            for h in np.eye(theta.size) * 1e-6
+        ]
+    )
+    score = dist.working_score(x, w)
+    assert score.shape == theta.shape
+    np.testing.assert_allclose(score, numeric, rtol=1e-5, atol=1e-5)
+    np.testing.assert_array_equal(dist.working_score(dist.prepare(x), w), score)
+
+
 @given(
     mean=st.floats(-np.pi + 1e-6, np.pi),
     conc=st.floats(1e-3, 0.99),
@@ -481,6 +505,18 @@ def test_initial_guess_orders_states_and_switches_zero_inflation_on():
     a = D.initial_guess(steps, angles, 3, "weibull", "wrappedcauchy", rng=np.random.default_rng(1))
     b = D.initial_guess(steps, angles, 3, "weibull", "wrappedcauchy", rng=np.random.default_rng(1))
     assert a == b and a[0].n_states == 3
+    # prepared steps sort once (stable, as a sort of the raw steps) and give the same guesses
+    prepared = D.prepare_steps(steps)
+    positive = np.flatnonzero(steps > 0)
+    np.testing.assert_array_equal(
+        prepared.positive_order, positive[np.argsort(steps[positive], kind="stable")]
+    )
+    for seed in range(3):
+        guesses = [
+            D.initial_guess(s, angles, 3, "gamma", "wrappedcauchy", rng=np.random.default_rng(seed))
+            for s in (steps, prepared)
+        ]
+        assert guesses[0] == guesses[1]
     # the guess is usable: finite log-likelihood on the data
     assert np.isfinite(a[0].logpdf(steps) + a[1].logpdf(angles)).all()
 

@@ -215,3 +215,18 @@ def test_unknown_names_are_refused(small_scenarios):
         ex.paper_scenarios(0, names=("long_beach",))
     with pytest.raises(ValueError, match=r"\[0, 1\]"):
         ex.loss_sweep(small_scenarios[1], fractions=(1.5,), n_trials=1)
+
+
+def test_depth_correction_reaches_the_ranges_and_both_variants_are_tracked():
+    diving = ex.paper_scenarios(5, dive=True, duration=600.0)["shark_pursuit"]
+    plain = ex.track_scenario(diving, "hmm", 1, N_PARTICLES).observations
+    corrected = ex.track_scenario(diving, "hmm", 1, N_PARTICLES, depth_correction=True)
+    corrected = corrected.observations
+    depth = np.interp(plain["time"], diving.truth["time"], diving.truth["depth"])
+    # r_2D = sqrt(r^2 - d^2) with the tag's reported depth (reported = true depth here)
+    expected = np.sqrt(np.maximum(plain["range"] ** 2 - depth**2, 0.0))
+    np.testing.assert_allclose(corrected["range"], expected, atol=0.5)
+    assert (corrected["range"] < plain["range"]).mean() > 0.9
+    analysis = ex.depth_analysis(n_trials=1, seed=5, n_particles=N_PARTICLES, duration=600.0)
+    assert analysis.trials["depth_correction"].tolist() == [False, True]
+    assert analysis.max_depth == pytest.approx(diving.truth["depth"].max())

@@ -13,6 +13,7 @@ from hmmtrack.filter import (
 from hmmtrack.hmm import Gamma, MovementHMM, VonMises
 from hmmtrack.measurement import RangeRateMeasurement
 from hmmtrack.motion import BaselineMotion, HMMMotion, VelocityMotion
+from hmmtrack.particles import _ARRAY_NAMES, Particles
 from hmmtrack.resampling import effective_sample_size
 
 TAG = np.array([30.0, -20.0])
@@ -284,3 +285,22 @@ def test_weight_summary_matches_numpy_far_from_the_origin():
     assert (mean_x, mean_y) == pytest.approx((w @ x, w @ y), rel=1e-13)
     np.testing.assert_allclose([var_x, var_y, cov_xy], [cov[0, 0], cov[1, 1], cov[0, 1]], rtol=1e-9)
     assert n_eff == pytest.approx(effective_sample_size(log_weight), rel=1e-12)
+
+
+def test_particles_carry_extra_fields_through_resampling():
+    rng = np.random.default_rng(0)
+    p = Particles.uniform(rng, 5, BOUNDS)
+    assert np.all((p.heading >= -np.pi / 2) & (p.heading <= np.pi / 2))
+    assert np.all(p.speed == 0) and np.all(p.turn_rate == 0)
+    p.extra["period"] = np.arange(5.0)
+    taken = p.take(np.array([4, 4, 0, 1, 2]))
+    np.testing.assert_array_equal(taken.period, [4.0, 4.0, 0.0, 1.0, 2.0])
+    np.testing.assert_array_equal(taken.x, p.x[[4, 4, 0, 1, 2]])
+    taken.period[0] = -1.0
+    assert p.period[4] == 4.0  # a copy, not a view
+    with pytest.raises(AttributeError, match="no field 'clock'"):
+        _ = p.clock
+    with pytest.raises(ValueError, match=r"extra\['bad'\] has shape \(3,\)"):
+        Particles(**{n: getattr(p, n) for n in _ARRAY_NAMES}, extra={"bad": np.zeros(3)})
+    with pytest.raises(ValueError, match="xmin < xmax"):
+        Particles.uniform(rng, 5, (1.0, 0.0, 0.0, 1.0))

@@ -90,3 +90,26 @@ def test_from_std_and_bad_covariances():
         RangeRateMeasurement(np.array([[1.0, 0.1], [0.0, 1.0]]))
     with pytest.raises(ValueError, match=r"\(2, 2\)"):
         RangeRateMeasurement(np.eye(3))
+
+
+def test_compiled_loglik_equals_the_numpy_prediction():
+    rng = np.random.default_rng(5)
+    p = Particles.from_state(
+        x=rng.uniform(-500, 500, 500),
+        y=rng.uniform(-500, 500, 500),
+        heading=rng.uniform(-np.pi, np.pi, 500),
+        speed=rng.gamma(2.0, 0.5, 500),
+    )
+    obs = observations()
+    p.x[0], p.y[0] = obs["receiver_x"][0], obs["receiver_y"][0]  # on a receiver
+    r_hat, r_dot_hat = predicted_range_and_rate(
+        p, obs["receiver_x"], obs["receiver_y"], obs["receiver_vx"], obs["receiver_vy"]
+    )
+    errors = np.stack([r_hat - obs["range"].to_numpy(), r_dot_hat - obs["range_rate"].to_numpy()])
+    precision = np.linalg.inv(COVARIANCE)
+    mahalanobis = np.einsum("inm,ij,jnm->nm", errors, precision, errors)
+    log_norm = -np.log(2 * np.pi) - 0.5 * np.log(np.linalg.det(COVARIANCE))
+    expected = (log_norm - 0.5 * mahalanobis).sum(axis=1)
+    np.testing.assert_allclose(
+        RangeRateMeasurement(COVARIANCE).loglik(p, obs), expected, rtol=1e-12
+    )

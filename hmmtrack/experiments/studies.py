@@ -14,7 +14,7 @@ sweep ``(1, i, k)``, diving shark ``(2, correction, k)``, datasets ``(3, i)``.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -250,8 +250,6 @@ class DepthAnalysis:
         The diving shark's depth against time since the start (s, m), shape (T,) each.
     trials : pandas.DataFrame or None
         Trials table of the diving shark, ``depth_correction`` False and True.
-    curves : dict of str to (time, error)
-        Error over time (s since start, m) of the first trial with and without correction.
     """
 
     depth: float
@@ -260,7 +258,6 @@ class DepthAnalysis:
     max_depth: float = float("nan")
     depth_profile: tuple[np.ndarray, np.ndarray] | None = None
     trials: pd.DataFrame | None = None
-    curves: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
 
 
 def depth_analysis(
@@ -321,8 +318,6 @@ def depth_analysis(
         progress=progress,
         description="diving shark",
     )
-    labels = {False: "without depth correction", True: "with depth correction"}
-    curves = {labels[r.depth_correction]: (r.error_time, r.error) for r in results if r.trial == 0}
     truth = diving.truth
     elapsed = truth["time"].to_numpy(dtype=float) - float(truth["time"].iloc[0])
     profile = truth["depth"].to_numpy(dtype=float)
@@ -333,5 +328,4 @@ def depth_analysis(
         max_depth=float(profile.max()),
         depth_profile=(elapsed, profile),
         trials=trials_table(results),
-        curves=curves,
     )

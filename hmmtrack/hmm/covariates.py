@@ -13,7 +13,9 @@ sequence of ``T`` rows has ``T - 1`` matrices built from rows ``1 .. T-1``.
 This module is for design matrices, logit transition matrices and the weighted M-step of the
 coefficients from expected transition counts. It is not for reading covariates from files
 (see :mod:`hmmtrack.io`) nor for the forward-backward recursions (see
-:mod:`hmmtrack.hmm.inference`).
+:mod:`hmmtrack.hmm.inference`). Products over the ``T`` rows are written with ``np.einsum``,
+not ``@``: OpenBLAS runs those on several threads, which was measured to make them randomly
+10-1000x slower when several processes share the machine.
 """
 
 from __future__ import annotations
@@ -22,7 +24,6 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 import pandas as pd
-from scipy.special import logsumexp
 
 CovariateScaling = dict[str, tuple[float, float]]
 
@@ -112,8 +113,13 @@ def log_transition_matrices(coefficients: np.ndarray, design: np.ndarray) -> np.
     n_states = _n_states(coefficients.shape[0])
     rows, cols = off_diagonal_index(n_states)
     eta = np.zeros((design.shape[0], n_states, n_states))
-    eta[:, rows, cols] = design @ coefficients.T
-    return eta - logsumexp(eta, axis=2, keepdims=True)
+    eta[:, rows, cols] = np.einsum("td,rd->tr", design, coefficients)
+    # log-sum-exp over the destination axis one column at a time (K is small, T long): about
+    # ten times faster than scipy's logsumexp on the (T, K, K) array
+    columns = [eta[:, :, j] for j in range(n_states)]
+    top = np.maximum.reduce(columns)
+    log_norm = top + np.log(sum(np.exp(column - top) for column in columns))
+    return eta - log_norm[:, :, None]
 
 
 def coefficients_from_matrix(transition: np.ndarray, n_design: int = 1) -> np.ndarray:
@@ -159,7 +165,7 @@ def expected_log_likelihood(coefficients: np.ndarray, xi: np.ndarray, design: np
     rows, cols = off_diagonal_index(n_states)
     leaving = xi.sum(axis=2, keepdims=True)  # (T, K, 1)
     residual = xi - leaving * np.exp(log_gamma)  # (T, K, K)
-    gradient = residual[:, rows, cols].T @ design
+    gradient = np.einsum("tr,td->rd", residual[:, rows, cols], design)
     return value, gradient
 
 
@@ -208,29 +214,34 @@ def fit_coefficients(
     return out
 
 
-def _logit_objective(beta, counts, stay, design):
-    """Value, gradient and Hessian of one origin state's weighted multinomial logit."""
-    eta = design @ beta.T  # (T, J)
-    top = np.maximum(eta.max(axis=1), 0.0)
-    log_norm = top + np.log(np.exp(-top) + np.exp(eta - top[:, None]).sum(axis=1))
-    total = counts.sum(axis=1) + stay
-    value = float(np.sum(counts * eta) - np.sum(total * log_norm))
+def _logit_objective(beta, counts, total, design, outer):
+    """Value, gradient and Hessian of one origin state's weighted multinomial logit.
+
+    ``counts`` (T, J) are the expected moves to the J other states, ``total`` (T,) all moves
+    out of the origin (staying included), ``outer`` (T, D*D) the design rows' outer products.
+    """
+    eta = np.einsum("td,jd->tj", design, beta)  # (T, J)
+    columns = [eta[:, j] for j in range(eta.shape[1])]  # J is small, T long: column loops
+    top = np.maximum(np.maximum.reduce(columns), 0.0)  # the reference outcome has eta = 0
+    log_norm = top + np.log(np.exp(-top) + sum(np.exp(column - top) for column in columns))
+    value = float(np.einsum("tj,tj->", counts, eta) - np.einsum("t,t->", total, log_norm))
     prob = np.exp(eta - log_norm[:, None])  # (T, J)
-    gradient = (counts - total[:, None] * prob).T @ design  # (J, D)
-    n_out, n_design = beta.shape
     weighted = total[:, None] * prob
-    outer = (design[:, :, None] * design[:, None, :]).reshape(-1, n_design * n_design)
+    gradient = np.einsum("tj,td->jd", counts - weighted, design)  # (J, D)
+    n_out, n_design = beta.shape
     pairs = (weighted[:, :, None] * prob[:, None, :]).reshape(-1, n_out * n_out)
-    hessian = (pairs.T @ outer).reshape(n_out, n_out, n_design, n_design)
-    hessian[np.arange(n_out), np.arange(n_out)] -= (weighted.T @ outer).reshape(
-        n_out, n_design, n_design
-    )
+    hessian = np.einsum("tp,tq->pq", pairs, outer).reshape(n_out, n_out, n_design, n_design)
+    diagonal = np.einsum("tj,tq->jq", weighted, outer).reshape(n_out, n_design, n_design)
+    hessian[np.arange(n_out), np.arange(n_out)] -= diagonal
     return value, gradient, hessian.transpose(0, 2, 1, 3).reshape(n_out * n_design, -1)
 
 
 def _newton_logit(counts, stay, design, beta, max_iter, tol, max_abs):
+    total = counts.sum(axis=1) + stay
+    n_design = design.shape[1]
+    outer = (design[:, :, None] * design[:, None, :]).reshape(-1, n_design * n_design)
     beta = np.clip(beta, -max_abs, max_abs)
-    value, gradient, hessian = _logit_objective(beta, counts, stay, design)
+    value, gradient, hessian = _logit_objective(beta, counts, total, design, outer)
     size = beta.size
     for _ in range(max_iter):
         # the objective is concave; a small ridge keeps flat directions solvable
@@ -242,7 +253,7 @@ def _newton_logit(counts, stay, design, beta, max_iter, tol, max_abs):
         while step > 1e-8:
             trial = np.clip(beta + step * direction, -max_abs, max_abs)
             trial_value, trial_gradient, trial_hessian = _logit_objective(
-                trial, counts, stay, design
+                trial, counts, total, design, outer
             )
             if trial_value >= value:
                 break

@@ -2,8 +2,8 @@
 
 * :func:`pseudo_residuals` -- moveHMM's forecast pseudo-residuals: for row ``t`` of a
   sequence, ``Phi^-1(sum_k P(S_t = k | rows before t) F_k(x_t))`` with ``F_k`` the
-  state-dependent CDF of steps (zero mass included) or of angles (integrated from -pi). Under
-  a correct model each series is independent standard normal.
+  state-dependent CDF of steps (zero mass included) or of angles (from -pi), the emission
+  families' ``cdf``. Under a correct model each series is independent standard normal.
 * :func:`qq_points`, :func:`autocorrelation` -- their QQ coordinates and ACF (statsmodels).
 * :func:`confidence_intervals` -- Wald intervals: the Hessian of the log-likelihood on the
   working scale by central differences of its gradient, standard errors on the natural scale
@@ -26,55 +26,9 @@ from hmmtrack.hmm import fit
 from hmmtrack.hmm.inference import forward_backward
 from hmmtrack.hmm.model import MovementHMM, Observations
 
-_ANGLE_GRID = 8193  # nodes of the numerical angle CDF on [-pi, pi]
-
-
 # ---------------------------------------------------------------------------------------------
 # Pseudo-residuals
 # ---------------------------------------------------------------------------------------------
-
-
-def step_cdf(dist, x: np.ndarray) -> np.ndarray:
-    """State-dependent CDF of steps, shape (T, K); NaN rows stay NaN.
-
-    Parameters
-    ----------
-    dist : step distribution (gamma, weibull, lognormal, exponential)
-    x : ndarray, shape (T,)
-        Steps in the unit of the fit.
-    """
-    x = np.asarray(x, dtype=float)[:, None]
-    if dist.name == "gamma":
-        positive = stats.gamma.cdf(x, a=dist.shape, scale=dist.scale)
-    elif dist.name == "weibull":
-        positive = stats.weibull_min.cdf(x, c=dist.shape, scale=dist.scale)
-    elif dist.name == "lognormal":
-        positive = stats.lognorm.cdf(x, s=dist.scale, scale=np.exp(dist.location))
-    elif dist.name == "exponential":
-        positive = stats.expon.cdf(x, scale=1.0 / dist.rate)
-    else:
-        raise ValueError(f"no step CDF for family {dist.name!r}")
-    if dist.zero_mass is None:
-        return positive
-    return dist.zero_mass + (1.0 - dist.zero_mass) * positive
-
-
-def angle_cdf(dist, x: np.ndarray) -> np.ndarray:
-    """State-dependent CDF of angles from -pi, shape (T, K), by integrating the density.
-
-    The density is integrated with the trapezoidal rule on a grid of 8193 nodes over
-    [-pi, pi] and interpolated linearly; NaN rows stay NaN.
-    """
-    grid = np.linspace(-np.pi, np.pi, _ANGLE_GRID)
-    density = np.exp(dist.logpdf(grid))
-    cumulative = np.concatenate(
-        [np.zeros((1, dist.n_states)), np.cumsum(0.5 * (density[1:] + density[:-1]), axis=0)]
-    ) * (grid[1] - grid[0])
-    cumulative /= cumulative[-1]
-    x = np.asarray(x, dtype=float)
-    out = np.column_stack([np.interp(x, grid, cumulative[:, k]) for k in range(dist.n_states)])
-    out[np.isnan(x)] = np.nan
-    return out
 
 
 def pseudo_residuals(model: MovementHMM, data: pd.DataFrame) -> pd.DataFrame:
@@ -101,11 +55,11 @@ def pseudo_residuals(model: MovementHMM, data: pd.DataFrame) -> pd.DataFrame:
         log_initial, log_transition, log_lik, observations.lengths
     ).predicted
     out = {}
-    for name, dist, x, cdf in (
-        ("step", model.step, observations.step, step_cdf),
-        ("angle", model.angle, observations.angle, angle_cdf),
+    for name, dist, x in (
+        ("step", model.step, observations.step),
+        ("angle", model.angle, observations.angle),
     ):
-        u = np.sum(forecast * cdf(dist, x), axis=1)
+        u = np.sum(forecast * dist.cdf(x), axis=1)
         out[f"{name}_residual"] = stats.norm.ppf(np.clip(u, 1e-300, 1 - 1e-16))
     return pd.DataFrame(out, index=data.index)
 

@@ -218,7 +218,12 @@ class PreparedSteps:
         Sorted on first use only (starting values of every start of a multi-start fit).
         """
         rows = np.flatnonzero(self.positive)
-        order = rows[np.argsort(self.safe[rows], kind="stable")]
+        values = self.safe[rows]
+        order = np.argsort(values)  # numpy's SIMD quicksort, ~10x faster than a stable sort
+        ordered = values[order]
+        if np.any(ordered[1:] == ordered[:-1]):  # only ties make the result sort-dependent
+            order = np.argsort(values, kind="stable")
+        order = rows[order]
         order.setflags(write=False)
         return order
 
@@ -1048,11 +1053,6 @@ class _AngleFamily(_Family):
     def _structure(self) -> dict[str, Any]:
         return {"estimate_mean": self.estimate_mean}
 
-    def _deviations(self, k: int, cos_x, sin_x) -> tuple[np.ndarray, np.ndarray]:
-        """``cos(x - mean[k])`` and ``sin(x - mean[k])``, (T,) each."""
-        c, s = np.cos(self.mean[k]), np.sin(self.mean[k])
-        return cos_x * c + sin_x * s, sin_x * c - cos_x * s
-
     def working_score(self, x: np.ndarray | PreparedAngles, w: np.ndarray) -> np.ndarray:
         """Gradient of ``sum(w * logpdf(x))`` w.r.t. :meth:`to_working`, shape (n_working,).
 
@@ -1317,9 +1317,11 @@ class WrappedCauchy(_AngleFamily):
         # rho = tanh(r): d/dr = (1 - rho^2) d/drho = -2 rho + 2 (1 - rho^2) (cos - rho) / D;
         # (1/r) d/dmean = (rho / r) 2 sin(x - mean) / D, rho / r -> 1 at r = 0
         rho, r = self.concentration, self._radial(self.concentration)
+        cos_mean, sin_mean = np.cos(self.mean), np.sin(self.mean)
         radial, tangential = np.empty(self.n_states), np.empty(self.n_states)
         for k in range(self.n_states):
-            cos_dev, sin_dev = self._deviations(k, cos_x, sin_x)
+            cos_dev = cos_x * cos_mean[k] + sin_x * sin_mean[k]
+            sin_dev = sin_x * cos_mean[k] - cos_x * sin_mean[k]
             inverse = 1.0 / ((1.0 - rho[k]) ** 2 + 2.0 * rho[k] * np.maximum(1.0 - cos_dev, 0.0))
             weighted = w[:, k] * inverse
             radial[k] = -2.0 * rho[k] * w[:, k].sum() + 2.0 * (1.0 - rho[k] ** 2) * (

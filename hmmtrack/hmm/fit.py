@@ -36,7 +36,7 @@ from scipy.optimize import minimize
 
 from hmmtrack.hmm import covariates as cov
 from hmmtrack.hmm import distributions
-from hmmtrack.hmm.inference import forward_backward, log_likelihood
+from hmmtrack.hmm.inference import forward_backward, load_kernels, log_likelihood
 from hmmtrack.hmm.model import MovementHMM, Observations
 from hmmtrack.random import as_generator, spawn
 
@@ -123,7 +123,9 @@ class Parameters:
 
     def log_likelihood_matrix(self, data: FitData) -> np.ndarray:
         """Emission log densities, shape (T, K)."""
-        return self.step.logpdf(data.prepared_step) + self.angle.logpdf(data.prepared_angle)
+        log_lik = self.step.logpdf(data.prepared_step)
+        log_lik += self.angle.logpdf(data.prepared_angle)  # in place: no third (T, K) array
+        return log_lik
 
     def permuted(self, order: np.ndarray) -> Parameters:
         """The same model with state ``k`` of the result being state ``order[k]`` of this one."""
@@ -379,8 +381,6 @@ def polish(params: Parameters, data: FitData, max_iter: int = 500):
     """
     likelihood = WorkingLikelihood(params, data)
     start = likelihood.pack(params)
-    start_value = likelihood.value(start)
-
     scale = 1.0 / data.n_obs  # per-row log-likelihood: one gradient tolerance for any size
 
     def objective(theta):
@@ -392,8 +392,14 @@ def polish(params: Parameters, data: FitData, max_iter: int = 500):
             return np.inf, np.zeros_like(theta)
         return -scale * value, -scale * gradient
 
+    at_start = objective(start)  # BFGS asks for it first: one recursion less than value()
+    start_value = -at_start[0] / scale
+
+    def objective_from_start(theta):
+        return at_start if np.array_equal(theta, start) else objective(theta)
+
     result = minimize(
-        objective,
+        objective_from_start,
         start,
         jac=True,
         method="BFGS",
@@ -494,14 +500,15 @@ def run_starts(data: FitData, spec: FitSpec, n_starts: int, seed, n_jobs: int = 
     """All starts, serially or in ``n_jobs`` processes; the same list either way.
 
     Worker processes are forked where the platform allows (no re-import, no copy of the
-    data: they inherit it) and receive the data once, through the pool's initializer,
-    rather than with every start.
+    data: they inherit it, and the compiled kernels, loaded first) and receive the data
+    once, through the pool's initializer, rather than with every start.
     """
     seeds = spawn(seed, n_starts)
     if n_jobs == 1 or n_starts == 1:
         return [run_start(i, s, data, spec) for i, s in enumerate(seeds)]
     methods = multiprocessing.get_all_start_methods()
     context = multiprocessing.get_context("fork" if "fork" in methods else None)
+    load_kernels()
     with concurrent.futures.ProcessPoolExecutor(
         min(n_jobs, n_starts), mp_context=context, initializer=_set_worker_data, initargs=(data,)
     ) as pool:

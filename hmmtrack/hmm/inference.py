@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-__all__ = ["Posterior", "forward_backward", "log_likelihood", "viterbi"]
+__all__ = ["Posterior", "forward_backward", "load_kernels", "log_likelihood", "viterbi"]
 
 
 @dataclass(frozen=True)
@@ -412,3 +412,13 @@ def viterbi(
             "of positive probability"
         )
     return path
+
+
+def load_kernels() -> None:
+    """Load the compiled forward-backward kernels into this process now.
+
+    The first call of a numba function in a process costs about 0.25 s of numba set-up even
+    when the machine code comes from the on-disk cache. A process about to fork workers
+    calls this first, so that the workers inherit loaded kernels instead of each paying it.
+    """
+    forward_backward(np.zeros(1), np.zeros((1, 1)), np.zeros((2, 1)))

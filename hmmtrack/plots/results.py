@@ -5,14 +5,15 @@
 * :func:`loss_sweep` — time to convergence or error after convergence against the
   fraction of detections dropped, log scale, with the paper's bands;
 * :func:`depth_percent_error` — the percent error of taking a slant range as horizontal;
-* :func:`depth_comparison` — position error over time on a diving shark with and without
-  the depth correction.
+* :func:`depth_profile` and :func:`depth_trials` — the diving shark's dive, and its
+  per-trial errors without and with the depth correction.
 
 Each function takes results and ``ax=None`` and returns the Axes; none computes results.
 :func:`comparison_figure`, :func:`loss_figure` and :func:`depth_figure` lay these out as
-the report's figures (shared by ``hmmtrack reproduce`` and the notebooks).
-Figures of single tracking runs, fitted HMMs and scenarios live beside their modules
-(:mod:`hmmtrack.plots.tracking`, :mod:`hmmtrack.plots.hmm`, :mod:`hmmtrack.plots.experiments`).
+the report's figures, and :func:`example_figure` and :func:`motion_hmm_figure` lay out the
+figures of :mod:`hmmtrack.plots.tracking` (one run with particle snapshots) and
+:mod:`hmmtrack.plots.hmm` (state-dependent densities) the way the paper shows them; all are
+shared by ``hmmtrack reproduce`` and the notebooks.
 """
 
 from __future__ import annotations
@@ -32,7 +33,8 @@ __all__ = [
     "error_histograms",
     "loss_sweep",
     "depth_percent_error",
-    "depth_comparison",
+    "depth_profile",
+    "depth_trials",
     "comparison_figure",
     "loss_figure",
     "depth_figure",
@@ -253,43 +255,63 @@ def depth_percent_error(
     return ax
 
 
-def depth_comparison(
-    curves: Mapping[str, tuple[np.ndarray, np.ndarray]],
-    depth_profile: tuple[np.ndarray, np.ndarray] | None = None,
-    ax: Axes | None = None,
-) -> Axes:
-    """Position error over time of tracking runs on a diving shark, one line per variant.
+def depth_profile(time: np.ndarray, depth: np.ndarray, ax: Axes | None = None) -> Axes:
+    """A tag's depth against time, surface at the top.
 
     Parameters
     ----------
-    curves : mapping of label to (time, error)
-        Each: times since the start (s) and position errors (m), shape (n,) each.
-    depth_profile : (time, depth), optional
-        The tag's depth over time (s, m), drawn on a second, inverted axis.
+    time : numpy.ndarray, shape (T,)
+        Time since the start (s).
+    depth : numpy.ndarray, shape (T,)
+        Depth (m, positive down).
     ax : matplotlib Axes, optional
 
     Returns
     -------
     matplotlib.axes.Axes
-        The error axes (the depth axes is its twin).
     """
     ax = _axes(ax)
-    colours = ("tab:red", "tab:green", "tab:blue", "tab:orange")
-    for (label, (time, error)), colour in zip(curves.items(), colours, strict=False):
-        ax.plot(np.asarray(time) / 60.0, error, color=colour, lw=1, label=label)
-    _log_scale(ax)
+    minutes = np.asarray(time, dtype=float) / 60.0
+    ax.fill_between(minutes, depth, color="tab:blue", alpha=0.3, lw=0)
+    ax.plot(minutes, depth, color="tab:blue", lw=1)
+    ax.set_ylim(max(float(np.max(depth)), 1.0) * 1.1, 0)
     ax.set_xlabel("time (min)")
-    ax.set_ylabel("position error (m)")
-    if depth_profile is not None:
-        twin = ax.twinx()
-        ax.set_zorder(twin.get_zorder() + 1)  # error lines above the depth shading
-        ax.patch.set_visible(False)
-        twin.fill_between(
-            np.asarray(depth_profile[0]) / 60.0, depth_profile[1], color="grey", alpha=0.2, lw=0
+    ax.set_ylabel("tag depth (m)")
+    return ax
+
+
+def depth_trials(trials: pd.DataFrame, ax: Axes | None = None) -> Axes:
+    """Per-trial error after convergence without and with the depth correction.
+
+    Parameters
+    ----------
+    trials : pandas.DataFrame
+        Trials table of :func:`hmmtrack.experiments.depth_analysis` (``depth_correction``,
+        ``mean_error_after_convergence``).
+    ax : matplotlib Axes, optional
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+        One dot per trial, a bar at each variant's median.
+    """
+    _require(trials, ("depth_correction", "mean_error_after_convergence"), "depth trials")
+    ax = _axes(ax)
+    rng = np.random.default_rng(0)  # horizontal jitter of the dots only
+    labels = []
+    for position, (correct, group) in enumerate(trials.groupby("depth_correction")):
+        errors = group["mean_error_after_convergence"].to_numpy(dtype=float)
+        colour = "tab:green" if correct else "tab:red"
+        ax.scatter(
+            position + rng.uniform(-0.12, 0.12, errors.size), errors, s=18, color=colour, alpha=0.7
         )
-        twin.set_ylim(max(np.max(depth_profile[1]), 1.0) * 3, 0)
-        twin.set_ylabel("tag depth (m)", color="grey")
-    ax.legend(fontsize="small", loc="upper right")
+        median = float(np.median(errors))
+        ax.hlines(median, position - 0.25, position + 0.25, color=colour, lw=2.5)
+        labels.append(f"{'with' if correct else 'without'} correction\n(median {median:.3g} m)")
+    ax.set_xticks(range(len(labels)), labels)
+    ax.set_xlim(-0.6, len(labels) - 0.4)
+    _log_scale(ax)
+    ax.set_ylabel("mean error after convergence (m)")
     return ax
 
 
@@ -359,15 +381,19 @@ def depth_figure(analysis, paper: Mapping[float, float] | None = None) -> Figure
     Returns
     -------
     matplotlib.figure.Figure
+        The curve; with diving-shark trials also the shark's depth profile and the
+        per-trial errors without and with the correction.
     """
-    panels = 2 if analysis.curves else 1
-    fig, axes = plt.subplots(1, panels, figsize=(5.5 * panels, 4), squeeze=False)
+    panels = 3 if analysis.trials is not None else 1
+    fig, axes = plt.subplots(1, panels, figsize=(4.8 * panels, 4), squeeze=False)
     depth_percent_error(
         analysis.ranges, analysis.percent_error, analysis.depth, paper=paper, ax=axes[0, 0]
     )
-    if analysis.curves:
-        depth_comparison(analysis.curves, analysis.depth_profile, ax=axes[0, 1])
-        axes[0, 1].set_title("diving shark, first trial of each")
+    if analysis.trials is not None:
+        depth_profile(*analysis.depth_profile, ax=axes[0, 1])
+        axes[0, 1].set_title("diving shark (depth-sensor tag)")
+        depth_trials(analysis.trials, ax=axes[0, 2])
+        axes[0, 2].set_title("diving shark, HMM model")
     fig.tight_layout()
     return fig
 

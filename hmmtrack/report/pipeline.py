@@ -8,6 +8,7 @@
 
 from __future__ import annotations
 
+import os
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
@@ -18,7 +19,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 
-from hmmtrack.executors import get_executor
+from hmmtrack.executors import default_workers, get_executor
 from hmmtrack.experiments import (
     DEFAULT_PARTICLES,
     LOSS_FRACTIONS,
@@ -238,8 +239,10 @@ def reproduce(
         "loss fractions": len(size.loss_fractions),
         "trials per loss fraction": size.loss_trials,
         "diving-shark trials per variant": size.depth_trials,
-        "executor": type(pool).__name__,
+        "executor": type(pool).__name__
+        + (f" ({max_workers or default_workers()} workers)" if executor == "processes" else ""),
         "wall time": f"{time.perf_counter() - clock:.0f} s",
+        "machine load (1-min average) at the end": f"{os.getloadavg()[0]:.1f}",
     }
     return write_summary(
         out / "summary.md", comparison=comparison, loss=loss, depth=depth, figures=figures, run=run
