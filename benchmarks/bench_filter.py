@@ -6,8 +6,9 @@ resampling after every correction, estimates every second. For N = 1,000, 10,000
 100,000 particles and the velocity and HMM motion models it prints particle-steps per
 second of ``ParticleFilter`` with its compiled kernels and of the same filter with
 ``backend="numpy"`` (every second one vectorised ``motion.propagate`` with a NumPy
-``Generator``), and their ratio. Wall-clock numbers depend on the machine's load; the
-ratio is measured in the same run.
+``Generator``), their ratio, and the rate of the compiled prediction alone (no
+corrections: the ceiling the per-correction work is measured against). Wall-clock
+numbers depend on the machine's load; the ratio is measured in the same run.
 
 Run: ``python benchmarks/bench_filter.py`` (``--quick`` for a 600 s trial and N up to
 10,000; ``--repeat k`` keeps the best of k runs; ``--threads t`` fixes the compiled
@@ -85,6 +86,16 @@ def best_time(make, obs, duration, repeat) -> float:
     return best
 
 
+def prediction_only(motion, n: int, duration: float, threads: int | None) -> float:
+    """Particle-steps per second of the compiled prediction alone, in 8-step calls."""
+    pf = ParticleFilter(motion, MEASUREMENT, n, BOUNDS, rng=0, threads=threads)
+    pf.initialise(0.0)
+    start = time.perf_counter()
+    for _ in range(int(duration) // 8):
+        pf.predict(8)
+    return n * 8 * (int(duration) // 8) / (time.perf_counter() - start)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="600 s trial, N <= 10,000")
@@ -107,7 +118,7 @@ def main() -> None:
         f"best of {args.repeat}"
     )
     print(f"{'model':<20}{'N':>8}{'compiled s':>12}{'M steps/s':>11}{'numpy s':>10}"
-          f"{'M steps/s':>11}{'ratio':>8}")  # fmt: skip
+          f"{'M steps/s':>11}{'ratio':>8}{'predict-only M/s':>18}")  # fmt: skip
     for name, motion in models.items():
         # warm-up: loads (or on the very first run compiles) the cached kernels
         warm_up = obs[obs["time"] < 20.0]
@@ -126,10 +137,11 @@ def main() -> None:
                 ),
                 obs, duration, 1 if n >= 100_000 else args.repeat,
             )  # fmt: skip
+            kernel = prediction_only(motion, n, duration, args.threads)
             print(
                 f"{name:<20}{n:>8}{compiled:>12.3f}{steps / compiled / 1e6:>11.1f}"
                 f"{reference:>10.3f}{steps / reference / 1e6:>11.1f}"
-                f"{reference / compiled:>8.1f}"
+                f"{reference / compiled:>8.1f}{kernel / 1e6:>18.1f}"
             )
 
 

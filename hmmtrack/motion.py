@@ -18,7 +18,7 @@ Models
 :class:`BaselineMotion`
     Random walk: Gaussian ``dx, dy`` with standard deviation ``sigma * sqrt(dt)``; heading,
     speed and turn rate derived from the step (the paper's equations; the heading change is
-    wrapped into ``(-pi, pi]`` before dividing by ``dt``).
+    wrapped into ``[-pi, pi)`` before dividing by ``dt``).
 :class:`VelocityMotion`
     Gaussian increments of speed and turn rate (standard deviations ``sigma * sqrt(dt)``),
     then the constant-turn-rate arc (the paper's eqs. mm_xc..mm_theta), written in a form
@@ -129,8 +129,8 @@ def _arc(x, y, c, s, v, w, dt):
 
     For ``|omega dt| < 0.25`` (almost every step of a swimming animal) ``sin``, ``1 - cos``
     and their quotients by ``phi`` come from one Taylor polynomial each, exact to rounding
-    (first omitted term < 1e-20), which is both faster than the library calls and exact in
-    the straight-line limit.
+    (first omitted terms below 1e-17 relative), which is both faster than the library calls
+    and exact in the straight-line limit.
     """
     phi = w * dt
     length = v * dt

@@ -107,7 +107,7 @@ def test_smoothed_track_uses_the_filter_steps():
 def test_moored_array_without_initial_range_under_10_m_and_smoothing_helps():
     """Realistic clocks (wandering period, receiver clocks, multipath), no initial range,
     search box 1 km around the receivers: error after convergence under 10 m, and the
-    fixed-lag smoothed track's at most 70 % of the filter's (measured: 3.0 m vs 1.1 m)."""
+    fixed-lag smoothed track's at most 70 % of the filter's (measured: 3.0 m vs 1.0 m)."""
     case = moored_array(5, duration=900.0)
     sc = case.scenario
     result = track_arrival_time(

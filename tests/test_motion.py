@@ -251,8 +251,8 @@ def test_hmm_speed_and_turn_rate_come_from_the_state_distributions():
         assert stats.kstest(angle, stats.vonmises(model.angle.concentration[k]).cdf).pvalue > 1e-3
 
 
-def _displacements(variant, dt, horizon=60.0, n=20_000, seed=0):
-    motion = HMMMotion(movement_model(dt=10.0), variant)
+def _displacements(variant, dt, horizon=60.0, n=20_000, seed=0, fitted_dt=10.0):
+    motion = HMMMotion(movement_model(dt=fitted_dt), variant)
     p = Particles.from_state(x=np.zeros(n), y=np.zeros(n), heading=np.zeros(n))
     motion.initialise(np.random.default_rng(seed), p)
     advance(motion, p, int(round(horizon / dt)), dt, seed=seed + 1)
@@ -268,6 +268,16 @@ def test_time_consistent_displacement_statistics_do_not_depend_on_the_prediction
         assert msd == pytest.approx(msd_reference, rel=0.03), dt
         assert np.mean(x) == pytest.approx(np.mean(reference[0]), rel=0.03), dt
         assert stats.ks_2samp(np.hypot(x, y), np.hypot(*reference)).pvalue > 1e-3, dt
+
+
+def test_time_consistent_steps_that_do_not_divide_the_fitted_step_stay_close():
+    """Fitted at 2.5 s: 0.5 s steps are exact; 1, 2 and 3 s steps redraw at the first step
+    boundary after 2.5 s (carrying the excess), which keeps the spread within a few %."""
+    x, y = _displacements("time_consistent", 0.5, seed=40, fitted_dt=2.5)
+    reference = np.mean(x**2 + y**2)
+    for i, dt in enumerate((1.0, 2.0, 3.0)):
+        x, y = _displacements("time_consistent", dt, seed=41 + i, fitted_dt=2.5)
+        assert np.mean(x**2 + y**2) == pytest.approx(reference, rel=0.03), dt
 
 
 def test_paper_variant_is_the_fitted_model_only_at_the_fitted_step():

@@ -293,17 +293,16 @@ def depth_trials(trials: pd.DataFrame, ax: Axes | None = None) -> Axes:
     Returns
     -------
     matplotlib.axes.Axes
-        One dot per trial, a bar at each variant's median.
+        One dot per trial (spread sideways in trial order), a bar at each variant's median.
     """
     _require(trials, ("depth_correction", "mean_error_after_convergence"), "depth trials")
     ax = _axes(ax)
-    rng = np.random.default_rng(0)  # horizontal jitter of the dots only
     labels = []
     for position, (correct, group) in enumerate(trials.groupby("depth_correction")):
         errors = group["mean_error_after_convergence"].to_numpy(dtype=float)
         colour = "tab:green" if correct else "tab:red"
         ax.scatter(
-            position + rng.uniform(-0.12, 0.12, errors.size), errors, s=18, color=colour, alpha=0.7
+            position + np.linspace(-0.12, 0.12, errors.size), errors, s=18, color=colour, alpha=0.7
         )
         median = float(np.median(errors))
         ax.hlines(median, position - 0.25, position + 0.25, color=colour, lw=2.5)

@@ -8,6 +8,7 @@
 
 from __future__ import annotations
 
+import logging
 import os
 import time
 from collections.abc import Mapping
@@ -23,6 +24,7 @@ from hmmtrack.executors import default_workers, get_executor
 from hmmtrack.experiments import (
     DEFAULT_PARTICLES,
     LOSS_FRACTIONS,
+    MOTIONS,
     compare_motion_models,
     depth_analysis,
     example_run,
@@ -72,6 +74,8 @@ FULL = RunSize(100, LOSS_FRACTIONS, 5, 10, DEFAULT_PARTICLES)
 QUICK = RunSize(2, (0.0, 0.25, 0.5, 0.75, 0.9, 1.0), 1, 1, 300, shark_tracks_sharks=3)
 
 FIGURE_DPI = 100
+
+logger = logging.getLogger(__name__)
 
 
 def _save(fig, out: Path, name: str) -> str:
@@ -201,9 +205,13 @@ def reproduce(
     common = {"seed": seed, "n_particles": size.n_particles, "progress": progress}
     pool = get_executor(executor, max_workers)
     try:
+        logger.info(
+            "motion-model comparison: %d trials", len(datasets) * len(MOTIONS) * size.n_trials
+        )
         comparison = compare_motion_models(
             list(datasets.values()), n_trials=size.n_trials, executor=pool, **common
         )
+        logger.info("loss sweep: %d trials", len(size.loss_fractions) * size.loss_trials)
         loss = loss_sweep(
             datasets["shark_pursuit"],
             fractions=size.loss_fractions,
@@ -211,10 +219,12 @@ def reproduce(
             executor=pool,
             **common,
         )
+        logger.info("diving shark: %d trials", 2 * size.depth_trials)
         depth = depth_analysis(n_trials=size.depth_trials, executor=pool, **common)
     finally:
         if pool is not executor:
             pool.shutdown()
+    logger.info("example runs and figures")
     examples = {
         scenario.name: example_run(scenario, seed, size.n_particles)
         for scenario in datasets.values()
