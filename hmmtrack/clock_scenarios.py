@@ -8,8 +8,9 @@ ppm; a few per cent of detections arrive late by multipath. This module adds tho
 to the simulation pieces of :mod:`hmmtrack.scenarios` (paths, acoustic arrival times,
 detection loss, GPS noise) and builds two test cases:
 
-* :func:`realistic_shark_pursuit` - the paper's simulated pursuit (two moving
-  hydrophones, 2 h) with a wandering tag period;
+* :func:`realistic_shark_pursuit` - a shark pursued by two moving hydrophones (2.5 h)
+  with a wandering tag period; by default the AUVs are steered so that the tag is
+  observable (one trails, one circles the shark), optionally the paper's fixed formation;
 * :func:`moored_array` - a resident shark inside a triangle of three moored receivers.
 
 Each returns a :class:`ClockScenario`: a :class:`hmmtrack.scenarios.scenario.Scenario`
@@ -398,23 +399,113 @@ def _paths_from_tables(truth: pd.DataFrame, receivers_truth: pd.DataFrame):
     return tag, receivers
 
 
+def steered_auv(
+    tag: Trajectory, radius: float, bearing: np.ndarray, time_constant: float = 60.0
+) -> Trajectory:
+    """An AUV steered to a station ``radius`` metres from the shark at a given bearing.
+
+    The station is the shark's position plus ``radius · (cos bearing, sin bearing)``; the
+    AUV follows it through a first-order low-pass filter of time constant
+    ``time_constant`` (a vehicle that homes on a moving set point), as the paper's
+    hydrophones follow their fixed offsets. A constant ``bearing`` is the paper's trailing
+    vehicle; a bearing that turns makes the vehicle circle the shark.
+
+    Parameters
+    ----------
+    tag : Trajectory
+        The shark's path sampled every second (``tag.time`` must be evenly spaced by 1 s).
+    radius : float
+        Distance of the station from the shark (m).
+    bearing : numpy.ndarray, shape (n,)
+        Bearing of the station from the shark at each of ``tag.time`` (rad, from +x).
+    time_constant : float
+        Low-pass time constant (s).
+
+    Returns
+    -------
+    Trajectory
+        The AUV's true path at ``tag.time``.
+    """
+    if not np.allclose(np.diff(tag.time), 1.0):
+        raise ValueError("steered_auv: the shark's path must be sampled every 1 s")
+    keep = np.exp(-1.0 / time_constant)
+    x = tag.x + radius * np.cos(bearing)
+    y = tag.y + radius * np.sin(bearing)
+    # y[k] = keep·y[k-1] + (1 - keep)·target[k], started at the first target
+    x = lfilter([1.0 - keep], [1.0, -keep], x - x[0]) + x[0]
+    y = lfilter([1.0 - keep], [1.0, -keep], y - y[0]) + y[0]
+    return Trajectory(tag.time, x, y)
+
+
+def circling_pair(
+    tag: Trajectory,
+    phi: float,
+    *,
+    trail_radius: float = 100.0,
+    circle_radius: float = 150.0,
+    lap_time: float = 1500.0,
+) -> dict[str, Trajectory]:
+    """Two AUVs steered so that the tag's position and clock are both observable.
+
+    ``auv-1`` trails the shark at ``trail_radius`` on the fixed bearing ``phi``; ``auv-2``
+    circles it at ``circle_radius``, one lap every ``lap_time`` seconds, starting a
+    quarter turn from ``auv-1``. Two vehicles holding a fixed geometry around the shark
+    (the paper's pursuit) leave a common shift of the emission clock nearly
+    indistinguishable from a radial shift of the position, and keep the mirror
+    intersection of their two range circles; a vehicle whose bearing from the shark turns
+    sees the same position shift as a range change that varies around the lap, so the
+    clock and the position separate within a fraction of a lap. The defaults keep the
+    circling vehicle's speed relative to the shark at 2π·150/1500 ≈ 0.6 m/s (≤ 2 m/s over
+    ground for a shark at ~1 m/s) and both vehicles inside the detection range.
+
+    Parameters
+    ----------
+    tag : Trajectory
+        The shark's path sampled every second.
+    phi : float
+        Bearing of the trailing vehicle from the shark (rad).
+    trail_radius, circle_radius : float
+        Distances from the shark (m).
+    lap_time : float
+        Time of one lap of the circling vehicle (s).
+
+    Returns
+    -------
+    dict of str to Trajectory
+        ``auv-1`` (trailing) and ``auv-2`` (circling).
+    """
+    elapsed = tag.time - tag.time[0]
+    return {
+        "auv-1": steered_auv(tag, trail_radius, np.full(elapsed.size, phi)),
+        "auv-2": steered_auv(
+            tag, circle_radius, phi + 0.5 * np.pi + 2.0 * np.pi * elapsed / lap_time
+        ),
+    }
+
+
 def realistic_shark_pursuit(
     seed: SeedLike,
     *,
     dive: bool = False,
     schedule_wander: float = 0.8,
     detection: LogisticDetection | None = None,
+    steering: str = "circling",
 ) -> ClockScenario:
-    """The paper's simulated pursuit (two AUVs, 150 min) with realistic clocks.
+    """A shark pursuit by two AUVs (150 min) with realistic clocks.
 
-    The shark's path and the AUVs' paths are those of
-    :func:`hmmtrack.scenarios.paper.shark_pursuit` for the same seed (1 Hz samples,
-    linearly interpolated); the tag's period (8 s) wanders ``schedule_wander`` seconds from
-    a constant schedule over 1.8 h, with 65 µs jitter; the AUVs' clocks have offsets of
+    The shark's path is that of :func:`hmmtrack.scenarios.paper.shark_pursuit` for the same
+    seed (1 Hz samples, linearly interpolated). With ``steering="circling"`` (default)
+    the AUVs are steered to make the tag observable (:func:`circling_pair`: one trails at
+    100 m, the other circles at 150 m, one lap per 25 min): an operator who must localise
+    a tag whose clock is unknown does not hold a fixed formation, because with the
+    paper's formation a common clock shift and a radial position shift explain the
+    arrival times almost equally (the paper itself cites optimal AUV positioning). With
+    ``steering="paper"`` the AUVs are the paper's (fixed offsets 90° apart, lagging), kept
+    to show that limit. The tag's period (8 s) wanders ``schedule_wander`` seconds from a
+    constant schedule over 1.8 h, with 65 µs jitter; the AUVs' clocks have offsets of
     ~0.5 s and drifts of ~20 ppm, calibrated (GPS time) to 0.1 ms and 0.02 ppm; 3 % of
     detections are multipath arrivals; GPS noise 1.5 m; pings are heard with a logistic
-    range curve (default 50 % at 160 m, 40 m fall-off: about half the pings lost, as in
-    the paper).
+    range curve (default 50 % at 160 m, 40 m fall-off).
 
     Parameters
     ----------
@@ -425,18 +516,24 @@ def realistic_shark_pursuit(
         See :class:`WanderingPeriodClock` (s).
     detection : LogisticDetection, optional
         Detection curve of both AUVs.
+    steering : {"circling", "paper"}
+        How the AUVs move (see above).
     """
+    if steering not in ("circling", "paper"):
+        raise ValueError(f"steering must be 'circling' or 'paper', got {steering!r}")
     rng = as_generator(seed)
     base = shark_pursuit(rng, dive=dive)
     tag, receivers = _paths_from_tables(base.truth, base.receivers_truth)
+    if steering == "circling":
+        receivers = circling_pair(tag, float(rng.uniform(-np.pi, np.pi)))
     period = 8.0
     return build_clock_scenario(
         rng,
         name="shark-pursuit-realistic-clock",
         description=(
-            "Synthetic: the paper's shark pursuit by two AUVs with a tag whose 8 s period "
-            f"wanders {schedule_wander} s from a constant schedule over 1.8 h, receiver "
-            "clocks with offsets and drifts (calibrated), 3 % multipath arrivals."
+            f"Synthetic: a shark pursuit by two AUVs ({steering} steering) with a tag whose "
+            f"8 s period wanders {schedule_wander} s from a constant schedule over 1.8 h, "
+            "receiver clocks with offsets and drifts (calibrated), 3 % multipath arrivals."
         ),
         tag=tag,
         receivers=receivers,
