@@ -204,10 +204,13 @@ def emission_range(
 @njit(cache=True)
 def _log_ndtr(z: float) -> float:
     """log Φ(z), the standard normal log CDF (erfc form; asymptotic series far left)."""
+    if z > 8.3:  # Φ(z) rounds to 1: log Φ(z) ≈ −Φ(−z) < 5e-17
+        return -0.5 * math.erfc(z / math.sqrt(2.0))
     if z > -30.0:
         return math.log(0.5 * math.erfc(-z / math.sqrt(2.0)))
     z2 = z * z
-    return -0.5 * z2 - math.log(-z) - _LOG_SQRT_2PI + math.log1p(-1.0 / z2 + 3.0 / (z2 * z2))
+    series = -1.0 / z2 + 3.0 / z2**2 - 15.0 / z2**3 + 105.0 / z2**4  # next term < 2e-12
+    return -0.5 * z2 - math.log(-z) - _LOG_SQRT_2PI + math.log1p(series)
 
 
 @njit(cache=True)
@@ -242,36 +245,105 @@ def _match_kernel(
 
 
 @njit(cache=True)
-def _density_kernel(
-    residual, period, sigma, late_fraction, late_mean, uniform_fraction, total, core
-):
-    """Compiled :meth:`ArrivalLikelihood.logpdf` and :meth:`ArrivalLikelihood.core_logpdf`."""
+def _share(term: float, top: float) -> float:
+    """``exp(term − top)``, skipped (0) more than 40 nats below ``top``."""
+    return math.exp(term - top) if term > top - 40.0 else 0.0
+
+
+@njit(cache=True)
+def mixture_constants(sigma, late_fraction, late_mean, uniform_fraction):
+    """The per-likelihood constants of :func:`mixture_log_density` (compiled).
+
+    Parameters
+    ----------
+    sigma, late_fraction, late_mean, uniform_fraction : float
+        The :class:`ArrivalLikelihood` parameters.
+
+    Returns
+    -------
+    tuple of float
+        ``(sigma, late_mean, log_core_weight, rate_sigma, log_late_weight,
+        log_uniform_weight)``; a weight of a component that is absent is ``-inf``.
+    """
     log_core_weight = math.log1p(-late_fraction - uniform_fraction) - math.log(sigma)
     log_core_weight -= _LOG_SQRT_2PI
     rate_sigma = sigma / late_mean
     log_late_weight = -math.inf
     if late_fraction > 0:
         log_late_weight = math.log(late_fraction / late_mean) + 0.5 * rate_sigma * rate_sigma
-    log_uniform = -math.inf if uniform_fraction <= 0 else math.log(uniform_fraction)
+    log_uniform_weight = math.log(uniform_fraction) if uniform_fraction > 0 else -math.inf
+    return (sigma, late_mean, log_core_weight, rate_sigma, log_late_weight, log_uniform_weight)
+
+
+@njit(cache=True)
+def mixture_log_density(eps, log_period, constants):
+    """Compiled :meth:`ArrivalLikelihood.logpdf` of one residual, and the direct share.
+
+    Parameters
+    ----------
+    eps : float
+        Residual (s).
+    log_period : float
+        Log of the period the residual was wrapped with (log s).
+    constants : tuple of float
+        :func:`mixture_constants` of the likelihood.
+
+    Returns
+    -------
+    total : float
+        Log density of the mixture (log 1/s).
+    core : float
+        Log of its weighted Gaussian core (:meth:`ArrivalLikelihood.core_logpdf`).
+    direct : float
+        ``exp(core − total)``: the probability that the arrival is direct.
+
+    Notes
+    -----
+    The three terms are summed in linear scale relative to the largest. The multipath
+    term is skipped where an upper bound of it (``log Φ(w) ≤ −w²/2`` for ``w ≤ 0``) lies
+    more than 40 nats below the others: it could not change their sum in double
+    precision, and far-off particles then cost no ``erfc``.
+    """
+    sigma, late_mean, log_core_weight, rate_sigma, log_late_weight, log_uniform_weight = constants
+    z = eps / sigma
+    core = log_core_weight - 0.5 * z * z
+    log_uniform = log_uniform_weight - log_period
+    top = max(core, log_uniform)
+    log_late = -math.inf
+    if log_late_weight > -math.inf:
+        w = z - rate_sigma
+        log_late = log_late_weight - eps / late_mean
+        bound = log_late - 0.5 * w * w if w < 0 else log_late
+        log_late = log_late + _log_ndtr(w) if bound > top - 40.0 else -math.inf
+        top = max(top, log_late)
+    core_share = _share(core, top)
+    scaled = core_share + _share(log_uniform, top) + _share(log_late, top)
+    return top + math.log(scaled), core, core_share / scaled
+
+
+@njit(cache=True)
+def _density_kernel(
+    residual, period, sigma, late_fraction, late_mean, uniform_fraction, total, core
+):
+    """:func:`mixture_log_density` over arrays, into ``total`` and ``core``."""
+    constants = mixture_constants(sigma, late_fraction, late_mean, uniform_fraction)
     for i in range(residual.size):
-        eps = residual[i]
-        z = eps / sigma
-        c = log_core_weight - 0.5 * z * z
-        out = c
-        if late_fraction > 0:
-            out = _log_add(out, log_late_weight - eps / late_mean + _log_ndtr(z - rate_sigma))
-        if uniform_fraction > 0:
-            out = _log_add(out, log_uniform - math.log(period[i]))
-        total[i] = out
-        core[i] = c
+        total[i], core[i], _ = mixture_log_density(residual[i], math.log(period[i]), constants)
 
 
-def _vertical(particles, obs: pd.DataFrame, row: int, n: int):
+def _vertical(particles, obs: pd.DataFrame) -> list:
+    """Tag depth minus receiver depth for each row of ``obs``: floats, or (N,) arrays."""
     tag_depth = getattr(particles, "depth", None)
+    receiver_depth = (
+        obs["receiver_depth"].to_numpy(dtype=float)
+        if "receiver_depth" in obs
+        else np.zeros(len(obs))
+    )
     if tag_depth is None:
-        tag_depth = float(obs["depth"].iat[row]) if "depth" in obs.columns else 0.0
-    receiver_depth = float(obs["receiver_depth"].iat[row]) if "receiver_depth" in obs else 0.0
-    return np.asarray(tag_depth, dtype=float) - receiver_depth
+        depth = obs["depth"].to_numpy(dtype=float) if "depth" in obs else np.zeros(len(obs))
+        return (depth - receiver_depth).tolist()
+    tag_depth = np.asarray(tag_depth, dtype=float)
+    return [tag_depth - d for d in receiver_depth]
 
 
 def check_arrival_observations(obs: pd.DataFrame, where: str = "arrival-time observations") -> None:
@@ -383,13 +455,10 @@ class ArrivalTimeMeasurement:
         """
         if check:
             check_arrival_observations(obs)
-        arrival = obs["time"].to_numpy(dtype=float)
-        rx = obs["receiver_x"].to_numpy(dtype=float)
-        ry = obs["receiver_y"].to_numpy(dtype=float)
-        n = np.shape(particles.x)[0]
-        return [
-            (arrival[j], rx[j], ry[j], _vertical(particles, obs, j, n)) for j in range(len(obs))
-        ]
+        arrival = obs["time"].to_numpy(dtype=float).tolist()
+        rx = obs["receiver_x"].to_numpy(dtype=float).tolist()
+        ry = obs["receiver_y"].to_numpy(dtype=float).tolist()
+        return list(zip(arrival, rx, ry, _vertical(particles, obs), strict=True))
 
     def match(self, particles, obs: pd.DataFrame, time: float | None = None):
         """Each particle's residual and matched ping for every observation.

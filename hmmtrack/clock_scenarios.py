@@ -441,9 +441,9 @@ def circling_pair(
     tag: Trajectory,
     phi: float,
     *,
-    trail_radius: float = 100.0,
-    circle_radius: float = 150.0,
-    lap_time: float = 1500.0,
+    trail_radius: float = 80.0,
+    circle_radius: float = 130.0,
+    lap_time: float = 1200.0,
 ) -> dict[str, Trajectory]:
     """Two AUVs steered so that the tag's position and clock are both observable.
 
@@ -453,10 +453,14 @@ def circling_pair(
     (the paper's pursuit) leave a common shift of the emission clock nearly
     indistinguishable from a radial shift of the position, and keep the mirror
     intersection of their two range circles; a vehicle whose bearing from the shark turns
-    sees the same position shift as a range change that varies around the lap, so the
-    clock and the position separate within a fraction of a lap. The defaults keep the
-    circling vehicle's speed relative to the shark at 2π·150/1500 ≈ 0.6 m/s (≤ 2 m/s over
-    ground for a shark at ~1 m/s) and both vehicles inside the detection range.
+    sees the same position shift as a range change that varies around the lap, which a
+    smooth path cannot follow, and moves the mirror intersection around. With two
+    receivers this reduces the clock-position ambiguity but does not remove it (a common
+    clock shift still maps to a position shift along the bisector of the two bearings;
+    reports/clock_aware.md measures what is left). The defaults keep the
+    circling vehicle's speed relative to the shark at 2π·130/1200 ≈ 0.7 m/s (about 2 m/s
+    at most over ground for a shark at ~1 m/s) and both vehicles inside the detection
+    range (50 % at 160 m).
 
     Parameters
     ----------
@@ -496,7 +500,7 @@ def realistic_shark_pursuit(
     The shark's path is that of :func:`hmmtrack.scenarios.paper.shark_pursuit` for the same
     seed (1 Hz samples, linearly interpolated). With ``steering="circling"`` (default)
     the AUVs are steered to make the tag observable (:func:`circling_pair`: one trails at
-    100 m, the other circles at 150 m, one lap per 25 min): an operator who must localise
+    80 m, the other circles at 130 m, one lap per 20 min): an operator who must localise
     a tag whose clock is unknown does not hold a fixed formation, because with the
     paper's formation a common clock shift and a radial position shift explain the
     arrival times almost equally (the paper itself cites optimal AUV positioning). With

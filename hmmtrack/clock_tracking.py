@@ -38,21 +38,23 @@ This module does not read files and does not score detections itself
 
 from __future__ import annotations
 
-import dataclasses
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
-from scipy.special import logsumexp
+from numba import njit
 
 from hmmtrack.arrival import (
     ArrivalTimeMeasurement,
     check_arrival_observations,
     emission_range,
+    mixture_constants,
+    mixture_log_density,
     wrap_to_ping,
 )
 from hmmtrack.clock import EmissionClockModel
-from hmmtrack.detection_probability import LogisticDetection, silence_loglik
+from hmmtrack.detection_probability import LogisticDetection, silence_loglik_recent_pings
 from hmmtrack.filter import FilterResult, ParticleFilter
 from hmmtrack.receivers import ReceiverTracks
 from hmmtrack.smoothing import FixedLagSmoother, smoothed_table
@@ -61,6 +63,42 @@ from hmmtrack.smoothing import FixedLagSmoother, smoothed_table
 AMBIGUITY_COLUMNS = ("time", "separation", "minor_weight", "ambiguous")
 #: columns of :attr:`ClockFilterResult.clock`
 CLOCK_COLUMNS = ("time", "emission_time", "period", "emission_time_sd", "period_sd")
+
+
+@njit(cache=True)
+def _clock_row_kernel(
+    residual, ping, distance, weights, emission_time, period, loglik, sigma,
+    late_fraction, late_mean, uniform_fraction, gain_emission, gain_period, range_50, width,
+):  # fmt: skip
+    """Score one detection against every particle's clock and update the clocks in place.
+
+    Adds to ``loglik`` the marginal log density of each residual (innovation standard
+    deviation ``sigma``) and, when ``range_50`` is not NaN, the logistic
+    ``log p(distance)`` of being heard; moves ``emission_time`` to the matched ping and
+    applies the Kalman gains scaled by the probability that the arrival is direct.
+
+    Returns
+    -------
+    accepted : float
+        Weighted mean probability that the arrival is direct (scales the covariance update).
+    closest : float
+        Smallest absolute residual (s).
+    """
+    accepted = 0.0
+    closest = math.inf
+    constants = mixture_constants(sigma, late_fraction, late_mean, uniform_fraction)
+    for i in range(residual.size):
+        eps = residual[i]
+        total, _, direct = mixture_log_density(eps, math.log(period[i]), constants)
+        loglik[i] += total
+        if not math.isnan(range_50):
+            x = (distance[i] - range_50) / width  # log expit(-x), stable both ways
+            loglik[i] -= x + math.log1p(math.exp(-x)) if x > 0 else math.log1p(math.exp(x))
+        emission_time[i] += ping[i] * period[i] + gain_emission * direct * eps
+        period[i] += gain_period * direct * eps
+        accepted += weights[i] * direct
+        closest = min(closest, abs(eps))
+    return accepted, closest
 
 
 class _ClockView:
@@ -354,26 +392,35 @@ class ClockAwareFilter(ParticleFilter):
         loglik = np.zeros(p.n)
         weights = p.normalised_weights()
         lost = False
-        heard = np.zeros(p.n)
+        detection = None if self.silence is None else self.silence.detection
         for row in self.measurement.rows(p, obs, check=False):
             view = _ClockView(p, emission_time, period)
             residual, ping, r = self.measurement.match_one(view, *row, time=self.time)
             n_ahead = int(max(np.median(ping), 0))
             predicted = self.clock.predict_covariance(covariance, n_ahead)
             innovation_var = predicted[0, 0] + likelihood.sigma**2
-            marginal = dataclasses.replace(likelihood, sigma=float(np.sqrt(innovation_var)))
-            total, core = marginal.log_densities(residual, period)
-            if self.silence is not None:
-                heard += self.silence.detection.log_probability(r)
-            lost |= bool(np.min(np.abs(residual)) > self.lock_sigmas * marginal.sigma)
-            direct = np.exp(core - total)  # probability that the arrival is direct
-            loglik += total
+            sigma = float(np.sqrt(innovation_var))
             gain = predicted[:, 0] / innovation_var
-            emission_time = emission_time + ping * period + gain[0] * direct * residual
-            period = period + gain[1] * direct * residual
-            accepted = float(weights @ direct)
+            accepted, closest = _clock_row_kernel(
+                residual,
+                ping,
+                r,
+                weights,
+                emission_time,
+                period,
+                loglik,
+                sigma,
+                likelihood.late_fraction,
+                likelihood.late_mean,
+                likelihood.uniform_fraction,
+                float(gain[0]),
+                float(gain[1]),
+                np.nan if detection is None else detection.range_50,
+                np.nan if detection is None else detection.width,
+            )
+            lost |= closest > self.lock_sigmas * sigma
             covariance = predicted - accepted * np.outer(gain, gain) * innovation_var
-        return loglik + heard, emission_time, period, covariance, lost
+        return loglik, emission_time, period, covariance, lost
 
     def _loglik(self, obs: pd.DataFrame):
         loglik, emission_time, period, covariance, lost = self._clock_update(obs)
@@ -401,14 +448,18 @@ class ClockAwareFilter(ParticleFilter):
             if not first <= self.time <= last:
                 continue
             rx, ry, _, _ = s.receivers.state(name, self.time)
-            r = np.hypot(p.x - rx[0], p.y - ry[0])
-            travel = r / self.measurement.sound_speed
-            last = np.floor((cut - travel - p.emission_time) / p.period)
-            for back in range(n_back):  # the particle's last pings before the cut
-                expected = p.emission_time + (last - back) * p.period + travel
-                out += silence_loglik(
-                    expected, r, s.heard[name], self._silence_from, cut, s.detection, s.tolerance
-                )
+            out += silence_loglik_recent_pings(
+                p.emission_time,
+                p.period,
+                np.hypot(p.x - rx[0], p.y - ry[0]),
+                n_back,
+                s.heard[name],
+                self._silence_from,
+                cut,
+                s.detection,
+                s.tolerance,
+                self.measurement.sound_speed,
+            )
         self._silence_from = cut
         return out
 
@@ -430,7 +481,8 @@ class ClockAwareFilter(ParticleFilter):
             p = self.particles
             beta = self._tempering_step(p.log_weight, loglik, remaining)
             log_weight = p.log_weight + beta * loglik
-            p.log_weight = log_weight - logsumexp(log_weight)
+            top = log_weight.max()
+            p.log_weight = log_weight - (top + np.log(np.exp(log_weight - top).sum()))
             remaining -= beta
             if remaining <= 1e-12:
                 break

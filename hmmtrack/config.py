@@ -25,7 +25,9 @@ from pathlib import Path
 
 import pandas as pd
 
+from hmmtrack.filter import RESAMPLE_WHEN
 from hmmtrack.ranging import SOUND_SPEED
+from hmmtrack.resampling import RESAMPLERS
 
 #: depth policies that are not a number (see :attr:`TrackingConfig.depth`)
 DEPTH_POLICIES = ("none", "sensor")
@@ -55,7 +57,9 @@ class TrackingConfig:
         Transmitter period ``T`` (s), e.g. 8.179.
     r0 : mapping of str to float
         Known range (m, ≥ 0) between the tag and each receiver at that receiver's first
-        detection, keyed by receiver name.
+        detection, keyed by receiver name. The paper's (range, range-rate) tracking needs one
+        per detecting receiver; arrival-time tracking (:mod:`hmmtrack.clock_tracking`) needs
+        none (empty mapping, the default).
     sound_speed : float
         Speed of sound (m/s); 1460 as the paper.
     transmitter : str or None
@@ -92,10 +96,23 @@ class TrackingConfig:
     start, end : float, str or None
         Time window of the run: UTC epoch seconds or ISO 8601 text with a UTC offset
         (stored as seconds); ``None`` uses the first and last detection.
+    resampling : str
+        Resampling scheme, a name of :data:`hmmtrack.resampling.RESAMPLERS`. Default
+        ``"systematic"`` (less resampling noise than the paper's ``"multinomial"``; on 10
+        trials per cell of the three synthetic scenarios it lowered the HMM model's mean
+        error after convergence on the shark pursuit from 77 m to 24 m and was never
+        clearly worse, see :mod:`hmmtrack.tracking`); ``"multinomial"`` with
+        ``resample_when="always"`` is the paper's algorithm.
+    resample_when : {"always", "ess"}
+        Resample after every correction (``"always"``, the paper, and the default) or only
+        when the effective sample size falls below ``ess_threshold * n_particles`` (no
+        clear gain on the synthetic scenarios).
+    ess_threshold : float
+        Fraction in ``(0, 1]`` for ``resample_when="ess"``.
     """
 
     period: float
-    r0: Mapping[str, float]
+    r0: Mapping[str, float] = dataclasses.field(default_factory=dict)
     sound_speed: float = SOUND_SPEED
     transmitter: str | None = None
     bounds: tuple[float, float, float, float] | None = None
@@ -111,13 +128,16 @@ class TrackingConfig:
     shallower: str = "raise"
     start: float | None = None
     end: float | None = None
+    resampling: str = "systematic"
+    resample_when: str = "always"
+    ess_threshold: float = 0.5
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
         set_(self, "period", _positive("period", self.period))
         set_(self, "sound_speed", _positive("sound_speed", self.sound_speed))
         set_(self, "prediction_step", _positive("prediction_step", self.prediction_step))
-        if not isinstance(self.r0, Mapping) or not self.r0:
+        if not isinstance(self.r0, Mapping):
             raise ValueError(f"r0 must map receiver names to ranges (m), got {self.r0!r}")
         r0 = {}
         for receiver, value in self.r0.items():
@@ -166,6 +186,18 @@ class TrackingConfig:
             set_(self, name, _instant(name, getattr(self, name)))
         if self.start is not None and self.end is not None and not self.start < self.end:
             raise ValueError(f"start ({self.start}) must be before end ({self.end})")
+        if self.resampling not in RESAMPLERS:
+            raise ValueError(
+                f"resampling must be one of {sorted(RESAMPLERS)}, got {self.resampling!r}"
+            )
+        if self.resample_when not in RESAMPLE_WHEN:
+            raise ValueError(
+                f"resample_when must be one of {RESAMPLE_WHEN}, got {self.resample_when!r}"
+            )
+        threshold = _positive("ess_threshold", self.ess_threshold)
+        if threshold > 1:
+            raise ValueError(f"ess_threshold must lie in (0, 1], got {self.ess_threshold!r}")
+        set_(self, "ess_threshold", threshold)
 
     def override(self, **changes) -> TrackingConfig:
         """A validated copy with ``changes`` applied; ``None`` values mean "not given"."""
@@ -189,7 +221,7 @@ class TrackingConfig:
         unknown = sorted(set(data) - set(known))
         if unknown:
             raise ValueError(f"{source}: unknown key(s) {unknown}; known keys are {known}")
-        missing = [k for k in ("period", "r0") if k not in data]
+        missing = [k for k in ("period",) if k not in data]
         if missing:
             raise ValueError(f"{source}: missing required key(s) {missing}")
         try:

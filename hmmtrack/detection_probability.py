@@ -18,10 +18,12 @@ This module does not score arrival times (:mod:`hmmtrack.arrival`).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
+from numba import njit
 from scipy.optimize import minimize
 from scipy.special import expit, log_expit
 
@@ -215,6 +217,82 @@ def silence_loglik(
     missed = due & ~_any_within(heard_times, expected_arrival, tolerance)
     out[missed] = detection.log_miss_probability(range_m[missed])
     return out
+
+
+def silence_loglik_recent_pings(
+    emission_time: np.ndarray,
+    period: np.ndarray,
+    range_m: np.ndarray,
+    n_back: int,
+    heard_times: np.ndarray,
+    window_start: float,
+    window_end: float,
+    detection: LogisticDetection,
+    tolerance: float,
+    sound_speed: float,
+) -> np.ndarray:
+    """:func:`silence_loglik` summed over each particle's last ``n_back`` pings (compiled).
+
+    Particle ``i``'s pings are ``emission_time[i] + k·period[i]``; the last ``n_back``
+    whose arrival (``+ range_m[i] / sound_speed``) is at or before ``window_end`` are each
+    scored as :func:`silence_loglik` scores one expected arrival.
+
+    Parameters
+    ----------
+    emission_time, period, range_m : numpy.ndarray, shape (N,)
+        Each particle's reference emission (s), period (s) and range to the receiver (m).
+    n_back : int
+        Pings per particle to look at, >= 1.
+    heard_times : numpy.ndarray, shape (M,)
+        Sorted arrival times of the receiver's detections (s).
+    window_start, window_end : float
+        The window (s), as in :func:`silence_loglik`.
+    detection : LogisticDetection
+    tolerance, sound_speed : float
+        Seconds; m/s.
+
+    Returns
+    -------
+    numpy.ndarray, shape (N,)
+    """
+    out = np.zeros(np.shape(emission_time))
+    _recent_pings_kernel(
+        np.ascontiguousarray(emission_time, dtype=float),
+        np.ascontiguousarray(period, dtype=float),
+        np.ascontiguousarray(range_m, dtype=float),
+        int(n_back),
+        np.ascontiguousarray(heard_times, dtype=float),
+        float(window_start),
+        float(window_end),
+        float(detection.range_50),
+        float(detection.width),
+        float(tolerance),
+        float(sound_speed),
+        out,
+    )
+    return out
+
+
+@njit(cache=True)
+def _recent_pings_kernel(
+    emission_time, period, range_m, n_back, heard_times, window_start, window_end,
+    range_50, width, tolerance, sound_speed, out,
+):  # fmt: skip
+    m = heard_times.size
+    for i in range(emission_time.size):
+        travel = range_m[i] / sound_speed
+        last = math.floor((window_end - travel - emission_time[i]) / period[i])
+        for back in range(n_back):
+            expected = emission_time[i] + (last - back) * period[i] + travel
+            if not (window_start < expected <= window_end):
+                continue
+            heard = False
+            if m > 0:
+                j = min(np.searchsorted(heard_times, expected - tolerance), m - 1)
+                heard = abs(heard_times[j] - expected) <= tolerance
+            if not heard:  # log(1 - p) = log expit(x), stable both ways
+                x = (range_m[i] - range_50) / width
+                out[i] += -math.log1p(math.exp(-x)) if x > 0 else x - math.log1p(math.exp(x))
 
 
 def emission_schedule(clock: pd.DataFrame, end: float) -> np.ndarray:

@@ -26,7 +26,15 @@ observation are predicted in one compiled call (``motion.advance``) that also re
 per-second moments; with ``backend="numpy"`` every second is one call of
 ``motion.propagate`` instead (the reference path, and the one for motion models without a
 compiled kernel). The compiled path draws from per-particle random streams, so one seed
-gives one answer whatever the number of threads.
+gives one answer whatever the number of threads; by default the number of threads is chosen
+by timing one thread against all (:class:`ThreadChoice`), because on a shared machine more
+threads are often slower. A correction is a handful of compiled or vectorised passes
+(log-likelihood, normalisation with the moments and ESS, the resampling's inverse CDF);
+:meth:`ParticleFilter.iterate` converts all observations once to the measurement model's
+matrix form when the model offers one (``as_matrix`` / ``loglik_matrix``, as
+:class:`hmmtrack.measurement.RangeRateMeasurement` does) instead of slicing a table at every
+correction. After each resampling :attr:`ParticleFilter.last_ancestors` holds the ancestor
+indices (for smoothers).
 
 Observations are assigned to the nearest prediction time (``start + k dt``); with
 ``dt = 1 s`` the particles are at most 0.5 s away from the observation's time.
@@ -37,6 +45,8 @@ This module does not read files or build observations (:mod:`hmmtrack.tracking` 
 from __future__ import annotations
 
 import math
+import os
+import time as clock
 import warnings
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
@@ -50,23 +60,32 @@ from numba import njit
 from hmmtrack import streams as rs
 from hmmtrack.particles import Particles, as_bounds
 from hmmtrack.random import SeedLike, as_generator
-from hmmtrack.resampling import effective_sample_size, get_resampler, log_normalise
+from hmmtrack.resampling import get_resampler, log_normalise
 
 __all__ = [
     "ESTIMATE_COLUMNS",
     "Estimate",
     "FilterResult",
     "ParticleFilter",
+    "ThreadChoice",
     "sqrt_largest_eigenvalue",
 ]
 
 
 #: columns of the estimates table (docs/interfaces.md plus the effective sample size)
 ESTIMATE_COLUMNS = ("time", "x", "y", "var_x", "var_y", "cov_xy", "sqrt_lambda1", "n_eff")
-#: below this many particle-steps per compiled call the default is one thread: waking more
-#: costs more than it saves on short calls, and far more on a machine whose cores are busy
-#: (measured on the shared 2-core development machine; pass ``threads=`` to override)
-PARALLEL_MIN_WORK = 2_000_000
+# OpenMP threads that wait for work spin by default; on a machine whose cores are busy with
+# other processes a spinning worker steals the core the filter's own thread needs between
+# predictions (a run took 5-7x longer with two threads than with one). Sleeping waiters
+# cost a few microseconds per call and remove that collapse (measured, see
+# benchmarks/bench_filter.py). Read by OpenMP when numba starts its threads; an explicit
+# setting in the environment wins.
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+
+#: below this many particle-steps per compiled call the default is one thread (too short
+#: for more threads to pay); above it the filter times one and all threads and keeps the
+#: faster (pass ``threads=`` to fix the number)
+PARALLEL_MIN_WORK = 20_000
 BACKENDS = ("auto", "numba", "numpy")
 RESAMPLE_WHEN = ("always", "ess")
 
@@ -109,57 +128,87 @@ class Estimate(NamedTuple):
     n_eff: float
 
 
-def _estimate(time: float, origin: tuple[float, float], moments: np.ndarray, n_eff: float):
-    """Estimate from weighted moments ``(5,)`` of positions relative to ``origin``."""
-    mx, my, sxx, syy, sxy = moments
-    var_x = max(sxx - mx * mx, 0.0)
-    var_y = max(syy - my * my, 0.0)
+def _estimates(times, origin, moments: np.ndarray, n_eff: float) -> list[Estimate]:
+    """Estimates at ``times`` (K,) from weighted moments ``(K, 5)`` of positions relative to
+    ``origin``: mean x, mean y, mean x^2, mean y^2, mean xy (one vectorised pass)."""
+    mx, my, sxx, syy, sxy = np.atleast_2d(moments).T
+    var_x = np.maximum(sxx - mx * mx, 0.0)
+    var_y = np.maximum(syy - my * my, 0.0)
     cov_xy = sxy - mx * my
-    return Estimate(
-        time=float(time),
-        x=float(origin[0] + mx),
-        y=float(origin[1] + my),
-        var_x=float(var_x),
-        var_y=float(var_y),
-        cov_xy=float(cov_xy),
-        sqrt_lambda1=float(sqrt_largest_eigenvalue(var_x, var_y, cov_xy)),
-        n_eff=float(n_eff),
+    columns = (
+        np.asarray(times, dtype=np.float64),
+        origin[0] + mx,
+        origin[1] + my,
+        var_x,
+        var_y,
+        cov_xy,
+        sqrt_largest_eigenvalue(var_x, var_y, cov_xy),
+        np.full(mx.size, float(n_eff)),
     )
+    return [Estimate._make(row) for row in zip(*(c.tolist() for c in columns), strict=True)]
 
 
 @njit(cache=True)
-def _weight_summary(x, y, log_weight):
-    """Normalised weights (N,) and the weighted mean, covariance and ESS, in three passes.
+def _shifted_sums(w, x, y, x0, y0):
+    """One pass: sums of ``w``, ``w dx``, ``w dy``, ``w dx^2``, ``w dy^2``, ``w dx dy`` and
+    ``w^2`` with ``dx = x - x0``, ``dy = y - y0``."""
+    s = sx = sy = sxx = syy = sxy = sww = 0.0
+    for i in range(w.size):
+        dx = x[i] - x0
+        dy = y[i] - y0
+        wi = w[i]
+        s += wi
+        sx += wi * dx
+        sy += wi * dy
+        sxx += wi * dx * dx
+        syy += wi * dy * dy
+        sxy += wi * dx * dy
+        sww += wi * wi
+    return s, sx, sy, sxx, syy, sxy, sww
 
-    Returns ``(weights, mean_x, mean_y, var_x, var_y, cov_xy, n_eff)``; the same numbers as
-    ``np.average`` / ``np.cov(..., aweights=w, bias=True)`` and
+
+def _weight_summary(x, y, log_weight):
+    """Normalised weights (N,) and the weighted mean, covariance and ESS.
+
+    The exponentials are NumPy's (vectorised), the moments one compiled pass about the
+    heaviest particle (inside the cloud, so no cancellation far from the origin).
+
+    Returns ``(weights, log_total, mean_x, mean_y, var_x, var_y, cov_xy, n_eff)`` with
+    ``log_total`` the log-sum-exp of ``log_weight`` (all ``-inf`` count as equal); the same
+    numbers as ``np.average`` / ``np.cov(..., aweights=w, bias=True)`` and
     :func:`hmmtrack.resampling.effective_sample_size` (tested).
     """
-    n = x.size
     top = log_weight.max()
-    weights = np.empty(n)
-    total = 0.0
-    if top == log_weight.min():  # equal weights (after resampling): no exponentials
-        weights[:] = 1.0
-        total = float(n)
-    else:
-        for i in range(n):
-            weights[i] = math.exp(log_weight[i] - top)
-            total += weights[i]
-    mean_x = mean_y = sum_w2 = 0.0
-    for i in range(n):
-        weights[i] /= total
-        mean_x += weights[i] * x[i]
-        mean_y += weights[i] * y[i]
-        sum_w2 += weights[i] * weights[i]
-    var_x = var_y = cov_xy = 0.0
-    for i in range(n):
-        dx = x[i] - mean_x
-        dy = y[i] - mean_y
-        var_x += weights[i] * dx * dx
-        var_y += weights[i] * dy * dy
-        cov_xy += weights[i] * dx * dy
-    return weights, mean_x, mean_y, var_x, var_y, cov_xy, 1.0 / sum_w2
+    if top == -np.inf:  # every particle impossible: all equally so (never NaN)
+        top, log_weight = 0.0, np.zeros(log_weight.size)
+    weights = np.exp(log_weight - top)
+    k = int(np.argmax(weights))
+    s, sx, sy, sxx, syy, sxy, sww = _shifted_sums(weights, x, y, x[k], y[k])
+    weights /= s
+    mx, my = sx / s, sy / s
+    var_x = max(sxx / s - mx * mx, 0.0)
+    var_y = max(syy / s - my * my, 0.0)
+    cov_xy = sxy / s - mx * my
+    return weights, top + math.log(s), x[k] + mx, y[k] + my, var_x, var_y, cov_xy, s * s / sww
+
+
+def _weigh(log_weight, loglik, x, y):
+    """The correction's arithmetic: add ``loglik`` to the log weights, normalise them, and
+    return the normalised weights, moments and ESS.
+
+    Returns ``(status, log_weight, weights, mean_x, mean_y, var_x, var_y, cov_xy, n_eff)``
+    where ``status`` is 0 (done), 1 (``loglik`` has NaN or ``+inf``) or 2 (every particle
+    impossible); the rest is meaningful only when ``status == 0``. Equal to
+    :func:`hmmtrack.resampling.log_normalise` and :func:`_weight_summary` (tested).
+    """
+    if not (loglik < np.inf).all():  # NaN or +inf
+        return 1, None, None, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    updated = log_weight + loglik
+    if updated.max() == -np.inf:
+        return 2, None, None, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    weights, log_total, *moments = _weight_summary(x, y, updated)
+    updated -= log_total
+    return 0, updated, weights, *moments
 
 
 def _weighted_moments(p: Particles, weights: np.ndarray, origin) -> np.ndarray:
@@ -176,6 +225,59 @@ def _n_rows(obs) -> int:
     if isinstance(obs, pd.DataFrame):
         return len(obs)
     return len(np.atleast_1d(next(iter(obs.values())))) if len(obs) else 0
+
+
+class ThreadChoice:
+    """Chooses between one thread and ``max_threads`` for compiled calls by timing both.
+
+    The cost (s per particle-step) of the option in use is a running average of its calls;
+    that of the other is its latest retry. The first calls try each option once; afterwards
+    the cheaper one runs, and the other is tried again every ``explore_every`` calls -- an
+    interval that doubles (up to 1024) each time the retry loses and resets to 16 when it
+    wins, so that a machine whose load changes is followed without paying often for a bad
+    option. Only speed depends on the
+    choice, never results.
+
+    Parameters
+    ----------
+    max_threads : int
+        The alternative to one thread (numba's maximum).
+    """
+
+    def __init__(self, max_threads: int) -> None:
+        self.options = (1, max_threads) if max_threads > 1 else (1,)
+        #: s per particle-step of each option (None until measured)
+        self.cost: dict[int, float | None] = dict.fromkeys(self.options)
+        self.explore_every = 16
+        self._calls_since_explore = 0
+
+    def best(self) -> int:
+        """The option with the lowest measured cost (one thread while unmeasured)."""
+        measured = {k: v for k, v in self.cost.items() if v is not None}
+        return min(measured, key=measured.get) if measured else 1
+
+    def pick(self) -> int:
+        """Threads for the next call."""
+        for option, cost in self.cost.items():
+            if cost is None:
+                return option
+        self._calls_since_explore += 1
+        best = self.best()
+        if self._calls_since_explore < self.explore_every:
+            return best
+        self._calls_since_explore = 0
+        return next(k for k in self.options if k != best)
+
+    def record(self, threads: int, cost: float) -> None:
+        """Note that a call with ``threads`` cost ``cost`` s per particle-step."""
+        previous_best = self.best()
+        old = self.cost[threads]
+        # the option in use averages its calls; a retry's one call replaces the old figure
+        # (it measures the machine as it is now)
+        self.cost[threads] = 0.5 * (old + cost) if threads == previous_best and old else cost
+        if threads != previous_best and None not in self.cost.values():
+            won = self.best() == threads
+            self.explore_every = 16 if won else min(2 * self.explore_every, 1024)
 
 
 @dataclass
@@ -233,8 +335,9 @@ class ParticleFilter:
         ``"auto"`` uses the motion model's compiled kernel when it has one.
     threads : int or None
         Threads for compiled prediction; ``None`` uses one thread for small calls (fewer
-        than :data:`PARALLEL_MIN_WORK` particle-steps) and numba's default otherwise.
-        Results do not depend on it.
+        than :data:`PARALLEL_MIN_WORK` particle-steps) and otherwise whichever of one
+        thread and numba's maximum has been faster per particle-step so far
+        (:class:`ThreadChoice`). Results do not depend on it.
     """
 
     def __init__(
@@ -276,10 +379,17 @@ class ParticleFilter:
         self.dt = float(dt)
         self.compiled = compiled and backend != "numpy"
         self.threads = threads
+        self._thread_choice = ThreadChoice(numba.config.NUMBA_NUM_THREADS)
         self.particles: Particles | None = None
         self.time: float | None = None
         self.events: list[dict] = []
         self._streams: np.ndarray | None = None
+        #: ancestor indices (N,) of the last resampling (None before any); read by smoothers
+        self.last_ancestors: np.ndarray | None = None
+        # (log weights, normalised weights, ESS, a point inside the cloud) after the last
+        # correction or resampling, reused while the particles carry that very log-weight
+        # array (the filter and its subclasses replace log weights, never edit them in place)
+        self._weighed: tuple[np.ndarray, np.ndarray, float, tuple[float, float]] | None = None
 
     # ------------------------------------------------------------------ state
 
@@ -290,14 +400,17 @@ class ParticleFilter:
         self._streams = rs.new_streams(self.rng, self.n_particles)
         self.time = float(time)
         self.events = []
+        self.last_ancestors = None
+        self._weighed = None
         return self.estimate()
 
     def estimate(self) -> Estimate:
         """Weighted estimate of the current particles at the current time."""
         p = self._require_particles()
-        _, mean_x, mean_y, var_x, var_y, cov_xy, n_eff = _weight_summary(p.x, p.y, p.log_weight)
-        origin = (mean_x, mean_y)
-        return _estimate(self.time, origin, np.array([0.0, 0.0, var_x, var_y, cov_xy]), n_eff)
+        summary = _weight_summary(p.x, p.y, p.log_weight)
+        return _estimates(
+            [self.time], summary[2:4], np.array([0.0, 0.0, *summary[4:7]]), summary[7]
+        )[0]
 
     def _require_particles(self) -> Particles:
         if self.particles is None:
@@ -311,8 +424,7 @@ class ParticleFilter:
         p = self._require_particles()
         if n_steps <= 0:
             return []
-        weights, mean_x, mean_y, _, _, _, n_eff = _weight_summary(p.x, p.y, p.log_weight)
-        origin = (mean_x, mean_y)
+        weights, n_eff, origin = self._weights()
         if self.compiled:
             moments = self._advance(p, n_steps, weights, origin)
         else:
@@ -322,18 +434,30 @@ class ParticleFilter:
                 moments[k] = _weighted_moments(p, weights, origin)
         start = self.time
         self.time = start + n_steps * self.dt
-        return [
-            _estimate(start + (k + 1) * self.dt, origin, moments[k], n_eff) for k in range(n_steps)
-        ]
+        return _estimates(start + np.arange(1, n_steps + 1) * self.dt, origin, moments, n_eff)
+
+    def _weights(self) -> tuple[np.ndarray, float, tuple[float, float]]:
+        """Normalised weights (N,), their ESS and the weighted mean position (m) -- from the
+        last correction or resampling when the log weights are still those."""
+        p = self.particles
+        if self._weighed is not None and self._weighed[0] is p.log_weight:
+            return self._weighed[1:]
+        weights, _, mean_x, mean_y, _, _, _, n_eff = _weight_summary(p.x, p.y, p.log_weight)
+        return weights, n_eff, (mean_x, mean_y)
 
     def _advance(self, p: Particles, n_steps: int, weights: np.ndarray, origin) -> np.ndarray:
+        work = p.n * n_steps
         threads = self.threads
         if threads is None:
-            threads = 1 if p.n * n_steps < PARALLEL_MIN_WORK else numba.config.NUMBA_NUM_THREADS
+            threads = 1 if work < PARALLEL_MIN_WORK else self._thread_choice.pick()
         previous = numba.get_num_threads()
         numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
         try:
-            return self.motion.advance(p, self._streams, n_steps, self.dt, weights, origin)
+            started = clock.perf_counter()
+            moments = self.motion.advance(p, self._streams, n_steps, self.dt, weights, origin)
+            if self.threads is None and work >= PARALLEL_MIN_WORK:
+                self._thread_choice.record(threads, (clock.perf_counter() - started) / work)
+            return moments
         finally:
             numba.set_num_threads(previous)
 
@@ -346,19 +470,31 @@ class ParticleFilter:
         particle impossible) are recovered as described in :meth:`_recover`.
         """
         p = self._require_particles()
-        loglik = np.asarray(self.measurement.loglik(p, obs, time=self.time), dtype=np.float64)
-        if loglik.shape != (p.n,) or np.any(np.isnan(loglik)) or np.any(loglik == np.inf):
+        return self._weigh(self.measurement.loglik(p, obs, time=self.time), lambda: obs)
+
+    def _weigh(self, loglik, rows) -> Estimate:
+        """Add ``loglik`` (N,) to the log weights and normalise (one compiled call); recover
+        from degenerate weights. ``rows()`` returns the observations (only built when
+        needed: for an error message or a recovery)."""
+        p = self.particles
+        loglik = np.asarray(loglik, dtype=np.float64)
+        if loglik.shape != (p.n,):
             raise ValueError(
-                f"{type(self.measurement).__name__}.loglik returned "
-                f"{'NaN/+inf values' if loglik.shape == (p.n,) else f'shape {loglik.shape}'} "
-                f"at time {self.time} for observations:\n{obs}"
+                f"{type(self.measurement).__name__}.loglik returned shape {loglik.shape}, "
+                f"expected ({p.n},), at time {self.time} for observations:\n{rows()}"
             )
-        log_weight = p.log_weight + loglik
-        if np.isfinite(log_weight.max()):
-            p.log_weight = log_normalise(log_weight)
-        else:
-            self._recover(obs)
-        return self.estimate()
+        status, log_weight, weights, *moments, n_eff = _weigh(p.log_weight, loglik, p.x, p.y)
+        if status == 1:
+            raise ValueError(
+                f"{type(self.measurement).__name__}.loglik returned NaN/+inf values "
+                f"at time {self.time} for observations:\n{rows()}"
+            )
+        if status == 2:
+            self._recover(rows())
+            return self.estimate()
+        p.log_weight = log_weight
+        self._weighed = (log_weight, weights, n_eff, (moments[0], moments[1]))
+        return _estimates([self.time], moments[:2], np.array([0.0, 0.0, *moments[2:]]), n_eff)[0]
 
     def _recover(self, obs) -> None:
         """Re-initialise after degenerate weights; warn and record the event.
@@ -404,12 +540,15 @@ class ParticleFilter:
     def resample_if_due(self) -> bool:
         """Resample per ``resample_when``; return whether it happened."""
         p = self._require_particles()
-        if self.resample_when == "ess":
-            if effective_sample_size(p.log_weight) >= self.ess_threshold * p.n:
-                return False
-        ancestors = self._resample(self.rng, p.normalised_weights(), p.n)
+        weights, n_eff, origin = self._weights()
+        if self.resample_when == "ess" and n_eff >= self.ess_threshold * p.n:
+            return False
+        ancestors = self._resample(self.rng, weights, p.n)
         self.particles = p.take(ancestors)
         self.particles.log_weight = np.full(p.n, -np.log(p.n))
+        self.last_ancestors = ancestors
+        # equal weights now; the old weighted mean still lies inside the cloud
+        self._weighed = (self.particles.log_weight, np.full(p.n, 1.0 / p.n), float(p.n), origin)
         return True
 
     # ------------------------------------------------------------------ online
@@ -495,6 +634,13 @@ class ParticleFilter:
         obs, ticks = obs[inside], ticks[inside]
         order = np.argsort(ticks, kind="stable")
         obs, ticks = obs.iloc[order], ticks[order]
+        # the measurement's own matrix form of all observations, converted once (a pandas
+        # slice per correction costs more than the correction), unless a subclass corrects
+        # in its own way
+        as_matrix = getattr(self.measurement, "as_matrix", None)
+        matrix = None
+        if as_matrix is not None and type(self).correct is ParticleFilter.correct:
+            matrix = as_matrix(obs)
         snap_ticks = self._snapshot_ticks(snapshot_times, start, n_ticks)
         stops = np.union1d(np.union1d(ticks, snap_ticks), [0, n_ticks])
         current = 0
@@ -503,7 +649,10 @@ class ParticleFilter:
             yield from predicted[:-1]
             estimate = predicted[-1] if predicted else self.estimate()
             lo, hi = np.searchsorted(ticks, [stop, stop + 1])
-            if hi > lo:
+            if hi > lo and matrix is not None:
+                loglik = self.measurement.loglik_matrix(self.particles, matrix[lo:hi])
+                estimate = self._weigh(loglik, lambda lo=lo, hi=hi: obs.iloc[lo:hi])
+            elif hi > lo:
                 estimate = self.correct(obs.iloc[lo:hi])
             if stop in snap_ticks and snapshots is not None:
                 snapshots[self.time] = self.particles.to_frame()

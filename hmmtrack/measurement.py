@@ -19,6 +19,8 @@ covariance ``Sigma_z``. A positive range-rate means the tag and hydrophone move 
 
 The log-likelihood is a compiled loop over particles and observations;
 :func:`predicted_range_and_rate` is the same prediction in NumPy (for tests and plots).
+A model may also offer ``as_matrix(obs) -> (M, k)`` and ``loglik_matrix(particles, z)``:
+the filter then converts a whole run's observations once and scores row slices.
 
 This module does not resample or move particles, and does not compute ranges from
 detection times (that is :mod:`hmmtrack.ranging`).
@@ -31,6 +33,7 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
+import pandas as pd
 from numba import njit
 
 from hmmtrack.particles import Particles
@@ -136,16 +139,40 @@ class RangeRateMeasurement:
         -------
         (N,) float; finite unless a squared error overflows (``-inf`` then).
         """
+        return self.loglik_matrix(particles, self.as_matrix(obs))
+
+    @staticmethod
+    def as_matrix(obs) -> np.ndarray:
+        """Observations as the (M, 6) float matrix that :meth:`loglik_matrix` scores.
+
+        Parameters
+        ----------
+        obs : mapping of column name to (M,) array, or DataFrame
+            Columns :data:`RANGE_RATE_COLUMNS` (m, m/s); other columns are ignored.
+
+        Returns
+        -------
+        (M, 6) float, columns in the order of :data:`RANGE_RATE_COLUMNS`.
+        """
+        if isinstance(obs, pd.DataFrame):
+            return obs[list(RANGE_RATE_COLUMNS)].to_numpy(dtype=np.float64)
         z = np.empty((len(obs["range"]), len(RANGE_RATE_COLUMNS)))
         for j, name in enumerate(RANGE_RATE_COLUMNS):
             z[:, j] = np.asarray(obs[name], dtype=np.float64)
+        return z
+
+    def loglik_matrix(self, particles: Particles, z: np.ndarray) -> np.ndarray:
+        """:meth:`loglik` of observations already in :meth:`as_matrix` form ``z`` (M, 6).
+
+        The filter converts all observations once and passes row slices here.
+        """
         return _range_rate_loglik(
             particles.x,
             particles.y,
             particles.cos_heading,
             particles.sin_heading,
             particles.speed,
-            z,
+            np.ascontiguousarray(z),
             self._precision,
             self._log_norm,
         )

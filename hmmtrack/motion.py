@@ -27,9 +27,11 @@ Models
 :class:`HMMMotion`
     Per-particle behavioural state from a fitted :class:`hmmtrack.hmm.MovementHMM`; speed
     ``= step / model.dt`` and turn rate ``= angle / model.dt`` drawn from the state's
-    distributions, then the arc. Two variants, see the class docstring: ``"paper"`` (new
-    state and new draws every prediction step, whatever ``model.dt``) and
-    ``"time_consistent"`` (the fitted time step respected at any prediction step).
+    distributions, then the arc. Two variants, see the class docstring:
+    ``"time_consistent"`` (the default: the fitted time step respected at any prediction
+    step, draw clocks staggered across particles) and ``"paper"`` (new state and new draws
+    every prediction step, whatever ``model.dt``); optionally a heading random walk
+    (``heading_diffusion``) on top of the fitted model.
 
 The models do not read files, weigh or resample particles.
 """
@@ -462,11 +464,11 @@ class _Schedule:
 def _hmm_kernel(
     x, y, heading, c, s, v, w, behaviour, clock, streams, n_steps, n_sub, sub_step,
     draw_interval, metres_per_step_unit, fitted_dt, cumulative, gamma_d, gamma_c, gamma_boost,
-    gamma_scale,
-    zero_mass, vonmises_tables, weights, ox, oy,
+    gamma_scale, zero_mass, vonmises_tables, heading_diffusion, weights, ox, oy,
 ):  # fmt: skip
     sums = np.zeros((N_CHUNKS, n_steps, N_MOMENTS))
     due = draw_interval * (1.0 - 1e-9)
+    jitter_scale = heading_diffusion / math.sqrt(sub_step)  # rad/s of this sub-step
     for chunk in prange(N_CHUNKS):
         lo, hi = _chunk_bounds(chunk, x.size)
         for t in range(n_steps):
@@ -490,8 +492,12 @@ def _hmm_kernel(
                         clock[i] = (
                             previous - draw_interval if previous < 2.0 * draw_interval else 0.0
                         )
-                    x[i], y[i], c[i], s[i] = _arc(x[i], y[i], c[i], s[i], v[i], w[i], sub_step)
-                    heading[i] += w[i] * sub_step
+                    turn = w[i]
+                    if heading_diffusion > 0.0:
+                        z, state = rs.normal(state)
+                        turn += jitter_scale * z
+                    x[i], y[i], c[i], s[i] = _arc(x[i], y[i], c[i], s[i], v[i], turn, sub_step)
+                    heading[i] += turn * sub_step
                     clock[i] += sub_step
                     k, state = rs.categorical(cumulative[k], state)
                 behaviour[i], streams[i] = k, state
@@ -518,8 +524,9 @@ class HMMMotion:
 
     Each (sub-)step of length ``h`` does, per particle: (1) if a draw is due, draw speed and
     turn rate from the current state; (2) move along the arc for ``h``; (3) move the
-    behavioural state one step of the chain. Particles start at rest with a state drawn
-    from ``model.initial`` (:meth:`initialise`) and a draw due at the first step.
+    behavioural state one step of the chain. Particles start with a state drawn from
+    ``model.initial`` and speed and turn rate drawn from it (:meth:`initialise`); in the
+    time-consistent variant their draw clocks start at staggered, uniform phases.
 
     Variants
     --------
@@ -551,11 +558,27 @@ class HMMMotion:
         Uses ``initial`` (K,), ``transition_matrix()`` (K, K), ``dt`` (s), ``step`` and
         ``angle`` (``sample(rng, states)``; gamma steps and von Mises angles also have a
         compiled kernel, other families run the NumPy path only).
-    variant : {"paper", "time_consistent"}
+    variant : {"time_consistent", "paper"}
+        ``"time_consistent"`` by default (the two coincide in law when the prediction step
+        equals ``model.dt``); ``"paper"`` reproduces the paper's algorithm. With a model
+        fitted at a coarser step than the prediction step, ``"paper"`` divides each fitted
+        turning angle by ``model.dt`` and redraws it every second, so the heading changes
+        by ``model.dt`` independent small turns whose variance adds up to only
+        ``1/model.dt`` of the fitted angle variance: headings are under-dispersed and
+        clouds of particles drift straight (see the measurements in :mod:`hmmtrack.tracking`).
+    heading_diffusion : float
+        Standard deviation (rad per √s, ≥ 0) of a heading random walk added to the arcs:
+        each sub-step of ``h`` s turns by ``omega h + heading_diffusion sqrt(h) Z`` with
+        ``Z ~ N(0, 1)``. It stands for the wiggles of a real path about the fitted step's arc
+        and, in a filter, lets copies of one particle made by resampling part before their
+        next draw (without it they move identically for up to ``model.dt`` s). The law over
+        a horizon does not depend on the prediction step (variances add over time). The
+        default 0 is the fitted model alone.
     """
 
     model: object
-    variant: str = "paper"
+    variant: str = "time_consistent"
+    heading_diffusion: float = 0.0
     # per prediction step: _Schedule; under "samplers": the kernel's sampler constants
     _schedules: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
@@ -574,6 +597,10 @@ class HMMMotion:
         if unit not in STEP_UNITS:
             raise ValueError(
                 f"the movement HMM's steps are in {unit!r}; expected one of {sorted(STEP_UNITS)}"
+            )
+        if not (np.isfinite(self.heading_diffusion) and self.heading_diffusion >= 0):
+            raise ValueError(
+                f"heading_diffusion must be >= 0 rad/sqrt(s), got {self.heading_diffusion}"
             )
         gamma = np.asarray(self.model.transition_matrix(), dtype=np.float64)
         k = np.asarray(self.model.initial).size
@@ -618,13 +645,35 @@ class HMMMotion:
         return self._schedules[dt]
 
     def initialise(self, rng: np.random.Generator, particles: Particles) -> None:
-        """Draw each particle's state from ``model.initial``; the first step draws speed/turn."""
+        """Draw each particle's state, speed, turn rate and (time-consistent) draw clock.
+
+        The state comes from ``model.initial``; speed (m/s) and turn rate (rad/s) are drawn
+        from that state's distributions. In the ``"time_consistent"`` variant each
+        particle's clock ``time_since_draw`` is uniform on ``[0, model.dt)`` s: the
+        stationary phase of a renewal process that redraws every ``model.dt`` s, so that
+        particles redraw at staggered times rather than all together every ``model.dt``
+        seconds (resampling copies clocks, so a common phase would never break up). In the
+        ``"paper"`` variant the clock is ``inf``: every particle draws at the first step.
+
+        Parameters
+        ----------
+        rng : numpy.random.Generator
+        particles : Particles
+            Changed in place: ``state``, ``speed``, ``turn_rate``, ``time_since_draw``.
+        """
+        p = particles
         cumulative = np.cumsum(np.asarray(self.model.initial, dtype=np.float64))
-        particles.state = np.minimum(
-            np.searchsorted(cumulative / cumulative[-1], rng.random(particles.n), side="right"),
+        p.state = np.minimum(
+            np.searchsorted(cumulative / cumulative[-1], rng.random(p.n), side="right"),
             cumulative.size - 1,
         ).astype(np.int64)
-        particles.time_since_draw = np.full(particles.n, np.inf)
+        fitted_dt = float(self.model.dt)
+        p.speed = self.model.step.sample(rng, p.state) * self._metres / fitted_dt
+        p.turn_rate = self.model.angle.sample(rng, p.state) / fitted_dt
+        if self.variant == "time_consistent":
+            p.time_since_draw = rng.uniform(0.0, fitted_dt, p.n)
+        else:
+            p.time_since_draw = np.full(p.n, np.inf)
 
     def propagate(self, rng: np.random.Generator, particles: Particles, dt: float) -> None:
         """One prediction step of ``dt`` s for all particles, in place (NumPy reference)."""
@@ -640,7 +689,14 @@ class HMMMotion:
                 p.time_since_draw[due] = np.where(
                     clock < 2.0 * plan.draw_interval, clock - plan.draw_interval, 0.0
                 )
-            _move_along_arc(p, plan.sub_step)
+            if self.heading_diffusion > 0:
+                held = p.turn_rate
+                jitter = self.heading_diffusion / np.sqrt(plan.sub_step)
+                p.turn_rate = held + jitter * rng.standard_normal(p.n)
+                _move_along_arc(p, plan.sub_step)
+                p.turn_rate = held
+            else:
+                _move_along_arc(p, plan.sub_step)
             p.time_since_draw += plan.sub_step
             u = rng.random(p.n)
             p.state = (u[:, None] > plan.cumulative[p.state]).sum(axis=1).astype(np.int64)
@@ -669,6 +725,6 @@ class HMMMotion:
                 p.x, p.y, p.heading, p.cos_heading, p.sin_heading, p.speed, p.turn_rate,
                 p.state, p.time_since_draw, streams, n_steps, plan.n_sub, plan.sub_step,
                 plan.draw_interval, self._metres, float(self.model.dt), plan.cumulative,
-                *self._schedules["samplers"], weights, *origin,
+                *self._schedules["samplers"], float(self.heading_diffusion), weights, *origin,
             )
         )  # fmt: skip

@@ -58,14 +58,18 @@ class Particles:
     state : int64
         Behavioural state (HMM motion model), ``0 .. K-1``; 0 for the other models.
     time_since_draw : float64
-        Seconds since speed and turn rate were last drawn (time-consistent HMM motion).
+        Seconds since speed and turn rate were last drawn (time-consistent HMM motion,
+        which starts it uniform on ``[0, model.dt)`` so that particles redraw at staggered
+        times; ``inf`` means a draw is due).
     log_weight : float64
         Log importance weight; ``-inf`` marks an impossible particle.
     extra : dict of str to (N,) array
         Further per-particle fields that other process or measurement models need (for
         example a transmitter clock's ``emission_time`` and ``period``); they are read as
         attributes (``particles.emission_time``) and copied, taken and resampled with the
-        rest.
+        rest. Assign them through the dict (``particles.extra["emission_time"] = ...``):
+        ``particles.emission_time = ...`` would make a plain attribute that :meth:`take`
+        and :meth:`copy` do not carry.
     """
 
     x: np.ndarray

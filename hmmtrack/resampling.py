@@ -11,7 +11,9 @@ indices into ``weights`` so that index ``i`` is expected to appear ``n * weights
   ``n w_i`` (floor or ceil), the least noisy of the four.
 
 :data:`RESAMPLERS` maps the names used by :class:`hmmtrack.filter.ParticleFilter` to the
-functions. :func:`effective_sample_size` measures weight degeneracy from log weights.
+functions. Multinomial, stratified and systematic draw sorted points in ``[0, 1)`` with
+NumPy and invert the cumulative weights in one compiled pass (:func:`inverse_cdf`).
+:func:`effective_sample_size` measures weight degeneracy from log weights.
 
 This module does not weigh particles or move them; it only chooses ancestors.
 """
@@ -27,6 +29,7 @@ __all__ = [
     "RESAMPLERS",
     "effective_sample_size",
     "get_resampler",
+    "inverse_cdf",
     "log_normalise",
     "multinomial",
     "residual",
@@ -35,42 +38,85 @@ __all__ = [
 ]
 
 
+@njit(cache=True)
+def _weights_status(w):
+    """0 if ``w`` is usable (finite, non-negative, positive sum), 1 if not, 2 if it sums to 0;
+    and the sum. One compiled pass instead of four NumPy ones."""
+    total = 0.0
+    for i in range(w.size):
+        if not (w[i] >= 0.0 and w[i] < np.inf):  # also catches NaN
+            return 1, 0.0
+        total += w[i]
+    return (0 if total > 0.0 else 2), total
+
+
 def _checked_weights(weights: np.ndarray) -> np.ndarray:
     """Return ``weights`` as float64 normalised to sum one, refusing unusable input."""
     w = np.asarray(weights, dtype=np.float64)
     if w.ndim != 1 or w.size == 0:
         raise ValueError(f"weights must be a non-empty 1-D array, got shape {w.shape}")
-    if not np.all(np.isfinite(w)) or np.any(w < 0):
+    status, total = _weights_status(w)
+    if status == 1:
         bad = np.flatnonzero(~np.isfinite(w) | (w < 0))
         raise ValueError(
             f"weights must be finite and non-negative; bad entries at indices {bad[:10].tolist()}"
         )
-    total = w.sum()
-    if total <= 0:
+    if status == 2:
         raise ValueError("weights sum to zero: no particle can be chosen")
     return w / total
 
 
 @njit(cache=True)
-def _merge(cumulative, sorted_points):
-    """For ascending points, the first index with ``cumulative > point`` (one linear pass)."""
+def inverse_cdf(weights, sorted_points):
+    """Ancestors for ascending points in ``[0, 1)`` by inverting the weights' cumulative sum.
+
+    Equal to ``np.searchsorted(cumsum(weights), points, side="right")``, clipped to the
+    last index of positive weight (so that rounding in the cumulative sum can neither lose
+    a point nor pick a weightless particle), in one linear compiled pass.
+
+    Parameters
+    ----------
+    weights : (M,) float
+        Normalised weights (sum one).
+    sorted_points : (n,) float
+        Ascending points in ``[0, 1)``.
+
+    Returns
+    -------
+    (n,) int64 indices into ``weights``, ascending.
+    """
     out = np.empty(sorted_points.size, dtype=np.int64)
+    last = weights.size - 1
+    while last > 0 and weights[last] <= 0.0:  # never pick a weightless particle
+        last -= 1
     j = 0
+    cumulative = weights[0]
     for k in range(sorted_points.size):
-        while cumulative[j] <= sorted_points[k]:
+        while cumulative <= sorted_points[k] and j < last:
             j += 1
+            cumulative += weights[j]
         out[k] = j
     return out
 
 
-def _inverse_cdf(weights: np.ndarray, sorted_points: np.ndarray) -> np.ndarray:
-    """Ancestors for ascending points in ``[0, 1)`` by inverting the weights' cumulative sum.
+def _multinomial_points(rng: np.random.Generator, n: int) -> np.ndarray:
+    """``n`` independent uniforms on ``[0, 1)``, drawn already sorted (ascending).
 
-    Equal to ``np.searchsorted(cumsum(weights), points, side="right")``, in linear time.
+    Normalised cumulative sums of ``n + 1`` standard exponentials are the order statistics
+    of ``n`` uniforms.
     """
-    cumulative = np.cumsum(weights)
-    cumulative[-1] = 1.0  # guard against rounding: every point in [0, 1) finds an index
-    return _merge(cumulative, np.ascontiguousarray(sorted_points, dtype=np.float64))
+    spacings = rng.standard_exponential(n + 1)
+    return np.cumsum(spacings[:-1]) / spacings.sum()
+
+
+def _stratified_points(rng: np.random.Generator, n: int) -> np.ndarray:
+    """One uniform in each stratum ``[k/n, (k+1)/n)``, ``k = 0..n-1`` (ascending)."""
+    return (np.arange(n) + rng.random(n)) / n
+
+
+def _systematic_points(rng: np.random.Generator, n: int) -> np.ndarray:
+    """The evenly spaced points ``(k + u) / n`` with one shared uniform ``u`` (ascending)."""
+    return (np.arange(n) + rng.random()) / n
 
 
 def multinomial(rng: np.random.Generator, weights: np.ndarray, n: int) -> np.ndarray:
@@ -92,10 +138,7 @@ def multinomial(rng: np.random.Generator, weights: np.ndarray, n: int) -> np.nda
     -------
     (n,) int64 array of indices into ``weights``, sorted ascending.
     """
-    w = _checked_weights(weights)
-    spacings = rng.standard_exponential(n + 1)
-    points = np.cumsum(spacings[:-1]) / spacings.sum()
-    return _inverse_cdf(w, points)
+    return inverse_cdf(_checked_weights(weights), _multinomial_points(rng, n))
 
 
 def stratified(rng: np.random.Generator, weights: np.ndarray, n: int) -> np.ndarray:
@@ -103,9 +146,7 @@ def stratified(rng: np.random.Generator, weights: np.ndarray, n: int) -> np.ndar
 
     Parameters and return value as :func:`multinomial`.
     """
-    w = _checked_weights(weights)
-    points = (np.arange(n) + rng.random(n)) / n
-    return _inverse_cdf(w, points)
+    return inverse_cdf(_checked_weights(weights), _stratified_points(rng, n))
 
 
 def systematic(rng: np.random.Generator, weights: np.ndarray, n: int) -> np.ndarray:
@@ -114,9 +155,7 @@ def systematic(rng: np.random.Generator, weights: np.ndarray, n: int) -> np.ndar
     Index ``i`` appears ``floor(n w_i)`` or ``ceil(n w_i)`` times.
     Parameters and return value as :func:`multinomial`.
     """
-    w = _checked_weights(weights)
-    points = (np.arange(n) + rng.random()) / n
-    return _inverse_cdf(w, points)
+    return inverse_cdf(_checked_weights(weights), _systematic_points(rng, n))
 
 
 def residual(rng: np.random.Generator, weights: np.ndarray, n: int) -> np.ndarray:

@@ -18,6 +18,21 @@ The first detection of each receiver anchors its ranges (its range is the given 
 but has no range-rate, so it is not passed to the paper's (range, range-rate) likelihood;
 :func:`track` records each such detection as an ``"anchor_detection"`` event.
 
+Defaults and the paper's configuration
+---------------------------------------
+The paper leaves the noise levels, measurement covariance and particle count unstated;
+the defaults here and in :class:`hmmtrack.config.TrackingConfig` were chosen on the
+synthetic analogues of its three datasets (stationary tag, swimmer, shark pursuit; 10-20
+trials per cell at 1,000 particles, fixed seeds; the measurements are quoted beside each
+constant). With them, mean (median) error after convergence over 20 trials, baseline /
+velocity / HMM: stationary tag 6.4 (5.9) / 3.3 (3.2) / 8.2 (6.5) m; swimmer 112 (124) /
+32 (3.5) / 30 (4.2) m; shark pursuit 322 (324) / 39 (12) / 31 (9.5) m. Most of the swimmer's
+mean comes from trials that settle on the mirror intersection of the two range circles
+(20-25 % of them for velocity and HMM). The paper's algorithm stays reachable:
+``TrackingConfig(resampling="multinomial", resample_when="always")`` with
+``motion_model("hmm", variant="paper")``; on the same trials it gives HMM errors of 76 / 53 /
+325 m (the paper variant under-disperses headings, see :class:`hmmtrack.motion.HMMMotion`).
+
 This module reads no files and computes no metrics (see :mod:`hmmtrack.io`,
 :mod:`hmmtrack.metrics`).
 """
@@ -61,18 +76,30 @@ logger = logging.getLogger(__name__)
 #: the paper's motion models, by name
 MOTIONS = ("baseline", "velocity", "hmm")
 
-#: random-walk step spread of the baseline model (m per √s). The paper gives no value; on
-#: the synthetic stationary-tag and swimmer scenarios (8 runs each) 0.3 m/√s was best for the
-#: fixed tag (3.9 m mean error after convergence) and worst for the swimmer (65 m); 1 m/√s
-#: gave 6.3 m and 39 m
+#: random-walk step spread of the baseline model (m per √s). The paper gives no value. On
+#: the synthetic scenarios (10 trials each, 1,000 particles; mean error after convergence
+#: on stationary tag / swimmer / shark pursuit): 0.5 gave 3.9 / 104 / 703 m, 1.0 gave
+#: 6.4 / 112 / 322 m, 2.0 gave 22 / 40 / 78 m. 1 m/√s keeps the paper's contrast (good on a
+#: fixed tag, lost on a shark that swims 1 m/s)
 BASELINE_SIGMA = 1.0
 #: spreads of the velocity model's speed (m/s per √s) and turn-rate (rad/s per √s)
-#: increments. The paper gives no values; over 16 swimmer and 8 stationary-tag runs,
-#: 0.05 and 0.05 gave mean errors after convergence of 20.1 m and 4.0 m, against 37.9 m
-#: and 3.9 m for 0.1 and 0.1 (medians 5.9 m and 3.2 m; the means are dominated by runs
-#: that settle on the wrong intersection of the two range circles)
-VELOCITY_SIGMA_SPEED = 0.05
-VELOCITY_SIGMA_TURN_RATE = 0.05
+#: increments. The paper gives no values. Measured as above (stationary tag / swimmer /
+#: shark pursuit): (0.05, 0.05) 3.7 / 62 / 46 m; (0.1, 0.1) 3.3 / 55 / 42 m; (0.1, 0.02)
+#: 3.1 / 17 / 35 m (20 trials with systematic resampling: 3.3 / 32 / 39 m, medians
+#: 3.2 / 3.5 / 12 m); (0.02, 0.02) 3.6 / 98 / 48 m; (0.2, 0.02) 3.4 / 15 / 79 m: speed
+#: must follow a swimming animal, turn rates change slowly
+VELOCITY_SIGMA_SPEED = 0.1
+VELOCITY_SIGMA_TURN_RATE = 0.02
+
+#: heading random walk (rad/√s) of the HMM motion model in its time-consistent variant
+#: (:class:`hmmtrack.motion.HMMMotion`). Speed and turn rate are held for the fitted step
+#: (60 s for the bundled model), so without it the copies of a particle that resampling
+#: makes move identically until their next draw: the cloud collapses onto a few velocities
+#: and slides coherently (on the stationary tag: error 10-26 m while √λ₁ said 4 m). Mean
+#: error after convergence (stationary tag / swimmer / shark pursuit, 10 trials): 0 gave
+#: 26 / 78 / 77 m, 0.05 gave 22 / 61 / 26 m, 0.1 gave 23 / 61 / 27 m, 0.2 gave 9 / 38 / 34 m
+#: (shark-pursuit medians 8-10 m for every value > 0)
+HMM_HEADING_DIFFUSION = 0.2
 
 #: columns of the observations table, in order (``docs/interfaces.md`` plus the
 #: transmitter and the pings missed since the receiver's previous detection)
@@ -98,7 +125,12 @@ def bundled_model_path() -> Path:
     return path
 
 
-def motion_model(name: str, model: str | Path | object | None = None, variant: str = "paper"):
+def motion_model(
+    name: str,
+    model: str | Path | object | None = None,
+    variant: str = "time_consistent",
+    heading_diffusion: float | None = None,
+):
     """One of the paper's motion models, by name, with hmmtrack's default parameters.
 
     Parameters
@@ -111,8 +143,14 @@ def motion_model(name: str, model: str | Path | object | None = None, variant: s
     model : path, MovementHMM or None
         For ``hmm`` only: a saved model file, a fitted model, or ``None`` for the bundled
         white-shark model.
-    variant : {"paper", "time_consistent"}
-        For ``hmm`` only, see :class:`~hmmtrack.motion.HMMMotion`.
+    variant : {"time_consistent", "paper"}
+        For ``hmm`` only, see :class:`~hmmtrack.motion.HMMMotion`. ``"time_consistent"``
+        (default) respects the time step the model was fitted at; ``"paper"`` is the
+        paper's algorithm (new draws every prediction step).
+    heading_diffusion : float, optional
+        For ``hmm`` only: heading random walk (rad/√s) of
+        :class:`~hmmtrack.motion.HMMMotion`; by default :data:`HMM_HEADING_DIFFUSION` in the
+        time-consistent variant and 0 in the paper's.
 
     Returns
     -------
@@ -120,8 +158,10 @@ def motion_model(name: str, model: str | Path | object | None = None, variant: s
     """
     if name not in MOTIONS:
         raise ValueError(f"motion must be one of {MOTIONS}, got {name!r}")
-    if name != "hmm" and model is not None:
-        raise ValueError(f"a movement model file is used by motion 'hmm' only, not {name!r}")
+    if name != "hmm" and (model is not None or heading_diffusion is not None):
+        raise ValueError(
+            f"a movement model and heading diffusion are used by motion 'hmm' only, not {name!r}"
+        )
     if name == "baseline":
         return BaselineMotion(sigma=BASELINE_SIGMA)
     if name == "velocity":
@@ -134,7 +174,9 @@ def motion_model(name: str, model: str | Path | object | None = None, variant: s
         model = bundled_model_path()
     if isinstance(model, str | Path):
         model = MovementHMM.load(model)
-    return HMMMotion(model, variant=variant)
+    if heading_diffusion is None:
+        heading_diffusion = HMM_HEADING_DIFFUSION if variant == "time_consistent" else 0.0
+    return HMMMotion(model, variant=variant, heading_diffusion=heading_diffusion)
 
 
 def select_transmitter(detections: pd.DataFrame, transmitter: str | None) -> pd.DataFrame:
@@ -468,6 +510,9 @@ def track(
         RangeRateMeasurement(np.array(config.measurement_covariance)),
         n_particles=config.n_particles,
         bounds=bounds,
+        resampling=config.resampling,
+        resample_when=config.resample_when,
+        ess_threshold=config.ess_threshold,
         rng=as_generator(seed),
         dt=config.prediction_step,
     )

@@ -16,6 +16,8 @@ from hmmtrack.arrival import (
     ArrivalLikelihood,
     ArrivalTimeMeasurement,
     emission_range,
+    mixture_constants,
+    mixture_log_density,
     wrap_to_ping,
 )
 from hmmtrack.ranging import ranges
@@ -287,8 +289,18 @@ def test_compiled_densities_equal_the_numpy_reference(sigma, late, uniform, late
     residual = np.concatenate([np.linspace(-4.0, 4.0, 401), np.linspace(-0.2, 0.2, 401)])
     period = np.full(residual.size, 8.0)
     total, core = likelihood.log_densities(residual, period)
-    np.testing.assert_allclose(total, likelihood.logpdf(residual, period), rtol=1e-9, atol=1e-9)
-    np.testing.assert_allclose(core, likelihood.core_logpdf(residual), rtol=1e-12, atol=1e-9)
+    want_total = likelihood.logpdf(residual, period)
+    want_core = likelihood.core_logpdf(residual)
+    np.testing.assert_allclose(total, want_total, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(core, want_core, rtol=1e-12, atol=1e-9)
+    # the scalar kernel's direct-arrival share, used by the clock update
+    # (where both logs are below 1e4 in size: beyond, exp(core - total) of the reference
+    # loses digits to cancellation)
+    near = np.flatnonzero(np.abs(want_core) < 1e4)
+    assert near.size >= 20
+    constants = mixture_constants(sigma, late, late_mean, uniform)
+    direct = [mixture_log_density(residual[i], math.log(8.0), constants)[2] for i in near]
+    np.testing.assert_allclose(direct, np.exp(want_core - want_total)[near], rtol=1e-9, atol=1e-12)
 
 
 def test_compiled_match_equals_emission_range_and_wrapping():

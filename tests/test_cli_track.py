@@ -7,6 +7,7 @@ the lon/lat round trip and the plot.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -15,8 +16,10 @@ import pandas as pd
 import pytest
 from pyproj import Transformer
 
-from hmmtrack import io, metrics
+from hmmtrack import io, metrics, tracking
 from hmmtrack.cli import main
+from hmmtrack.clock_scenarios import moored_array
+from hmmtrack.clock_tracking import track_arrival_time
 from hmmtrack.config import TrackingConfig
 from hmmtrack.scenarios import stationary_tag
 from hmmtrack.scenarios.export import write_scenario
@@ -212,6 +215,55 @@ def test_missing_settings_and_bad_config_files(scenario_files, tmp_path, capsys)
     assert str(bad) in err and "unknown key(s) ['particles']" in err
 
 
+@pytest.fixture(scope="module")
+def arrival_files(tmp_path_factory):
+    """A moored array heard with clock-corrected times (no initial range), as CSV files."""
+    case = moored_array(5, duration=300.0)
+    scenario = dataclasses.replace(case.scenario, detections=case.corrected_detections())
+    return scenario, write_scenario(scenario, tmp_path_factory.mktemp("arrival"))
+
+
+def test_arrival_time_measurement_without_r0_runs_the_clock_aware_tracker(
+    arrival_files, tmp_path, capsys
+):
+    """``--measurement arrival-time`` needs no --r0 and writes what
+    :func:`hmmtrack.clock_tracking.track_arrival_time` estimates from the same files;
+    ``--smooth`` writes the fixed-lag smoothed track instead."""
+    scenario, paths = arrival_files
+    window = io.format_times(np.array([scenario.start, scenario.end]))
+    common = [
+        "track", "--detections", str(paths["detections"]), "--receivers",
+        str(paths["receivers"]), "--period", str(scenario.period), "--measurement",
+        "arrival-time", "--motion", "velocity", "--particles", "500", "--seed", "4",
+        "--start", window[0], "--end", window[1],
+    ]  # fmt: skip
+    filtered, smoothed = tmp_path / "filtered.csv", tmp_path / "smoothed.csv"
+    assert main([*common, "-o", str(filtered)]) == 0
+    truth = ["--truth", str(paths["truth"])]
+    assert main([*common, "--smooth", "20", "-o", str(smoothed), *truth]) == 0
+    printed = capsys.readouterr().out
+    assert "mean error after convergence" in printed
+    detections = io.read_detections(paths["detections"])
+    receivers = io.read_receivers(paths["receivers"])
+    direct = track_arrival_time(
+        detections, receivers, motion=tracking.motion_model("velocity"),
+        period=scenario.period, n_particles=500, smoothing_lag=20,
+        start=scenario.start, end=scenario.end, seed=4,
+    )  # fmt: skip
+    for path, expected in ((filtered, direct.estimates), (smoothed, direct.smoothed)):
+        table = pd.read_csv(path)
+        assert len(table) == int(scenario.end - scenario.start) + 1
+        np.testing.assert_allclose(table[["x", "y"]], expected[["x", "y"]], rtol=1e-9)
+    assert "n_ancestors" in pd.read_csv(smoothed).columns
+    assert "n_ancestors" not in pd.read_csv(filtered).columns
+
+
+def test_smooth_needs_the_arrival_time_measurement(scenario_files, tmp_path, capsys):
+    _, paths = scenario_files
+    assert main([*track_args(paths, tmp_path / "e.csv"), "--smooth", "10"]) == 2
+    assert "--smooth needs --measurement arrival-time" in capsys.readouterr().err
+
+
 def test_config_round_trip_and_validation():
     config = TrackingConfig(
         period=8.179,
@@ -250,6 +302,9 @@ def test_config_file_with_overrides(tmp_path):
         ({"start": 10.0, "end": 5.0}, "before end"),
         ({"shallower": "ignore"}, "shallower"),
         ({"velocity_window": -1}, "velocity_window"),
+        ({"resampling": "bogus"}, "resampling must be one of"),
+        ({"resample_when": "sometimes"}, "resample_when must be one of"),
+        ({"ess_threshold": 1.5}, "ess_threshold must lie in"),
     ],
 )
 def test_config_validation(change, message):

@@ -3,10 +3,16 @@
 from __future__ import annotations
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from hmmtrack.clock import local_period_ppm, schedule_wander
-from hmmtrack.clock_scenarios import Multipath, WanderingPeriodClock, moored_array
+from hmmtrack.clock_scenarios import (
+    Multipath,
+    WanderingPeriodClock,
+    moored_array,
+    realistic_shark_pursuit,
+)
 
 
 def test_wandering_clock_has_the_stated_wander_and_jitter():
@@ -83,3 +89,37 @@ def test_multipath_delays_a_share_of_pings():
     assert late.mean() == pytest.approx(0.05, abs=0.005)
     assert out.loc[late, "multipath_delay"].mean() == pytest.approx(0.02, rel=0.1)
     np.testing.assert_allclose(out["logged_time"], out["multipath_delay"])
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_circling_pursuit_is_realistic_and_turns_its_geometry(seed):
+    """The default pursuit: the AUVs stay at about the stated distances, no faster than an
+    AUV can go, and the circling vehicle's bearing from the shark turns one lap per
+    20 minutes while the trailing one's stays put (what makes the tag observable)."""
+    case = realistic_shark_pursuit(seed)
+    sc = case.scenario
+    truth = sc.truth.set_index("time")
+    for name, g in sc.receivers_truth.groupby("receiver"):
+        g = g.set_index("time")
+        speed = np.hypot(np.diff(g["x"]), np.diff(g["y"])) / np.diff(g.index)
+        assert np.percentile(speed, 99) < 2.2
+        dx = g["x"] - truth.loc[g.index, "x"]
+        dy = g["y"] - truth.loc[g.index, "y"]
+        turned = np.unwrap(np.arctan2(dy, dx).to_numpy())
+        laps = (turned[-1] - turned[0]) / (2 * np.pi)
+        distance = np.median(np.hypot(dx, dy))
+        if name == "auv-2":
+            expected = (g.index[-1] - g.index[0]) / 1200.0
+            assert laps == pytest.approx(expected, rel=0.1)
+            assert 100 < distance < 140
+        else:
+            assert abs(laps) < 0.25
+            assert 50 < distance < 140
+    heard = sc.pings.groupby("receiver")["detected"].mean()
+    assert (heard > 0.4).all() and (heard < 0.95).all()
+    # the paper's formation is still available, with the same shark
+    paper = realistic_shark_pursuit(seed, steering="paper").scenario
+    pd.testing.assert_frame_equal(paper.truth, sc.truth)
+    assert not paper.receivers_truth.equals(sc.receivers_truth)
+    with pytest.raises(ValueError, match="steering"):
+        realistic_shark_pursuit(seed, steering="zigzag")

@@ -14,6 +14,7 @@ from hmmtrack.detection_probability import (
     expected_pings,
     fit_detection_probability,
     silence_loglik,
+    silence_loglik_recent_pings,
 )
 from hmmtrack.receivers import ReceiverTracks
 
@@ -77,6 +78,34 @@ def test_silence_counts_only_due_and_unheard_pings():
     want = np.array([0.0, np.log1p(-curve(100.0)), 0.0, np.log1p(-curve(900.0))])
     np.testing.assert_allclose(got, want, rtol=1e-12)
     assert pd.isna(got).sum() == 0
+
+
+def test_compiled_recent_pings_equal_silence_loglik_ping_by_ping():
+    """The compiled sum over each particle's last pings equals :func:`silence_loglik`
+    applied to each of those pings in turn (the NumPy reference)."""
+    rng = np.random.default_rng(12)
+    n, n_back, c = 400, 4, 1500.0
+    curve = LogisticDetection(range_50=300.0, width=60.0)
+    emission = rng.uniform(0.0, 8.0, n)
+    period = 8.0 + rng.normal(0.0, 2e-3, n)
+    r = rng.uniform(10.0, 900.0, n)
+    start, end, tolerance = 30.0, 45.0, 0.05  # at most two pings due per particle
+    # detections exactly at some particles' expected arrivals, and noise elsewhere
+    travel = r / c
+    last = np.floor((end - travel - emission) / period)
+    due = [emission + (last - back) * period + travel for back in (0, 1)]
+    heard = np.sort(np.concatenate([due[0][::20], due[1][::20], rng.uniform(0.0, 60.0, 10)]))
+    got = silence_loglik_recent_pings(
+        emission, period, r, n_back, heard, start, end, curve, tolerance, c
+    )
+    want = sum(
+        silence_loglik(
+            emission + (last - back) * period + travel, r, heard, start, end, curve, tolerance
+        )
+        for back in range(n_back)
+    )
+    np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12)
+    assert (got < 0).sum() > n // 2 and (got == 0).sum() >= n // 20  # both cases exercised
 
 
 def test_curve_fitted_from_a_tracking_run_is_close_to_the_truth():

@@ -3,10 +3,13 @@ import warnings
 import numpy as np
 import pandas as pd
 import pytest
+from scipy import special
 
 from hmmtrack.filter import (
     ESTIMATE_COLUMNS,
     ParticleFilter,
+    ThreadChoice,
+    _weigh,
     _weight_summary,
     sqrt_largest_eigenvalue,
 )
@@ -14,7 +17,7 @@ from hmmtrack.hmm import Gamma, MovementHMM, VonMises
 from hmmtrack.measurement import RangeRateMeasurement
 from hmmtrack.motion import BaselineMotion, HMMMotion, VelocityMotion
 from hmmtrack.particles import _ARRAY_NAMES, Particles
-from hmmtrack.resampling import effective_sample_size
+from hmmtrack.resampling import effective_sample_size, log_normalise, multinomial
 
 TAG = np.array([30.0, -20.0])
 T0 = 1.7e9
@@ -277,7 +280,10 @@ def test_weight_summary_matches_numpy_far_from_the_origin():
     y = 4.2e6 + rng.normal(0, 2.0, 1000)
     log_weight = rng.normal(0, 3.0, 1000) - 800.0
     log_weight[:10] = -np.inf
-    weights, mean_x, mean_y, var_x, var_y, cov_xy, n_eff = _weight_summary(x, y, log_weight)
+    weights, log_total, mean_x, mean_y, var_x, var_y, cov_xy, n_eff = _weight_summary(
+        x, y, log_weight
+    )
+    assert log_total == pytest.approx(special.logsumexp(log_weight), rel=1e-13)
     w = np.exp(log_weight - log_weight.max())
     w /= w.sum()
     np.testing.assert_allclose(weights, w, rtol=1e-12)
@@ -304,3 +310,88 @@ def test_particles_carry_extra_fields_through_resampling():
         Particles(**{n: getattr(p, n) for n in _ARRAY_NAMES}, extra={"bad": np.zeros(3)})
     with pytest.raises(ValueError, match="xmin < xmax"):
         Particles.uniform(rng, 5, (1.0, 0.0, 0.0, 1.0))
+
+
+def test_weigh_matches_log_normalise_and_the_weight_summary():
+    rng = np.random.default_rng(5)
+    x, y = rng.normal(0, 50, 500), rng.normal(0, 80, 500)
+    log_weight = log_normalise(rng.normal(0, 2.0, 500))
+    loglik = rng.normal(-40, 10.0, 500)
+    loglik[:7] = -np.inf
+    status, updated, weights, *moments, n_eff = _weigh(log_weight, loglik, x, y)
+    assert status == 0
+    np.testing.assert_allclose(updated, log_normalise(log_weight + loglik), rtol=1e-12)
+    summary = _weight_summary(x, y, log_weight + loglik)
+    np.testing.assert_allclose(weights, summary[0], rtol=1e-12)
+    np.testing.assert_allclose([*moments, n_eff], [*summary[2:]], rtol=1e-12)
+    assert _weigh(log_weight, np.full(500, -np.inf), x, y)[0] == 2
+    equal = _weight_summary(x, y, np.full(500, -np.inf))  # no NaN: all equally impossible
+    np.testing.assert_allclose(equal[0], 1 / 500)
+    assert equal[2] == pytest.approx(x.mean())
+    for bad in (np.nan, np.inf):
+        loglik[3] = bad
+        assert _weigh(log_weight, loglik, x, y)[0] == 1
+
+
+def test_matrix_fast_path_equals_the_generic_correction():
+    """iterate() scores with the measurement's matrix form; a subclass that only routes
+    correct() through the parent (so the fast path is off) must give the same run."""
+
+    class GenericFilter(ParticleFilter):
+        def correct(self, obs):
+            return super().correct(obs)
+
+    obs = circling_observations(duration=200.0)
+    fast = make_filter("velocity", seed=8).run(obs).estimates
+    generic = GenericFilter(MOTIONS["velocity"], MEASUREMENT, 2000, BOUNDS, rng=8)
+    pd.testing.assert_frame_equal(fast, generic.run(obs).estimates, rtol=1e-12)
+
+
+def test_last_ancestors_are_the_resampling_draw():
+    pf = make_filter("velocity", n=500, seed=2)
+    assert pf.last_ancestors is None
+    pf.initialise(T0)
+    pf.predict(4)
+    obs = circling_observations().iloc[:1]
+    pf.correct(obs)
+    before = pf.particles.copy()
+    weights = before.normalised_weights()
+    state = pf.rng.bit_generator.state
+    pf.resample_if_due()
+    replay = np.random.default_rng()
+    replay.bit_generator.state = state
+    np.testing.assert_array_equal(pf.last_ancestors, multinomial(replay, weights, 500))
+    np.testing.assert_array_equal(pf.particles.x, before.x[pf.last_ancestors])
+    np.testing.assert_array_equal(pf.particles.speed, before.speed[pf.last_ancestors])
+
+
+def test_thread_choice_tries_both_keeps_the_cheaper_and_backs_off():
+    choice = ThreadChoice(2)
+    costs = {1: 2e-8, 2: 9e-8}  # two threads are slower (a busy machine)
+    picks = []
+    for _ in range(300):
+        k = choice.pick()
+        picks.append(k)
+        choice.record(k, costs[k])
+    assert picks[:3] == [1, 2, 1]
+    retries = [i for i, k in enumerate(picks) if k == 2]
+    # the interval between retries doubles from 16 each time the retry loses
+    assert np.diff(retries).tolist() == [32, 64, 128]
+    assert choice.explore_every == 256
+    costs[2] = 1e-8  # the machine became quiet: the next retry wins and two threads stay
+    later = []
+    for _ in range(300):
+        k = choice.pick()
+        later.append(k)
+        choice.record(k, costs[k])
+    assert later[-100:].count(2) > 90
+    assert ThreadChoice(1).pick() == 1
+
+
+def test_automatic_threads_measure_both_and_give_the_threads_1_answer():
+    obs = circling_observations(duration=300.0)
+    auto = make_filter("velocity", n=5000, seed=3)
+    a = auto.run(obs).estimates
+    b = make_filter("velocity", n=5000, seed=3, threads=1).run(obs).estimates
+    pd.testing.assert_frame_equal(a, b)
+    assert all(cost is not None for cost in auto._thread_choice.cost.values())

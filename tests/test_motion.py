@@ -251,10 +251,14 @@ def test_hmm_speed_and_turn_rate_come_from_the_state_distributions():
         assert stats.kstest(angle, stats.vonmises(model.angle.concentration[k]).cdf).pvalue > 1e-3
 
 
-def _displacements(variant, dt, horizon=60.0, n=20_000, seed=0, fitted_dt=10.0):
+def _displacements(variant, dt, horizon=60.0, n=20_000, seed=0, fitted_dt=10.0, synchronised=False):
+    """Positions after ``horizon`` s from the origin; ``synchronised``: every particle draws
+    speed and turn rate at the first step (draw clocks at ``inf``, as the paper's variant)."""
     motion = HMMMotion(movement_model(dt=fitted_dt), variant)
     p = Particles.from_state(x=np.zeros(n), y=np.zeros(n), heading=np.zeros(n))
     motion.initialise(np.random.default_rng(seed), p)
+    if synchronised:
+        p.time_since_draw[:] = np.inf
     advance(motion, p, int(round(horizon / dt)), dt, seed=seed + 1)
     return p.x, p.y
 
@@ -284,12 +288,70 @@ def test_paper_variant_is_the_fitted_model_only_at_the_fitted_step():
     """At the fitted step both variants are one process (same draws, same paths); at 1 s the
     paper's variant moves differently -- the contrast that motivates the time-consistent one."""
     paper = _displacements("paper", 10.0, seed=30)
-    consistent = _displacements("time_consistent", 10.0, seed=30)
+    consistent = _displacements("time_consistent", 10.0, seed=30, synchronised=True)
     np.testing.assert_array_equal(paper[0], consistent[0])
     np.testing.assert_array_equal(paper[1], consistent[1])
     x1, y1 = _displacements("paper", 1.0, seed=31)
     # many times the 3 % tolerance of the time-consistent test above
     assert np.mean(paper[0] ** 2 + paper[1] ** 2) > 1.4 * np.mean(x1**2 + y1**2)
+
+
+@pytest.mark.parametrize("path", ["numpy", "compiled"])
+def test_time_consistent_draw_clocks_start_staggered_and_stay_staggered(path):
+    """The draw clocks start uniform on [0, model.dt) (the renewal process's stationary
+    phase) with speed and turn rate already drawn, so about N dt / model.dt particles redraw
+    at every step, never all at once (all at the first step, then in lock-step, without)."""
+    model = movement_model(dt=10.0, transition=np.eye(2))
+    motion = HMMMotion(model, "time_consistent")
+    n = 20_000
+    p = particles_at(n)
+    rng = np.random.default_rng(5)
+    motion.initialise(rng, p)
+    assert stats.kstest(p.time_since_draw / model.dt, "uniform").pvalue > 1e-3
+    for k in range(2):
+        step = p.speed[p.state == k] * model.dt
+        law = stats.gamma(model.step.shape[k], scale=model.step.scale[k])
+        assert stats.kstest(step, law.cdf).pvalue > 1e-3
+    streams = rs.new_streams(np.random.default_rng(6), n)
+    redraws = []
+    for _ in range(25):
+        before = p.time_since_draw.copy()
+        if path == "numpy":
+            motion.propagate(rng, p, 1.0)
+        else:
+            motion.advance(p, streams, 1, 1.0, p.normalised_weights(), (0.0, 0.0))
+        redraws.append(np.count_nonzero(p.time_since_draw < before))
+    # a draw falls due at the end of a step and is made at the start of the next one, so
+    # none at the first step, then binomial(n, 1/10) per step: mean 2000, sd 42
+    assert redraws[0] == 0
+    assert np.all(np.abs(np.array(redraws[1:]) - n / 10) < 6 * np.sqrt(n * 0.09)), redraws
+    paper = particles_at(100)
+    HMMMotion(model, "paper").initialise(rng, paper)
+    assert np.all(np.isinf(paper.time_since_draw))
+
+
+@pytest.mark.parametrize(("path", "dt"), [("numpy", 1.0), ("compiled", 1.0), ("compiled", 5.0)])
+def test_heading_diffusion_adds_a_heading_random_walk(path, dt):
+    """A straight, fixed-speed model: the heading after T s is N(0, sigma^2 T) whatever the
+    prediction step, and positions stay on the model's path length."""
+    model = movement_model(dt=10.0, transition=np.eye(2), step_sd=(1e-9, 1e-9), kappa=(1e12, 1e12))
+    sigma, horizon, n = 0.05, 60.0, 20_000
+    motion = HMMMotion(model, "time_consistent", heading_diffusion=sigma)
+    p = Particles.from_state(x=np.zeros(n), y=np.zeros(n), heading=np.zeros(n))
+    rng = np.random.default_rng(7)
+    motion.initialise(rng, p)
+    steps = int(horizon / dt)
+    if path == "numpy":
+        for _ in range(steps):
+            motion.propagate(rng, p, dt)
+    else:
+        advance(motion, p, steps, dt, seed=8)
+    assert np.var(p.heading) == pytest.approx(sigma**2 * horizon, rel=0.04)
+    assert stats.kstest(p.heading / (sigma * np.sqrt(horizon)), "norm").pvalue > 1e-3
+    # a curved path is shorter end to end than its length, never longer
+    assert np.all(np.hypot(p.x, p.y) <= p.speed * horizon * (1 + 1e-9))
+    with pytest.raises(ValueError, match="heading_diffusion"):
+        HMMMotion(model, heading_diffusion=-0.1)
 
 
 def test_matrix_root_and_its_fallback():

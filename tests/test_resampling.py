@@ -7,6 +7,7 @@ from hmmtrack.resampling import (
     RESAMPLERS,
     effective_sample_size,
     get_resampler,
+    inverse_cdf,
     multinomial,
     residual,
     systematic,
@@ -96,3 +97,22 @@ def test_effective_sample_size_oracles():
     assert effective_sample_size(lw - 1e4) == pytest.approx(1 / np.sum(w**2))
     with pytest.raises(ValueError, match="NaN"):
         effective_sample_size(np.array([0.0, np.nan]))
+
+
+@settings(max_examples=200, deadline=None)
+@given(weights=weights_strategy, n=st.integers(1, 60), seed=st.integers(0, 2**32 - 1))
+def test_inverse_cdf_is_searchsorted_of_the_cumulative_weights(weights, n, seed):
+    """Oracle: NumPy's binary search on the cumulative sum (clipped to the last index)."""
+    w = np.array(weights) / np.sum(weights)
+    points = np.sort(np.random.default_rng(seed).random(n))
+    expected = np.searchsorted(np.cumsum(w), points, side="right")
+    last_positive = np.flatnonzero(w > 0)[-1]
+    np.testing.assert_array_equal(inverse_cdf(w, points), np.minimum(expected, last_positive))
+
+
+def test_inverse_cdf_never_picks_trailing_weightless_particles():
+    """Cumulative sums that round below one must not send the last points to a zero weight."""
+    w = np.array([0.3, 0.7 - 1e-15, 0.0, 0.0])
+    points = np.array([0.1, 0.5, 0.9999999999999999])
+    assert np.cumsum(w)[-1] < points[-1]
+    assert inverse_cdf(w, points).tolist() == [0, 1, 1]

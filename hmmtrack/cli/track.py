@@ -1,10 +1,17 @@
 """``hmmtrack track``: estimate a tagged animal's positions from detection logs.
 
 Reads detections (VUE, Fathom or plain CSV) and receiver positions (x/y or lon/lat), runs
-:func:`hmmtrack.tracking.track` and writes one estimate per second as CSV (``time`` ISO
-8601 UTC, ``x``, ``y``, ``lon``, ``lat`` when the receivers were given in lon/lat, the x-y
-covariance, ``sqrt_lambda1`` and ``n_eff``). With ``--truth`` it prints the paper's metrics;
-with ``--plot`` it draws the error over time and particle snapshots.
+the tracker and writes one estimate per second as CSV (``time`` ISO 8601 UTC, ``x``, ``y``,
+``lon``, ``lat`` when the receivers were given in lon/lat, the x-y covariance,
+``sqrt_lambda1`` and ``n_eff``). With ``--truth`` it prints the paper's metrics; with
+``--plot`` it draws the error over time and particle snapshots.
+
+Two measurement models (``--measurement``): ``range-rate``, the paper's ranges and
+range-rates from the tag period and known initial ranges ``--r0``
+(:func:`hmmtrack.tracking.track`); ``arrival-time``, the tag's emission clock carried in
+the particle state, no initial range needed, optionally smoothed with a fixed lag
+(:func:`hmmtrack.clock_tracking.track_arrival_time`; its detection times must be on one
+common time base).
 
 Settings come from ``--config`` (a JSON file, see :mod:`hmmtrack.config`) and are
 overridden by the command-line options.
@@ -22,6 +29,10 @@ import pandas as pd
 from hmmtrack import io, metrics, tracking
 from hmmtrack.cli import UserInputError
 from hmmtrack.config import TrackingConfig
+from hmmtrack.motion import HMM_VARIANTS
+
+#: measurement models of ``--measurement``
+MEASUREMENTS = ("range-rate", "arrival-time")
 
 
 def _r0_pair(text: str) -> tuple[str, float]:
@@ -66,9 +77,29 @@ def register(subparsers) -> None:
     )
     parser.add_argument(
         "--hmm-variant",
-        choices=("paper", "time_consistent"),
-        default="paper",
-        help="HMM motion variant (default: the paper's, new draws every second)",
+        choices=HMM_VARIANTS,
+        default="time_consistent",
+        help=(
+            "HMM motion variant: time_consistent (default) respects the time step the model "
+            "was fitted at (state switches and speed/turn draws per fitted step); paper "
+            "redraws speed, turn and state every second whatever that step (the paper's "
+            "algorithm; under-disperses headings for a model fitted at a coarser step)"
+        ),
+    )
+    parser.add_argument(
+        "--measurement",
+        choices=MEASUREMENTS,
+        default="range-rate",
+        help=(
+            "range-rate: the paper's ranges and range-rates (needs --r0); arrival-time: the "
+            "tag's emission clock in the particle state, no initial range"
+        ),
+    )
+    parser.add_argument(
+        "--smooth",
+        type=int,
+        metavar="LAG",
+        help="arrival-time only: write the fixed-lag smoothed estimates (lag in seconds)",
     )
     parser.add_argument("--particles", type=int, help="number of particles")
     parser.add_argument("--sound-speed", type=float, help="speed of sound (m/s, default 1460)")
@@ -102,7 +133,8 @@ def build_config(args: argparse.Namespace) -> TrackingConfig:
     }
     if args.config:
         return TrackingConfig.from_json(args.config, **overrides)
-    missing = [f"--{k.replace('_', '-')}" for k in ("period", "r0") if overrides[k] is None]
+    needed = ("period",) if args.measurement == "arrival-time" else ("period", "r0")
+    missing = [f"--{k.replace('_', '-')}" for k in needed if overrides[k] is None]
     if missing:
         raise UserInputError(f"give {' and '.join(missing)}, or a --config file with them")
     return TrackingConfig.from_dict(
@@ -152,7 +184,43 @@ def _within_truth(estimates: pd.DataFrame, truth: pd.DataFrame) -> pd.DataFrame:
     return estimates.loc[inside].reset_index(drop=True)
 
 
+def _track_arrival_time(args, config, detections, receivers, motion, seed):
+    """Estimates and events of an arrival-time run (:mod:`hmmtrack.clock_tracking`)."""
+    from hmmtrack.arrival import ArrivalTimeMeasurement
+    from hmmtrack.clock_tracking import track_arrival_time
+
+    result = track_arrival_time(
+        tracking.select_transmitter(detections, config.transmitter),
+        receivers,
+        motion=motion,
+        period=config.period,
+        bounds=config.bounds,
+        measurement=ArrivalTimeMeasurement(sound_speed=config.sound_speed),
+        n_particles=config.n_particles,
+        smoothing_lag=args.smooth,
+        start=config.start,
+        end=config.end,
+        seed=seed,
+    )
+    ambiguous = result.ambiguity[result.ambiguity["ambiguous"].astype(bool)]
+    if not ambiguous.empty:
+        print(
+            f"warning: {len(ambiguous)} of {len(result.ambiguity)} corrections left two "
+            f"separate clusters of particles (mirror ambiguity), first at "
+            f"{ambiguous['time'].iloc[0]}",
+            file=sys.stderr,
+        )
+    estimates = result.smoothed if args.smooth is not None else result.estimates
+    return estimates, result.events
+
+
 def run(args: argparse.Namespace) -> int:
+    if args.smooth is not None and args.measurement != "arrival-time":
+        raise UserInputError("--smooth needs --measurement arrival-time")
+    if args.smooth is not None and args.smooth < 1:
+        raise UserInputError(
+            f"--smooth LAG must be a positive number of seconds, got {args.smooth}"
+        )
     config = build_config(args)
     if args.model and args.motion != "hmm":
         raise UserInputError("--model is used with --motion hmm only")
@@ -164,24 +232,30 @@ def run(args: argparse.Namespace) -> int:
     receivers = io.read_receivers(args.receivers)
     projection = io.Projection.from_frame(receivers)
     motion = tracking.motion_model(args.motion, args.model, variant=args.hmm_variant)
-    snapshot_times = ()
-    if args.plot:
-        from hmmtrack.plots.tracking import snapshot_times as choose_snapshots
+    snapshots, observations = {}, None
+    if args.measurement == "arrival-time":
+        estimates, events = _track_arrival_time(args, config, detections, receivers, motion, seed)
+    else:
+        snapshot_times = ()
+        if args.plot:
+            from hmmtrack.plots.tracking import snapshot_times as choose_snapshots
 
-        tracked = tracking.select_transmitter(detections, config.transmitter)
-        snapshot_times = choose_snapshots(*tracking.time_window(tracked["time"], config))
-    result = tracking.track(
-        detections, receivers, config, motion, seed=seed, snapshot_times=snapshot_times
-    )
-    io.write_estimates(result.estimates, args.output, projection=projection)
-    print(f"wrote {len(result.estimates)} estimates to {args.output}")
-    for event in result.events.itertuples(index=False):
+            tracked = tracking.select_transmitter(detections, config.transmitter)
+            snapshot_times = choose_snapshots(*tracking.time_window(tracked["time"], config))
+        result = tracking.track(
+            detections, receivers, config, motion, seed=seed, snapshot_times=snapshot_times
+        )
+        estimates, events = result.estimates, result.events
+        snapshots, observations = result.snapshots, result.observations
+    io.write_estimates(estimates, args.output, projection=projection)
+    print(f"wrote {len(estimates)} estimates to {args.output}")
+    for event in events.itertuples(index=False):
         if event.kind != "anchor_detection":
             print(f"event at {event.time}: {event.kind}: {event.detail}", file=sys.stderr)
     truth = errors = convergence = None
     if args.truth:
         truth = read_truth(args.truth, projection)
-        scored = _within_truth(result.estimates, truth)
+        scored = _within_truth(estimates, truth)
         summary = metrics.tracking_metrics(scored, truth)
         converged = "" if summary.converged else " (never converged; 0 by the paper's rule)"
         print(f"time to convergence: {summary.time_to_convergence:.0f} s{converged}")
@@ -201,10 +275,10 @@ def run(args: argparse.Namespace) -> int:
         from hmmtrack.plots.tracking import plot_tracking_run
 
         figure = plot_tracking_run(
-            result.estimates,
-            result.snapshots,
+            estimates,
+            snapshots,
             receivers,
-            observations=result.observations,
+            observations=observations,
             truth=truth,
             errors=errors,
             convergence=convergence,
