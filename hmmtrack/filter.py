@@ -394,7 +394,9 @@ class ParticleFilter:
     # ------------------------------------------------------------------ state
 
     def initialise(self, time: float) -> Estimate:
-        """Algorithm 1 at ``time``: particles uniform in the bounds, at rest, equal weights."""
+        """Algorithm 1 at ``time``: particles uniform in the bounds, equal weights; the
+        motion model's ``initialise`` sets their motion fields (at rest for the baseline
+        and velocity models, drawn from the fitted model for the HMM)."""
         self.particles = Particles.uniform(self.rng, self.n_particles, self.bounds)
         self.motion.initialise(self.rng, self.particles)
         self._streams = rs.new_streams(self.rng, self.n_particles)

@@ -105,8 +105,19 @@ def _multinomial_points(rng: np.random.Generator, n: int) -> np.ndarray:
     Normalised cumulative sums of ``n + 1`` standard exponentials are the order statistics
     of ``n`` uniforms.
     """
-    spacings = rng.standard_exponential(n + 1)
-    return np.cumsum(spacings[:-1]) / spacings.sum()
+    return _order_statistics(rng.standard_exponential(n + 1))
+
+
+@njit(cache=True)
+def _order_statistics(spacings):
+    """Cumulative sums of the first ``n`` of ``n + 1`` spacings over their total (one pass)."""
+    total = spacings.sum()
+    out = np.empty(spacings.size - 1)
+    running = 0.0
+    for k in range(out.size):
+        running += spacings[k]
+        out[k] = running / total
+    return out
 
 
 def _stratified_points(rng: np.random.Generator, n: int) -> np.ndarray:

@@ -258,6 +258,27 @@ def test_arrival_time_measurement_without_r0_runs_the_clock_aware_tracker(
     assert "n_ancestors" not in pd.read_csv(filtered).columns
 
 
+def test_the_papers_configuration_is_reachable_from_the_command_line(scenario_files, tmp_path):
+    """--resampling multinomial --hmm-variant paper writes what the library gives for the
+    paper's configuration (and differs from the defaults' run with the same seed)."""
+    scenario, paths = scenario_files
+    paper, default = tmp_path / "paper.csv", tmp_path / "default.csv"
+    options = ["--resampling", "multinomial", "--resample-when", "always"]
+    assert main([*track_args(paths, paper), *options, "--hmm-variant", "paper"]) == 0
+    assert main(track_args(paths, default)) == 0
+    config = TrackingConfig.from_json(paths["metadata"], n_particles=1000, resampling="multinomial")
+    expected = tracking.track(
+        io.read_detections(paths["detections"]),
+        io.read_receivers(paths["receivers"]),
+        config,
+        tracking.motion_model("hmm", variant="paper"),
+        seed=3,
+    ).estimates
+    written = pd.read_csv(paper)
+    np.testing.assert_allclose(written[["x", "y"]], expected[["x", "y"]], rtol=1e-9)
+    assert not np.allclose(pd.read_csv(default)["x"], written["x"])
+
+
 def test_smooth_needs_the_arrival_time_measurement(scenario_files, tmp_path, capsys):
     _, paths = scenario_files
     assert main([*track_args(paths, tmp_path / "e.csv"), "--smooth", "10"]) == 2

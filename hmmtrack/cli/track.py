@@ -29,7 +29,9 @@ import pandas as pd
 from hmmtrack import io, metrics, tracking
 from hmmtrack.cli import UserInputError
 from hmmtrack.config import TrackingConfig
+from hmmtrack.filter import RESAMPLE_WHEN
 from hmmtrack.motion import HMM_VARIANTS
+from hmmtrack.resampling import RESAMPLERS
 
 #: measurement models of ``--measurement``
 MEASUREMENTS = ("range-rate", "arrival-time")
@@ -81,9 +83,10 @@ def register(subparsers) -> None:
         default="time_consistent",
         help=(
             "HMM motion variant: time_consistent (default) respects the time step the model "
-            "was fitted at (state switches and speed/turn draws per fitted step); paper "
-            "redraws speed, turn and state every second whatever that step (the paper's "
-            "algorithm; under-disperses headings for a model fitted at a coarser step)"
+            "was fitted at (state switches and speed/turn draws per fitted step, plus a "
+            "small heading random walk); paper redraws speed, turn and state every second "
+            "whatever that step (the paper's algorithm; under-disperses headings for a "
+            "model fitted at a coarser step)"
         ),
     )
     parser.add_argument(
@@ -102,6 +105,16 @@ def register(subparsers) -> None:
         help="arrival-time only: write the fixed-lag smoothed estimates (lag in seconds)",
     )
     parser.add_argument("--particles", type=int, help="number of particles")
+    parser.add_argument(
+        "--resampling",
+        choices=sorted(RESAMPLERS),
+        help="resampling scheme (default systematic; multinomial is the paper's)",
+    )
+    parser.add_argument(
+        "--resample-when",
+        choices=RESAMPLE_WHEN,
+        help="resample after every correction (always: default, the paper) or on low ESS",
+    )
     parser.add_argument("--sound-speed", type=float, help="speed of sound (m/s, default 1460)")
     parser.add_argument(
         "--transmitter", help="transmitter to track (full id or ID part) when the log holds several"
@@ -125,6 +138,8 @@ def build_config(args: argparse.Namespace) -> TrackingConfig:
         "period": args.period,
         "r0": dict(args.r0) if args.r0 else None,
         "n_particles": args.particles,
+        "resampling": args.resampling,
+        "resample_when": args.resample_when,
         "sound_speed": args.sound_speed,
         "transmitter": args.transmitter,
         "depth": args.depth,
