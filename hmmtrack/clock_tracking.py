@@ -216,6 +216,9 @@ class SilenceModel:
     heard: dict[str, np.ndarray]
     tolerance: float = 1.0
 
+    def __post_init__(self) -> None:
+        self.detection.require_unit_maximum("SilenceModel")
+
     @classmethod
     def from_observations(
         cls, observations: pd.DataFrame, receivers: ReceiverTracks, detection, tolerance=1.0

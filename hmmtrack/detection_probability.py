@@ -1,9 +1,10 @@
 """Detection probability as a function of range, fitted from data, and what a silence tells.
 
 A receiver hears a ping with a probability that falls with range. Modelled as a logistic
-curve ``p(r) = 1 / (1 + exp((r − range_50) / width))`` it does two jobs:
+curve ``p(r) = max_probability / (1 + exp((r − range_50) / width))`` it does two jobs:
 
-* scenarios draw which pings are heard (:mod:`hmmtrack.clock_scenarios`);
+* scenarios draw which pings are heard (:mod:`hmmtrack.clock_scenarios`,
+  :mod:`hmmtrack.scenarios`);
 * the arrival-time filter counts a ping that a receiver should have heard but did not
   against particles close to that receiver (:func:`silence_loglik`): each particle
   predicts when its ping reaches each receiver; if no detection came within a tolerance
@@ -32,18 +33,24 @@ from hmmtrack.receivers import ReceiverTracks
 
 @dataclass(frozen=True)
 class LogisticDetection:
-    """``p(r) = 1 / (1 + exp((r − range_50) / width))``.
+    """``p(r) = max_probability / (1 + exp((r − range_50) / width))``.
 
     Parameters
     ----------
     range_50 : float
-        Range at which half the pings are heard (m).
+        Range at which the probability is half of ``max_probability`` (m).
     width : float
-        Range scale of the fall-off (m); ``p`` drops from 73 % to 27 % over ``2·width``.
+        Range scale of the fall-off (m); ``p`` drops from 73 % to 27 % of the maximum over
+        ``2·width``.
+    max_probability : float
+        Probability of hearing a ping next to the receiver, in (0, 1] (noise, collisions).
+        The compiled silence scores (:func:`silence_loglik_recent_pings` and the clock-aware
+        filter) take only curves with the default 1.
     """
 
     range_50: float
     width: float
+    max_probability: float = 1.0
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.range_50) and np.isfinite(self.width) and self.width > 0):
@@ -51,10 +58,18 @@ class LogisticDetection:
                 f"LogisticDetection needs a finite range_50 and a positive width (m), got "
                 f"range_50={self.range_50}, width={self.width}"
             )
+        if not 0.0 < self.max_probability <= 1.0:
+            raise ValueError(
+                f"LogisticDetection needs max_probability in (0, 1], got {self.max_probability}"
+            )
+
+    def _excess(self, range_m) -> np.ndarray:
+        """``(r − range_50) / width``, dimensionless, same shape as ``range_m``."""
+        return (np.asarray(range_m, dtype=float) - self.range_50) / self.width
 
     def probability(self, range_m) -> np.ndarray:
         """Probability (0-1) of hearing a ping at range ``range_m`` (m), same shape."""
-        return expit(-(np.asarray(range_m, dtype=float) - self.range_50) / self.width)
+        return self.max_probability * expit(-self._excess(range_m))
 
     def __call__(self, range_m) -> np.ndarray:
         """Same as :meth:`probability`, so the curve plugs into detection simulation."""
@@ -62,11 +77,21 @@ class LogisticDetection:
 
     def log_probability(self, range_m) -> np.ndarray:
         """``log p(range_m)``, stable far beyond ``range_50``."""
-        return log_expit(-(np.asarray(range_m, dtype=float) - self.range_50) / self.width)
+        return math.log(self.max_probability) + log_expit(-self._excess(range_m))
 
     def log_miss_probability(self, range_m) -> np.ndarray:
         """``log(1 − p(range_m))``, stable close to the receiver."""
-        return log_expit((np.asarray(range_m, dtype=float) - self.range_50) / self.width)
+        if self.max_probability == 1.0:
+            return log_expit(self._excess(range_m))
+        return np.log1p(-self.probability(range_m))
+
+    def require_unit_maximum(self, caller: str) -> None:
+        """Raise ValueError unless ``max_probability`` is 1 (what compiled scores assume)."""
+        if self.max_probability != 1.0:
+            raise ValueError(
+                f"{caller} takes detection curves with max_probability 1, "
+                f"got {self.max_probability}"
+            )
 
 
 def fit_detection_probability(range_m, heard) -> LogisticDetection:
@@ -255,6 +280,7 @@ def silence_loglik_recent_pings(
     -------
     numpy.ndarray, shape (N,)
     """
+    detection.require_unit_maximum("silence_loglik_recent_pings")
     out = np.zeros(np.shape(emission_time))
     _recent_pings_kernel(
         np.ascontiguousarray(emission_time, dtype=float),

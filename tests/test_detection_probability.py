@@ -27,6 +27,31 @@ def test_probabilities_of_hearing_and_missing_add_to_one(r, r50, width):
     assert curve(r) == pytest.approx(np.exp(curve.log_probability(r)), rel=1e-9, abs=1e-300)
 
 
+@given(
+    r=st.floats(-1e4, 1e5),
+    r50=st.floats(10, 5000),
+    width=st.floats(1, 1000),
+    ceiling=st.floats(0.05, 1.0),
+)
+def test_a_ceiling_scales_the_curve_and_keeps_the_logs_consistent(r, r50, width, ceiling):
+    full, capped = LogisticDetection(r50, width), LogisticDetection(r50, width, ceiling)
+    assert capped(r) == pytest.approx(ceiling / (1.0 + np.exp((r - r50) / width)), rel=1e-12)
+    assert capped(r) == pytest.approx(ceiling * full(r), rel=1e-12)
+    total = np.exp(capped.log_probability(r)) + np.exp(capped.log_miss_probability(r))
+    assert total == pytest.approx(1.0, abs=1e-12)
+
+
+def test_a_curve_refuses_a_bad_ceiling_and_compiled_scores_refuse_any_ceiling():
+    for bad in (0.0, 1.2, np.nan):
+        with pytest.raises(ValueError, match="max_probability in \\(0, 1\\]"):
+            LogisticDetection(300.0, 40.0, bad)
+    one = np.ones(1)
+    with pytest.raises(ValueError, match="silence_loglik_recent_pings .* got 0.9"):
+        silence_loglik_recent_pings(
+            one, one * 8.0, one, 1, one, 0.0, 1.0, LogisticDetection(300.0, 40.0, 0.9), 0.1, 1500.0
+        )
+
+
 def test_fit_recovers_the_curve():
     rng = np.random.default_rng(0)
     truth = LogisticDetection(range_50=650.0, width=90.0)

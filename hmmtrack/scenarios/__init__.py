@@ -15,11 +15,11 @@ models. One module per job:
 * :mod:`~hmmtrack.scenarios.export` — write a scenario as the files ``hmmtrack track`` reads.
 """
 
+from hmmtrack.detection_probability import LogisticDetection
 from hmmtrack.scenarios.detection import (
     ExponentialDetection,
     GpsNoise,
     JitteredPeriodClock,
-    LogisticDetection,
     simulate_pings,
 )
 from hmmtrack.scenarios.historical import white_shark_tracks

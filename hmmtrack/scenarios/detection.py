@@ -9,8 +9,9 @@ The pieces, each replaceable:
   at ``t_a = t_e + |tag(t_e) - hydrophone(t_a)| / s`` (solved exactly for moving hydrophones;
   3-D when the tag has a depth, hydrophones at the surface);
 * *detection loss*: a per-hydrophone probability of detection as a function of range
-  (:class:`ExponentialDetection`, the paper's fixed loss per metre; :class:`LogisticDetection`,
-  a range curve with a 50 % range);
+  (:class:`ExponentialDetection`, the paper's fixed loss per metre;
+  :class:`hmmtrack.detection_probability.LogisticDetection`, a range curve with a 50 % range;
+  any callable of range);
 * *receiver clocks*: an optional map from true arrival time to logged time per hydrophone
   (identity by default), where offsets and drifts plug in;
 * *GPS noise* on the logged hydrophone positions (:class:`GpsNoise`, AR(1) in time).
@@ -107,31 +108,6 @@ class ExponentialDetection:
     def __call__(self, distance: np.ndarray) -> np.ndarray:
         """Probability of detection at ``distance`` (m), same shape."""
         return np.exp(-self.loss_per_metre * np.asarray(distance, dtype=float))
-
-
-@dataclass(frozen=True)
-class LogisticDetection:
-    """A range curve: ``max_probability / (1 + exp((range - range_50) / width))``.
-
-    Parameters
-    ----------
-    range_50 : float
-        Range (m) at which the probability is half of ``max_probability``.
-    width : float
-        Scale (m) of the fall-off: the probability drops from 73 % to 27 % of the maximum
-        between ``range_50 - width`` and ``range_50 + width``.
-    max_probability : float
-        Probability of detection next to the hydrophone (noise, collisions).
-    """
-
-    range_50: float
-    width: float
-    max_probability: float = 1.0
-
-    def __call__(self, distance: np.ndarray) -> np.ndarray:
-        """Probability of detection at ``distance`` (m), same shape."""
-        z = (np.asarray(distance, dtype=float) - self.range_50) / self.width
-        return self.max_probability / (1.0 + np.exp(z))
 
 
 def loss_per_metre_for(distance: np.ndarray, expected_lost: float) -> float:

@@ -22,12 +22,12 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from hmmtrack.detection_probability import LogisticDetection
 from hmmtrack.random import SeedLike, as_generator
 from hmmtrack.scenarios.detection import (
     ExponentialDetection,
     GpsNoise,
     JitteredPeriodClock,
-    LogisticDetection,
     arrival_times,
     loss_per_metre_for,
 )
