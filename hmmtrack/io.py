@@ -580,6 +580,50 @@ def _split_receiver(receiver: pd.Series) -> tuple[pd.Series, pd.Series]:
     return parts[0].where(parts[1].notna()), parts[1].fillna(parts[0])
 
 
+#: optional columns of VUE and Fathom exports: our name, and whether the values are numbers
+_OPTIONAL_COLUMNS = {
+    "Signal Strength (dB)": ("signal_strength", True),
+    "Noise (dB)": ("noise", True),
+    "Sensor Value": ("sensor_value", True),
+    "Sensor Unit": ("sensor_unit", False),
+    "Transmitter Name": ("transmitter_name", False),
+    "Transmitter Serial": ("transmitter_serial", False),
+    "Station Name": ("station", False),
+    "Latitude": ("latitude", True),
+    "Longitude": ("longitude", True),
+}
+#: the optional columns each export can have, in the order they are copied
+_VUE_OPTIONAL = (
+    "Sensor Value",
+    "Sensor Unit",
+    "Transmitter Name",
+    "Transmitter Serial",
+    "Station Name",
+    "Latitude",
+    "Longitude",
+)
+_FATHOM_OPTIONAL = (
+    "Signal Strength (dB)",
+    "Noise (dB)",
+    "Sensor Value",
+    "Sensor Unit",
+    "Station Name",
+)
+
+
+def _copy_optional(raw: pd.DataFrame, table: pd.DataFrame, columns: tuple[str, ...]) -> None:
+    """Copy the ``columns`` of an export that it has and fills, then its attrs, in place.
+
+    Names and types come from :data:`_OPTIONAL_COLUMNS`; numbers are parsed (an unparsable
+    cell is an error naming its row).
+    """
+    for src in columns:
+        dst, numeric = _OPTIONAL_COLUMNS[src]
+        if src in raw.columns and raw[src].notna().any():
+            table[dst] = _numeric(raw, src, "number") if numeric else raw[src]
+    table.attrs = dict(raw.attrs)
+
+
 def _read_vue(path: Path, tz: str | None) -> pd.DataFrame:
     raw = _read_csv(path)
     _require(
@@ -592,20 +636,7 @@ def _read_vue(path: Path, tz: str | None) -> pd.DataFrame:
     table["receiver"] = raw["Receiver"].str.strip()
     table["transmitter"] = raw["Transmitter"].str.strip()
     table["receiver_model"], table["receiver_serial"] = _split_receiver(table["receiver"])
-    optional = {
-        "Sensor Value": "sensor_value",
-        "Sensor Unit": "sensor_unit",
-        "Transmitter Name": "transmitter_name",
-        "Transmitter Serial": "transmitter_serial",
-        "Station Name": "station",
-        "Latitude": "latitude",
-        "Longitude": "longitude",
-    }
-    for src, dst in optional.items():
-        if src in raw.columns and raw[src].notna().any():
-            numeric = dst in ("sensor_value", "latitude", "longitude")
-            table[dst] = _numeric(raw, src, "number") if numeric else raw[src]
-    table.attrs = dict(raw.attrs)
+    _copy_optional(raw, table, _VUE_OPTIONAL)
     return table
 
 
@@ -647,18 +678,7 @@ def _read_fathom(path: Path, tz: str | None) -> pd.DataFrame:
     table["transmitter"] = raw["Full ID"].str.strip()
     table["receiver_model"] = model
     table["receiver_serial"] = raw["Serial Number"].str.strip()
-    optional = {
-        "Signal Strength (dB)": "signal_strength",
-        "Noise (dB)": "noise",
-        "Sensor Value": "sensor_value",
-        "Sensor Unit": "sensor_unit",
-        "Station Name": "station",
-    }
-    for src, dst in optional.items():
-        if src in raw.columns and raw[src].notna().any():
-            numeric = dst in ("signal_strength", "noise", "sensor_value")
-            table[dst] = _numeric(raw, src, "number") if numeric else raw[src]
-    table.attrs = dict(raw.attrs)
+    _copy_optional(raw, table, _FATHOM_OPTIONAL)
     return table
 
 

@@ -45,10 +45,7 @@ trials = experiments.compare_motion_models(
     list(datasets.values()),
     n_trials=n_trials,
     seed=seed,
-    executor="serial" if workers == 1 else "processes",
-    max_workers=workers,
-    n_particles=n_particles,
-    progress=True,
+    **experiments.run_options(workers, n_particles),
 )
 summary = experiments.summarise_trials(trials)
 summary["paper error (m)"] = [

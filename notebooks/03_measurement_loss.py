@@ -44,10 +44,7 @@ sweep = experiments.loss_sweep(
     fractions=fractions,
     n_trials=n_trials,
     seed=seed,
-    executor="serial" if workers == 1 else "processes",
-    max_workers=workers,
-    n_particles=n_particles,
-    progress=True,
+    **experiments.run_options(workers, n_particles),
 )
 sweep.head()
 

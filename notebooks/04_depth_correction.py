@@ -41,12 +41,9 @@ from hmmtrack.report import PAPER
 analysis = experiments.depth_analysis(
     n_trials=n_trials,
     seed=seed,
-    executor="serial" if workers == 1 else "processes",
-    max_workers=workers,
-    n_particles=n_particles,
     depth=depth,
     duration=duration,
-    progress=True,
+    **experiments.run_options(workers, n_particles),
 )
 curve = dict(zip(analysis.ranges, analysis.percent_error, strict=True))
 pd.DataFrame(

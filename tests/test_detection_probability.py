@@ -35,7 +35,8 @@ def test_probabilities_of_hearing_and_missing_add_to_one(r, r50, width):
 )
 def test_a_ceiling_scales_the_curve_and_keeps_the_logs_consistent(r, r50, width, ceiling):
     full, capped = LogisticDetection(r50, width), LogisticDetection(r50, width, ceiling)
-    assert capped(r) == pytest.approx(ceiling / (1.0 + np.exp((r - r50) / width)), rel=1e-12)
+    oracle = ceiling * np.exp(-np.logaddexp(0.0, (r - r50) / width))
+    assert capped(r) == pytest.approx(oracle, rel=1e-12, abs=1e-300)
     assert capped(r) == pytest.approx(ceiling * full(r), rel=1e-12)
     total = np.exp(capped.log_probability(r)) + np.exp(capped.log_miss_probability(r))
     assert total == pytest.approx(1.0, abs=1e-12)

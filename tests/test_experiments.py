@@ -132,12 +132,7 @@ def _without_runtime(table: pd.DataFrame) -> pd.DataFrame:
 def test_same_seed_same_table_serial_equals_processes(small_scenarios):
     serial = ex.compare_motion_models(small_scenarios, n_trials=2, seed=5, n_particles=N_PARTICLES)
     parallel = ex.compare_motion_models(
-        small_scenarios,
-        n_trials=2,
-        seed=5,
-        n_particles=N_PARTICLES,
-        executor="processes",
-        max_workers=2,
+        small_scenarios, n_trials=2, seed=5, **ex.run_options(2, N_PARTICLES, progress=False)
     )
     pd.testing.assert_frame_equal(_without_runtime(serial), _without_runtime(parallel))
     assert len(serial) == 2 * 3 * 2
@@ -149,6 +144,21 @@ def test_same_seed_same_table_serial_equals_processes(small_scenarios):
     )
     first = serial[(serial["motion"] == "hmm") & (serial["trial"] == 0)].iloc[0]
     assert other["mean_error_after_convergence"].iloc[0] != first["mean_error_after_convergence"]
+
+
+def test_run_options_run_one_worker_serially_and_more_in_processes():
+    assert ex.run_options(1, 50) == {
+        "executor": "serial",
+        "max_workers": 1,
+        "n_particles": 50,
+        "progress": True,
+    }
+    assert ex.run_options(3, progress=False) == {
+        "executor": "processes",
+        "max_workers": 3,
+        "n_particles": ex.DEFAULT_PARTICLES,
+        "progress": False,
+    }
 
 
 def test_more_trials_only_append_rows(small_scenarios):

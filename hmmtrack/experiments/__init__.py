@@ -30,7 +30,7 @@ chosen so that the paper-scale run (3 scenarios × 3 models × 100 trials, plus 
 sweep) finishes in under 10 minutes on a 2-core machine (``benchmarks/bench_reproduce.py``).
 """
 
-from hmmtrack.experiments.dispatch import Cell, run_trials
+from hmmtrack.experiments.dispatch import Cell, run_options, run_trials
 from hmmtrack.experiments.studies import (
     LOSS_FRACTIONS,
     PAPER_DEPTH,
@@ -90,6 +90,7 @@ __all__ = [
     "loss_sweep",
     "paper_scenarios",
     "run_trial",
+    "run_options",
     "run_trials",
     "summarise_trials",
     "track_scenario",

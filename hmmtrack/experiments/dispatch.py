@@ -5,7 +5,7 @@ correction) with its own seed; :func:`run_trials` runs ``n_trials`` trials of ea
 any executor of :mod:`hmmtrack.executors`, a few trials per task so that the scenario is
 pickled once per batch. Trial ``k`` of a cell is always seeded with child ``k`` of the
 cell's seed, so the results do not depend on the executor, the batching or the order in
-which tasks finish.
+which tasks finish. :func:`run_options` spells the settings of a run on local processes.
 """
 
 from __future__ import annotations
@@ -111,6 +111,32 @@ def run_trials(
         if pool is not executor:
             pool.shutdown()
     return [result for batch in done for result in batch]
+
+
+def run_options(
+    workers: int, n_particles: int = DEFAULT_PARTICLES, progress: bool = True
+) -> dict[str, Any]:
+    """Keyword arguments of the studies for a run on this machine.
+
+    Parameters
+    ----------
+    workers : int
+        Local processes; 1 runs the trials serially in this process.
+    n_particles : int
+    progress : bool
+
+    Returns
+    -------
+    dict
+        ``executor``, ``max_workers``, ``n_particles`` and ``progress`` for
+        :func:`run_trials` and the studies (``compare_motion_models(..., **run_options(2))``).
+    """
+    return {
+        "executor": "serial" if workers == 1 else "processes",
+        "max_workers": workers,
+        "n_particles": n_particles,
+        "progress": progress,
+    }
 
 
 def _lean(scenario: Scenario) -> Scenario:

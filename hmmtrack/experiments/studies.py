@@ -117,6 +117,28 @@ def paper_scenarios(
     return {name: truncate(scenario, duration) for name, scenario in built.items()}
 
 
+def _trials_table(
+    cells: Sequence[Cell],
+    n_trials: int,
+    n_particles: int,
+    executor: Any,
+    max_workers: int | None,
+    progress: bool,
+    description: str,
+) -> pd.DataFrame:
+    """:func:`run_trials` on ``cells``, as a trials table (:func:`trials_table`)."""
+    results = run_trials(
+        cells,
+        n_trials,
+        n_particles,
+        executor=executor,
+        max_workers=max_workers,
+        progress=progress,
+        description=description,
+    )
+    return trials_table(results)
+
+
 def compare_motion_models(
     scenario_list: Sequence[Scenario],
     motions: Sequence[str] = MOTIONS,
@@ -159,16 +181,9 @@ def compare_motion_models(
         for i, scenario in enumerate(scenario_list)
         for j, motion in enumerate(motions)
     ]
-    results = run_trials(
-        cells,
-        n_trials,
-        n_particles,
-        executor=executor,
-        max_workers=max_workers,
-        progress=progress,
-        description="motion-model trials",
+    return _trials_table(
+        cells, n_trials, n_particles, executor, max_workers, progress, "motion-model trials"
     )
-    return trials_table(results)
 
 
 #: default loss fractions of the sweep: 0 to 100 % in 5 % steps
@@ -220,16 +235,9 @@ def loss_sweep(
         Cell(scenario, motion, child_seed(root, 1, i), loss_fraction=f)
         for i, f in enumerate(fractions)
     ]
-    results = run_trials(
-        cells,
-        n_trials,
-        n_particles,
-        executor=executor,
-        max_workers=max_workers,
-        progress=progress,
-        description="loss sweep",
+    return _trials_table(
+        cells, n_trials, n_particles, executor, max_workers, progress, "loss sweep"
     )
-    return trials_table(results)
 
 
 @dataclass(frozen=True)
@@ -309,14 +317,8 @@ def depth_analysis(
         Cell(diving, motion, child_seed(root, 2, int(correct)), depth_correction=correct)
         for correct in (False, True)
     ]
-    results = run_trials(
-        cells,
-        n_trials,
-        n_particles,
-        executor=executor,
-        max_workers=max_workers,
-        progress=progress,
-        description="diving shark",
+    trials = _trials_table(
+        cells, n_trials, n_particles, executor, max_workers, progress, "diving shark"
     )
     truth = diving.truth
     elapsed = truth["time"].to_numpy(dtype=float) - float(truth["time"].iloc[0])
@@ -327,5 +329,5 @@ def depth_analysis(
         percent_error=percent,
         max_depth=float(profile.max()),
         depth_profile=(elapsed, profile),
-        trials=trials_table(results),
+        trials=trials,
     )

@@ -95,6 +95,37 @@ def auv_station_path(
     return path.sample(np.append(kept, end))
 
 
+def _field_scenario(
+    rng: np.random.Generator,
+    *,
+    name: str,
+    description: str,
+    tag: Trajectory,
+    receivers: dict[str, Trajectory],
+    curve: LogisticDetection,
+    start: float,
+    end: float,
+) -> Scenario:
+    """A field-like dataset: the field tag (period 8.179 s, 0.1 ms jitter, random phase)
+    heard by every hydrophone through ``curve``, hydrophone GPS noise, UTC s ``start``-``end``.
+    """
+    clock = JitteredPeriodClock(FIELD_TAG_PERIOD, EMISSION_JITTER, rng.uniform(0, FIELD_TAG_PERIOD))
+    return assemble_scenario(
+        rng,
+        name=name,
+        description=description,
+        tag=tag,
+        receivers=receivers,
+        emission_time=clock.emission_times(rng, start, end),
+        period=FIELD_TAG_PERIOD,
+        detection_probability=dict.fromkeys(receivers, curve),
+        gps=HYDROPHONE_GPS,
+        start=start,
+        end=end,
+        transmitter="A69-1602-1234",
+    )
+
+
 def stationary_tag(seed: SeedLike) -> Scenario:
     """The Long Beach-like dataset: a moored tag, an anchored boat, an AUV stepping away.
 
@@ -130,9 +161,7 @@ def stationary_tag(seed: SeedLike) -> Scenario:
         "boat": Trajectory.fixed(32.0 * np.cos(boat_bearing), 32.0 * np.sin(boat_bearing)),
         "auv": auv,
     }
-    clock = JitteredPeriodClock(FIELD_TAG_PERIOD, EMISSION_JITTER, rng.uniform(0, FIELD_TAG_PERIOD))
-    curve = LogisticDetection(range_50=450.0, width=50.0, max_probability=0.95)
-    return assemble_scenario(
+    return _field_scenario(
         rng,
         name="stationary-tag",
         description=(
@@ -141,13 +170,9 @@ def stationary_tag(seed: SeedLike) -> Scenario:
         ),
         tag=Trajectory.fixed(0.0, 0.0),
         receivers=receivers,
-        emission_time=clock.emission_times(rng, start, end),
-        period=FIELD_TAG_PERIOD,
-        detection_probability=dict.fromkeys(receivers, curve),
-        gps=HYDROPHONE_GPS,
+        curve=LogisticDetection(range_50=450.0, width=50.0, max_probability=0.95),
         start=start,
         end=end,
-        transmitter="A69-1602-1234",
     )
 
 
@@ -237,9 +262,7 @@ def swimmer(seed: SeedLike) -> Scenario:
         receivers[name] = _drifting_boat(
             rng, tag, seconds, station, current, start + rng.uniform(*window)
         )
-    clock = JitteredPeriodClock(FIELD_TAG_PERIOD, EMISSION_JITTER, rng.uniform(0, FIELD_TAG_PERIOD))
-    curve = LogisticDetection(range_50=250.0, width=40.0, max_probability=0.9)
-    return assemble_scenario(
+    return _field_scenario(
         rng,
         name="swimmer",
         description=(
@@ -248,13 +271,9 @@ def swimmer(seed: SeedLike) -> Scenario:
         ),
         tag=tag,
         receivers=receivers,
-        emission_time=clock.emission_times(rng, start, end),
-        period=FIELD_TAG_PERIOD,
-        detection_probability=dict.fromkeys(receivers, curve),
-        gps=HYDROPHONE_GPS,
+        curve=LogisticDetection(range_50=250.0, width=40.0, max_probability=0.9),
         start=start,
         end=end,
-        transmitter="A69-1602-1234",
     )
 
 
