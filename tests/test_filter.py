@@ -375,17 +375,23 @@ def test_thread_choice_tries_both_keeps_the_cheaper_and_backs_off():
         choice.record(k, costs[k])
     assert picks[:3] == [1, 2, 1]
     retries = [i for i, k in enumerate(picks) if k == 2]
-    # the interval between retries doubles from 16 each time the retry loses
-    assert np.diff(retries).tolist() == [32, 64, 128]
-    assert choice.explore_every == 256
+    # after the first probe, retries come in bursts of RETRY_CALLS; the interval between
+    # them doubles from 32 each time the retry loses
+    burst = ThreadChoice.RETRY_CALLS
+    assert retries == [1, *range(33, 33 + burst), *range(99, 99 + burst), *range(229, 229 + burst)]
+    assert choice.explore_every == 256 and choice.best() == 1
     costs[2] = 1e-8  # the machine became quiet: the next retry wins and two threads stay
     later = []
     for _ in range(300):
         k = choice.pick()
         later.append(k)
         choice.record(k, costs[k])
+    assert choice.best() == 2
     assert later[-100:].count(2) > 90
-    assert ThreadChoice(1).pick() == 1
+    single = ThreadChoice(1)
+    for _ in range(40):
+        assert single.pick() == 1
+        single.record(1, 1e-8)
 
 
 def test_automatic_threads_measure_both_and_give_the_threads_1_answer():
