@@ -250,34 +250,58 @@ def regularise(tracks: pd.DataFrame, step: float, *, max_gap: float | None = Non
     order = _grouped_order(segment)
     src = tracks.iloc[order].reset_index(drop=True)
     seg = segment.iloc[order].to_numpy()
-    extra = [c for c in src.columns if c not in ("id", "segment", "time")]
-    pieces = []
-    bounds = np.flatnonzero(np.r_[True, seg[1:] != seg[:-1], True])
-    for a, b in zip(bounds[:-1], bounds[1:], strict=True):
-        t = src["time"].to_numpy(dtype=float)[a:b]
-        n_grid = int(np.floor((t[-1] - t[0]) / step + 1e-9)) + 1
-        grid = t[0] + step * np.arange(n_grid)
-        # index of the fix at or before each grid time
-        left = np.clip(np.searchsorted(t, grid, side="right") - 1, 0, len(t) - 1)
-        right = np.minimum(left + 1, len(t) - 1)
-        span = t[right] - t[left]
-        frac = np.divide(grid - t[left], span, out=np.zeros_like(grid), where=span > 0)
-        exact = np.isclose(grid, t[left], rtol=0.0, atol=1e-9)
-        too_long = (span > max_gap) & ~exact if max_gap is not None else np.zeros_like(exact)
-        piece = {"id": src["id"].iloc[a], "segment": seg[a], "time": grid}
-        for col in extra:
-            values = src[col].to_numpy()[a:b]
-            if pd.api.types.is_numeric_dtype(src[col]) and not pd.api.types.is_bool_dtype(src[col]):
-                v = values.astype(float)
-                interp = v[left] + frac * (v[right] - v[left])
-                interp = np.where(exact, v[left], interp)
-                piece[col] = np.where(too_long, np.nan, interp)
-            else:
-                piece[col] = values[left]
-        pieces.append(pd.DataFrame(piece))
-    out = pd.concat(pieces, ignore_index=True)
+    t = src["time"].to_numpy(dtype=float)
+    first = np.flatnonzero(np.r_[True, seg[1:] != seg[:-1]])  # first fix of each segment
+    last = np.r_[first[1:], len(t)] - 1
+    n_grid = np.floor((t[last] - t[first]) / step + 1e-9).astype(np.int64) + 1
+    # grid point g belongs to segment owner[g] and is t0 + step·k there
+    owner = np.repeat(np.arange(first.size), n_grid)
+    k = np.arange(owner.size) - np.repeat(np.cumsum(n_grid) - n_grid, n_grid)
+    grid = t[first][owner] + step * k
+    left = _fix_at_or_before(
+        np.repeat(np.arange(first.size), np.diff(np.r_[first, len(t)])), t, owner, grid
+    )
+    right = np.minimum(left + 1, last[owner])
+    span = t[right] - t[left]
+    frac = np.divide(grid - t[left], span, out=np.zeros_like(grid), where=span > 0)
+    exact = np.isclose(grid, t[left], rtol=0.0, atol=1e-9)
+    too_long = (span > max_gap) & ~exact if max_gap is not None else np.zeros_like(exact)
+    columns = {
+        "id": src["id"].to_numpy()[first][owner],
+        "segment": seg[first][owner],
+        "time": grid,
+    }
+    for col in (c for c in src.columns if c not in ("id", "segment", "time")):
+        values = src[col].to_numpy()
+        if pd.api.types.is_numeric_dtype(src[col]) and not pd.api.types.is_bool_dtype(src[col]):
+            v = values.astype(float)
+            interp = np.where(exact, v[left], v[left] + frac * (v[right] - v[left]))
+            columns[col] = np.where(too_long, np.nan, interp)
+        else:
+            columns[col] = values[left]
+    out = pd.DataFrame(columns)
     out.attrs = dict(tracks.attrs)
     return out
+
+
+def _fix_at_or_before(
+    fix_segment: np.ndarray, fix_time: np.ndarray, grid_segment: np.ndarray, grid_time: np.ndarray
+) -> np.ndarray:
+    """Index of the last fix of the same segment at or before each grid time, shape (G,).
+
+    Fixes are grouped by segment (codes increasing) and sorted by time within each; every
+    grid time is at or after its segment's first fix. One stable sort of fixes and grid
+    points together by (segment, time), fixes before grid points at equal times.
+    """
+    segment = np.r_[fix_segment, grid_segment]
+    time = np.r_[fix_time, grid_time]
+    is_fix = np.r_[np.ones(fix_time.size, bool), np.zeros(grid_time.size, bool)]
+    order = np.lexsort((~is_fix, time, segment))
+    fixes_so_far = np.cumsum(is_fix[order]) - 1
+    left = np.empty(grid_time.size, dtype=np.int64)
+    at_grid = ~is_fix[order]
+    left[order[at_grid] - fix_time.size] = fixes_so_far[at_grid]
+    return left
 
 
 def prepare(

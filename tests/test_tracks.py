@@ -152,6 +152,35 @@ def test_regularise_next_to_a_missing_fix_gives_missing_rows():
     np.testing.assert_allclose(r["y"], [0, np.nan, np.nan, np.nan, 0, 0, 0])
 
 
+@settings(max_examples=40, deadline=None)
+@given(
+    gaps=st.lists(
+        st.lists(st.sampled_from([1.0, 2.5, 4.0, 5.0, 7.25, 10.0, 400.0]), min_size=0, max_size=8),
+        min_size=1,
+        max_size=4,
+    ),
+    step=st.sampled_from([2.5, 5.0, 6.0]),
+)
+def test_regularise_matches_interpolation_segment_by_segment(gaps, step):
+    # oracle: np.interp on each animal's own fixes, NaN where the interval is over max_gap
+    frames = []
+    for i, animal_gaps in enumerate(gaps):
+        t = 100.0 * i + np.r_[0.0, np.cumsum(animal_gaps)]
+        frames.append(make(np.sin(t), np.cos(3.0 * t), time=t, ids=[f"a{i}"] * len(t)))
+    df = pd.concat(frames, ignore_index=True)
+    r = tracks.regularise(df, step, max_gap=50.0)
+    for i, frame in enumerate(frames):
+        t = frame["time"].to_numpy()
+        grid = t[0] + step * np.arange(int(np.floor((t[-1] - t[0]) / step + 1e-9)) + 1)
+        mine = r[r["id"] == f"a{i}"]
+        np.testing.assert_array_equal(mine["time"], grid)
+        expected = np.interp(grid, t, frame["x"].to_numpy())
+        after = np.clip(np.searchsorted(t, grid, side="right"), 1, len(t) - 1)
+        on_fix = np.isin(grid, t)
+        expected[(t[after] - t[after - 1] > 50.0) & ~on_fix] = np.nan
+        np.testing.assert_allclose(mine["x"], expected, rtol=0, atol=1e-12)
+
+
 def test_regularise_keeps_segments_apart():
     df = make([0.0, 10.0, 50.0, 70.0], [0.0] * 4, time=[0.0, 10.0, 500.0, 520.0])
     r = tracks.regularise(tracks.split_at_gaps(df, 100.0), 5.0)
