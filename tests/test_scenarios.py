@@ -300,6 +300,17 @@ def test_scenarios_reproducible_by_seed(generator):
     assert not a.detections["time"].equals(c.detections["time"])
 
 
+@pytest.mark.parametrize("seed", [53, 61])
+def test_moving_receivers_gps_covers_detections_logged_after_the_end(seed):
+    # these seeds have a ping emitted before ``end`` and heard after it
+    s = stationary_tag(seed)
+    assert s.detections["time"].max() > s.end
+    auv = s.receivers[s.receivers["receiver"] == "auv"]
+    heard = s.detections[s.detections["receiver"] == "auv"]["time"]
+    assert auv["time"].min() <= heard.min() and heard.max() <= auv["time"].max()
+    assert s.truth["time"].iloc[-1] == s.end  # the truth still ends at ``end``
+
+
 @pytest.mark.parametrize("generator", [stationary_tag, swimmer, shark_pursuit])
 def test_scenario_tables_are_consistent(generator):
     s = generator(1)

@@ -166,8 +166,11 @@ def assemble_scenario(
     )
     detections = detections_from_pings(pings, transmitter, tag)
     seconds = start + np.arange(int(np.floor(end - start)) + 1, dtype=float)
-    logged = receiver_positions(rng, receivers, seconds, gps)
-    exact = receiver_positions(rng, receivers, seconds, gps=None)
+    # a ping emitted just before ``end`` is logged after it: the GPS logs run on to cover it
+    last_logged = detections["time"].max() if len(detections) else end
+    logged_seconds = start + np.arange(int(np.ceil(max(end, last_logged) - start)) + 1, dtype=float)
+    logged = receiver_positions(rng, receivers, logged_seconds, gps)
+    exact = receiver_positions(rng, receivers, logged_seconds, gps=None)
     x, y, depth = tag.position(seconds)
     truth = pd.DataFrame({"time": seconds, "x": x, "y": y})
     if tag.depth is not None:
