@@ -2,15 +2,24 @@
 
 For each realistic-clock scenario (:mod:`hmmtrack.clock_scenarios`: the shark pursuit by
 two AUVs steered to make the tag observable - one trails, one circles the shark - the same
-pursuit with the paper's fixed formation, and a moored array of three receivers) and seed,
-both methods track the same detections (receiver clocks mapped to the common time base
-with the calibration the scenario provides):
+pursuit with the paper's fixed formation and with both AUVs circling the shark at a right
+angle, and a moored array of three receivers) and seed, both methods track the same
+detections (receiver clocks mapped to the common time base with the calibration the
+scenario provides):
 
 * range-rate (the paper): ΔTOF ranges with the scenario's mean period - the best constant
   period there is - and the true range at each receiver's first detection (``r0``),
   :func:`hmmtrack.tracking.track`;
 * arrival-time: no initial range, the clock in the state, detection probability as
   information, fixed-lag smoothing, :func:`hmmtrack.clock_tracking.track_arrival_time`.
+
+Diagnostics beside them: the same pursuit with a third AUV, and the circling and
+right-angle pursuits with the true emission schedule given (the clock known: what the
+two-AUV geometry allows by itself); a robustness table (the pursuit with clocks unlike the
+default's assumptions, tracked with the default period random walk and with the
+integrated random walk :meth:`hmmtrack.clock.EmissionClockModel.temperature_drift`); and
+a timing table (best of three alternating runs of each filter on one pursuit and one
+moored run, with the machine's load and the smoother's cost).
 
 It prints, per run, the mean error from 10 minutes on (defined whether or not the filter
 ever met the convergence rule), the time to convergence, the mean error after convergence
@@ -26,14 +35,17 @@ run). With ``--report`` it also writes the table as Markdown.
 from __future__ import annotations
 
 import argparse
+import os
 import time
 import warnings
+from functools import partial
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from hmmtrack.clock import local_period_ppm, schedule_wander
+from hmmtrack.arrival import ArrivalTimeMeasurement
+from hmmtrack.clock import EmissionClockModel, local_period_ppm, schedule_wander
 from hmmtrack.clock_scenarios import (
     Multipath,
     WanderingPeriodClock,
@@ -42,11 +54,17 @@ from hmmtrack.clock_scenarios import (
     realistic_shark_pursuit,
     steered_auv,
 )
-from hmmtrack.clock_tracking import track_arrival_time
+from hmmtrack.clock_tracking import (
+    ClockAwareFilter,
+    SilenceModel,
+    arrival_observations,
+    track_arrival_time,
+)
 from hmmtrack.config import TrackingConfig
 from hmmtrack.detection_probability import LogisticDetection
 from hmmtrack.metrics import position_error, time_to_convergence
 from hmmtrack.motion import VelocityMotion
+from hmmtrack.receivers import ReceiverTracks
 from hmmtrack.scenarios.detection import GpsNoise
 from hmmtrack.scenarios.trajectory import Trajectory
 from hmmtrack.tracking import motion_model, track
@@ -173,14 +191,14 @@ def summary_table(table: pd.DataFrame) -> pd.DataFrame:
     return summary
 
 
-def run_case(name, case, seed, n_particles, motion, lag, duration) -> list[dict]:
+def inputs(case, seed, n_particles, motion, duration):
+    """What both methods get for a run of ``duration`` seconds: the clock-corrected
+    detections, the range-rate method's configuration and the arrival-time method's
+    keyword arguments (:func:`track_arrival_time`)."""
     sc = case.scenario
     start, end = sc.start, min(sc.end, sc.start + duration)
     detections = case.corrected_detections()
     detections = detections[detections["time"] < end].reset_index(drop=True)
-    n_steps = int(end - start)
-    rows = []
-
     config = TrackingConfig(
         period=sc.period,
         r0=first_detection_ranges(case),
@@ -189,6 +207,24 @@ def run_case(name, case, seed, n_particles, motion, lag, duration) -> list[dict]
         start=start,
         end=end,
     )
+    common = {
+        "motion": make_motion(motion),
+        "period": sc.period,
+        "bounds": case.search_bounds,
+        "n_particles": n_particles,
+        "detection": case.detection_probability,
+        "start": start,
+        "end": end,
+        "seed": seed,
+    }
+    return detections, config, common
+
+
+def run_case(name, case, seed, n_particles, motion, lag, duration) -> list[dict]:
+    sc = case.scenario
+    detections, config, common = inputs(case, seed, n_particles, motion, duration)
+    n_steps = int(config.end - config.start)
+    rows = []
     tic = time.perf_counter()
     paper = track(detections, sc.receivers, config, make_motion(motion), seed=seed)
     wall = time.perf_counter() - tic
@@ -203,16 +239,6 @@ def run_case(name, case, seed, n_particles, motion, lag, duration) -> list[dict]
         }
     )
 
-    common = {
-        "motion": make_motion(motion),
-        "period": sc.period,
-        "bounds": case.search_bounds,
-        "n_particles": n_particles,
-        "detection": case.detection_probability,
-        "start": start,
-        "end": end,
-        "seed": seed,
-    }
     tic = time.perf_counter()
     plain = track_arrival_time(detections, sc.receivers, **common)
     wall = time.perf_counter() - tic
@@ -230,6 +256,149 @@ def run_case(name, case, seed, n_particles, motion, lag, duration) -> list[dict]
     rows[-1]["unsmoothed_error_after_convergence_m"] = summarise(plain.estimates, sc.truth)[
         "error_after_convergence_m"
     ]
+    return rows
+
+
+class KnownClockFilter(ClockAwareFilter):
+    """Diagnostic: the filter told the tag's emission schedule (a constant-period line,
+    after the detections are moved onto it); its clock starts on the true pings and is
+    kept rigid, so what remains is what the receivers' geometry and the motion model
+    allow."""
+
+    def __init__(self, *args, first_emission: float, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self.first_emission = first_emission
+
+    def _start_clock(self, obs, reacquire: bool = False) -> None:
+        super()._start_clock(obs, reacquire)
+        p = self.particles
+        period = self.clock.nominal_period
+        ping = np.rint((p.emission_time - self.first_emission) / period)
+        p.extra["emission_time"] = self.first_emission + ping * period
+        p.extra["period"] = np.full(p.n, period)
+        self._clock_covariance = np.diag([1e-12, 1e-16, 0.0])
+
+
+def known_clock_run(name, case, seed, n_particles, motion, duration) -> dict:
+    """Track the pursuit with the true emission schedule given (see KnownClockFilter)."""
+    sc = case.scenario
+    start, end = sc.start, min(sc.end, sc.start + duration)
+    emissions = case.emission_times
+    k = np.arange(emissions.size)
+    period, intercept = np.polyfit(k, emissions, 1)
+    heard = sc.pings[sc.pings["detected"]]
+    times = heard["logged_time"].to_numpy(dtype=float).copy()
+    for receiver, clock in case.clock_calibration.items():
+        rows = (heard["receiver"] == receiver).to_numpy()
+        times[rows] = clock.to_true(times[rows])
+    # each detection moved by its emission's distance from the constant-period line
+    ping = heard["ping"].to_numpy()
+    times -= emissions[ping] - (intercept + period * ping)
+    detections = pd.DataFrame({"time": times, "receiver": heard["receiver"].astype(str)})
+    detections = detections[detections["time"] < end].sort_values("time")
+    tracks = ReceiverTracks.from_frame(sc.receivers, outside="clamp")
+    obs = arrival_observations(detections, tracks)
+    pf = KnownClockFilter(
+        make_motion(motion),
+        ArrivalTimeMeasurement(sound_speed=sc.sound_speed),
+        EmissionClockModel(period, 0.0, 0.0, 1e-8),
+        n_particles,
+        case.search_bounds,
+        silence=SilenceModel.from_observations(obs, tracks, case.detection_probability),
+        rng=seed,
+        first_emission=intercept,
+    )
+    result = pf.run(obs, start, end)
+    return {
+        "scenario": f"diagnostic: {name}, true emission schedule given",
+        "seed": seed,
+        "method": "arrival-time, clock known",
+        **summarise(result.estimates, sc.truth),
+        "ambiguous_share": float(result.ambiguity["ambiguous"].mean()),
+    }
+
+
+#: (label, scenario keywords) of the robustness runs; the default pursuit is the first
+ROBUSTNESS = (
+    ("default: wander 0.8 s, period walk smoothed over 600 s", {}),
+    ("wander 0.4 s", {"schedule_wander": 0.4}),
+    ("wander 1.2 s", {"schedule_wander": 1.2}),
+    ("wander 0.8 s, plain per-ping period walk", {"smoothing_time": 0.0}),
+)
+
+
+def robustness_rows(seeds, n_particles, motion, duration) -> list[dict]:
+    """The circling pursuit with other tag clocks, tracked with two clock models."""
+    rows = []
+    for label, keywords in ROBUSTNESS:
+        for seed in seeds:
+            case = realistic_shark_pursuit(seed, **keywords)
+            sc = case.scenario
+            detections, _, common = inputs(case, seed, n_particles, motion, duration)
+            for model, clock in (
+                ("period random walk (default)", None),
+                ("integrated random walk (temperature_drift)", "drift"),
+            ):
+                result = track_arrival_time(
+                    detections,
+                    sc.receivers,
+                    clock=EmissionClockModel.temperature_drift(sc.period) if clock else None,
+                    **common,
+                )
+                summary = summarise(result.estimates, sc.truth)
+                rows.append(
+                    {
+                        "tag clock": label,
+                        "filter clock model": model,
+                        "seed": seed,
+                        "error_after_10_min_m": summary["error_after_10_min_m"],
+                        "error_after_convergence_m": summary["error_after_convergence_m"],
+                    }
+                )
+    return rows
+
+
+def timing_rows(n_particles, motion, lag, duration, repeats=3) -> list[dict]:
+    """Best of ``repeats`` alternating runs: range-rate, arrival-time, arrival-time with
+    the smoother, on seed 0 of the circling pursuit and of the moored array."""
+    rows = []
+    for name, case in (
+        ("shark pursuit, 2 AUVs (circling)", realistic_shark_pursuit(0)),
+        ("moored array, 3 receivers", moored_array(0, duration=duration)),
+    ):
+        sc = case.scenario
+        detections, config, common = inputs(case, 0, n_particles, motion, duration)
+        smoothed = f"arrival-time + smoother (lag {lag} s)"
+        runs = {
+            "range-rate": partial(
+                track, detections, sc.receivers, config, common["motion"], seed=0
+            ),
+            "arrival-time": partial(track_arrival_time, detections, sc.receivers, **common),
+            smoothed: partial(
+                track_arrival_time, detections, sc.receivers, smoothing_lag=lag, **common
+            ),
+        }
+        best = dict.fromkeys(runs, np.inf)
+        load = os.getloadavg()[0]
+        for _ in range(repeats):
+            for label, run in runs.items():
+                tic = time.perf_counter()
+                run()
+                best[label] = min(best[label], time.perf_counter() - tic)
+        steps = n_particles * (config.end - config.start)
+        rows.append(
+            {
+                "case": name,
+                "detections": len(detections),
+                **{f"{label} s": wall for label, wall in best.items()},
+                "range-rate M steps/s": steps / best["range-rate"] / 1e6,
+                "arrival-time M steps/s": steps / best["arrival-time"] / 1e6,
+                "ratio range-rate / arrival-time": best["arrival-time"] / best["range-rate"],
+                "smoother cost (x arrival-time)": best[smoothed] / best["arrival-time"],
+                "load (1 min) before": load,
+                "load after": os.getloadavg()[0],
+            }
+        )
     return rows
 
 
@@ -254,6 +423,7 @@ def main(argv=None) -> int:
     parser.add_argument("--motion", default="velocity", choices=("velocity", "hmm", "hmm-tc"))
     parser.add_argument("--report", type=Path, default=None, help="write a Markdown table")
     args = parser.parse_args(argv)
+    started = time.perf_counter()
     seeds = range(1 if args.quick else args.seeds)
     particles = 1000 if args.quick else args.particles
     duration = 1800.0 if args.quick else 7200.0
@@ -265,6 +435,9 @@ def main(argv=None) -> int:
             "shark pursuit, 2 AUVs (paper formation)": realistic_shark_pursuit(
                 seed, steering="paper"
             ),
+            "shark pursuit, 2 AUVs (right-angle formation)": realistic_shark_pursuit(
+                seed, steering="formation"
+            ),
             "moored array, 3 receivers": moored_array(seed, duration=duration),
             "diagnostic: same pursuit, 3 AUVs": three_auv_pursuit(seed),
         }
@@ -272,30 +445,66 @@ def main(argv=None) -> int:
             facts.append(f"- {name}, seed {seed}: {clock_facts(case, duration)}")
             rows += run_case(name, case, seed, particles, args.motion, args.lag, duration)
             print(pd.DataFrame(rows[-2:]).to_string(index=False), flush=True)
+        for name in (
+            "shark pursuit, 2 AUVs (circling)",
+            "shark pursuit, 2 AUVs (right-angle formation)",
+        ):
+            rows.append(known_clock_run(name, cases[name], seed, particles, args.motion, duration))
+            print(pd.DataFrame(rows[-1:]).to_string(index=False), flush=True)
     table = pd.DataFrame(rows)
     speed = table.groupby("method")["particle_steps_per_s"].mean()
-    ratio = speed.filter(like="range-rate").iloc[0] / speed.filter(like="arrival").iloc[0]
-    print()
-    print(table.to_string(index=False))
-    print(f"\nthroughput: range-rate / arrival-time = {ratio:.2f} (target: at most 2)")
+    ratio = speed.filter(like="range-rate").iloc[0] / speed.filter(like="(no r0)").iloc[0]
     summary = summary_table(table)
-    print()
-    print(summary.to_string(index=False))
+    robust = pd.DataFrame(robustness_rows(seeds, particles, args.motion, duration))
+    robust_summary = (
+        robust.groupby(["tag clock", "filter clock model"], sort=False)
+        .agg(
+            error_after_10_min_m=("error_after_10_min_m", "mean"),
+            error_after_convergence_m=("error_after_convergence_m", "mean"),
+            worst_seed_after_convergence_m=("error_after_convergence_m", "max"),
+        )
+        .reset_index()
+    )
+    timing = pd.DataFrame(timing_rows(particles, args.motion, args.lag, duration))
+    for title, frame in (
+        ("every run", table),
+        ("summary", summary),
+        ("robustness", robust_summary),
+        ("timing", timing),
+    ):
+        print(f"\n{title}\n{frame.to_string(index=False)}")
+    print(f"\nthroughput (per-run means): range-rate / arrival-time = {ratio:.2f} (target <= 2)")
+    elapsed = time.perf_counter() - started
+    print(f"benchmark took {elapsed / 60:.1f} min")
     if args.report is not None:
         args.report.parent.mkdir(parents=True, exist_ok=True)
         args.report.write_text(
             "# Clock-aware tracking against the paper's range-rate method\n\n"
             f"Written by `python benchmarks/bench_arrival.py --seeds {len(seeds)} --report "
             f"{args.report}` ({args.motion} motion, {particles} particles, smoother lag "
-            f"{args.lag} s, {duration / 3600:.1f} h per run). Errors in metres.\n\n"
+            f"{args.lag} s, {duration / 3600:.1f} h per run; the script took "
+            f"{elapsed / 60:.1f} min). Errors in metres.\n\n"
             + SETUP
             + "\n## Summary (mean over seeds)\n\n"
             + markdown(summary)
-            + f"\n\nThroughput ratio range-rate / arrival-time: {ratio:.2f} (target: at most"
-            " 2).\n\n## Clocks of each run\n\n"
+            + "\n\n## Throughput\n\nBest of three alternating runs of each filter (same "
+            "particles, motion model, detections and machine; 1-minute load average of the "
+            "shared machine alongside):\n\n"
+            + markdown(timing)
+            + f"\n\nFrom the single runs of the tables below (noisier): range-rate / "
+            f"arrival-time = {ratio:.2f} (target: at most 2).\n\n"
+            "## Robustness: tag clocks unlike the filter's model\n\n"
+            "The circling pursuit with other tag clocks, tracked with the default clock model "
+            "(period random walk, 0.3 ms per ping) and with the integrated random walk sized "
+            "from the real-tag facts (`EmissionClockModel.temperature_drift`); mean and worst "
+            "seed:\n\n"
+            + markdown(robust_summary)
+            + "\n\n## Clocks of each run\n\n"
             + "\n".join(facts)
             + "\n\n## Every run\n\n"
             + markdown(table)
+            + "\n\n### Robustness runs\n\n"
+            + markdown(robust)
             + "\n"
         )
     return 0

@@ -6,10 +6,11 @@ beside a hydrophone, so this model keeps the raw arrival time and lets each part
 carry the transmitter's emission clock (:class:`hmmtrack.clock.EmissionClockModel`): particle
 ``i`` predicts that a ping reaches receiver ``j`` at
 
-    emission_time_i + m·period_i + range_ij / sound_speed
+    emission_time_i + m·period_i (+ m(m−1)/2·period_rate_i) + range_ij / sound_speed
 
-for some whole number ``m`` of periods (any number of missed pings); the ``m`` that fits
-best is chosen (:func:`wrap_to_ping`) and the residual is scored with a mixture
+for some whole number ``m`` of periods (any number of missed pings; the rate term when
+the clock model has a period rate); the ``m`` that fits best is chosen
+(:func:`wrap_to_ping`, :func:`match_particle`) and the residual is scored with a mixture
 (:class:`ArrivalLikelihood`): a Gaussian core for jitter and model error, an
 exponentially delayed component for multipath (late) arrivals, and a small uniform floor,
 so a few outliers cannot capture the filter.
@@ -223,25 +224,50 @@ def _log_add(a: float, b: float) -> float:
 
 
 @njit(cache=True)
+def match_particle(
+    x, y, vx, vy, emission_time, period, rate, vertical, lag, arrival, receiver_x, receiver_y,
+    sound_speed,
+):  # fmt: skip
+    """Compiled :func:`emission_range` + :func:`wrap_to_ping` of one particle and detection.
+
+    With a period rate ``R`` (s per ping) ping ``m`` of a clock is emitted at
+    ``e + m·P + m(m−1)/2·R``; the ping is rounded once more after that correction.
+
+    Returns
+    -------
+    residual : float
+        Arrival-time residual against the matched ping (s).
+    ping : float
+        Whole periods from ``emission_time`` to the matched ping.
+    distance : float
+        Range at emission (m).
+    """
+    dz2 = vertical * vertical
+    back = lag
+    r = 0.0
+    for _ in range(3):
+        dx = x - vx * back - receiver_x
+        dy = y - vy * back - receiver_y
+        r = math.sqrt(dx * dx + dy * dy + dz2)
+        back = lag + r / sound_speed
+    offset = arrival - r / sound_speed - emission_time
+    m = np.rint(offset / period)
+    if rate != 0.0:
+        m = np.rint((offset - 0.5 * m * (m - 1.0) * rate) / period)
+    return offset - m * period - 0.5 * m * (m - 1.0) * rate, m, r
+
+
+@njit(cache=True)
 def _match_kernel(
-    x, y, vx, vy, emission_time, period, vertical, lag, arrival, receiver_x, receiver_y,
+    x, y, vx, vy, emission_time, period, rate, vertical, lag, arrival, receiver_x, receiver_y,
     sound_speed, residual, ping, distance,
 ):  # fmt: skip
-    """Compiled :func:`emission_range` + :func:`wrap_to_ping` for one detection."""
+    """:func:`match_particle` of every particle for one detection, into the three outputs."""
     for i in range(x.size):
-        dz2 = vertical[i] * vertical[i]
-        back = lag
-        r = 0.0
-        for _ in range(3):
-            dx = x[i] - vx[i] * back - receiver_x
-            dy = y[i] - vy[i] * back - receiver_y
-            r = math.sqrt(dx * dx + dy * dy + dz2)
-            back = lag + r / sound_speed
-        offset = arrival - r / sound_speed - emission_time[i]
-        m = np.rint(offset / period[i])
-        residual[i] = offset - m * period[i]
-        ping[i] = m
-        distance[i] = r
+        residual[i], ping[i], distance[i] = match_particle(
+            x[i], y[i], vx[i], vy[i], emission_time[i], period[i], rate[i], vertical[i], lag,
+            arrival, receiver_x, receiver_y, sound_speed,
+        )  # fmt: skip
 
 
 @njit(cache=True)
@@ -263,7 +289,9 @@ def mixture_constants(sigma, late_fraction, late_mean, uniform_fraction):
     -------
     tuple of float
         ``(sigma, late_mean, log_core_weight, rate_sigma, log_late_weight,
-        log_uniform_weight)``; a weight of a component that is absent is ``-inf``.
+        log_uniform_weight, late_offset, uniform_ratio)``; a weight of a component that is
+        absent is ``-inf``; the last two are the late and uniform weights relative to the
+        core's (log, and linear for a period of 1 s).
     """
     log_core_weight = math.log1p(-late_fraction - uniform_fraction) - math.log(sigma)
     log_core_weight -= _LOG_SQRT_2PI
@@ -272,19 +300,28 @@ def mixture_constants(sigma, late_fraction, late_mean, uniform_fraction):
     if late_fraction > 0:
         log_late_weight = math.log(late_fraction / late_mean) + 0.5 * rate_sigma * rate_sigma
     log_uniform_weight = math.log(uniform_fraction) if uniform_fraction > 0 else -math.inf
-    return (sigma, late_mean, log_core_weight, rate_sigma, log_late_weight, log_uniform_weight)
+    return (
+        sigma,
+        late_mean,
+        log_core_weight,
+        rate_sigma,
+        log_late_weight,
+        log_uniform_weight,
+        log_late_weight - log_core_weight,
+        math.exp(log_uniform_weight - log_core_weight),
+    )
 
 
 @njit(cache=True)
-def mixture_log_density(eps, log_period, constants):
+def mixture_log_density(eps, period, constants):
     """Compiled :meth:`ArrivalLikelihood.logpdf` of one residual, and the direct share.
 
     Parameters
     ----------
     eps : float
         Residual (s).
-    log_period : float
-        Log of the period the residual was wrapped with (log s).
+    period : float
+        The period the residual was wrapped with (s).
     constants : tuple of float
         :func:`mixture_constants` of the likelihood.
 
@@ -299,19 +336,33 @@ def mixture_log_density(eps, log_period, constants):
 
     Notes
     -----
-    The three terms are summed in linear scale relative to the largest. The multipath
-    term is skipped where an upper bound of it (``log Φ(w) ≤ −w²/2`` for ``w ≤ 0``) lies
-    more than 40 nats below the others: it could not change their sum in double
-    precision, and far-off particles then cost no ``erfc``.
+    Near the core (``|eps| < 30·sigma``, where no term can overflow or vanish) the three
+    terms are summed in linear scale relative to the core's weight. Elsewhere they are
+    summed relative to the largest, and the multipath term is skipped where an upper
+    bound of it (``log Φ(w) ≤ −w²/2`` for ``w ≤ 0``) lies more than 40 nats below the
+    others: it could not change their sum in double precision, and far-off particles then
+    cost no ``erfc``.
     """
-    sigma, late_mean, log_core_weight, rate_sigma, log_late_weight, log_uniform_weight = constants
+    sigma, late_mean, log_core_weight, rate_sigma, log_late_weight, log_uniform_weight = constants[
+        :6
+    ]
     z = eps / sigma
+    w = z - rate_sigma
+    late_exponent = constants[6] - eps / late_mean
+    if z * z < 900.0 and w > -25.0 and late_exponent < 500.0:
+        core_share = math.exp(-0.5 * z * z)
+        late = math.exp(late_exponent) * 0.5 * math.erfc(-w / math.sqrt(2.0))
+        scaled = core_share + late + constants[7] / period
+        return (
+            log_core_weight + math.log(scaled),
+            log_core_weight - 0.5 * z * z,
+            core_share / scaled,
+        )
     core = log_core_weight - 0.5 * z * z
-    log_uniform = log_uniform_weight - log_period
+    log_uniform = log_uniform_weight - math.log(period)
     top = max(core, log_uniform)
     log_late = -math.inf
     if log_late_weight > -math.inf:
-        w = z - rate_sigma
         log_late = log_late_weight - eps / late_mean
         bound = log_late - 0.5 * w * w if w < 0 else log_late
         log_late = log_late + _log_ndtr(w) if bound > top - 40.0 else -math.inf
@@ -328,22 +379,45 @@ def _density_kernel(
     """:func:`mixture_log_density` over arrays, into ``total`` and ``core``."""
     constants = mixture_constants(sigma, late_fraction, late_mean, uniform_fraction)
     for i in range(residual.size):
-        total[i], core[i], _ = mixture_log_density(residual[i], math.log(period[i]), constants)
+        total[i], core[i], _ = mixture_log_density(residual[i], period[i], constants)
 
 
-def _vertical(particles, obs: pd.DataFrame) -> list:
-    """Tag depth minus receiver depth for each row of ``obs``: floats, or (N,) arrays."""
+def vertical_parts(particles, obs: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
+    """Tag depth minus receiver depth as ``tag_depth[i] + row_offset[j]``.
+
+    Parameters
+    ----------
+    particles
+        Particles, with a ``depth`` field (m) when the state carries depth.
+    obs : pandas.DataFrame
+        M detections; ``depth`` (the tag's sensor, m) is used when the particles carry no
+        depth, ``receiver_depth`` (m) always when present.
+
+    Returns
+    -------
+    tag_depth : numpy.ndarray, shape (N,)
+        The particles' depths (m), zeros without a ``depth`` field.
+    row_offset : numpy.ndarray, shape (M,)
+        Per detection: sensor depth (without particle depth) minus receiver depth (m).
+    """
+    n = np.shape(particles.x)[0]
     tag_depth = getattr(particles, "depth", None)
-    receiver_depth = (
-        obs["receiver_depth"].to_numpy(dtype=float)
-        if "receiver_depth" in obs
-        else np.zeros(len(obs))
-    )
+    offset = np.zeros(len(obs))
+    if "receiver_depth" in obs:
+        offset -= obs["receiver_depth"].to_numpy(dtype=float)
     if tag_depth is None:
-        depth = obs["depth"].to_numpy(dtype=float) if "depth" in obs else np.zeros(len(obs))
-        return (depth - receiver_depth).tolist()
-    tag_depth = np.asarray(tag_depth, dtype=float)
-    return [tag_depth - d for d in receiver_depth]
+        if "depth" in obs:
+            offset += obs["depth"].to_numpy(dtype=float)
+        return np.zeros(n), offset
+    return np.ascontiguousarray(tag_depth, dtype=float), offset
+
+
+def _period_rate(particles, n: int) -> np.ndarray:
+    """The particles' period rates (s per ping), (N,); zeros when they carry none."""
+    rate = getattr(particles, "period_rate", None)
+    if rate is None:
+        return np.zeros(n)
+    return np.ascontiguousarray(rate, dtype=float)
 
 
 def check_arrival_observations(obs: pd.DataFrame, where: str = "arrival-time observations") -> None:
@@ -379,8 +453,8 @@ class ArrivalTimeMeasurement:
     -----
     Particles need fields ``x``, ``y``, ``cos_heading``, ``sin_heading``, ``speed``
     (velocity along the heading), ``emission_time`` and ``period`` (see
-    :class:`hmmtrack.clock.EmissionClockModel`), and optionally ``depth`` (m, positive
-    down). Observations are rows of a table with
+    :class:`hmmtrack.clock.EmissionClockModel`), and optionally ``period_rate`` (s per
+    ping; 0 when absent) and ``depth`` (m, positive down). Observations are rows of a table with
     columns ``time`` (arrival time on the common time base, s), ``receiver``, ``receiver_x``,
     ``receiver_y`` (m, at the arrival time) and optionally ``depth`` (the tag's depth from
     its sensor, m) and ``receiver_depth`` (m).
@@ -435,6 +509,7 @@ class ArrivalTimeMeasurement:
             particles.speed * particles.sin_heading,
             np.ascontiguousarray(particles.emission_time, dtype=float),
             np.ascontiguousarray(particles.period, dtype=float),
+            _period_rate(particles, n),
             np.ascontiguousarray(np.broadcast_to(np.asarray(vertical, dtype=float), (n,))),
             0.0 if time is None else float(time) - float(arrival),
             float(arrival),
@@ -450,6 +525,9 @@ class ArrivalTimeMeasurement:
     def rows(self, particles, obs: pd.DataFrame, check: bool = True) -> list[tuple]:
         """``(arrival, receiver_x, receiver_y, vertical)`` of each row of ``obs``.
 
+        ``vertical`` is tag depth minus receiver depth (m), shape (N,) (see
+        :func:`vertical_parts`).
+
         ``check=False`` skips :func:`check_arrival_observations` for tables already
         checked as a whole (the filter checks its input once, up front).
         """
@@ -458,7 +536,9 @@ class ArrivalTimeMeasurement:
         arrival = obs["time"].to_numpy(dtype=float).tolist()
         rx = obs["receiver_x"].to_numpy(dtype=float).tolist()
         ry = obs["receiver_y"].to_numpy(dtype=float).tolist()
-        return list(zip(arrival, rx, ry, _vertical(particles, obs), strict=True))
+        tag_depth, offset = vertical_parts(particles, obs)
+        vertical = [tag_depth + d for d in offset.tolist()]
+        return list(zip(arrival, rx, ry, vertical, strict=True))
 
     def match(self, particles, obs: pd.DataFrame, time: float | None = None):
         """Each particle's residual and matched ping for every observation.

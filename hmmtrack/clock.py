@@ -10,8 +10,8 @@ of ppm. This module holds the three small models the arrival-time filter needs:
   (offset + linear drift), and :func:`to_common_time`, which puts detections on the
   common time base;
 * :class:`EmissionClockModel` - the linear-Gaussian model of the transmitter's clock that
-  the filter carries per particle: a reference emission time and the period (s), the
-  period a random walk from ping to ping (as YAPS treats "stable" burst intervals);
+  the filter carries per particle: a reference emission time, the period (s) and the
+  period's rate of change, the period a random walk or an integrated random walk;
 * :func:`local_period_ppm` and :func:`schedule_wander` - the two summaries by which a
   simulated or estimated emission schedule is compared with real tags.
 
@@ -97,35 +97,52 @@ def to_common_time(detections: pd.DataFrame, clocks: Mapping[str, ReceiverClock]
 class EmissionClockModel:
     """Linear-Gaussian model of the transmitter's emission clock, ping to ping.
 
-    The clock is ``(e, P)``: the true time ``e`` of a reference emission and the period
-    ``P`` (s). From one ping to the next ``e ← e + P`` and then the period takes a random
-    walk step, ``P ← P + N(0, period_step_sd²)``, and the emission time a phase step
-    ``N(0, phase_step_sd²)`` (timing noise that does not persist in the period). The
-    clock-aware filter keeps, per particle, the mean of ``(e, P)`` and one covariance
-    shared by all particles (a Rao-Blackwellised clock: a Kalman filter conditioned on the
-    particle's path).
+    The clock is ``(e, P, R)``: the true time ``e`` of a reference emission, the period
+    ``P`` (s) and the period's rate of change ``R`` (s per ping). From one ping to the
+    next ``e ← e + P + N(0, phase_step_sd²)``, ``P ← P + R + N(0, period_step_sd²)`` and
+    ``R ← R + N(0, rate_step_sd²)``. With ``rate_step_sd = initial_rate_sd = 0`` the rate
+    stays 0 and the period is a plain random walk (as YAPS treats "stable" burst
+    intervals); a positive ``rate_step_sd`` makes it an integrated random walk, a period
+    that keeps drifting the same way for minutes, as a crystal follows the water's
+    temperature. The phase step is timing noise that persists (the schedule moves);
+    ping jitter that does not persist belongs in the arrival-time likelihood's ``sigma``.
+    The clock-aware filter keeps, per particle, the mean of ``(e, P, R)`` and one
+    covariance shared by all particles (a Rao-Blackwellised clock: a Kalman filter
+    conditioned on the particle's path).
 
     Parameters
     ----------
     nominal_period : float
         The tag's nominal period (s): the prior mean of ``P``.
     period_step_sd : float
-        Standard deviation of the period's change from one ping to the next (s).
+        Standard deviation of the period's own change from one ping to the next (s).
     phase_step_sd : float
-        Standard deviation of the extra emission-time step per ping (s).
+        Standard deviation of the persistent emission-time step per ping (s).
     initial_period_sd : float
         Prior standard deviation of ``P`` about ``nominal_period`` (s).
+    rate_step_sd : float
+        Standard deviation of the change of ``R`` from one ping to the next (s per ping).
+    initial_rate_sd : float
+        Prior standard deviation of ``R`` about 0 (s per ping).
     """
 
     nominal_period: float
     period_step_sd: float = 3e-4
     phase_step_sd: float = 1e-4
     initial_period_sd: float = 8e-3
+    rate_step_sd: float = 0.0
+    initial_rate_sd: float = 0.0
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.nominal_period) and self.nominal_period > 0):
             raise ValueError(f"nominal_period must be positive (s), got {self.nominal_period}")
-        for name in ("period_step_sd", "phase_step_sd", "initial_period_sd"):
+        for name in (
+            "period_step_sd",
+            "phase_step_sd",
+            "initial_period_sd",
+            "rate_step_sd",
+            "initial_rate_sd",
+        ):
             value = getattr(self, name)
             if not (np.isfinite(value) and value >= 0):
                 raise ValueError(f"EmissionClockModel.{name} must be >= 0 (s), got {value}")
@@ -135,24 +152,62 @@ class EmissionClockModel:
                 f"nominal period {self.nominal_period} s; the ping wrapping needs it to be"
             )
 
-    def initial_covariance(self, emission_sd: float) -> np.ndarray:
-        """Covariance (2, 2) of ``(e, P)`` after ``e`` is fixed to ``emission_sd`` seconds."""
-        return np.diag([emission_sd**2, self.initial_period_sd**2])
+    @classmethod
+    def temperature_drift(
+        cls, nominal_period: float, rate_ppm_per_s: float = 1.25, time_scale: float = 800.0
+    ) -> EmissionClockModel:
+        """An integrated random walk of the period sized from the real-tag facts.
 
-    def predict_covariance(self, covariance: np.ndarray, n_pings: int) -> np.ndarray:
-        """Covariance (2, 2) of ``(e, P)`` moved ``n_pings`` pings ahead (0: unchanged).
+        On the real towed-tag trial (DESIGN.md, "What real data teaches") the local period
+        moved over ~1,000 ppm (−697…+364) between 400-ping blocks of ~800 s: a fractional
+        period rate of about ``rate_ppm_per_s`` ppm per second that itself changes over
+        ``time_scale`` seconds. As an integrated random walk in time this is a white
+        change of the fractional rate with density ``q = (rate·1e-6)² / time_scale``
+        (s⁻³); per ping of period ``P`` the period rate ``R = P²·(fractional rate)``
+        (s per ping) then steps by ``sqrt(q·P)·P²``, and ``R`` starts within
+        ``P²·rate·1e-6``. The period and phase keep small white steps
+        (``rate·1e-6·P`` and 10 µs) for what the walk does not describe; the 44-83 µs
+        jitter of each ping does not persist and belongs in the likelihood's ``sigma``.
+        For ``P = 8 s``: rate step 8 µs per ping, initial rate 80 µs per ping.
 
         Parameters
         ----------
-        covariance : numpy.ndarray, shape (2, 2)
-            Covariance of the clock at the reference emission (s², s², s²).
+        nominal_period : float
+            s.
+        rate_ppm_per_s : float
+            Typical fractional period rate (ppm per second).
+        time_scale : float
+            Time over which that rate changes (s).
+        """
+        rate = rate_ppm_per_s * PPM
+        p = float(nominal_period)
+        return cls(
+            p,
+            period_step_sd=rate * p,
+            phase_step_sd=1e-5,
+            initial_period_sd=1e-3 * p,
+            rate_step_sd=float(np.sqrt(rate**2 / time_scale * p) * p**2),
+            initial_rate_sd=rate * p**2,
+        )
+
+    def initial_covariance(self, emission_sd: float) -> np.ndarray:
+        """Covariance (3, 3) of ``(e, P, R)`` after ``e`` is fixed to ``emission_sd`` seconds."""
+        return np.diag([emission_sd**2, self.initial_period_sd**2, self.initial_rate_sd**2])
+
+    def predict_covariance(self, covariance: np.ndarray, n_pings: int) -> np.ndarray:
+        """Covariance (3, 3) of ``(e, P, R)`` moved ``n_pings`` pings ahead (0: unchanged).
+
+        Parameters
+        ----------
+        covariance : numpy.ndarray, shape (3, 3)
+            Covariance of the clock at the reference emission (s², s²/ping, ...).
         n_pings : int
             Pings between the reference emission and the new one, >= 0.
         """
         if n_pings < 0:
             raise ValueError(f"n_pings must be >= 0, got {n_pings}")
-        transition = np.array([[1.0, 1.0], [0.0, 1.0]])
-        noise = np.diag([self.phase_step_sd**2, self.period_step_sd**2])
+        transition = np.array([[1.0, 1.0, 0.0], [0.0, 1.0, 1.0], [0.0, 0.0, 1.0]])
+        noise = np.diag([self.phase_step_sd**2, self.period_step_sd**2, self.rate_step_sd**2])
         out = np.array(covariance, dtype=float)
         for _ in range(int(n_pings)):
             out = transition @ out @ transition.T + noise

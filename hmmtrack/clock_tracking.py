@@ -5,11 +5,12 @@ each through the parent's own steps (predict, correct, resample):
 
 * every particle carries the emission clock as a Kalman filter conditioned on its path
   (a Rao-Blackwellised clock): extra particle fields ``emission_time`` (mean time of
-  the particle's reference emission, s) and ``period`` (mean period, s), with one
-  ``(2, 2)`` covariance shared by all particles (:class:`hmmtrack.clock.EmissionClockModel`).
-  A detection is scored on its marginal likelihood - the clock integrated out - so
-  particles are not lost for lack of the exact clock, and each detection then updates
-  every particle's clock;
+  the particle's reference emission, s), ``period`` (mean period, s) and ``period_rate``
+  (s per ping, 0 unless the clock model has a rate), with one ``(3, 3)`` covariance
+  shared by all particles (:class:`hmmtrack.clock.EmissionClockModel`). A detection is
+  scored on its marginal likelihood - the clock integrated out - so particles are not
+  lost for lack of the exact clock, and each detection then updates every particle's
+  clock (one compiled pass per detection over all particles);
 * no known initial range: the clock phase is unknown (uniform over one period) until the
   first detection, whose arrival time then fixes each particle's emission time given its
   position - the exact posterior of a uniform phase, so the first detection carries no
@@ -49,8 +50,10 @@ from hmmtrack.arrival import (
     ArrivalTimeMeasurement,
     check_arrival_observations,
     emission_range,
+    match_particle,
     mixture_constants,
     mixture_log_density,
+    vertical_parts,
     wrap_to_ping,
 )
 from hmmtrack.clock import EmissionClockModel
@@ -61,21 +64,26 @@ from hmmtrack.smoothing import FixedLagSmoother, smoothed_table
 
 #: columns of :attr:`ClockFilterResult.ambiguity`
 AMBIGUITY_COLUMNS = ("time", "separation", "minor_weight", "ambiguous")
+_NO_ROWS = pd.DataFrame()
+
+#: particle fields of the emission clock's mean (s, s, s per ping)
+CLOCK_FIELDS = ("emission_time", "period", "period_rate")
 #: columns of :attr:`ClockFilterResult.clock`
 CLOCK_COLUMNS = ("time", "emission_time", "period", "emission_time_sd", "period_sd")
 
 
 @njit(cache=True)
 def _clock_row_kernel(
-    residual, ping, distance, weights, emission_time, period, loglik, sigma,
-    late_fraction, late_mean, uniform_fraction, gain_emission, gain_period, range_50, width,
+    residual, ping, distance, weights, emission_time, period, rate, loglik, sigma,
+    late_fraction, late_mean, uniform_fraction, gain, range_50, width,
 ):  # fmt: skip
     """Score one detection against every particle's clock and update the clocks in place.
 
     Adds to ``loglik`` the marginal log density of each residual (innovation standard
     deviation ``sigma``) and, when ``range_50`` is not NaN, the logistic
-    ``log p(distance)`` of being heard; moves ``emission_time`` to the matched ping and
-    applies the Kalman gains scaled by the probability that the arrival is direct.
+    ``log p(distance)`` of being heard; moves each clock ``(emission_time, period, rate)``
+    to the matched ping and applies the Kalman gain (3,) scaled by the probability that
+    the arrival is direct.
 
     Returns
     -------
@@ -89,42 +97,139 @@ def _clock_row_kernel(
     constants = mixture_constants(sigma, late_fraction, late_mean, uniform_fraction)
     for i in range(residual.size):
         eps = residual[i]
-        total, _, direct = mixture_log_density(eps, math.log(period[i]), constants)
+        total, _, direct = mixture_log_density(eps, period[i], constants)
         loglik[i] += total
         if not math.isnan(range_50):
             x = (distance[i] - range_50) / width  # log expit(-x), stable both ways
             loglik[i] -= x + math.log1p(math.exp(-x)) if x > 0 else math.log1p(math.exp(x))
-        emission_time[i] += ping[i] * period[i] + gain_emission * direct * eps
-        period[i] += gain_period * direct * eps
+        m = ping[i]
+        emission_time[i] += m * period[i] + 0.5 * m * (m - 1.0) * rate[i] + gain[0] * direct * eps
+        period[i] += m * rate[i] + gain[1] * direct * eps
+        rate[i] += gain[2] * direct * eps
         accepted += weights[i] * direct
         closest = min(closest, abs(eps))
     return accepted, closest
 
 
-class _ClockView:
-    """Particles seen with other clock means (for scoring without committing an update)."""
+@njit(cache=True)
+def predict_clock_covariance(covariance, n_pings, noise):
+    """Compiled :meth:`hmmtrack.clock.EmissionClockModel.predict_covariance`.
 
-    def __init__(self, particles, emission_time: np.ndarray, period: np.ndarray) -> None:
-        self._particles = particles
-        self.emission_time = emission_time
-        self.period = period
+    Parameters
+    ----------
+    covariance : numpy.ndarray, shape (3, 3)
+        Covariance of ``(e, P, R)`` at the reference emission.
+    n_pings : int
+        Pings ahead, >= 0.
+    noise : numpy.ndarray, shape (3,)
+        Per-ping variances of the phase, period and rate steps.
 
-    def __getattr__(self, name: str):
-        return getattr(self._particles, name)
+    Returns
+    -------
+    numpy.ndarray, shape (3, 3)
+    """
+    out = covariance.copy()
+    left = np.empty((3, 3))
+    for _ in range(n_pings):
+        for j in range(3):  # left = F·out, F = [[1, 1, 0], [0, 1, 1], [0, 0, 1]]
+            left[0, j] = out[0, j] + out[1, j]
+            left[1, j] = out[1, j] + out[2, j]
+            left[2, j] = out[2, j]
+        for i in range(3):  # out = left·Fᵀ + noise
+            out[i, 0] = left[i, 0] + left[i, 1]
+            out[i, 1] = left[i, 1] + left[i, 2]
+            out[i, 2] = left[i, 2]
+            out[i, i] += noise[i]
+    return out
+
+
+@njit(cache=True)
+def _correction_kernel(
+    x, y, speed, cos_heading, sin_heading, tag_depth, weights, emission_time, period, rate,
+    arrival, receiver_x, receiver_y, row_offset, time, sound_speed, covariance, noise,
+    measurement_sd, late_fraction, late_mean, uniform_fraction, range_50, width, lock_sigmas,
+    loglik,
+):  # fmt: skip
+    """Score detections one after the other and update every particle's clock in place.
+
+    For each row: match every particle's clock to the ping that fits
+    (:func:`hmmtrack.arrival.match_particle`), move the shared covariance to the median
+    matched ping, score and update (:func:`_clock_row_kernel`).
+
+    Returns
+    -------
+    covariance : numpy.ndarray, shape (3, 3)
+        Shared clock covariance after the last row.
+    lost : bool
+        Whether some row fitted no particle within ``lock_sigmas`` innovation sds.
+    """
+    n = x.size
+    vx = speed * cos_heading
+    vy = speed * sin_heading
+    residual = np.empty(n)
+    ping = np.empty(n)
+    distance = np.empty(n)
+    lost = False
+    for j in range(arrival.size):
+        lag = time - arrival[j]
+        for i in range(n):
+            residual[i], ping[i], distance[i] = match_particle(
+                x[i], y[i], vx[i], vy[i], emission_time[i], period[i], rate[i],
+                tag_depth[i] + row_offset[j], lag, arrival[j], receiver_x[j], receiver_y[j],
+                sound_speed,
+            )  # fmt: skip
+        ahead = max(int(np.median(ping)), 0)
+        predicted = predict_clock_covariance(covariance, ahead, noise)
+        innovation_var = predicted[0, 0] + measurement_sd * measurement_sd
+        sigma = math.sqrt(innovation_var)
+        gain = predicted[:, 0] / innovation_var
+        accepted, closest = _clock_row_kernel(
+            residual, ping, distance, weights, emission_time, period, rate, loglik, sigma,
+            late_fraction, late_mean, uniform_fraction, gain, range_50, width,
+        )  # fmt: skip
+        lost = lost or closest > lock_sigmas * sigma
+        covariance = predicted - accepted * innovation_var * np.outer(gain, gain)
+    return covariance, lost
+
+
+@njit(cache=True)
+def _tempered_ess(log_weight, loglik, beta):
+    """Effective sample size of the weights ``exp(log_weight + β·loglik)`` (normalised)."""
+    top = -math.inf
+    for i in range(log_weight.size):
+        top = max(top, log_weight[i] + beta * loglik[i])
+    total = squares = 0.0
+    for i in range(log_weight.size):
+        w = math.exp(log_weight[i] + beta * loglik[i] - top)
+        total += w
+        squares += w * w
+    return total * total / squares
+
+
+@njit(cache=True)
+def _tempered(log_weight, loglik, beta):
+    """``log_weight + β·loglik`` normalised (log-sum-exp 0), and the weights (N,)."""
+    out = log_weight + beta * loglik
+    weights = np.exp(out - out.max())
+    total = weights.sum()
+    weights /= total
+    out -= out.max() + math.log(total)
+    return out, weights
 
 
 def ambiguity(x, y, weights, min_separation: float = 20.0) -> tuple[float, float, bool]:
     """Is a particle cloud two separated clusters? (the paper's two-intersection case)
 
-    The cloud is projected on its principal axis and split in two by weighted 1-D 2-means;
-    it is called ambiguous when the smaller cluster holds at least 5 % of the weight and
-    the clusters' centres lie more than ``min_separation`` apart and more than three
-    times the sum of their standard deviations along the axis.
+    The cloud is projected on its principal axis and split in two by weighted 1-D 2-means
+    (on :data:`AMBIGUITY_BINS` bins of the projection, so in time linear in N); it is
+    called ambiguous when the smaller cluster holds at least 5 % of the weight and the
+    clusters' centres lie more than ``min_separation`` apart and more than three times
+    the sum of their standard deviations along the axis.
 
     Parameters
     ----------
     x, y : numpy.ndarray, shape (N,)
-        Positions (m).
+        Particle positions (m).
     weights : numpy.ndarray, shape (N,)
         Normalised weights.
     min_separation : float
@@ -138,28 +243,66 @@ def ambiguity(x, y, weights, min_separation: float = 20.0) -> tuple[float, float
         Weight of the smaller cluster.
     ambiguous : bool
     """
-    w = np.asarray(weights, dtype=float)
-    mx, my = w @ x, w @ y
-    dx, dy = x - mx, y - my
-    cov = np.array([[w @ (dx * dx), w @ (dx * dy)], [w @ (dx * dy), w @ (dy * dy)]])
-    values, vectors = np.linalg.eigh(cov)
-    if values[1] < 0.05 * 0.95 * min_separation**2:
+    separation, minor, split = _ambiguity_kernel(
+        np.ascontiguousarray(x, dtype=float),
+        np.ascontiguousarray(y, dtype=float),
+        np.ascontiguousarray(weights, dtype=float),
+        float(min_separation),
+        AMBIGUITY_BINS,
+    )
+    return float(separation), float(minor), bool(split)
+
+
+#: bins of the projected cloud in :func:`ambiguity` (cluster centres to 1/1024 of its span)
+AMBIGUITY_BINS = 1024
+
+
+@njit(cache=True)
+def _ambiguity_kernel(x, y, w, min_separation, n_bins):
+    """:func:`ambiguity` (compiled): weighted moments, principal axis, binned 2-means."""
+    total = w.sum()
+    mx = (w * x).sum() / total
+    my = (w * y).sum() / total
+    sxx = sxy = syy = 0.0
+    for i in range(x.size):
+        dx, dy = x[i] - mx, y[i] - my
+        sxx += w[i] * dx * dx
+        sxy += w[i] * dx * dy
+        syy += w[i] * dy * dy
+    sxx, sxy, syy = sxx / total, sxy / total, syy / total
+    half = 0.5 * (sxx - syy)
+    largest = 0.5 * (sxx + syy) + math.sqrt(half * half + sxy * sxy)
+    if largest < 0.05 * 0.95 * min_separation**2:
         # two clusters this far apart, the smaller with 5 % of the weight, would spread
         # the cloud at least this much along the axis joining them
         return 0.0, 0.0, False
-    u = dx * vectors[0, 1] + dy * vectors[1, 1]
-    order = np.argsort(u)
-    u, w = u[order], w[order]
-    # prefix sums make each 2-means iteration a binary search (the split is a threshold)
-    cw = np.concatenate([[0.0], np.cumsum(w)])
-    cwu = np.concatenate([[0.0], np.cumsum(w * u)])
-    cwu2 = np.concatenate([[0.0], np.cumsum(w * u * u)])
-    total, total_u, total_u2 = cw[-1], cwu[-1], cwu2[-1]
-    lo = u[min(np.searchsorted(cw[1:], 0.25 * total), u.size - 1)]
-    hi = u[min(np.searchsorted(cw[1:], 0.75 * total), u.size - 1)]
+    ax, ay = (
+        (sxy, largest - sxx)
+        if abs(sxy) > 1e-12 * largest
+        else ((1.0, 0.0) if sxx >= syy else (0.0, 1.0))
+    )
+    norm = math.hypot(ax, ay)
+    ax, ay = ax / norm, ay / norm
+    u = (x - mx) * ax + (y - my) * ay
+    low, high = u.min(), u.max()
+    width = (high - low) / n_bins
+    bin_w = np.zeros(n_bins)
+    bin_wu = np.zeros(n_bins)
+    bin_wu2 = np.zeros(n_bins)
+    for i in range(u.size):
+        k = min(int((u[i] - low) / width), n_bins - 1)
+        bin_w[k] += w[i]
+        bin_wu[k] += w[i] * u[i]
+        bin_wu2[k] += w[i] * u[i] * u[i]
+    cw, cwu, cwu2 = np.cumsum(bin_w), np.cumsum(bin_wu), np.cumsum(bin_wu2)
+    total_u, total_u2 = cwu[-1], cwu2[-1]
+    # start from the weighted quartiles; each iteration splits at the midpoint of the means
+    lo = low + width * (np.searchsorted(cw, 0.25 * total) + 0.5)
+    hi = low + width * (np.searchsorted(cw, 0.75 * total) + 0.5)
     k = -1
+    w_lo = w_hi = 0.0
     for _ in range(50):
-        k_new = int(np.searchsorted(u, 0.5 * (lo + hi), side="right"))
+        k_new = min(max(int((0.5 * (lo + hi) - low) / width), 0), n_bins - 1)
         if k_new == k:
             break
         k = k_new
@@ -167,12 +310,12 @@ def ambiguity(x, y, weights, min_separation: float = 20.0) -> tuple[float, float
         if w_lo <= 0 or w_hi <= 0:
             return 0.0, 0.0, False
         lo, hi = cwu[k] / w_lo, (total_u - cwu[k]) / w_hi
-    sd_lo = np.sqrt(max(cwu2[k] / w_lo - lo * lo, 0.0))
-    sd_hi = np.sqrt(max((total_u2 - cwu2[k]) / w_hi - hi * hi, 0.0))
-    separation = float(hi - lo)
-    minor = float(min(w_lo, w_hi) / total)
+    sd_lo = math.sqrt(max(cwu2[k] / w_lo - lo * lo, 0.0))
+    sd_hi = math.sqrt(max((total_u2 - cwu2[k]) / w_hi - hi * hi, 0.0))
+    separation = hi - lo
+    minor = min(w_lo, w_hi) / total
     split = minor >= 0.05 and separation > max(min_separation, 3.0 * (sd_lo + sd_hi))
-    return separation, minor, bool(split)
+    return separation, minor, split
 
 
 @dataclass
@@ -215,9 +358,34 @@ class SilenceModel:
     detection: LogisticDetection
     heard: dict[str, np.ndarray]
     tolerance: float = 1.0
+    _grid: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         self.detection.require_unit_maximum("SilenceModel")
+
+    def listening(self, time: float, step: float = 1.0, chunk: int = 1024):
+        """Receivers listening at ``time`` (within their GPS span) and their positions.
+
+        Positions are looked up on a grid of ``step`` seconds computed ``chunk`` steps
+        at a time (a filter asks once per correction, on its prediction grid).
+
+        Returns
+        -------
+        names : list of str
+        xy : numpy.ndarray, shape (K, 2)
+            Positions (m) at ``time``.
+        """
+        grid = self._grid
+        k = round((time - grid.get("start", np.inf)) / step) if grid else -1
+        if not (0 <= k < chunk and abs(grid["start"] + k * step - time) < 1e-6 * step):
+            times = time + step * np.arange(chunk)
+            span = {n: self.receivers.span(n) for n in self.receivers.names}
+            # (clipped to each span: positions outside it are never used)
+            xy = {n: np.array(self.receivers.state(n, np.clip(times, *span[n]))[:2]) for n in span}
+            grid.update(start=float(time), xy=xy, span=span)
+            k = 0
+        names = [n for n, (a, b) in grid["span"].items() if a <= time <= b]
+        return names, np.array([grid["xy"][n][:, k] for n in names]).reshape(len(names), 2)
 
     @classmethod
     def from_observations(
@@ -283,6 +451,10 @@ class ClockAwareFilter(ParticleFilter):
         if not 0.0 < tempering_ess < 1.0:
             raise ValueError(f"tempering_ess must be in (0, 1), got {tempering_ess}")
         self.clock = clock
+        self._table = self._table_rows = None  # set during run (see _rows)
+        self._clock_noise = np.array(
+            [clock.phase_step_sd**2, clock.period_step_sd**2, clock.rate_step_sd**2]
+        )
         self.smoothing_lag = smoothing_lag
         self.silence = silence
         self.tempering_ess = float(tempering_ess)
@@ -297,10 +469,16 @@ class ClockAwareFilter(ParticleFilter):
         """Uniform particles in the bounds, at rest, clock unknown (NaN) until a detection."""
         estimate = super().initialise(time)
         n = self.particles.n
-        self.particles.extra.update(emission_time=np.full(n, np.nan), period=np.full(n, np.nan))
+        self.particles.extra.update(
+            emission_time=np.full(n, np.nan),
+            period=np.full(n, np.nan),
+            period_rate=np.zeros(n),
+        )
         self._clock_started = False
+        # normalised weights as of the last correction or resampling (which set them)
+        self._weights_now = np.full(n, 1.0 / n)
         self._lost_count = 0
-        self._clock_covariance = np.full((2, 2), np.nan)
+        self._clock_covariance = np.full((3, 3), np.nan)
         self._silence_from = -np.inf
         self._parent: np.ndarray | None = None
         self._smoother = (
@@ -360,8 +538,10 @@ class ClockAwareFilter(ParticleFilter):
         covariance = self.clock.initial_covariance(self.measurement.likelihood.sigma)
         if reacquire:
             covariance[1, 1] = max(covariance[1, 1], float(np.var(p.period)))
+            covariance[2, 2] = max(covariance[2, 2], float(np.var(p.period_rate)))
         else:
             p.extra["period"] = np.full(p.n, self.clock.nominal_period)
+            p.extra["period_rate"] = np.zeros(p.n)
             # silences count from the first ping on: earlier pings may predate the tag
             self._silence_from = float(np.min(p.emission_time))
         self._clock_covariance = covariance
@@ -381,52 +561,67 @@ class ClockAwareFilter(ParticleFilter):
         loglik : numpy.ndarray, shape (N,)
             With a silence model, it includes ``log p(range)`` of each detection (heard
             pings came from within detection range).
-        emission_time, period : numpy.ndarray, shape (N,)
-            Updated clock means.
-        covariance : numpy.ndarray, shape (2, 2)
+        clocks : tuple of numpy.ndarray, shape (N,) each
+            Updated clock means: emission time, period, period rate.
+        covariance : numpy.ndarray, shape (3, 3)
         lost : bool
             Whether some detection fitted no particle's clock within ``lock_sigmas``.
         """
         p = self.particles
         likelihood = self.measurement.likelihood
-        emission_time = p.emission_time.copy()
-        period = p.period.copy()
-        covariance = self._clock_covariance
+        clocks = tuple(np.array(p.extra[name], dtype=float) for name in CLOCK_FIELDS)
         loglik = np.zeros(p.n)
-        weights = p.normalised_weights()
-        lost = False
         detection = None if self.silence is None else self.silence.detection
-        for row in self.measurement.rows(p, obs, check=False):
-            view = _ClockView(p, emission_time, period)
-            residual, ping, r = self.measurement.match_one(view, *row, time=self.time)
-            n_ahead = int(max(np.median(ping), 0))
-            predicted = self.clock.predict_covariance(covariance, n_ahead)
-            innovation_var = predicted[0, 0] + likelihood.sigma**2
-            sigma = float(np.sqrt(innovation_var))
-            gain = predicted[:, 0] / innovation_var
-            accepted, closest = _clock_row_kernel(
-                residual,
-                ping,
-                r,
-                weights,
-                emission_time,
-                period,
-                loglik,
-                sigma,
-                likelihood.late_fraction,
-                likelihood.late_mean,
-                likelihood.uniform_fraction,
-                float(gain[0]),
-                float(gain[1]),
-                np.nan if detection is None else detection.range_50,
-                np.nan if detection is None else detection.width,
-            )
-            lost |= closest > self.lock_sigmas * sigma
-            covariance = predicted - accepted * np.outer(gain, gain) * innovation_var
-        return loglik, emission_time, period, covariance, lost
+        tag_depth, arrival, receiver_x, receiver_y, row_offset = self._rows(obs)
+        covariance, lost = _correction_kernel(
+            p.x,
+            p.y,
+            p.speed,
+            p.cos_heading,
+            p.sin_heading,
+            tag_depth,
+            p.normalised_weights(),
+            *clocks,
+            arrival,
+            receiver_x,
+            receiver_y,
+            row_offset,
+            float(self.time),
+            self.measurement.sound_speed,
+            self._clock_covariance,
+            self._clock_noise,
+            likelihood.sigma,
+            likelihood.late_fraction,
+            likelihood.late_mean,
+            likelihood.uniform_fraction,
+            np.nan if detection is None else detection.range_50,
+            np.nan if detection is None else detection.width,
+            self.lock_sigmas,
+            loglik,
+        )
+        return loglik, clocks, covariance, lost
+
+    def _rows(self, obs: pd.DataFrame):
+        """Tag depth (N,) and the rows of ``obs`` as arrays (M,): arrival time, receiver x
+        and y, and depth offset (:func:`hmmtrack.arrival.vertical_parts`).
+
+        During :meth:`run`, ``obs`` is a slice of the run's table (its index labels are
+        row positions), whose columns were converted once.
+        """
+        p = self.particles
+        table = obs if self._table is None else self._table
+        if self._table is None or self._table_rows is None:
+            tag_depth, offset = vertical_parts(p, table)
+            columns = [table[c].to_numpy(dtype=float) for c in ("time", "receiver_x", "receiver_y")]
+            if self._table is None:
+                return tag_depth, *columns, offset
+            self._table_rows = (*columns, offset)
+        tag_depth = vertical_parts(p, _NO_ROWS)[0]
+        at = obs.index.to_numpy()
+        return tag_depth, *(column[at] for column in self._table_rows)
 
     def _loglik(self, obs: pd.DataFrame):
-        loglik, emission_time, period, covariance, lost = self._clock_update(obs)
+        loglik, clocks, covariance, lost = self._clock_update(obs)
         if self.silence is not None:
             loglik = loglik + self._silence_loglik()
         if loglik.shape != (self.particles.n,) or not np.all(np.isfinite(loglik)):
@@ -434,37 +629,37 @@ class ClockAwareFilter(ParticleFilter):
                 f"arrival-time log-likelihood not finite at time {self.time} for "
                 f"observations:\n{obs}"
             )
-        return loglik, (emission_time, period, covariance), lost
+        return loglik, (clocks, covariance), lost
 
     def _silence_loglik(self) -> np.ndarray:
-        """Unheard pings whose expected arrival fell since the last correction."""
+        """Unheard pings whose expected arrival fell since the last correction.
+
+        Each particle's pings are stepped by its period; a period rate is left out (over
+        the at most 8 pings looked at it moves an arrival by well under ``tolerance``).
+        """
         s = self.silence
         p = self.particles
         cut = self.time + 0.5 * self.dt - s.tolerance  # detections up to time + dt/2 are in
-        out = np.zeros(p.n)
         if cut <= self._silence_from:
-            return out
+            return np.zeros(p.n)
         # pings of a particle whose arrival can fall in the window, with one to spare
         n_back = min(int(np.ceil((cut - self._silence_from) / self.clock.nominal_period)) + 1, 8)
-        for name in s.receivers.names:
-            first, last = s.receivers.span(name)
-            if not first <= self.time <= last:
-                continue
-            rx, ry, _, _ = s.receivers.state(name, self.time)
-            out += silence_loglik_recent_pings(
-                p.emission_time,
-                p.period,
-                np.hypot(p.x - rx[0], p.y - ry[0]),
-                n_back,
-                s.heard[name],
-                self._silence_from,
-                cut,
-                s.detection,
-                s.tolerance,
-                self.measurement.sound_speed,
-            )
-        self._silence_from = cut
-        return out
+        listening, at = s.listening(self.time, self.dt)
+        self._silence_from, window_start = cut, self._silence_from
+        if not listening:
+            return np.zeros(p.n)
+        return silence_loglik_recent_pings(
+            p.emission_time,
+            p.period,
+            np.hypot(p.x - at[:, :1], p.y - at[:, 1:]),
+            n_back,
+            [s.heard[name] for name in listening],
+            window_start,
+            cut,
+            s.detection,
+            s.tolerance,
+            self.measurement.sound_speed,
+        )
 
     def correct(self, obs: pd.DataFrame):
         """Tempered arrival-time correction (see the module docstring); the weighted estimate."""
@@ -483,41 +678,29 @@ class ClockAwareFilter(ParticleFilter):
         while True:
             p = self.particles
             beta = self._tempering_step(p.log_weight, loglik, remaining)
-            log_weight = p.log_weight + beta * loglik
-            top = log_weight.max()
-            p.log_weight = log_weight - (top + np.log(np.exp(log_weight - top).sum()))
+            p.log_weight, self._weights_now = _tempered(p.log_weight, loglik, beta)
             remaining -= beta
             if remaining <= 1e-12:
                 break
-            before = (p.emission_time, p.period)
             self._resample_now()
             self._regularise()
-            p = self.particles
-            p.extra["emission_time"] = before[0][self._ancestors]
-            p.extra["period"] = before[1][self._ancestors]
             self._silence_from = silence_from
             loglik, update, _ = self._loglik(obs)
         p = self.particles
-        p.extra["emission_time"], p.extra["period"] = update[0], update[1]
-        self._clock_covariance = update[2]
+        clocks, self._clock_covariance = update
+        p.extra.update(zip(CLOCK_FIELDS, clocks, strict=True))
         self._record_diagnostics()
         return self.estimate()
 
     def _tempering_step(self, log_weight, loglik, remaining: float) -> float:
         """Largest power ``β ≤ remaining`` of the likelihood that keeps the ESS target."""
         target = self.tempering_ess * log_weight.size
-
-        def ess(beta: float) -> float:
-            lw = log_weight + beta * loglik
-            w = np.exp(lw - lw.max())
-            return w.sum() ** 2 / (w @ w)
-
-        if ess(remaining) >= target:
+        if _tempered_ess(log_weight, loglik, remaining) >= target:
             return remaining
         lo, hi = 0.0, remaining
         for _ in range(30):
             mid = 0.5 * (lo + hi)
-            lo, hi = (mid, hi) if ess(mid) >= target else (lo, mid)
+            lo, hi = (mid, hi) if _tempered_ess(log_weight, loglik, mid) >= target else (lo, mid)
         return max(lo, 1e-3 * remaining)
 
     def _regularise(self) -> None:
@@ -542,7 +725,7 @@ class ClockAwareFilter(ParticleFilter):
 
     def _record_diagnostics(self) -> None:
         p = self.particles
-        w = p.normalised_weights()
+        w = self._weights_now
         self._ambiguity_rows.append((self.time, *ambiguity(p.x, p.y, w)))
         offset = self._clock_offsets(w)
         mean_offset = w @ offset
@@ -561,10 +744,11 @@ class ClockAwareFilter(ParticleFilter):
 
     def _resample_now(self) -> None:
         p = self.particles
-        ancestors = self._resample(self.rng, p.normalised_weights(), p.n)
+        ancestors = self._resample(self.rng, self._weights_now, p.n)
         self._ancestors = ancestors
         self.particles = p.take(ancestors)
         self.particles.log_weight = np.full(p.n, -np.log(p.n))
+        self._weights_now = np.full(p.n, 1.0 / p.n)
         self._parent = ancestors if self._parent is None else self._parent[ancestors]
 
     def resample_if_due(self) -> bool:
@@ -572,7 +756,7 @@ class ClockAwareFilter(ParticleFilter):
         self._push_pending()  # the smoother records the corrected, not yet resampled, step
         p = self.particles
         if self.resample_when == "ess":
-            w = p.normalised_weights()
+            w = self._weights_now
             if 1.0 / (w @ w) >= self.ess_threshold * p.n:
                 return False
         self._resample_now()
@@ -582,7 +766,14 @@ class ClockAwareFilter(ParticleFilter):
 
     def run(self, observations, start=None, end=None, snapshot_times=()) -> ClockFilterResult:
         """:meth:`ParticleFilter.run` plus smoothed track, ambiguity and clock tables."""
-        base = super().run(observations, start, end, snapshot_times)
+        # the run's corrections get slices of this table; their rows are read from arrays
+        # converted once (see _rows), not column by column from each slice
+        self._table = observations.reset_index(drop=True)
+        self._table_rows = None
+        try:
+            base = super().run(self._table, start, end, snapshot_times)
+        finally:
+            self._table = self._table_rows = None
         smoothed = None
         if self._smoother is not None:
             self._push_pending()
@@ -676,7 +867,12 @@ def track_arrival_time(
         Default: :class:`ArrivalTimeMeasurement` with its default likelihood.
     clock : EmissionClockModel, optional
         Default: ``EmissionClockModel(period, period_step_sd=3e-4, phase_step_sd=1e-4,
-        initial_period_sd=1e-3·period)`` (period random walk of ~40 ppm per ping).
+        initial_period_sd=1e-3·period)``: a period random walk of 0.3 ms per ping (~40 ppm
+        of an 8 s period), which over 100-400 pings spreads the period by 375-750 ppm,
+        the size of a real tag's block-to-block changes (DESIGN.md), and stays bounded
+        when the tag's clock wanders otherwise (robustness table of
+        reports/clock_aware.md). :meth:`EmissionClockModel.temperature_drift` is the
+        alternative for tags known to drift smoothly.
     n_particles : int
     smoothing_lag : int, optional
         Steps (s) of the fixed-lag smoother; None: no smoothing.

@@ -249,7 +249,7 @@ def silence_loglik_recent_pings(
     period: np.ndarray,
     range_m: np.ndarray,
     n_back: int,
-    heard_times: np.ndarray,
+    heard_times,
     window_start: float,
     window_end: float,
     detection: LogisticDetection,
@@ -259,17 +259,20 @@ def silence_loglik_recent_pings(
     """:func:`silence_loglik` summed over each particle's last ``n_back`` pings (compiled).
 
     Particle ``i``'s pings are ``emission_time[i] + k·period[i]``; the last ``n_back``
-    whose arrival (``+ range_m[i] / sound_speed``) is at or before ``window_end`` are each
-    scored as :func:`silence_loglik` scores one expected arrival.
+    whose arrival (``+ range_m[i] / sound_speed``) at a receiver is at or before
+    ``window_end`` are each scored as :func:`silence_loglik` scores one expected arrival,
+    and the scores of all receivers are summed.
 
     Parameters
     ----------
-    emission_time, period, range_m : numpy.ndarray, shape (N,)
-        Each particle's reference emission (s), period (s) and range to the receiver (m).
+    emission_time, period : numpy.ndarray, shape (N,)
+        Each particle's reference emission (s) and period (s).
+    range_m : numpy.ndarray, shape (N,) or (K, N)
+        Each particle's range to each of K receivers (m).
     n_back : int
         Pings per particle to look at, >= 1.
-    heard_times : numpy.ndarray, shape (M,)
-        Sorted arrival times of the receiver's detections (s).
+    heard_times : numpy.ndarray, shape (M,), or sequence of K of them
+        Sorted arrival times of each receiver's detections (s).
     window_start, window_end : float
         The window (s), as in :func:`silence_loglik`.
     detection : LogisticDetection
@@ -281,13 +284,23 @@ def silence_loglik_recent_pings(
     numpy.ndarray, shape (N,)
     """
     detection.require_unit_maximum("silence_loglik_recent_pings")
+    range_m = np.atleast_2d(np.asarray(range_m, dtype=float))
+    if isinstance(heard_times, np.ndarray):
+        heard_times = [heard_times]
+    if len(heard_times) != range_m.shape[0]:
+        raise ValueError(
+            f"silence_loglik_recent_pings: {range_m.shape[0]} receiver(s) of ranges but "
+            f"{len(heard_times)} of detection times"
+        )
+    bounds = np.concatenate([[0], np.cumsum([np.size(h) for h in heard_times])])
     out = np.zeros(np.shape(emission_time))
     _recent_pings_kernel(
         np.ascontiguousarray(emission_time, dtype=float),
         np.ascontiguousarray(period, dtype=float),
-        np.ascontiguousarray(range_m, dtype=float),
+        range_m,
         int(n_back),
-        np.ascontiguousarray(heard_times, dtype=float),
+        np.concatenate([np.asarray(h, dtype=float) for h in heard_times]),
+        bounds.astype(np.int64),
         float(window_start),
         float(window_end),
         float(detection.range_50),
@@ -301,24 +314,29 @@ def silence_loglik_recent_pings(
 
 @njit(cache=True)
 def _recent_pings_kernel(
-    emission_time, period, range_m, n_back, heard_times, window_start, window_end,
+    emission_time, period, range_m, n_back, heard_times, bounds, window_start, window_end,
     range_50, width, tolerance, sound_speed, out,
 ):  # fmt: skip
-    m = heard_times.size
-    for i in range(emission_time.size):
-        travel = range_m[i] / sound_speed
-        last = math.floor((window_end - travel - emission_time[i]) / period[i])
-        for back in range(n_back):
-            expected = emission_time[i] + (last - back) * period[i] + travel
-            if not (window_start < expected <= window_end):
-                continue
-            heard = False
-            if m > 0:
-                j = min(np.searchsorted(heard_times, expected - tolerance), m - 1)
-                heard = abs(heard_times[j] - expected) <= tolerance
-            if not heard:  # log(1 - p) = log expit(x), stable both ways
-                x = (range_m[i] - range_50) / width
-                out[i] += -math.log1p(math.exp(-x)) if x > 0 else x - math.log1p(math.exp(x))
+    for k in range(range_m.shape[0]):
+        heard_k = heard_times[bounds[k] : bounds[k + 1]]
+        # only detections within tolerance of the window can match a ping due in it
+        lo = np.searchsorted(heard_k, window_start - tolerance)
+        heard_k = heard_k[lo : np.searchsorted(heard_k, window_end + tolerance, side="right")]
+        m = heard_k.size
+        for i in range(emission_time.size):
+            travel = range_m[k, i] / sound_speed
+            last = math.floor((window_end - travel - emission_time[i]) / period[i])
+            for back in range(n_back):
+                expected = emission_time[i] + (last - back) * period[i] + travel
+                if not (window_start < expected <= window_end):
+                    continue
+                heard = False
+                if m > 0:
+                    j = min(np.searchsorted(heard_k, expected - tolerance), m - 1)
+                    heard = abs(heard_k[j] - expected) <= tolerance
+                if not heard:  # log(1 - p) = log expit(x), stable both ways
+                    x = (range_m[k, i] - range_50) / width
+                    out[i] += -math.log1p(math.exp(-x)) if x > 0 else x - math.log1p(math.exp(x))
 
 
 def emission_schedule(clock: pd.DataFrame, end: float) -> np.ndarray:

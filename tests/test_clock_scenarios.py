@@ -123,3 +123,24 @@ def test_circling_pursuit_is_realistic_and_turns_its_geometry(seed):
     assert not paper.receivers_truth.equals(sc.receivers_truth)
     with pytest.raises(ValueError, match="steering"):
         realistic_shark_pursuit(seed, steering="zigzag")
+
+
+def test_formation_keeps_a_right_angle_and_turns_around_the_shark():
+    sc = realistic_shark_pursuit(0, steering="formation").scenario
+    truth = sc.truth.set_index("time")
+    bearings = {}
+    for name, g in sc.receivers_truth.groupby("receiver"):
+        g = g.set_index("time")
+        speed = np.hypot(np.diff(g["x"]), np.diff(g["y"])) / np.diff(g.index)
+        assert np.percentile(speed, 99) < 2.3
+        dx = g["x"] - truth.loc[g.index, "x"]
+        dy = g["y"] - truth.loc[g.index, "y"]
+        bearings[name] = np.unwrap(np.arctan2(dy, dx).to_numpy())
+        assert 40 < np.median(np.hypot(dx, dy)) < 90
+        laps = (bearings[name][-1] - bearings[name][0]) / (2 * np.pi)
+        assert laps == pytest.approx((g.index[-1] - g.index[0]) / 600.0, rel=0.1)
+    angle = np.degrees(np.angle(np.exp(1j * (bearings["auv-2"] - bearings["auv-1"]))))
+    assert np.median(angle) == pytest.approx(90.0, abs=10.0)
+    assert np.percentile(np.abs(angle - 90.0), 90) < 30.0
+    default = realistic_shark_pursuit(0).scenario
+    pd.testing.assert_frame_equal(default.truth, sc.truth)

@@ -8,29 +8,35 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from hmmtrack.arrival import ArrivalLikelihood, ArrivalTimeMeasurement
+from hmmtrack.arrival import ArrivalLikelihood, ArrivalTimeMeasurement, emission_range
 from hmmtrack.clock import EmissionClockModel
 from hmmtrack.clock_scenarios import moored_array
 from hmmtrack.clock_tracking import (
     ClockAwareFilter,
+    SilenceModel,
+    _tempered,
+    _tempered_ess,
     ambiguity,
     arrival_observations,
     track_arrival_time,
 )
+from hmmtrack.detection_probability import LogisticDetection
 from hmmtrack.metrics import position_error
 from hmmtrack.motion import BaselineMotion, VelocityMotion
 from hmmtrack.receivers import ReceiverTracks
+from hmmtrack.resampling import effective_sample_size, log_normalise
 
 C = 1460.0
 
 
-def fixed_tag_observations(period=8.003, first=100.37, n_pings=60, jump=None):
+def fixed_tag_observations(period=8.003, first=100.37, n_pings=60, jump=None, rate=0.0):
     """A tag fixed at (100, 200) heard by three moored receivers (some pings missed).
 
     Two fixed receivers cannot place a fixed tag of unknown clock: only the difference of
     its ranges is known (a hyperbola); a third makes the position and clock observable.
     """
-    pings = first + period * np.arange(n_pings)
+    k = np.arange(n_pings)
+    pings = first + period * k + 0.5 * rate * k * (k - 1)  # period drifting by rate per ping
     if jump is not None:
         pings[jump:] += 0.5  # the tag's clock jumps by half a second
     receivers = {"r0": (0.0, 0.0), "r1": (300.0, 0.0), "r2": (0.0, 400.0)}
@@ -65,6 +71,131 @@ def test_clock_and_position_are_recovered_without_initial_range():
     k = np.searchsorted(pings, clock.time + 0.5) - 1
     assert clock.emission_time == pytest.approx(pings[k], abs=1e-3)
     assert result.events.empty
+
+
+def test_a_drifting_period_is_followed_by_the_integrated_random_walk():
+    """Period growing by 20 µs per ping (2.5 ppm per ping): the clock with a rate state
+    tracks it and finds the tag; the period estimate is the current one, not the mean."""
+    rate = 2e-5
+    obs, pings = fixed_tag_observations(n_pings=90, rate=rate)
+    pf = ClockAwareFilter(
+        BaselineMotion(0.01),
+        ArrivalTimeMeasurement(ArrivalLikelihood(sigma=1e-3), sound_speed=C),
+        EmissionClockModel.temperature_drift(8.0),
+        500,
+        (0.0, 300.0, 0.0, 400.0),
+        rng=1,
+    )
+    result = pf.run(obs, 100.0, 830.0)
+    last = result.estimates.iloc[-1]
+    assert np.hypot(last.x - 100.0, last.y - 200.0) < 3.0
+    clock = result.clock.iloc[-1]
+    k = np.searchsorted(pings, clock.time + 0.5) - 1
+    assert clock.period == pytest.approx(8.003 + rate * k, abs=1e-4)  # next ping − this one
+    assert abs(clock.period - np.diff(pings).mean()) > 5e-4  # not the mean period
+    assert clock.emission_time == pytest.approx(pings[k], abs=1e-3)
+    np.testing.assert_allclose(pf.particles.period_rate, rate, atol=5e-6)
+
+
+def reference_clock_update(p, obs, time, clock, likelihood, covariance, detection, c=C):
+    """NumPy oracle of the compiled correction: per row, match every particle's clock
+    (emission_range + wrap_to_ping, with the rate term), move the shared covariance to the
+    median ping, score with the mixture at the innovation sd plus log p(range), and update
+    each clock by the gain scaled by the probability that the arrival is direct."""
+    e, period, rate = p.emission_time.copy(), p.period.copy(), p.period_rate.copy()
+    vx, vy = p.speed * p.cos_heading, p.speed * p.sin_heading
+    weights = np.exp(p.log_weight - p.log_weight.max())
+    weights /= weights.sum()
+    loglik = np.zeros(p.n)
+    for arrival, rx, ry in obs[["time", "receiver_x", "receiver_y"]].to_numpy():
+        r = emission_range(p.x, p.y, vx, vy, time - arrival, rx, ry, 0.0, c)
+        offset = arrival - r / c - e
+        ping = np.rint(offset / period)
+        ping = np.rint((offset - 0.5 * ping * (ping - 1) * rate) / period)
+        eps = offset - ping * period - 0.5 * ping * (ping - 1) * rate
+        predicted = clock.predict_covariance(covariance, max(int(np.median(ping)), 0))
+        innovation = predicted[0, 0] + likelihood.sigma**2
+        wide = ArrivalLikelihood(
+            np.sqrt(innovation),
+            likelihood.late_fraction,
+            likelihood.late_mean,
+            likelihood.uniform_fraction,
+        )
+        total = wide.logpdf(eps, period)
+        direct = np.exp(wide.core_logpdf(eps) - total)
+        loglik += total + detection.log_probability(r)
+        gain = predicted[:, 0] / innovation
+        e = e + ping * period + 0.5 * ping * (ping - 1) * rate + gain[0] * direct * eps
+        period = period + ping * rate + gain[1] * direct * eps
+        rate = rate + gain[2] * direct * eps
+        covariance = predicted - (weights @ direct) * innovation * np.outer(gain, gain)
+    return loglik, (e, period, rate), covariance
+
+
+def test_compiled_correction_equals_the_numpy_reference():
+    rng = np.random.default_rng(8)
+    pf = ClockAwareFilter(
+        VelocityMotion(0.05, 0.02),
+        ArrivalTimeMeasurement(ArrivalLikelihood(sigma=2e-3), sound_speed=C),
+        EmissionClockModel(8.0, 2e-4, 5e-5, 8e-3, rate_step_sd=3e-6, initial_rate_sd=3e-5),
+        400,
+        (0.0, 300.0, 0.0, 400.0),
+        silence=SilenceModel(
+            ReceiverTracks.from_frame(
+                pd.DataFrame(
+                    {"receiver": ["r0", "r1"], "time": np.nan, "x": [0.0, 300.0], "y": [0.0, 0.0]}
+                )
+            ),
+            LogisticDetection(range_50=250.0, width=50.0),
+            {"r0": np.array([]), "r1": np.array([])},
+        ),
+        rng=1,
+    )
+    pf.initialise(1000.0)
+    p = pf.particles
+    n = p.n
+    p.speed = rng.uniform(0, 1.5, n)
+    p.log_weight = rng.normal(0, 1, n)
+    p.extra.update(
+        emission_time=990.0
+        + np.where(rng.random(n) < 0.8, rng.normal(0, 0.02, n), rng.uniform(-9, 9, n)),
+        period=8.0 + rng.normal(0, 2e-3, n),
+        period_rate=rng.normal(0, 3e-5, n),
+    )
+    pf.time = 1021.0
+    pf._clock_covariance = np.array([[4e-4, 1e-6, 0.0], [1e-6, 4e-6, 1e-8], [0.0, 1e-8, 1e-9]])
+    # two receivers hear the ping two periods on (some particles match another ping)
+    obs = pd.DataFrame(
+        {
+            "time": [1006.1, 1006.2, 1014.15],
+            "receiver": ["r0", "r1", "r0"],
+            "receiver_x": [0.0, 300.0, 0.0],
+            "receiver_y": [0.0, 0.0, 0.0],
+        }
+    )
+    loglik, clocks, covariance, _ = pf._clock_update(obs)
+    want = reference_clock_update(
+        p, obs, pf.time, pf.clock, pf.measurement.likelihood, pf._clock_covariance,
+        pf.silence.detection,
+    )  # fmt: skip
+    np.testing.assert_allclose(loglik, want[0], rtol=1e-9, atol=1e-9)
+    for got, expected in zip(clocks, want[1], strict=True):
+        np.testing.assert_allclose(got, expected, rtol=0, atol=1e-9)  # 1 ns
+    np.testing.assert_allclose(covariance, want[2], rtol=1e-9)
+    assert np.ptp(want[1][0]) > 1.0  # far-off clocks too (the log-domain branch)
+
+
+def test_tempered_weights_equal_the_resampling_helpers():
+    rng = np.random.default_rng(9)
+    log_weight, loglik = rng.normal(0, 3, 500), rng.normal(-50, 40, 500)
+    for beta in (0.0, 0.01, 0.3, 1.0):
+        want = log_normalise(log_weight + beta * loglik)
+        got, weights = _tempered(log_weight, loglik, beta)
+        np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-9)
+        np.testing.assert_allclose(weights, np.exp(want), rtol=1e-12, atol=1e-300)
+        assert _tempered_ess(log_weight, loglik, beta) == pytest.approx(
+            effective_sample_size(want), rel=1e-12
+        )
 
 
 def test_same_seed_same_answer():
@@ -145,6 +276,41 @@ def test_ambiguity_finds_two_clusters(minor):
     assert weight == pytest.approx(minor, abs=0.03)
     one = ambiguity(rng.normal(0, 5, n), rng.normal(0, 5, n), w)
     assert not one[2]
+
+
+def exact_ambiguity(x, y, w, min_separation=20.0):
+    """Reference: the same 2-means on the sorted projection, particle by particle."""
+    mx, my = w @ x, w @ y
+    values, vectors = np.linalg.eigh(np.cov(np.vstack([x, y]), aweights=w, bias=True))
+    if values[1] < 0.05 * 0.95 * min_separation**2:
+        return 0.0, 0.0, False
+    u = np.sort((x - mx) * vectors[0, 1] + (y - my) * vectors[1, 1])
+    w = w[np.argsort((x - mx) * vectors[0, 1] + (y - my) * vectors[1, 1])]
+    lo, hi = np.quantile(u, [0.25, 0.75])
+    for _ in range(100):
+        left = u <= 0.5 * (lo + hi)
+        lo, hi = np.average(u[left], weights=w[left]), np.average(u[~left], weights=w[~left])
+    sd = [np.sqrt(np.average((u[s] - c) ** 2, weights=w[s])) for s, c in ((left, lo), (~left, hi))]
+    minor = min(w[left].sum(), w[~left].sum())
+    return hi - lo, minor, bool(minor >= 0.05 and hi - lo > max(min_separation, 3 * sum(sd)))
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_binned_ambiguity_agrees_with_the_exact_split(seed):
+    rng = np.random.default_rng(seed)
+    n = 3000
+    second = rng.random(n) < rng.uniform(0.02, 0.5)
+    offset = rng.uniform(10.0, 200.0)
+    angle = rng.uniform(0, np.pi)
+    spread = rng.uniform(2.0, 20.0)
+    x = np.where(second, offset * np.cos(angle), 0.0) + rng.normal(0, spread, n)
+    y = np.where(second, offset * np.sin(angle), 0.0) + rng.normal(0, spread, n)
+    w = rng.uniform(0.5, 1.5, n)
+    w /= w.sum()
+    got, want = ambiguity(x, y, w), exact_ambiguity(x, y, w)
+    assert got[2] == want[2]
+    assert got[0] == pytest.approx(want[0], rel=0.02, abs=0.5)
+    assert got[1] == pytest.approx(want[1], abs=0.01)
 
 
 def test_arrival_observations_name_unknown_receivers():

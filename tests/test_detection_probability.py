@@ -134,6 +134,26 @@ def test_compiled_recent_pings_equal_silence_loglik_ping_by_ping():
     assert (got < 0).sum() > n // 2 and (got == 0).sum() >= n // 20  # both cases exercised
 
 
+def test_recent_pings_of_several_receivers_are_the_sum_of_each():
+    rng = np.random.default_rng(13)
+    n, c = 300, 1500.0
+    curve = LogisticDetection(range_50=300.0, width=60.0)
+    emission = rng.uniform(0.0, 8.0, n)
+    period = 8.0 + rng.normal(0.0, 2e-3, n)
+    ranges = rng.uniform(10.0, 900.0, (3, n))
+    heard = [np.sort(rng.uniform(0.0, 60.0, k)) for k in (0, 5, 40)]
+    args = (30.0, 60.0, curve, 0.05, c)
+    got = silence_loglik_recent_pings(emission, period, ranges, 5, heard, *args)
+    want = sum(
+        silence_loglik_recent_pings(emission, period, r, 5, h, *args)
+        for r, h in zip(ranges, heard, strict=True)
+    )
+    np.testing.assert_allclose(got, want, rtol=1e-12)
+    assert np.all(got < 0)
+    with pytest.raises(ValueError, match="3 receiver"):
+        silence_loglik_recent_pings(emission, period, ranges, 5, heard[:2], *args)
+
+
 def test_curve_fitted_from_a_tracking_run_is_close_to_the_truth():
     """Two passes: track without detection probability, then fit p(range) from the track,
     its clock and the detections. On a moored array the fitted 50 % range is within 10 %
