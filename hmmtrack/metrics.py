@@ -8,7 +8,15 @@
 * the error after convergence in two forms that must not be confused: the paper's
   "RMSE", which its formula defines as the *mean* of the errors after convergence
   (:func:`mean_error_after_convergence`), and the true root-mean-square error
-  (:func:`rmse_after_convergence`). Always mean ≤ RMS.
+  (:func:`rmse_after_convergence`). Always mean ≤ RMS;
+* the filter's honesty: the normalised estimation error squared (NEES) of each estimate
+  against its own x-y covariance (:func:`normalised_estimation_error`, χ² with 2 degrees of
+  freedom for a consistent filter) and the share of estimates whose 95 % ellipse covers the
+  truth (:func:`ellipse_coverage`);
+* the information limit of a fixed tag: the Cramér–Rao bound on its position from the
+  (range, range-rate) observations with covariance Σ_z (:func:`static_tag_crb`), and the
+  best fixed-tag fit to those observations (:func:`static_tag_fit`), which shows how far the
+  data themselves (hydrophone GPS errors included) place the tag from the truth.
 
 It is not for running filters or Monte Carlo trials (``hmmtrack.experiments`` does that)
 nor for plotting.
@@ -20,6 +28,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 import pandas as pd
+from scipy.optimize import least_squares
 
 #: the paper's convergence threshold on √λ₁ (m)
 CONVERGENCE_THRESHOLD = 10.0
@@ -254,3 +263,197 @@ def tracking_metrics(
         rmse_after_convergence=rmse_after_convergence(errors, convergence),
         n_estimates_after_convergence=errors.size - convergence.index,
     )
+
+
+def ellipse_scale(level: float = 0.95) -> float:
+    """Squared Mahalanobis radius of the ``level`` ellipse of a 2-D Gaussian.
+
+    Parameters
+    ----------
+    level : float
+        Probability in (0, 1) the ellipse holds.
+
+    Returns
+    -------
+    float
+        ``−2 ln(1 − level)``, the ``level`` quantile of χ² with 2 degrees of freedom
+        (5.991 for 95 %).
+    """
+    if not 0.0 < level < 1.0:
+        raise ValueError(f"level must lie in (0, 1), got {level!r}")
+    return float(-2.0 * np.log1p(-level))
+
+
+def normalised_estimation_error(estimates: pd.DataFrame, truth: pd.DataFrame) -> np.ndarray:
+    """NEES of each estimate: its error measured in its own x-y covariance.
+
+    Parameters
+    ----------
+    estimates : pandas.DataFrame
+        Estimates table: ``time`` (s), ``x``, ``y`` (m), ``var_x``, ``var_y``, ``cov_xy`` (m²).
+    truth : pandas.DataFrame
+        Truth table, see :func:`truth_at`.
+
+    Returns
+    -------
+    numpy.ndarray, shape (n_estimates,)
+        ``eᵀ P⁻¹ e`` with ``e`` the position error (m) and ``P`` the estimate's covariance
+        (m²); dimensionless. A consistent filter gives χ² with 2 degrees of freedom (mean 2);
+        much larger means the filter is overconfident.
+
+    Raises
+    ------
+    ValueError
+        When a covariance is not positive definite (rows named).
+    """
+    times, x_hat, y_hat, var_x, var_y, cov = _columns(
+        estimates, "estimates", ("time", "x", "y", "var_x", "var_y", "cov_xy")
+    )
+    det = var_x * var_y - cov**2
+    bad = np.flatnonzero(~((var_x > 0) & (det > 0)))
+    if bad.size:
+        raise ValueError(
+            f"estimates table has a covariance that is not positive definite in row(s) "
+            f"{bad[:10].tolist()} (var_x, var_y, cov_xy); NEES needs P > 0"
+        )
+    x, y = truth_at(truth, times)
+    ex, ey = x_hat - x, y_hat - y
+    return (var_y * ex**2 - 2.0 * cov * ex * ey + var_x * ey**2) / det
+
+
+def ellipse_coverage(nees, level: float = 0.95) -> float:
+    """Share of estimates whose ``level`` ellipse holds the truth.
+
+    Parameters
+    ----------
+    nees : array_like, shape (n,)
+        NEES values (:func:`normalised_estimation_error`), n ≥ 1.
+    level : float
+        Probability of the ellipse (0.95: the 95 % ellipse).
+
+    Returns
+    -------
+    float
+        Fraction of ``nees`` ≤ :func:`ellipse_scale` (``level``); equal to ``level`` on
+        average for a consistent filter, below it for an overconfident one.
+    """
+    nees = np.asarray(nees, dtype=float)
+    if nees.ndim != 1 or nees.size == 0 or np.isnan(nees).any():
+        raise ValueError(f"nees must be a non-empty 1-D array without NaN, got shape {nees.shape}")
+    return float(np.mean(nees <= ellipse_scale(level)))
+
+
+def static_tag_fisher_information(
+    observations: pd.DataFrame, x: float, y: float, covariance
+) -> np.ndarray:
+    """Fisher information on a fixed tag's position from (range, range-rate) observations.
+
+    Each observation is ``z = (r, ṙ)`` with ``r = |p_h − p|`` and
+    ``ṙ = u·v_h`` (``u = (p_h − p)/r``, ``v_h`` the hydrophone's velocity; the tag does not
+    move), observed with Gaussian noise of covariance Σ_z, independent between
+    observations. With the Jacobian ``H = ∂z/∂p = −[uᵀ; (v_h − ṙ u)ᵀ / r]`` the information
+    is ``Σ_k H_kᵀ Σ_z⁻¹ H_k``.
+
+    Parameters
+    ----------
+    observations : pandas.DataFrame
+        ``receiver_x``, ``receiver_y`` (m), ``receiver_vx``, ``receiver_vy`` (m/s) of each
+        scored observation (rows without a range-rate, the anchors, should be left out).
+    x, y : float
+        The tag's position (m).
+    covariance : array_like, shape (2, 2)
+        Σ_z of (range m, range-rate m/s).
+
+    Returns
+    -------
+    numpy.ndarray, shape (2, 2)
+        Information matrix (m⁻²); its inverse is the Cramér–Rao bound
+        (:func:`static_tag_crb`).
+    """
+    hx, hy, vx, vy = _columns(
+        observations, "observations", ("receiver_x", "receiver_y", "receiver_vx", "receiver_vy")
+    )
+    precision = np.linalg.inv(np.asarray(covariance, dtype=float))
+    dx, dy = hx - x, hy - y
+    r = np.hypot(dx, dy)
+    if np.any(r <= 0):
+        raise ValueError("the tag position coincides with a receiver; the bound is undefined")
+    ux, uy = dx / r, dy / r
+    rate = ux * vx + uy * vy
+    jacobian = np.empty((r.size, 2, 2))  # (k, measurement, coordinate)
+    jacobian[:, 0, 0], jacobian[:, 0, 1] = -ux, -uy
+    jacobian[:, 1, 0] = -(vx - rate * ux) / r
+    jacobian[:, 1, 1] = -(vy - rate * uy) / r
+    return np.einsum("kmi,mn,knj->ij", jacobian, precision, jacobian)
+
+
+def static_tag_crb(observations: pd.DataFrame, x: float, y: float, covariance) -> np.ndarray:
+    """Cramér–Rao bound on a fixed tag's position: the inverse Fisher information.
+
+    Parameters
+    ----------
+    observations, x, y, covariance
+        See :func:`static_tag_fisher_information`.
+
+    Returns
+    -------
+    numpy.ndarray, shape (2, 2)
+        Lower bound (m²) on the covariance of any unbiased estimate of ``(x, y)`` from these
+        observations; ``sqrt(trace)`` bounds the RMS position error. ``inf`` entries when the
+        geometry leaves a direction unobserved (singular information).
+    """
+    information = static_tag_fisher_information(observations, x, y, covariance)
+    eigenvalues = np.linalg.eigvalsh(information)
+    if eigenvalues[0] <= 1e-12 * max(eigenvalues[-1], 1e-300):
+        return np.full((2, 2), np.inf)
+    return np.linalg.inv(information)
+
+
+def _static_measurements(receivers, x: float, y: float) -> np.ndarray:
+    """(range, range-rate) of a fixed tag at (x, y) from receivers ``(x, y, vx, vy)``."""
+    hx, hy, vx, vy = receivers
+    dx, dy = hx - x, hy - y
+    r = np.hypot(dx, dy)
+    rate = np.divide(dx * vx + dy * vy, r, out=np.zeros_like(r), where=r > 0)
+    return np.column_stack([r, rate])
+
+
+def static_tag_fit(observations: pd.DataFrame, start, covariance) -> tuple[np.ndarray, float]:
+    """Weighted least-squares position of a fixed tag from (range, range-rate) observations.
+
+    Minimises ``Σ_k (z_k − h_k(p))ᵀ Σ_z⁻¹ (z_k − h_k(p))`` over the position ``p`` (the
+    measurement model of :func:`static_tag_fisher_information`) with Levenberg–Marquardt
+    from ``start``; with two range circles the cost can have a second local minimum near
+    their other intersection, so the start chooses which minimum is found.
+
+    Parameters
+    ----------
+    observations : pandas.DataFrame
+        ``range`` (m), ``range_rate`` (m/s), ``receiver_x``, ``receiver_y`` (m),
+        ``receiver_vx``, ``receiver_vy`` (m/s) of the scored observations.
+    start : array_like, shape (2,)
+        Starting position (m).
+    covariance : array_like, shape (2, 2)
+        Σ_z of (range m, range-rate m/s).
+
+    Returns
+    -------
+    position : numpy.ndarray, shape (2,)
+        The fitted ``(x, y)`` (m).
+    chi2 : float
+        The minimised cost (dimensionless).
+    """
+    (measured_range, measured_rate) = _columns(
+        observations, "observations", ("range", "range_rate")
+    )
+    measured = np.column_stack([measured_range, measured_rate])
+    receivers = _columns(
+        observations, "observations", ("receiver_x", "receiver_y", "receiver_vx", "receiver_vy")
+    )
+    whitener = np.linalg.cholesky(np.linalg.inv(np.asarray(covariance, dtype=float)))
+
+    def residuals(p):
+        return ((_static_measurements(receivers, *p) - measured) @ whitener).ravel()
+
+    fit = least_squares(residuals, np.asarray(start, dtype=float), method="lm")
+    return fit.x, float(2.0 * fit.cost)
