@@ -54,10 +54,13 @@ from hmmtrack.arrival import (
     mixture_constants,
     mixture_log_density,
     vertical_parts,
-    wrap_to_ping,
 )
 from hmmtrack.clock import EmissionClockModel
-from hmmtrack.detection_probability import LogisticDetection, silence_loglik_recent_pings
+from hmmtrack.detection_probability import (
+    HeardTimes,
+    LogisticDetection,
+    silence_loglik_recent_pings,
+)
 from hmmtrack.filter import FilterResult, ParticleFilter
 from hmmtrack.receivers import ReceiverTracks
 from hmmtrack.smoothing import FixedLagSmoother, smoothed_table
@@ -178,7 +181,7 @@ def _correction_kernel(
                 tag_depth[i] + row_offset[j], lag, arrival[j], receiver_x[j], receiver_y[j],
                 sound_speed,
             )  # fmt: skip
-        ahead = max(int(np.median(ping)), 0)
+        ahead = max(int(_median_ping(ping)), 0)
         predicted = predict_clock_covariance(covariance, ahead, noise)
         innovation_var = predicted[0, 0] + measurement_sd * measurement_sd
         sigma = math.sqrt(innovation_var)
@@ -190,6 +193,70 @@ def _correction_kernel(
         lost = lost or closest > lock_sigmas * sigma
         covariance = predicted - accepted * innovation_var * np.outer(gain, gain)
     return covariance, lost
+
+
+@njit(cache=True)
+def _median_ping(ping):
+    """``np.median`` of whole numbers (N,) held as floats, by counting them (linear in N)
+    when they span at most :data:`MEDIAN_COUNT_SPAN` values (the matched pings of a cloud
+    mostly agree); by ``np.median`` otherwise."""
+    lo = hi = ping[0]
+    for value in ping:
+        if math.isnan(value):
+            return np.nan
+        lo = min(lo, value)
+        hi = max(hi, value)
+    if not hi - lo < MEDIAN_COUNT_SPAN:
+        return np.median(ping)
+    counts = np.zeros(int(hi - lo) + 1, dtype=np.int64)
+    for value in ping:
+        counts[int(value - lo)] += 1
+    n = ping.size
+    below = (n - 1) // 2  # the middle order statistics (0-based): below and n // 2
+    first = -1
+    seen = 0
+    for k in range(counts.size):
+        seen += counts[k]
+        if first < 0 and seen > below:
+            first = k
+        if seen > n // 2:
+            return 0.5 * ((lo + first) + (lo + k))
+    return np.nan  # not reached
+
+
+#: span of matched pings up to which :func:`_median_ping` counts instead of sorting
+MEDIAN_COUNT_SPAN = 4096
+
+
+@njit(cache=True)
+def _temper(log_weight, loglik, remaining, target):
+    """The next tempered step: the largest power ``β ≤ remaining`` of the likelihood whose
+    weights keep an effective sample size of at least ``target``, and those weights.
+
+    ``β = remaining`` when its weights keep the target (the usual case: one pass); else
+    30 steps of bisection on :func:`_tempered_ess`, at least ``1e-3·remaining``.
+
+    Returns
+    -------
+    beta : float
+    log_weight : numpy.ndarray, shape (N,)
+        ``log_weight + β·loglik`` normalised (:func:`_tempered`).
+    weights : numpy.ndarray, shape (N,)
+        Normalised.
+    """
+    out, weights, ess = _tempered(log_weight, loglik, remaining)
+    if ess >= target:
+        return remaining, out, weights
+    lo, hi = 0.0, remaining
+    for _ in range(30):
+        mid = 0.5 * (lo + hi)
+        if _tempered_ess(log_weight, loglik, mid) >= target:
+            lo = mid
+        else:
+            hi = mid
+    beta = max(lo, 1e-3 * remaining)
+    out, weights, _ = _tempered(log_weight, loglik, beta)
+    return beta, out, weights
 
 
 @njit(cache=True)
@@ -208,13 +275,58 @@ def _tempered_ess(log_weight, loglik, beta):
 
 @njit(cache=True)
 def _tempered(log_weight, loglik, beta):
-    """``log_weight + β·loglik`` normalised (log-sum-exp 0), and the weights (N,)."""
+    """``log_weight + β·loglik`` normalised (log-sum-exp 0), the weights (N,) and their
+    effective sample size (the same number as :func:`_tempered_ess`)."""
     out = log_weight + beta * loglik
-    weights = np.exp(out - out.max())
-    total = weights.sum()
+    top = out.max()
+    weights = np.exp(out - top)
+    total = squares = 0.0
+    for w in weights:
+        total += w
+        squares += w * w
     weights /= total
-    out -= out.max() + math.log(total)
-    return out, weights
+    out -= top + math.log(total)
+    return out, weights, total * total / squares
+
+
+@njit(cache=True)
+def _clock_summary(emission_time, period, weights, var_emission, var_period):
+    """The estimated clock: a row of :data:`CLOCK_COLUMNS` after ``time``.
+
+    Particles' reference emissions need not be the same ping, so two nearly equal clocks
+    can differ by whole periods: emission times are taken relative to the heaviest
+    particle's clock, wrapped to its nearest ping (:func:`hmmtrack.arrival.wrap_to_ping`).
+
+    Parameters
+    ----------
+    emission_time, period, weights : numpy.ndarray, shape (N,)
+        Particles' clock means (s) and normalised weights.
+    var_emission, var_period : float
+        Shared clock variances (s²) added to the spread of the means.
+
+    Returns
+    -------
+    emission_time, period, emission_time_sd, period_sd : float
+        Seconds.
+    """
+    best = np.argmax(weights)
+    reference, step = emission_time[best], period[best]
+    offset = emission_time - reference
+    offset -= np.rint(offset / step) * step
+    mean_offset = mean_period = 0.0
+    for i in range(weights.size):
+        mean_offset += weights[i] * offset[i]
+        mean_period += weights[i] * period[i]
+    spread_offset = spread_period = 0.0
+    for i in range(weights.size):
+        spread_offset += weights[i] * (offset[i] - mean_offset) ** 2
+        spread_period += weights[i] * (period[i] - mean_period) ** 2
+    return (
+        reference + mean_offset,
+        mean_period,
+        math.sqrt(spread_offset + var_emission),
+        math.sqrt(spread_period + var_period),
+    )
 
 
 def ambiguity(x, y, weights, min_separation: float = 20.0) -> tuple[float, float, bool]:
@@ -359,9 +471,18 @@ class SilenceModel:
     heard: dict[str, np.ndarray]
     tolerance: float = 1.0
     _grid: dict = field(default_factory=dict, init=False, repr=False, compare=False)
+    _heard_all: list = field(default_factory=list, init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         self.detection.require_unit_maximum("SilenceModel")
+
+    def heard_times(self, names) -> HeardTimes:
+        """Detection times of the receivers ``names`` in the compiled kernel's form."""
+        if not self._heard_all:  # once: every receiver's times, and their positions there
+            self._heard_all.append(HeardTimes.of(list(self.heard.values())))
+            self._heard_all.append({name: k for k, name in enumerate(self.heard)})
+        everyone, position = self._heard_all
+        return everyone.select(np.array([position[n] for n in names], dtype=np.int64))
 
     def listening(self, time: float, step: float = 1.0, chunk: int = 1024):
         """Receivers listening at ``time`` (within their GPS span) and their positions.
@@ -651,9 +772,11 @@ class ClockAwareFilter(ParticleFilter):
         return silence_loglik_recent_pings(
             p.emission_time,
             p.period,
-            np.hypot(p.x - at[:, :1], p.y - at[:, 1:]),
+            p.x,
+            p.y,
+            at,
             n_back,
-            [s.heard[name] for name in listening],
+            s.heard_times(listening),
             window_start,
             cut,
             s.detection,
@@ -677,8 +800,9 @@ class ClockAwareFilter(ParticleFilter):
         remaining = 1.0
         while True:
             p = self.particles
-            beta = self._tempering_step(p.log_weight, loglik, remaining)
-            p.log_weight, self._weights_now = _tempered(p.log_weight, loglik, beta)
+            beta, p.log_weight, self._weights_now = _temper(
+                p.log_weight, loglik, remaining, self.tempering_ess * p.n
+            )
             remaining -= beta
             if remaining <= 1e-12:
                 break
@@ -692,17 +816,6 @@ class ClockAwareFilter(ParticleFilter):
         self._record_diagnostics()
         return self.estimate()
 
-    def _tempering_step(self, log_weight, loglik, remaining: float) -> float:
-        """Largest power ``β ≤ remaining`` of the likelihood that keeps the ESS target."""
-        target = self.tempering_ess * log_weight.size
-        if _tempered_ess(log_weight, loglik, remaining) >= target:
-            return remaining
-        lo, hi = 0.0, remaining
-        for _ in range(30):
-            mid = 0.5 * (lo + hi)
-            lo, hi = (mid, hi) if _tempered_ess(log_weight, loglik, mid) >= target else (lo, mid)
-        return max(lo, 1e-3 * remaining)
-
     def _regularise(self) -> None:
         """Gaussian move of (x, y) with the particles' own covariance (after resampling)."""
         p = self.particles
@@ -711,32 +824,20 @@ class ClockAwareFilter(ParticleFilter):
         p.x = p.x + move[0]
         p.y = p.y + move[1]
 
-    def _clock_offsets(self, weights: np.ndarray) -> np.ndarray:
-        """Particles' emission times relative to the heaviest particle's clock (s), (N,).
-
-        Particles' reference emissions need not be the same ping, so two nearly equal
-        clocks can differ by whole periods; offsets are wrapped to the nearest ping of the
-        heaviest particle's clock.
-        """
-        p = self.particles
-        best = int(np.argmax(weights))
-        offset, _ = wrap_to_ping(p.emission_time, p.emission_time[best], p.period[best])
-        return offset
-
     def _record_diagnostics(self) -> None:
         p = self.particles
         w = self._weights_now
         self._ambiguity_rows.append((self.time, *ambiguity(p.x, p.y, w)))
-        offset = self._clock_offsets(w)
-        mean_offset = w @ offset
-        mean_period = w @ p.period
         self._clock_rows.append(
             (
                 self.time,
-                p.emission_time[np.argmax(w)] + mean_offset,
-                mean_period,
-                float(np.sqrt(w @ (offset - mean_offset) ** 2 + self._clock_covariance[0, 0])),
-                float(np.sqrt(w @ (p.period - mean_period) ** 2 + self._clock_covariance[1, 1])),
+                *_clock_summary(
+                    p.emission_time,
+                    p.period,
+                    w,
+                    self._clock_covariance[0, 0],
+                    self._clock_covariance[1, 1],
+                ),
             )
         )
 

@@ -244,10 +244,45 @@ def silence_loglik(
     return out
 
 
+@dataclass(frozen=True)
+class HeardTimes:
+    """Sorted detection times of K receivers in one array, the compiled silence score's form.
+
+    Build it once per run (:meth:`of`); :meth:`select` picks receivers without copying times.
+
+    Attributes
+    ----------
+    times : numpy.ndarray, shape (M,)
+        Every receiver's sorted arrival times (s), one receiver after the other.
+    first, stop : numpy.ndarray of int, shape (K,)
+        Receiver ``k``'s times are ``times[first[k]:stop[k]]``.
+    """
+
+    times: np.ndarray
+    first: np.ndarray
+    stop: np.ndarray
+
+    @classmethod
+    def of(cls, heard_times) -> HeardTimes:
+        """From one sorted array (K = 1) or a sequence of K sorted arrays (s)."""
+        if isinstance(heard_times, np.ndarray):
+            heard_times = [heard_times]
+        sizes = np.array([np.size(h) for h in heard_times], dtype=np.int64)
+        stop = np.cumsum(sizes)
+        times = [np.asarray(h, dtype=float).ravel() for h in heard_times]
+        return cls(np.concatenate([np.empty(0), *times]), stop - sizes, stop)
+
+    def select(self, receivers) -> HeardTimes:
+        """The receivers at positions ``receivers`` (int array), in that order."""
+        return HeardTimes(self.times, self.first[receivers], self.stop[receivers])
+
+
 def silence_loglik_recent_pings(
     emission_time: np.ndarray,
     period: np.ndarray,
-    range_m: np.ndarray,
+    x: np.ndarray,
+    y: np.ndarray,
+    receiver_xy: np.ndarray,
     n_back: int,
     heard_times,
     window_start: float,
@@ -259,19 +294,21 @@ def silence_loglik_recent_pings(
     """:func:`silence_loglik` summed over each particle's last ``n_back`` pings (compiled).
 
     Particle ``i``'s pings are ``emission_time[i] + k·period[i]``; the last ``n_back``
-    whose arrival (``+ range_m[i] / sound_speed``) at a receiver is at or before
-    ``window_end`` are each scored as :func:`silence_loglik` scores one expected arrival,
-    and the scores of all receivers are summed.
+    whose arrival (``+ range / sound_speed``, range from ``(x[i], y[i])`` to the receiver)
+    at a receiver is at or before ``window_end`` are each scored as :func:`silence_loglik`
+    scores one expected arrival, and the scores of all receivers are summed.
 
     Parameters
     ----------
     emission_time, period : numpy.ndarray, shape (N,)
         Each particle's reference emission (s) and period (s).
-    range_m : numpy.ndarray, shape (N,) or (K, N)
-        Each particle's range to each of K receivers (m).
+    x, y : numpy.ndarray, shape (N,)
+        Particle positions (m).
+    receiver_xy : numpy.ndarray, shape (K, 2) or (2,)
+        Positions of the K receivers (m).
     n_back : int
         Pings per particle to look at, >= 1.
-    heard_times : numpy.ndarray, shape (M,), or sequence of K of them
+    heard_times : numpy.ndarray, shape (M,), sequence of K of them, or HeardTimes
         Sorted arrival times of each receiver's detections (s).
     window_start, window_end : float
         The window (s), as in :func:`silence_loglik`.
@@ -284,23 +321,27 @@ def silence_loglik_recent_pings(
     numpy.ndarray, shape (N,)
     """
     detection.require_unit_maximum("silence_loglik_recent_pings")
-    range_m = np.atleast_2d(np.asarray(range_m, dtype=float))
-    if isinstance(heard_times, np.ndarray):
-        heard_times = [heard_times]
-    if len(heard_times) != range_m.shape[0]:
+    receiver_xy = np.atleast_2d(np.asarray(receiver_xy, dtype=float))
+    if not isinstance(heard_times, HeardTimes):
+        heard_times = HeardTimes.of(heard_times)
+    if heard_times.first.size != receiver_xy.shape[0] or receiver_xy.shape[1] != 2:
         raise ValueError(
-            f"silence_loglik_recent_pings: {range_m.shape[0]} receiver(s) of ranges but "
-            f"{len(heard_times)} of detection times"
+            f"silence_loglik_recent_pings: receiver positions of shape {receiver_xy.shape} "
+            f"(expected (K, 2)) but detection times of {heard_times.first.size} receiver(s)"
         )
-    bounds = np.concatenate([[0], np.cumsum([np.size(h) for h in heard_times])])
     out = np.zeros(np.shape(emission_time))
     _recent_pings_kernel(
         np.ascontiguousarray(emission_time, dtype=float),
         np.ascontiguousarray(period, dtype=float),
-        range_m,
+        _receiver_ranges(
+            np.ascontiguousarray(x, dtype=float),
+            np.ascontiguousarray(y, dtype=float),
+            np.ascontiguousarray(receiver_xy),
+        ),
         int(n_back),
-        np.concatenate([np.asarray(h, dtype=float) for h in heard_times]),
-        bounds.astype(np.int64),
+        heard_times.times,
+        heard_times.first,
+        heard_times.stop,
         float(window_start),
         float(window_end),
         float(detection.range_50),
@@ -313,12 +354,24 @@ def silence_loglik_recent_pings(
 
 
 @njit(cache=True)
+def _receiver_ranges(x, y, receiver_xy):
+    """Ranges (m), shape (K, N), from K receivers ``receiver_xy`` (K, 2) to (x, y) (N,)."""
+    out = np.empty((receiver_xy.shape[0], x.size))
+    for k in range(receiver_xy.shape[0]):
+        for i in range(x.size):
+            dx = x[i] - receiver_xy[k, 0]
+            dy = y[i] - receiver_xy[k, 1]
+            out[k, i] = math.hypot(dx, dy)  # (the same numbers as np.hypot)
+    return out
+
+
+@njit(cache=True)
 def _recent_pings_kernel(
-    emission_time, period, range_m, n_back, heard_times, bounds, window_start, window_end,
+    emission_time, period, range_m, n_back, heard_times, first, stop, window_start, window_end,
     range_50, width, tolerance, sound_speed, out,
 ):  # fmt: skip
     for k in range(range_m.shape[0]):
-        heard_k = heard_times[bounds[k] : bounds[k + 1]]
+        heard_k = heard_times[first[k] : stop[k]]
         # only detections within tolerance of the window can match a ping due in it
         lo = np.searchsorted(heard_k, window_start - tolerance)
         heard_k = heard_k[lo : np.searchsorted(heard_k, window_end + tolerance, side="right")]

@@ -14,6 +14,9 @@ from hmmtrack.clock_scenarios import moored_array
 from hmmtrack.clock_tracking import (
     ClockAwareFilter,
     SilenceModel,
+    _clock_summary,
+    _median_ping,
+    _temper,
     _tempered,
     _tempered_ess,
     ambiguity,
@@ -190,12 +193,68 @@ def test_tempered_weights_equal_the_resampling_helpers():
     log_weight, loglik = rng.normal(0, 3, 500), rng.normal(-50, 40, 500)
     for beta in (0.0, 0.01, 0.3, 1.0):
         want = log_normalise(log_weight + beta * loglik)
-        got, weights = _tempered(log_weight, loglik, beta)
+        got, weights, ess = _tempered(log_weight, loglik, beta)
         np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-9)
         np.testing.assert_allclose(weights, np.exp(want), rtol=1e-12, atol=1e-300)
         assert _tempered_ess(log_weight, loglik, beta) == pytest.approx(
             effective_sample_size(want), rel=1e-12
         )
+        assert ess == _tempered_ess(log_weight, loglik, beta)  # the very same number
+
+
+def test_tempering_power_keeps_the_ess_target_and_is_the_largest_that_does():
+    """Oracle: the exact power where the ESS crosses the target (scipy's brentq); the
+    bisection returns it to within remaining / 2**29, from below."""
+    from scipy.optimize import brentq
+
+    rng = np.random.default_rng(10)
+    n = 800
+    log_weight = log_normalise(rng.normal(0, 1, n))
+    loglik = -0.5 * (rng.normal(0, 1, n) / 0.05) ** 2  # a sharp detection: ESS collapses
+    target = 0.3 * n
+    for remaining in (1.0, 0.37):
+        beta, out, weights = _temper(log_weight, loglik, remaining, target)
+        exact = brentq(lambda b: _tempered_ess(log_weight, loglik, b) - target, 0.0, remaining)
+        assert exact - remaining / 2**29 <= beta <= exact + 1e-12
+        assert effective_sample_size(out) >= target
+        want, want_weights, _ = _tempered(log_weight, loglik, beta)
+        np.testing.assert_array_equal(out, want)
+        np.testing.assert_array_equal(weights, want_weights)
+    # a flat likelihood keeps every particle: the whole power at once
+    beta, out, _ = _temper(log_weight, np.full(n, -3.0), 0.6, 0.3 * n)
+    assert beta == 0.6
+    np.testing.assert_allclose(out, log_weight, atol=1e-12)
+
+
+def test_median_ping_equals_numpy_median():
+    rng = np.random.default_rng(11)
+    for n, spread in ((1, 3), (2, 3), (3000, 2), (2999, 40), (100, 1e6), (4, 0)):
+        ping = np.rint(rng.normal(5.0, spread, n))
+        assert _median_ping(ping) == np.median(ping)  # counting, or sorting when wide
+    assert np.isnan(_median_ping(np.array([1.0, np.nan, 2.0])))
+
+
+def test_clock_summary_equals_the_weighted_moments_of_wrapped_clocks():
+    rng = np.random.default_rng(12)
+    n, period = 500, 8.0
+    weights = rng.dirichlet(np.ones(n))
+    # clocks of one tag, some particles referring to a ping a few periods away
+    emission = 100.0 + rng.normal(0, 0.01, n) + period * rng.integers(-3, 4, n)
+    periods = period + rng.normal(0, 1e-3, n)
+    got = _clock_summary(emission, periods, weights, 1e-6, 4e-8)
+    best = np.argmax(weights)
+    offset = emission - emission[best]
+    offset -= np.rint(offset / periods[best]) * periods[best]
+    mean_offset = np.average(offset, weights=weights)
+    mean_period = np.average(periods, weights=weights)
+    want = (
+        emission[best] + mean_offset,
+        mean_period,
+        np.sqrt(np.average((offset - mean_offset) ** 2, weights=weights) + 1e-6),
+        np.sqrt(np.average((periods - mean_period) ** 2, weights=weights) + 4e-8),
+    )
+    np.testing.assert_allclose(got, want, rtol=1e-10)
+    assert abs(got[0] - 100.0) < 0.01 + period  # the wrapped mean is one ping's time
 
 
 def test_same_seed_same_answer():

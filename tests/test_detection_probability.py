@@ -10,6 +10,7 @@ from hypothesis import strategies as st
 
 from hmmtrack.clock_scenarios import moored_array
 from hmmtrack.detection_probability import (
+    HeardTimes,
     LogisticDetection,
     expected_pings,
     fit_detection_probability,
@@ -49,8 +50,9 @@ def test_a_curve_refuses_a_bad_ceiling_and_compiled_scores_refuse_any_ceiling():
     one = np.ones(1)
     with pytest.raises(ValueError, match="silence_loglik_recent_pings .* got 0.9"):
         silence_loglik_recent_pings(
-            one, one * 8.0, one, 1, one, 0.0, 1.0, LogisticDetection(300.0, 40.0, 0.9), 0.1, 1500.0
-        )
+            one, one * 8.0, one, one, (0.0, 0.0), 1, one, 0.0, 1.0,
+            LogisticDetection(300.0, 40.0, 0.9), 0.1, 1500.0,
+        )  # fmt: skip
 
 
 def test_fit_recovers_the_curve():
@@ -114,7 +116,11 @@ def test_compiled_recent_pings_equal_silence_loglik_ping_by_ping():
     curve = LogisticDetection(range_50=300.0, width=60.0)
     emission = rng.uniform(0.0, 8.0, n)
     period = 8.0 + rng.normal(0.0, 2e-3, n)
-    r = rng.uniform(10.0, 900.0, n)
+    receiver = np.array([120.0, -40.0])
+    bearing = rng.uniform(-np.pi, np.pi, n)
+    radius = rng.uniform(10.0, 900.0, n)
+    x, y = receiver[0] + radius * np.cos(bearing), receiver[1] + radius * np.sin(bearing)
+    r = np.hypot(x - receiver[0], y - receiver[1])
     start, end, tolerance = 30.0, 45.0, 0.05  # at most two pings due per particle
     # detections exactly at some particles' expected arrivals, and noise elsewhere
     travel = r / c
@@ -122,7 +128,7 @@ def test_compiled_recent_pings_equal_silence_loglik_ping_by_ping():
     due = [emission + (last - back) * period + travel for back in (0, 1)]
     heard = np.sort(np.concatenate([due[0][::20], due[1][::20], rng.uniform(0.0, 60.0, 10)]))
     got = silence_loglik_recent_pings(
-        emission, period, r, n_back, heard, start, end, curve, tolerance, c
+        emission, period, x, y, receiver, n_back, heard, start, end, curve, tolerance, c
     )
     want = sum(
         silence_loglik(
@@ -140,18 +146,31 @@ def test_recent_pings_of_several_receivers_are_the_sum_of_each():
     curve = LogisticDetection(range_50=300.0, width=60.0)
     emission = rng.uniform(0.0, 8.0, n)
     period = 8.0 + rng.normal(0.0, 2e-3, n)
-    ranges = rng.uniform(10.0, 900.0, (3, n))
+    x, y = rng.uniform(-600.0, 600.0, (2, n))
+    receivers = rng.uniform(-100.0, 100.0, (3, 2))
     heard = [np.sort(rng.uniform(0.0, 60.0, k)) for k in (0, 5, 40)]
     args = (30.0, 60.0, curve, 0.05, c)
-    got = silence_loglik_recent_pings(emission, period, ranges, 5, heard, *args)
+    got = silence_loglik_recent_pings(emission, period, x, y, receivers, 5, heard, *args)
     want = sum(
-        silence_loglik_recent_pings(emission, period, r, 5, h, *args)
-        for r, h in zip(ranges, heard, strict=True)
+        silence_loglik_recent_pings(emission, period, x, y, xy, 5, h, *args)
+        for xy, h in zip(receivers, heard, strict=True)
     )
     np.testing.assert_allclose(got, want, rtol=1e-12)
     assert np.all(got < 0)
+    # the same from the concatenated form, with receivers picked out of order
+    everyone = HeardTimes.of(heard[::-1])
+    picked = silence_loglik_recent_pings(
+        emission, period, x, y, receivers[[2, 0]], 5, everyone.select(np.array([0, 2])), *args
+    )
+    np.testing.assert_allclose(
+        picked,
+        silence_loglik_recent_pings(
+            emission, period, x, y, receivers[[2, 0]], 5, heard[::2][::-1], *args
+        ),
+        rtol=0,
+    )
     with pytest.raises(ValueError, match="3 receiver"):
-        silence_loglik_recent_pings(emission, period, ranges, 5, heard[:2], *args)
+        silence_loglik_recent_pings(emission, period, x, y, receivers[:2], 5, heard, *args)
 
 
 def test_curve_fitted_from_a_tracking_run_is_close_to_the_truth():
