@@ -74,12 +74,11 @@ __all__ = [
 
 #: columns of the estimates table (docs/interfaces.md plus the effective sample size)
 ESTIMATE_COLUMNS = ("time", "x", "y", "var_x", "var_y", "cov_xy", "sqrt_lambda1", "n_eff")
-# OpenMP threads that wait for work spin by default; on a machine whose cores are busy with
-# other processes a spinning worker steals the core the filter's own thread needs between
-# predictions (a run took 5-7x longer with two threads than with one). Sleeping waiters
-# cost a few microseconds per call and remove that collapse (measured, see
-# benchmarks/bench_filter.py). Read by OpenMP when numba starts its threads; an explicit
-# setting in the environment wins.
+# The filter tells motion.advance how many threads to use through numba.set_num_threads,
+# which starts numba's OpenMP pool (the motion kernels themselves run on Python threads).
+# Idle OpenMP workers spin by default and steal the cores the filter needs on a busy
+# machine; sleeping ones cost nothing here. Read by OpenMP when numba starts its threads; an
+# explicit setting in the environment wins.
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 #: below this many particle-steps per compiled call the default is one thread (too short
@@ -91,13 +90,14 @@ RESAMPLE_WHEN = ("always", "ess")
 
 
 def sqrt_largest_eigenvalue(var_x, var_y, cov_xy):
-    """``sqrt(lambda_1)`` of the 2x2 covariance ``[[var_x, cov_xy], [cov_xy, var_y]]``.
+    """``sqrt(lambda_1)`` of the 2x2 covariance ``[[var_x, cov_xy], [cov_xy, var_y]]``
+    (floats or arrays of one shape).
 
     ``lambda_1 = (var_x + var_y)/2 + sqrt(((var_x - var_y)/2)^2 + cov_xy^2)``, the paper's
     formula: the standard deviation along the direction of largest spread (m).
     """
-    half_sum = 0.5 * (np.asarray(var_x) + np.asarray(var_y))
-    half_diff = 0.5 * (np.asarray(var_x) - np.asarray(var_y))
+    half_sum = 0.5 * (var_x + var_y)
+    half_diff = 0.5 * (var_x - var_y)
     return np.sqrt(half_sum + np.hypot(half_diff, cov_xy))
 
 
@@ -130,28 +130,58 @@ class Estimate(NamedTuple):
 
 def _estimates(times, origin, moments: np.ndarray, n_eff: float) -> list[Estimate]:
     """Estimates at ``times`` (K,) from weighted moments ``(K, 5)`` of positions relative to
-    ``origin``: mean x, mean y, mean x^2, mean y^2, mean xy (one vectorised pass)."""
-    mx, my, sxx, syy, sxy = np.atleast_2d(moments).T
-    var_x = np.maximum(sxx - mx * mx, 0.0)
-    var_y = np.maximum(syy - my * my, 0.0)
-    cov_xy = sxy - mx * my
-    columns = (
-        np.asarray(times, dtype=np.float64),
-        origin[0] + mx,
-        origin[1] + my,
-        var_x,
-        var_y,
-        cov_xy,
-        sqrt_largest_eigenvalue(var_x, var_y, cov_xy),
-        np.full(mx.size, float(n_eff)),
-    )
-    return [Estimate._make(row) for row in zip(*(c.tolist() for c in columns), strict=True)]
+    ``origin``: mean x, mean y, mean x^2, mean y^2, mean xy."""
+    return [
+        _estimate(
+            time,
+            origin[0] + mx,
+            origin[1] + my,
+            max(sxx - mx * mx, 0.0),
+            max(syy - my * my, 0.0),
+            sxy - mx * my,
+            n_eff,
+        )
+        for time, (mx, my, sxx, syy, sxy) in zip(
+            np.asarray(times, dtype=np.float64).tolist(),
+            np.atleast_2d(moments).tolist(),
+            strict=True,
+        )
+    ]
+
+
+def _estimate(time, mean_x, mean_y, var_x, var_y, cov_xy, n_eff) -> Estimate:
+    """One :class:`Estimate` from the weighted mean and covariance (plain floats, no arrays:
+    the correction's estimate is made 900 times in an hour's run)."""
+    sqrt_lambda1 = float(sqrt_largest_eigenvalue(var_x, var_y, cov_xy))
+    return Estimate(
+        float(time), float(mean_x), float(mean_y), float(var_x), float(var_y),
+        float(cov_xy), sqrt_lambda1, float(n_eff),
+    )  # fmt: skip
 
 
 @njit(cache=True)
-def _shifted_sums(w, x, y, x0, y0):
-    """One pass: sums of ``w``, ``w dx``, ``w dy``, ``w dx^2``, ``w dy^2``, ``w dx dy`` and
-    ``w^2`` with ``dx = x - x0``, ``dy = y - y0``."""
+def _add_log_weights(log_weight, loglik, out):
+    """``out = log_weight + loglik`` in one (vectorised) pass; whether ``loglik`` has NaN
+    or ``+inf`` entries."""
+    bad = False
+    for i in range(out.size):
+        li = loglik[i]
+        bad |= not li < np.inf
+        out[i] = log_weight[i] + li
+    return bad
+
+
+# ``reassoc`` lets LLVM split the sums into vector lanes (4-5x faster than one serial chain
+# of additions); the result is still one fixed order of operations for a given input
+@njit(cache=True, fastmath={"reassoc"})
+def _normalised_moments(w, x, y, k):
+    """Normalise the weights ``w`` (N,) in place and return their sum ``s`` before that,
+    the weighted mean, variances and covariance of ``(x, y)`` and the ESS ``s^2 / sum w^2``.
+
+    The moments are taken about particle ``k`` (the heaviest: inside the cloud, so no
+    cancellation far from the origin)."""
+    x0 = x[k]
+    y0 = y[k]
     s = sx = sy = sxx = syy = sxy = sww = 0.0
     for i in range(w.size):
         dx = x[i] - x0
@@ -164,32 +194,36 @@ def _shifted_sums(w, x, y, x0, y0):
         syy += wi * dy * dy
         sxy += wi * dx * dy
         sww += wi * wi
-    return s, sx, sy, sxx, syy, sxy, sww
+    scale = 1.0 / s
+    for i in range(w.size):
+        w[i] *= scale
+    mx, my = sx / s, sy / s
+    var_x = max(sxx / s - mx * mx, 0.0)
+    var_y = max(syy / s - my * my, 0.0)
+    return s, x0 + mx, y0 + my, var_x, var_y, sxy / s - mx * my, s * s / sww
 
 
-def _weight_summary(x, y, log_weight):
+def _weight_summary(x, y, log_weight, top=None, k=None):
     """Normalised weights (N,) and the weighted mean, covariance and ESS.
 
-    The exponentials are NumPy's (vectorised), the moments one compiled pass about the
-    heaviest particle (inside the cloud, so no cancellation far from the origin).
+    The exponentials are NumPy's (vectorised), the moments one compiled pass
+    (:func:`_normalised_moments`). ``top`` and ``k``, the largest log weight and its index,
+    are computed when not given.
 
     Returns ``(weights, log_total, mean_x, mean_y, var_x, var_y, cov_xy, n_eff)`` with
     ``log_total`` the log-sum-exp of ``log_weight`` (all ``-inf`` count as equal); the same
     numbers as ``np.average`` / ``np.cov(..., aweights=w, bias=True)`` and
     :func:`hmmtrack.resampling.effective_sample_size` (tested).
     """
-    top = log_weight.max()
+    if top is None:
+        k = int(np.argmax(log_weight))
+        top = log_weight[k]
     if top == -np.inf:  # every particle impossible: all equally so (never NaN)
         top, log_weight = 0.0, np.zeros(log_weight.size)
-    weights = np.exp(log_weight - top)
-    k = int(np.argmax(weights))
-    s, sx, sy, sxx, syy, sxy, sww = _shifted_sums(weights, x, y, x[k], y[k])
-    weights /= s
-    mx, my = sx / s, sy / s
-    var_x = max(sxx / s - mx * mx, 0.0)
-    var_y = max(syy / s - my * my, 0.0)
-    cov_xy = sxy / s - mx * my
-    return weights, top + math.log(s), x[k] + mx, y[k] + my, var_x, var_y, cov_xy, s * s / sww
+    weights = np.subtract(log_weight, top)
+    np.exp(weights, out=weights)
+    s, *moments = _normalised_moments(weights, x, y, k)
+    return weights, top + math.log(s), *moments
 
 
 def _weigh(log_weight, loglik, x, y):
@@ -201,12 +235,14 @@ def _weigh(log_weight, loglik, x, y):
     impossible); the rest is meaningful only when ``status == 0``. Equal to
     :func:`hmmtrack.resampling.log_normalise` and :func:`_weight_summary` (tested).
     """
-    if not (loglik < np.inf).all():  # NaN or +inf
+    updated = np.empty(log_weight.size)
+    if _add_log_weights(log_weight, loglik, updated):
         return 1, None, None, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-    updated = log_weight + loglik
-    if updated.max() == -np.inf:
+    k = int(np.argmax(updated))
+    top = updated[k]
+    if top == -np.inf:
         return 2, None, None, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-    weights, log_total, *moments = _weight_summary(x, y, updated)
+    weights, log_total, *moments = _weight_summary(x, y, updated, top, k)
     updated -= log_total
     return 0, updated, weights, *moments
 
@@ -429,10 +465,7 @@ class ParticleFilter:
     def estimate(self) -> Estimate:
         """Weighted estimate of the current particles at the current time."""
         p = self._require_particles()
-        summary = _weight_summary(p.x, p.y, p.log_weight)
-        return _estimates(
-            [self.time], summary[2:4], np.array([0.0, 0.0, *summary[4:7]]), summary[7]
-        )[0]
+        return _estimate(self.time, *_weight_summary(p.x, p.y, p.log_weight)[2:])
 
     def _require_particles(self) -> Particles:
         if self.particles is None:
@@ -473,7 +506,9 @@ class ParticleFilter:
         if threads is None:
             threads = 1 if work < PARALLEL_MIN_WORK else self._thread_choice.pick()
         previous = numba.get_num_threads()
-        numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
+        threads = min(threads, numba.config.NUMBA_NUM_THREADS)
+        if threads != previous:
+            numba.set_num_threads(threads)
         try:
             started = clock.perf_counter()
             moments = self.motion.advance(p, self._streams, n_steps, self.dt, weights, origin)
@@ -481,7 +516,8 @@ class ParticleFilter:
                 self._thread_choice.record(threads, (clock.perf_counter() - started) / work)
             return moments
         finally:
-            numba.set_num_threads(previous)
+            if threads != previous:
+                numba.set_num_threads(previous)
 
     # ------------------------------------------------------------------ correct
 
@@ -516,7 +552,7 @@ class ParticleFilter:
             return self.estimate()
         p.log_weight = log_weight
         self._weighed = (log_weight, weights, n_eff, (moments[0], moments[1]))
-        return _estimates([self.time], moments[:2], np.array([0.0, 0.0, *moments[2:]]), n_eff)[0]
+        return _estimate(self.time, *moments, n_eff)
 
     def _recover(self, obs) -> None:
         """Re-initialise after degenerate weights; warn and record the event.

@@ -7,11 +7,17 @@ Three models from the paper's section "Motion Models", each with the same two en
     once, written with NumPy arrays and a ``numpy.random.Generator``.
 ``advance(particles, streams, n_steps, dt, weights, origin)``
     The fast path used by :class:`hmmtrack.filter.ParticleFilter`: ``n_steps`` prediction
-    steps fused into one compiled (numba, multi-threaded) kernel that draws from the
+    steps fused into one compiled (numba) kernel, run over fixed chunks of particles on
+    ``numba.get_num_threads()`` threads (it releases the GIL), that draws from the
     per-particle random streams of :mod:`hmmtrack.streams` and returns the weighted moments
     of the particle positions after every step, so that per-second estimates need no second
     pass over the particles. The kernels implement the same equations as ``propagate``;
     ``tests/test_motion.py`` checks them against each other with the same random draws.
+    Inside a kernel each chunk of particles takes each step as a few branch-free passes that
+    the compiler vectorises (draw the random numbers, move along the arcs with a polynomial
+    arc, sum the moments), each followed by a scalar pass for the rare particles the fast
+    path leaves (rejected draws, turns wider than :data:`WIDE_TURN`); the draws are exactly
+    those of the scalar samplers of :mod:`hmmtrack.streams`.
 
 Models
 ------
@@ -40,11 +46,14 @@ from __future__ import annotations
 
 import logging
 import math
+import os
 import warnings
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
-from numba import njit, prange
+from numba import njit
 from scipy.linalg import fractional_matrix_power
 
 from hmmtrack import streams as rs
@@ -62,9 +71,15 @@ logger = logging.getLogger(__name__)
 
 #: below this |omega dt| the NumPy arc uses its Taylor series (first omitted term ~2e-16)
 _SERIES_BELOW = 1e-2
-#: the compiled kernels split particles into this many fixed chunks (one partial sum each),
-#: so that sums, hence estimates, do not depend on how many threads run them
+#: the compiled kernels split particles into at most this many chunks (one partial sum
+#: each), of at least MIN_CHUNK particles (shorter ones cost more to set up than their
+#: parallelism gains); the split depends on N only, so that sums, hence estimates, do not
+#: depend on how many threads run them
 N_CHUNKS = 64
+MIN_CHUNK = 256
+#: the HMM kernel draws with its vectorised passes for all particles of a chunk when more
+#: than 1/SPARSE_DRAWS of them are due, else with the scalar samplers for the due ones only
+SPARSE_DRAWS = 4
 #: moments returned per step: sum w dx, sum w dy, sum w dx^2, sum w dy^2, sum w dx dy
 N_MOMENTS = 5
 
@@ -125,65 +140,136 @@ def _move_along_arc(p: Particles, dt: float) -> None:
     p.heading = np.arctan2(s, c)
 
 
-@njit(cache=True, inline="always")
-def _arc(x, y, c, s, v, w, dt):
-    """Scalar arc step; returns new ``x, y, cos, sin`` (same equations as the NumPy path).
+# Taylor coefficients (-1)^k / (2k + 1)! of sinc(a) = sin(a) / a and (-1)^k / (2k + 2)! of
+# (1 - cos a) / a^2, in powers of a^2 (multiplications, not divisions)
+_SINC_SERIES = tuple((-1.0) ** k / math.factorial(2 * k + 1) for k in range(7))
+_COSC_SERIES = tuple((-1.0) ** k / math.factorial(2 * k + 2) for k in range(7))
+#: half-angle doublings of the compiled arc: the series runs at ``phi / 2**4``
+_DOUBLINGS = 4
+#: the compiled arc's polynomial path covers ``|omega dt|`` up to this (rad); wider turns
+#: (rare: more than 229 degrees in one step) use the library's sine and cosine
+WIDE_TURN = 4.0
 
-    For ``|omega dt| < 0.25`` (almost every step of a swimming animal) ``sin``, ``1 - cos``
-    and their quotients by ``phi`` come from one Taylor polynomial each, exact to rounding
-    (first omitted terms below 1e-17 relative), which is both faster than the library calls
-    and exact in the straight-line limit.
+
+@njit(cache=True, inline="always")
+def _series(c, a2):
+    """``c[0] + c[1] a2 + ... + c[6] a2^6`` (Horner)."""
+    return c[0] + a2 * (c[1] + a2 * (c[2] + a2 * (c[3] + a2 * (c[4] + a2 * (c[5] + a2 * c[6])))))
+
+
+@njit(cache=True, inline="always")
+def _arc_coefficients(phi):
+    """``sinc(phi) = sin(phi)/phi`` and ``cosc(phi) = (1 - cos phi)/phi`` for
+    ``|phi| <= WIDE_TURN``, branch-free (so that loops of it vectorise).
+
+    The Taylor series at ``a = phi / 16`` (``|a| <= 0.25``: first omitted term below 1e-20
+    relative), then four doublings ``sinc(2a) = sinc(a) (1 - a cosc(a))`` and
+    ``cosc(2a) = a sinc(a)^2`` (from ``sin 2a = 2 sin a cos a`` and
+    ``1 - cos 2a = 2 sin^2 a``): no cancellation anywhere, about 1e-15 absolute error, and
+    ``phi = 0`` gives ``(1, 0)`` exactly (the straight line).
     """
-    phi = w * dt
-    length = v * dt
-    if abs(phi) < 0.25:
-        p2 = phi * phi
-        sinc = 1.0 - p2 / 6.0 * (
-            1.0
-            - p2
-            / 20.0
-            * (1.0 - p2 / 42.0 * (1.0 - p2 / 72.0 * (1.0 - p2 / 110.0 * (1.0 - p2 / 156.0))))
-        )
-        half_cosc = 0.5 * (
-            1.0
-            - p2
-            / 12.0
-            * (1.0 - p2 / 30.0 * (1.0 - p2 / 56.0 * (1.0 - p2 / 90.0 * (1.0 - p2 / 132.0))))
-        )
+    a = phi * (0.5**_DOUBLINGS)
+    a2 = a * a
+    sinc = _series(_SINC_SERIES, a2)
+    cosc = a * _series(_COSC_SERIES, a2)
+    for _ in range(_DOUBLINGS):
+        sinc, cosc = sinc * (1.0 - a * cosc), a * sinc * sinc
+        a = 2.0 * a
+    return sinc, cosc
+
+
+@njit(cache=True, inline="always")
+def _arc_pass(x, y, c, s, heading, v, turn, dt):
+    """Move particles in place for ``dt`` s along the arcs of speed ``v`` (m/s) and turn rate
+    ``turn`` (rad/s), all arrays (n,) (the NumPy path's equations, :func:`arc_displacement`).
+
+    A branch-free (vectorised) pass for turns up to :data:`WIDE_TURN`, then a scalar pass
+    for the wider ones with the library's sine and cosine. ``(cos, sin)`` of the heading are
+    rotated by ``phi``; ``heading`` gains ``phi`` (wrapped later, :func:`_finish_headings`).
+    """
+    for i in range(x.size):
+        phi = turn[i] * dt
+        length = v[i] * dt
+        narrow = abs(phi) <= WIDE_TURN
+        phi = phi if narrow else 0.0  # wide turns: no move here, see below
+        length = length if narrow else 0.0
+        sinc, cosc = _arc_coefficients(phi)
+        ci = c[i]
+        si = s[i]
+        x[i] += length * (ci * sinc - si * cosc)
+        y[i] += length * (si * sinc + ci * cosc)
         sin_phi = phi * sinc
-        cosc = phi * half_cosc
         cos_phi = 1.0 - phi * cosc
-    else:
-        sin_phi = math.sin(phi)
-        cos_phi = math.cos(phi)
-        sinc = sin_phi / phi
-        cosc = (1.0 - cos_phi) / phi
-    x += length * (c * sinc - s * cosc)
-    y += length * (s * sinc + c * cosc)
-    return x, y, c * cos_phi - s * sin_phi, s * cos_phi + c * sin_phi
+        c[i] = ci * cos_phi - si * sin_phi
+        s[i] = si * cos_phi + ci * sin_phi
+        heading[i] += phi
+    for i in range(x.size):
+        phi = turn[i] * dt
+        if abs(phi) > WIDE_TURN:
+            length = v[i] * dt
+            sin_phi = math.sin(phi)
+            cos_phi = math.cos(phi)
+            sinc = sin_phi / phi
+            cosc = (1.0 - cos_phi) / phi
+            ci = c[i]
+            si = s[i]
+            x[i] += length * (ci * sinc - si * cosc)
+            y[i] += length * (si * sinc + ci * cosc)
+            c[i] = ci * cos_phi - si * sin_phi
+            s[i] = si * cos_phi + ci * sin_phi
+            heading[i] += phi
+
+
+# ``reassoc`` lets LLVM split the sums into vector lanes; the order of operations is still
+# fixed by the code, so a chunk's sums do not depend on the number of threads
+@njit(cache=True, fastmath={"reassoc"})
+def _moments_pass(x, y, weights, ox, oy, sums):
+    """``sums[:] = (sum w dx, sum w dy, sum w dx^2, sum w dy^2, sum w dx dy)`` over the
+    particles, with ``dx = x - ox``, ``dy = y - oy`` (metres)."""
+    s0 = s1 = s2 = s3 = s4 = 0.0
+    for i in range(x.size):
+        dx = x[i] - ox
+        dy = y[i] - oy
+        wdx = weights[i] * dx
+        wdy = weights[i] * dy
+        s0 += wdx
+        s1 += wdy
+        s2 += wdx * dx
+        s3 += wdy * dy
+        s4 += wdx * dy
+    sums[0] = s0
+    sums[1] = s1
+    sums[2] = s2
+    sums[3] = s3
+    sums[4] = s4
 
 
 @njit(cache=True, inline="always")
-def _accumulate(acc, weight, dx, dy):
-    """Add one particle's weighted first and second moments to the 5-tuple ``acc``."""
-    wdx = weight * dx
-    wdy = weight * dy
-    return (acc[0] + wdx, acc[1] + wdy, acc[2] + wdx * dx, acc[3] + wdy * dy, acc[4] + wdx * dy)
+def _add_scaled(target, z, scale):
+    """``target += scale * z`` (a random-walk increment)."""
+    for i in range(target.size):
+        target[i] += scale * z[i]
 
 
 @njit(cache=True, inline="always")
-def _chunk_bounds(chunk, n):
-    """Particles ``lo:hi`` of chunk ``chunk`` (of ``N_CHUNKS``) when there are ``n``."""
-    size = (n + N_CHUNKS - 1) // N_CHUNKS
-    return min(n, chunk * size), min(n, (chunk + 1) * size)
+def _chunking(n):
+    """Number of chunks and particles per chunk for ``n`` particles."""
+    size = max(MIN_CHUNK, (n + N_CHUNKS - 1) // N_CHUNKS)
+    return (n + size - 1) // size, size
 
 
 @njit(cache=True, inline="always")
-def _finish_headings(heading, c, s, lo, hi):
-    """Wrap the headings of particles ``lo:hi`` into ``(-pi, pi]`` and pull ``(cos, sin)``
+def _motion_views(lo, hi, x, y, heading, c, s, v, w):
+    """Views ``[lo:hi]`` of the seven motion arrays (one chunk of particles)."""
+    return x[lo:hi], y[lo:hi], heading[lo:hi], c[lo:hi], s[lo:hi], v[lo:hi], w[lo:hi]
+
+
+@njit(cache=True, inline="always")
+def _finish_headings(heading, c, s):
+    """Wrap the headings (n,) into ``(-pi, pi]`` and pull ``(cos, sin)``
     back onto the unit circle (one Newton step of ``1/sqrt``: rotations drift it by ~1e-16
     per step), without the cost of ``atan2``."""
-    for i in range(lo, hi):
+    for i in range(heading.size):
         while heading[i] > math.pi:
             heading[i] -= 2.0 * math.pi
         while heading[i] <= -math.pi:
@@ -193,50 +279,95 @@ def _finish_headings(heading, c, s, lo, hi):
         s[i] *= factor
 
 
-def _moments(sums: np.ndarray) -> np.ndarray:
-    """Reduce per-chunk partial sums ``(N_CHUNKS, n_steps, 5)`` in a fixed order."""
+#: threads that run chunks of a kernel call beside the caller's (created on first use)
+_POOL: ThreadPoolExecutor | None = None
+
+
+def _forget_pool() -> None:
+    """In a forked child the pool's threads are gone: start a new pool when needed."""
+    global _POOL
+    _POOL = None
+
+
+os.register_at_fork(after_in_child=_forget_pool)
+
+
+def _run_chunks(kernel, n: int, n_steps: int, *args) -> np.ndarray:
+    """Run ``kernel(*args, first_chunk, last_chunk, sums)`` over all chunks of ``n``
+    particles and return the weighted moments ``(n_steps, 5)`` (the per-chunk sums reduced
+    in a fixed order).
+
+    With ``numba.get_num_threads()`` > 1 the chunks are split into that many contiguous
+    ranges run at once on a pool of Python threads (the kernels release the GIL). The chunks
+    and their sums do not depend on the split, so neither do the results.
+    """
+    global _POOL
+    n_chunks, _ = _chunking(n)
+    sums = np.zeros((n_chunks, n_steps, N_MOMENTS))
+    threads = min(numba.get_num_threads(), n_chunks)
+    if threads <= 1:
+        kernel(*args, 0, n_chunks, sums)
+    else:
+        if _POOL is None:
+            _POOL = ThreadPoolExecutor(max_workers=numba.config.NUMBA_NUM_THREADS)
+        edges = [n_chunks * k // threads for k in range(threads + 1)]
+        futures = [
+            _POOL.submit(kernel, *args, first, last, sums)
+            for first, last in zip(edges[:-1], edges[1:], strict=True)
+        ]
+        for future in futures:
+            future.result()
     return sums.sum(axis=0)
 
 
 # --------------------------------------------------------------------------- baseline
 
 
-# The kernels below run particles in N_CHUNKS fixed chunks (one per prange iteration) and,
-# inside a chunk, time-major: every particle of the chunk takes step t before any takes step
-# t + 1. The chunk stays in cache, and the particles' independent chains of arithmetic
-# overlap in the processor (about 20 % faster than finishing one particle at a time).
+# The kernels below run chunks first_chunk..last_chunk - 1 of the particles (_chunking), one
+# after the other, each into its row of ``sums``; _run_chunks spreads the chunks over threads
+# (the kernels are serial and release the GIL: numba's parallel=True kernels, loaded from
+# the on-disk cache, ran at half the speed of freshly compiled ones). Inside a chunk,
+# time-major: every particle of the chunk takes step t before any takes step
+# t + 1, the chunk staying in cache. Each step is a few passes over the chunk (draw the
+# normals, move along the arcs, sum the moments), each a branch-free loop that the compiler
+# vectorises, followed by a scalar loop for the rare draws or turns the fast path leaves.
 
 
-@njit(cache=True, parallel=True)
-def _baseline_kernel(x, y, heading, c, s, v, w, streams, n_steps, dt, sigma, weights, ox, oy):
-    sums = np.zeros((N_CHUNKS, n_steps, N_MOMENTS))
+@njit(cache=True, nogil=True)
+def _baseline_kernel(
+    x, y, heading, c, s, v, w, streams, n_steps, dt, sigma, weights, ox, oy, first_chunk,
+    last_chunk, sums,
+):  # fmt: skip
+    _, size = _chunking(x.size)
     scale = sigma * math.sqrt(dt)
-    for chunk in prange(N_CHUNKS):
-        lo, hi = _chunk_bounds(chunk, x.size)
+    for chunk in range(first_chunk, last_chunk):
+        lo, hi = chunk * size, min(x.size, (chunk + 1) * size)
+        xs, ys, hs, cs, ss, vs, ws = _motion_views(lo, hi, x, y, heading, c, s, v, w)
+        chunk_streams = streams[lo:hi]
+        z1 = np.empty(hi - lo)
+        z2 = np.empty(hi - lo)
+        retry = np.empty(hi - lo, dtype=np.bool_)
         for t in range(n_steps):
-            acc = (0.0, 0.0, 0.0, 0.0, 0.0)
-            for i in range(lo, hi):
-                z1, z2, streams[i] = rs.normal_pair(streams[i])
-                dx = scale * z1
-                dy = scale * z2
-                x[i] += dx
-                y[i] += dy
-                length = math.sqrt(dx * dx + dy * dy)
+            rs.normals_into(chunk_streams, z1, retry)  # as normal_pair: dx, then dy
+            rs.normals_into(chunk_streams, z2, retry)
+            for i in range(xs.size):
                 if t == n_steps - 1:
-                    heading[i] = math.atan2(s[i], c[i])  # the heading before the last step
+                    hs[i] = math.atan2(ss[i], cs[i])  # the heading before the last step
+                dx = scale * z1[i]
+                dy = scale * z2[i]
+                xs[i] += dx
+                ys[i] += dy
+                length = math.sqrt(dx * dx + dy * dy)
                 if length > 0.0:
-                    c[i] = dx / length
-                    s[i] = dy / length
-                v[i] = length / dt
-                acc = _accumulate(acc, weights[i], x[i] - ox, y[i] - oy)
-            for k in range(N_MOMENTS):
-                sums[chunk, t, k] = acc[k]
-        for i in range(lo, hi):
-            previous = heading[i]
-            heading[i] = math.atan2(s[i], c[i])
-            turn = heading[i] - previous
-            w[i] = (turn - 2.0 * math.pi * math.floor((turn + math.pi) / (2.0 * math.pi))) / dt
-    return sums
+                    cs[i] = dx / length
+                    ss[i] = dy / length
+                vs[i] = length / dt
+            _moments_pass(xs, ys, weights[lo:hi], ox, oy, sums[chunk, t])
+        for i in range(xs.size):
+            previous = hs[i]
+            hs[i] = math.atan2(ss[i], cs[i])
+            turn = hs[i] - previous
+            ws[i] = (turn - 2.0 * math.pi * math.floor((turn + math.pi) / (2.0 * math.pi))) / dt
 
 
 def _wrap(angle: np.ndarray) -> np.ndarray:
@@ -292,38 +423,37 @@ class BaselineMotion:
     def advance(self, particles, streams, n_steps, dt, weights, origin) -> np.ndarray:
         """As :meth:`VelocityMotion.advance` (compiled steps; weighted moments per step)."""
         p = particles
-        return _moments(
-            _baseline_kernel(
-                p.x, p.y, p.heading, p.cos_heading, p.sin_heading, p.speed, p.turn_rate,
-                streams, n_steps, float(dt), float(self.sigma), weights, *origin,
-            )
+        return _run_chunks(
+            _baseline_kernel, p.n, n_steps,
+            p.x, p.y, p.heading, p.cos_heading, p.sin_heading, p.speed, p.turn_rate,
+            streams, n_steps, float(dt), float(self.sigma), weights, *origin,
         )  # fmt: skip
 
 
 # --------------------------------------------------------------------------- velocity
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, nogil=True)
 def _velocity_kernel(
-    x, y, heading, c, s, v, w, streams, n_steps, dt, sigma_speed, sigma_turn, weights, ox, oy
-):
-    sums = np.zeros((N_CHUNKS, n_steps, N_MOMENTS))
+    x, y, heading, c, s, v, w, streams, n_steps, dt, sigma_speed, sigma_turn, weights, ox, oy,
+    first_chunk, last_chunk, sums,
+):  # fmt: skip
+    _, size = _chunking(x.size)
     root_dt = math.sqrt(dt)
-    for chunk in prange(N_CHUNKS):
-        lo, hi = _chunk_bounds(chunk, x.size)
+    for chunk in range(first_chunk, last_chunk):
+        lo, hi = chunk * size, min(x.size, (chunk + 1) * size)
+        xs, ys, hs, cs, ss, vs, ws = _motion_views(lo, hi, x, y, heading, c, s, v, w)
+        chunk_streams = streams[lo:hi]
+        z = np.empty(hi - lo)
+        retry = np.empty(hi - lo, dtype=np.bool_)
         for t in range(n_steps):
-            acc = (0.0, 0.0, 0.0, 0.0, 0.0)
-            for i in range(lo, hi):
-                z1, z2, streams[i] = rs.normal_pair(streams[i])
-                v[i] += sigma_speed * root_dt * z1
-                w[i] += sigma_turn * root_dt * z2
-                x[i], y[i], c[i], s[i] = _arc(x[i], y[i], c[i], s[i], v[i], w[i], dt)
-                heading[i] += w[i] * dt
-                acc = _accumulate(acc, weights[i], x[i] - ox, y[i] - oy)
-            for k in range(N_MOMENTS):
-                sums[chunk, t, k] = acc[k]
-        _finish_headings(heading, c, s, lo, hi)
-    return sums
+            rs.normals_into(chunk_streams, z, retry)  # as normal_pair: speed, then turn
+            _add_scaled(vs, z, sigma_speed * root_dt)
+            rs.normals_into(chunk_streams, z, retry)
+            _add_scaled(ws, z, sigma_turn * root_dt)
+            _arc_pass(xs, ys, cs, ss, hs, vs, ws, dt)
+            _moments_pass(xs, ys, weights[lo:hi], ox, oy, sums[chunk, t])
+        _finish_headings(hs, cs, ss)
 
 
 @dataclass(frozen=True)
@@ -392,12 +522,11 @@ class VelocityMotion:
             with ``dx, dy`` the positions relative to ``origin``.
         """
         p = particles
-        return _moments(
-            _velocity_kernel(
-                p.x, p.y, p.heading, p.cos_heading, p.sin_heading, p.speed, p.turn_rate,
-                streams, n_steps, float(dt), float(self.sigma_speed), float(self.sigma_turn_rate),
-                weights, *origin,
-            )
+        return _run_chunks(
+            _velocity_kernel, p.n, n_steps,
+            p.x, p.y, p.heading, p.cos_heading, p.sin_heading, p.speed, p.turn_rate,
+            streams, n_steps, float(dt), float(self.sigma_speed), float(self.sigma_turn_rate),
+            weights, *origin,
         )  # fmt: skip
 
 
@@ -460,52 +589,152 @@ class _Schedule:
     cumulative: np.ndarray  # (K, K) cumulative rows of the per-sub-step transition matrix
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, inline="always")
+def _draw_pass(
+    v, w, behaviour, clock, streams, due, draw_interval, speed_factor, fitted_dt,
+    gamma_d, gamma_c, gamma_boost, gamma_scale, zero_mass, vonmises_tables, scratch, retry,
+):  # fmt: skip
+    """Particles whose draw clock has reached ``due`` draw speed (m/s) and turn rate (rad/s)
+    from their state and restart their clock (carrying the excess over); arrays (n,).
+
+    When fewer than ``1 / SPARSE_DRAWS`` of the particles are due (the time-consistent
+    variant with a model fitted at a coarser step than the prediction step), only those
+    draw, with the scalar samplers (:func:`_redraw`). Otherwise three passes: the random
+    numbers of the samplers' first tries for every particle (a
+    branch-free, vectorised pass: the gamma's normal and uniform, the von Mises bits and two
+    uniforms); the first tries themselves (:func:`streams._gamma_from`,
+    :func:`streams._vonmises_from`: per-state table lookups), kept where due and accepted;
+    then the scalar samplers (:func:`_redraw`) for the due particles whose tries were
+    rejected, or whose state has a zero-inflated or boosted (shape < 1) step distribution.
+    Either way a particle's draws are exactly those of the scalar samplers from its stream.
+    ``scratch`` is a ``(4, n)`` float, ``(2, n)`` uint64 and ``(n,)`` bool tuple of work
+    arrays.
+    """
+    n_due = 0
+    for i in range(v.size):
+        is_due = clock[i] >= due
+        retry[i] = is_due
+        n_due += is_due
+        previous = clock[i]
+        restarted = previous - draw_interval if previous < 2.0 * draw_interval else 0.0
+        clock[i] = restarted if is_due else previous
+    if SPARSE_DRAWS * n_due <= v.size:  # few due (a model fitted at a coarse time step)
+        _redraw(
+            v, w, behaviour, streams, speed_factor, fitted_dt, gamma_d, gamma_c, gamma_boost,
+            gamma_scale, zero_mass, vonmises_tables, retry,
+        )  # fmt: skip
+        return
+    uniforms, bits, normal_accepted = scratch
+    normal, step_u, angle_u, angle_v = uniforms[0], uniforms[1], uniforms[2], uniforms[3]
+    angle_bits, advanced = bits[0], bits[1]
+    for i in range(v.size):
+        state = streams[i]
+        normal[i], normal_accepted[i], state = rs._normal_try(state)
+        step_u[i], state = rs.uniform(state)
+        angle_bits[i], state = rs._bits(state)
+        angle_u[i], state = rs.uniform(state)
+        angle_v[i], advanced[i] = rs.uniform(state)
+    for i in range(v.size):
+        k = behaviour[i]
+        step, step_ok = rs._gamma_from(
+            gamma_d[k], gamma_c[k], gamma_scale[k], normal[i], normal_accepted[i], step_u[i]
+        )
+        angle, angle_ok = rs._vonmises_from(
+            vonmises_tables, k, angle_bits[i], angle_u[i], angle_v[i]
+        )
+        accepted = step_ok and angle_ok and zero_mass[k] <= 0.0 and gamma_boost[k] <= 0.0
+        keep = retry[i] and accepted  # retry[i]: due
+        v[i] = step * speed_factor if keep else v[i]
+        w[i] = angle / fitted_dt if keep else w[i]
+        streams[i] = advanced[i] if keep else streams[i]
+        retry[i] = retry[i] and not accepted
+    _redraw(
+        v, w, behaviour, streams, speed_factor, fitted_dt, gamma_d, gamma_c, gamma_boost,
+        gamma_scale, zero_mass, vonmises_tables, retry,
+    )  # fmt: skip
+
+
+@njit(cache=True)
+def _redraw(
+    v, w, behaviour, streams, speed_factor, fitted_dt, gamma_d, gamma_c, gamma_boost,
+    gamma_scale, zero_mass, vonmises_tables, retry,
+):  # fmt: skip
+    """Draw speed and turn rate with the scalar samplers for the particles marked in
+    ``retry`` (the few that :func:`_draw_pass` leaves to them; a separate function keeps
+    that pass's loops small)."""
+    for i in np.flatnonzero(retry):
+        k = behaviour[i]
+        state = streams[i]
+        step = 0.0
+        u = 1.0
+        if zero_mass[k] > 0.0:
+            u, state = rs.uniform(state)
+        if u > zero_mass[k]:
+            step, state = rs.gamma(gamma_d[k], gamma_c[k], gamma_boost[k], gamma_scale[k], state)
+        angle, state = rs.vonmises(vonmises_tables, k, state)
+        v[i] = step * speed_factor
+        w[i] = angle / fitted_dt
+        streams[i] = state
+
+
+@njit(cache=True, inline="always")
+def _transition_pass(behaviour, streams, cumulative, u, next_state):
+    """One step of the behavioural chain for particles ``(n,)``: the next state is the
+    first ``j`` with ``u <= cumulative[state, j]`` (:func:`streams.categorical`), counted as
+    the number of ``j < K - 1`` with ``cumulative[state, j] < u`` in branch-free passes.
+    ``u`` (float) and ``next_state`` (int) are scratch."""
+    for i in range(behaviour.size):
+        u[i], streams[i] = rs.uniform(streams[i])
+        next_state[i] = 0
+    for j in range(cumulative.shape[1] - 1):
+        for i in range(behaviour.size):
+            next_state[i] += cumulative[behaviour[i], j] < u[i]
+    for i in range(behaviour.size):
+        behaviour[i] = next_state[i]
+
+
+@njit(cache=True, nogil=True)
 def _hmm_kernel(
     x, y, heading, c, s, v, w, behaviour, clock, streams, n_steps, n_sub, sub_step,
     draw_interval, metres_per_step_unit, fitted_dt, cumulative, gamma_d, gamma_c, gamma_boost,
-    gamma_scale, zero_mass, vonmises_tables, heading_diffusion, weights, ox, oy,
+    gamma_scale, zero_mass, vonmises_tables, heading_diffusion, weights, ox, oy, first_chunk,
+    last_chunk, sums,
 ):  # fmt: skip
-    sums = np.zeros((N_CHUNKS, n_steps, N_MOMENTS))
+    _, size = _chunking(x.size)
     due = draw_interval * (1.0 - 1e-9)
     jitter_scale = heading_diffusion / math.sqrt(sub_step)  # rad/s of this sub-step
-    for chunk in prange(N_CHUNKS):
-        lo, hi = _chunk_bounds(chunk, x.size)
+    speed_factor = metres_per_step_unit / fitted_dt
+    for chunk in range(first_chunk, last_chunk):
+        lo, hi = chunk * size, min(x.size, (chunk + 1) * size)
+        xs, ys, hs, cs, ss, vs, ws = _motion_views(lo, hi, x, y, heading, c, s, v, w)
+        ks, clocks, chunk_streams = behaviour[lo:hi], clock[lo:hi], streams[lo:hi]
+        scratch = np.empty(hi - lo)
+        next_state = np.empty(hi - lo, dtype=np.int64)
+        retry = np.empty(hi - lo, dtype=np.bool_)
+        draws = (
+            np.empty((4, hi - lo)),
+            np.empty((2, hi - lo), dtype=np.uint64),
+            np.empty(hi - lo, dtype=np.bool_),
+        )
         for t in range(n_steps):
-            acc = (0.0, 0.0, 0.0, 0.0, 0.0)
-            for i in range(lo, hi):
-                k, state = behaviour[i], streams[i]
-                for _ in range(n_sub):
-                    if clock[i] >= due:
-                        step = 0.0
-                        u = 1.0
-                        if zero_mass[k] > 0.0:
-                            u, state = rs.uniform(state)
-                        if u > zero_mass[k]:
-                            step, state = rs.gamma(
-                                gamma_d[k], gamma_c[k], gamma_boost[k], gamma_scale[k], state
-                            )
-                        angle, state = rs.vonmises(vonmises_tables, k, state)
-                        v[i] = step * metres_per_step_unit / fitted_dt
-                        w[i] = angle / fitted_dt
-                        previous = clock[i]
-                        clock[i] = (
-                            previous - draw_interval if previous < 2.0 * draw_interval else 0.0
-                        )
-                    turn = w[i]
-                    if heading_diffusion > 0.0:
-                        z, state = rs.normal(state)
-                        turn += jitter_scale * z
-                    x[i], y[i], c[i], s[i] = _arc(x[i], y[i], c[i], s[i], v[i], turn, sub_step)
-                    heading[i] += turn * sub_step
-                    clock[i] += sub_step
-                    k, state = rs.categorical(cumulative[k], state)
-                behaviour[i], streams[i] = k, state
-                acc = _accumulate(acc, weights[i], x[i] - ox, y[i] - oy)
-            for j in range(N_MOMENTS):
-                sums[chunk, t, j] = acc[j]
-        _finish_headings(heading, c, s, lo, hi)
-    return sums
+            for _ in range(n_sub):
+                _draw_pass(
+                    vs, ws, ks, clocks, chunk_streams, due, draw_interval, speed_factor,
+                    fitted_dt, gamma_d, gamma_c, gamma_boost, gamma_scale, zero_mass,
+                    vonmises_tables, draws, retry,
+                )  # fmt: skip
+                if heading_diffusion > 0.0:
+                    rs.normals_into(chunk_streams, scratch, retry)
+                    for i in range(ws.size):
+                        scratch[i] = ws[i] + jitter_scale * scratch[i]
+                    _arc_pass(xs, ys, cs, ss, hs, vs, scratch, sub_step)
+                else:
+                    _arc_pass(xs, ys, cs, ss, hs, vs, ws, sub_step)
+                for i in range(clocks.size):
+                    clocks[i] += sub_step
+                _transition_pass(ks, chunk_streams, cumulative, scratch, next_state)
+            _moments_pass(xs, ys, weights[lo:hi], ox, oy, sums[chunk, t])
+        _finish_headings(hs, cs, ss)
 
 
 HMM_VARIANTS = ("paper", "time_consistent")
@@ -720,11 +949,10 @@ class HMMMotion:
                 rs.VonMisesTables.build(angle.mean, angle.concentration).as_tuple(),
             )  # fmt: skip
         p = particles
-        return _moments(
-            _hmm_kernel(
-                p.x, p.y, p.heading, p.cos_heading, p.sin_heading, p.speed, p.turn_rate,
-                p.state, p.time_since_draw, streams, n_steps, plan.n_sub, plan.sub_step,
-                plan.draw_interval, self._metres, float(self.model.dt), plan.cumulative,
-                *self._schedules["samplers"], float(self.heading_diffusion), weights, *origin,
-            )
+        return _run_chunks(
+            _hmm_kernel, p.n, n_steps,
+            p.x, p.y, p.heading, p.cos_heading, p.sin_heading, p.speed, p.turn_rate,
+            p.state, p.time_since_draw, streams, n_steps, plan.n_sub, plan.sub_step,
+            plan.draw_interval, self._metres, float(self.model.dt), plan.cumulative,
+            *self._schedules["samplers"], float(self.heading_diffusion), weights, *origin,
         )  # fmt: skip

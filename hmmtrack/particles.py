@@ -182,10 +182,19 @@ class Particles:
         indices : (M,) int array
             Ancestor of each new particle.
         """
-        return Particles(
-            **{name: getattr(self, name)[indices] for name in _ARRAY_NAMES},
-            extra={name: value[indices] for name, value in self.extra.items()},
-        )
+        indices = np.asarray(indices)
+        if indices.ndim != 1 or not np.issubdtype(indices.dtype, np.integer):
+            raise ValueError(
+                f"Particles.take needs a 1-D integer array of indices, got a {indices.dtype} "
+                f"array of shape {indices.shape}"
+            )
+        # every field indexed by one 1-D integer array is a fresh, contiguous array of the
+        # field's dtype and shape (M,): nothing for __post_init__ to check or convert
+        taken = object.__new__(Particles)
+        for name in _ARRAY_NAMES:
+            setattr(taken, name, getattr(self, name)[indices])
+        taken.extra = {name: value[indices] for name, value in self.extra.items()}
+        return taken
 
     def normalised_weights(self) -> np.ndarray:
         """Weights ``exp(log_weight)`` scaled to sum one, shape ``(N,)``."""

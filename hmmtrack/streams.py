@@ -10,15 +10,23 @@ slot when particles are resampled, so copies of one ancestor diverge.
 The scalar samplers below (uniform, standard normal pairs, gamma, von Mises, categorical)
 are ``numba.njit`` functions that take and return the stream state. They are written from
 the textbook algorithms: a 256-layer ziggurat for normals and Marsaglia & Tsang (2000) for
-gamma, and for von Mises exact rejection from a 256-bin piecewise-constant envelope
+gamma, and for von Mises exact rejection from a 512-bin piecewise-constant envelope
 whose bins are drawn with Walker's alias method. :func:`draw_uniforms` and the other ``draw_*``
 helpers expose them as array functions so that tests can compare them with SciPy.
+
+Each rejection sampler is split in two: a branch-free first try (``_normal_try``,
+``_gamma_try``, ``_vonmises_try``, with a fixed number of draws and a squeeze that accepts
+90-99 % of them) and the full loop (``_normal_loop``, ...) that starts again from the same
+state. The scalar sampler runs the try and falls back to the loop; the motion kernels run
+the tries over whole chunks of particles in vectorised loops (:func:`normals_into`) and the
+loops only for the rejected few, which gives exactly the same draws.
 
 This module does not move particles; it only makes random numbers for those that do.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -31,6 +39,7 @@ __all__ = [
     "draw_uniforms",
     "draw_vonmises",
     "new_streams",
+    "normals_into",
     "VonMisesTables",
     "alias_table",
 ]
@@ -118,8 +127,26 @@ def _normal_slow(layer, x, state):
 
 
 @njit(cache=True, inline="always")
-def normal(state):
-    """One standard normal (256-layer ziggurat) and the advanced state."""
+def _normal_from_bits(z):
+    """The ziggurat's first try from 64 random bits ``z``: ``(x, accepted)``; ``x`` is a
+    standard normal when ``accepted`` (about 99 % of draws: the point fell in its layer's
+    inner box). Branch-free, so that loops of it vectorise."""
+    layer = z & _LAYER
+    x = ((z >> _S11) * _TWO_M53) * _ZIG_X[layer]
+    return (-x if (z >> _S8) & _ONE else x), x < _ZIG_X[layer + 1]
+
+
+@njit(cache=True, inline="always")
+def _normal_try(state):
+    """:func:`_normal_from_bits` of the next draw: ``(x, accepted, state)``."""
+    z, state = _bits(state)
+    x, accepted = _normal_from_bits(z)
+    return x, accepted, state
+
+
+@njit(cache=True)
+def _normal_loop(state):
+    """The whole ziggurat from ``state`` (its first try repeats :func:`_normal_try`)."""
     while True:
         z, state = _bits(state)
         layer = z & _LAYER
@@ -134,6 +161,34 @@ def normal(state):
 
 
 @njit(cache=True, inline="always")
+def normal(state):
+    """One standard normal (256-layer ziggurat) and the advanced state."""
+    x, accepted, advanced = _normal_try(state)
+    if accepted:
+        return x, advanced
+    return _normal_loop(state)
+
+
+@njit(cache=True, inline="always")
+def normals_into(streams, out, retry):
+    """``out[i]`` = one standard normal from ``streams[i]``, exactly as :func:`normal` draws
+    it, advancing the streams; all arrays (n,) (pass slices for part of the particles).
+
+    One branch-free (vectorised) pass of :func:`_normal_try`, then a scalar pass that
+    redoes the few rejected draws; ``retry`` is boolean scratch.
+    """
+    for i in range(streams.size):
+        old = streams[i]
+        x, accepted, new = _normal_try(old)
+        out[i] = x
+        retry[i] = not accepted
+        streams[i] = new if accepted else old
+    for i in range(streams.size):
+        if retry[i]:
+            out[i], streams[i] = _normal_loop(streams[i])
+
+
+@njit(cache=True, inline="always")
 def normal_pair(state):
     """Two independent standard normals and the advanced state."""
     z1, state = normal(state)
@@ -141,7 +196,71 @@ def normal_pair(state):
     return z1, z2, state
 
 
+@njit(cache=True, inline="always")
+def _log_series(y):
+    """``2 (t + t^3/3 + t^5/5 + t^7/7)`` with ``t = (y - 1)/(y + 1)``, ``y > 0`` (the series
+    of ``log y = 2 atanh t``), and ``t^2``. Every omitted term has the sign of ``t``, so the
+    sum is below ``log y`` for ``y >= 1`` and above it for ``y <= 1``; for ``t^2 <= 1/4``
+    (``1/3 <= y <= 3``) it is within ``2 |t|^9 (4/3) / 9`` of ``log y``."""
+    t = (y - 1.0) / (y + 1.0)
+    t2 = t * t
+    return 2.0 * t * (1.0 + t2 * (1.0 / 3.0 + t2 * (0.2 + t2 * (1.0 / 7.0)))), t2
+
+
+@njit(cache=True, inline="always")
+def _gamma_from(shape_less_third, inv_sqrt_9d, scale, x, normal_accepted, u):
+    """First try of Marsaglia & Tsang (no boost) from its normal ``x`` (and whether the
+    normal's first try accepted it) and uniform ``u``: ``(value, accepted)``.
+
+    The exact test is ``log u < x^2/2 + d (1 - v + log v)`` with ``v = (1 + c x)^3``. It is
+    decided without calling ``log``: accepted when Marsaglia & Tsang's squeeze
+    ``u < 1 - 0.0331 x^4`` holds (about 90 % of draws) or, failing that, when the test holds
+    with ``log u`` replaced by an upper bound and ``log v`` by a lower bound
+    (:func:`_log_series`, with a 1e-12 margin for rounding); only the few draws left (the
+    test's own rejections and a sliver near its boundary) are not accepted here. An
+    accepted try is always one the exact test accepts.
+    """
+    d = shape_less_third
+    root = 1.0 + inv_sqrt_9d * x
+    v = root * root * root
+    x2 = x * x
+    valid = normal_accepted and root > 0.0
+    accepted = valid and u < 1.0 - 0.0331 * x2 * x2
+    if valid and not accepted:
+        log_u, _ = _log_series(u)  # an upper bound of log u (u <= 1)
+        log_root, t2 = _log_series(root)
+        t8 = t2 * t2 * t2 * t2
+        below = log_root - (8.0 / 27.0) * math.sqrt(t2) * t8  # a lower bound of log(root)
+        accepted = t2 <= 0.25 and log_u < 0.5 * x2 + d * (1.0 - v + 3.0 * below) - 1e-12
+    return d * v * scale, accepted
+
+
+@njit(cache=True, inline="always")
+def _gamma_try(shape_less_third, inv_sqrt_9d, scale, state):
+    """:func:`_gamma_from` of the next two draws (a normal, a uniform):
+    ``(value, accepted, state)``."""
+    x, normal_accepted, state = _normal_try(state)
+    u, state = uniform(state)
+    value, accepted = _gamma_from(shape_less_third, inv_sqrt_9d, scale, x, normal_accepted, u)
+    return value, accepted, state
+
+
 @njit(cache=True)
+def _gamma_loop(d, c, scale, state):
+    """Marsaglia & Tsang from ``state`` (its first try repeats :func:`_gamma_try`)."""
+    while True:
+        x, state = normal(state)
+        v = 1.0 + c * x
+        u, state = uniform(state)
+        if v <= 0.0:
+            continue
+        v = v * v * v
+        x2 = x * x
+        if u < 1.0 - 0.0331 * x2 * x2 or np.log(u) < 0.5 * x2 + d * (1.0 - v + np.log(v)):
+            return d * v * scale, state
+
+
+@njit(cache=True, inline="always")
 def gamma(shape_less_third, inv_sqrt_9d, boost_exponent, scale, state):
     """One gamma variate (Marsaglia & Tsang) and the advanced state.
 
@@ -149,25 +268,15 @@ def gamma(shape_less_third, inv_sqrt_9d, boost_exponent, scale, state):
     ``d = a - 1/3`` with ``a = shape`` (or ``shape + 1`` when ``shape < 1``),
     ``c = 1 / sqrt(9 d)``, and ``boost_exponent = 1/shape`` when ``shape < 1`` (a
     Gamma(shape + 1) draw times ``U**(1/shape)`` is Gamma(shape)), else 0. The result is
-    multiplied by ``scale``.
+    multiplied by ``scale``. Each try draws one normal and one uniform.
     """
-    d = shape_less_third
-    c = inv_sqrt_9d
-    while True:
-        x, _, state = normal_pair(state)
-        v = 1.0 + c * x
-        if v <= 0.0:
-            continue
-        v = v * v * v
-        u, state = uniform(state)
-        x2 = x * x
-        if u < 1.0 - 0.0331 * x2 * x2 or np.log(u) < 0.5 * x2 + d * (1.0 - v + np.log(v)):
-            value = d * v * scale
-            break
+    value, accepted, advanced = _gamma_try(shape_less_third, inv_sqrt_9d, scale, state)
+    if not accepted:
+        value, advanced = _gamma_loop(shape_less_third, inv_sqrt_9d, scale, state)
     if boost_exponent > 0.0:
-        u, state = uniform(state)
+        u, advanced = uniform(advanced)
         value *= u**boost_exponent
-    return value, state
+    return value, advanced
 
 
 def gamma_constants(shape: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -181,7 +290,9 @@ def gamma_constants(shape: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarr
 
 
 #: bins of the piecewise-constant envelope of the von Mises sampler (a power of two)
-VONMISES_BINS = 256
+VONMISES_BINS = 512
+_BIN = np.uint64(VONMISES_BINS - 1)  # the bin is drawn from the low 9 bits...
+_S9 = np.uint64(9)  # ... and the sign from bit 9
 #: the envelope stops where the density has fallen to exp(-_VONMISES_DROP) ~ 5e-32 of its
 #: peak (when that happens before the antipode), i.e. ``kappa (1 - cos d) = 72``
 _VONMISES_DROP = 72.0
@@ -232,15 +343,17 @@ class VonMisesTables:
         )
 
     def as_tuple(self) -> tuple:
-        """The arrays in the order :func:`vonmises` unpacks them."""
+        """The arrays in the order :func:`vonmises` unpacks them; the per-bin tables
+        flattened to ``(K * VONMISES_BINS,)`` (bin ``b`` of state ``k`` at
+        ``k * VONMISES_BINS + b``: one-dimensional lookups are about twice as fast)."""
         return (
             self.mean,
             self.concentration,
             self.width,
-            self.f_left,
-            self.f_right,
-            self.alias_cut,
-            self.alias,
+            self.f_left.ravel(),
+            self.f_right.ravel(),
+            self.alias_cut.ravel(),
+            self.alias.ravel(),
         )
 
 
@@ -262,7 +375,60 @@ def alias_table(weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return cut, alias
 
 
+@njit(cache=True, inline="always")
+def _vonmises_from(tables_row, k, z, u, v):
+    """First try of :func:`vonmises` for state ``k`` from 64 random bits ``z`` (bin, alias
+    choice and sign) and uniforms ``u`` (position in the bin) and ``v`` (height):
+    ``(angle, accepted)``, accepted when the squeeze accepts (most draws). Branch-free."""
+    mean, kappa, width, f_left, f_right, cut, alias = tables_row
+    b = np.int64(z & _BIN)
+    row = k * VONMISES_BINS
+    other = alias[row + b]  # loaded unconditionally: the selection below stays branch-free
+    b = b if (z >> _S11) * _TWO_M53 < cut[row + b] else other
+    x = (b + 1.0 - u) * width[k]  # 1 - u is in [0, 1)
+    accepted = v * f_left[row + b] <= f_right[row + b]
+    angle = mean[k] - x if (z >> _S9) & _ONE else mean[k] + x
+    angle = angle - 2.0 * np.pi if angle > np.pi else angle
+    angle = angle + 2.0 * np.pi if angle <= -np.pi else angle
+    return angle, accepted
+
+
+@njit(cache=True, inline="always")
+def _vonmises_try(tables_row, k, state):
+    """:func:`_vonmises_from` of the next three draws: ``(angle, accepted, state)``."""
+    z, state = _bits(state)
+    u, state = uniform(state)
+    v, state = uniform(state)
+    angle, accepted = _vonmises_from(tables_row, k, z, u, v)
+    return angle, accepted, state
+
+
 @njit(cache=True)
+def _vonmises_loop(tables_row, k, state):
+    """The whole von Mises rejection from ``state`` (its first try repeats
+    :func:`_vonmises_try`)."""
+    mean, kappa, width, f_left, f_right, cut, alias = tables_row
+    row = k * VONMISES_BINS
+    while True:
+        z, state = _bits(state)
+        b = np.int64(z & _BIN)
+        if (z >> _S11) * _TWO_M53 >= cut[row + b]:
+            b = alias[row + b]
+        u, state = uniform(state)
+        v, state = uniform(state)
+        x = (b + 1.0 - u) * width[k]
+        y = v * f_left[row + b]
+        if y <= f_right[row + b] or y <= np.exp(kappa[k] * (np.cos(x) - 1.0)):
+            break
+    angle = mean[k] - x if (z >> _S9) & _ONE else mean[k] + x
+    if angle > np.pi:
+        angle -= 2.0 * np.pi
+    elif angle <= -np.pi:
+        angle += 2.0 * np.pi
+    return angle, state
+
+
+@njit(cache=True, inline="always")
 def vonmises(tables_row, k, state):
     """One von Mises angle in ``(-pi, pi]`` for state ``k`` and the advanced state.
 
@@ -270,24 +436,10 @@ def vonmises(tables_row, k, state):
     :class:`VonMisesTables` (``tables_row`` is its tuple of arrays); the squeeze accepts
     most draws without evaluating the density.
     """
-    mean, kappa, width, f_left, f_right, cut, alias = tables_row
-    while True:
-        z, state = _bits(state)
-        b = np.int64(z & _LAYER)
-        if (z >> _S11) * _TWO_M53 >= cut[k, b]:
-            b = alias[k, b]
-        u, state = uniform(state)
-        v, state = uniform(state)
-        x = (b + 1.0 - u) * width[k]  # 1 - u is in [0, 1)
-        y = v * f_left[k, b]
-        if y <= f_right[k, b] or y <= np.exp(kappa[k] * (np.cos(x) - 1.0)):
-            break
-    angle = mean[k] - x if (z >> _S8) & _ONE else mean[k] + x
-    if angle > np.pi:
-        angle -= 2.0 * np.pi
-    elif angle <= -np.pi:
-        angle += 2.0 * np.pi
-    return angle, state
+    angle, accepted, advanced = _vonmises_try(tables_row, k, state)
+    if accepted:
+        return angle, advanced
+    return _vonmises_loop(tables_row, k, state)
 
 
 @njit(cache=True, inline="always")

@@ -1,7 +1,9 @@
 import dataclasses
 
+import numba
 import numpy as np
 import pytest
+from numba import njit
 from scipy import stats
 
 from hmmtrack import streams as rs
@@ -10,6 +12,8 @@ from hmmtrack.motion import (
     BaselineMotion,
     HMMMotion,
     VelocityMotion,
+    _draw_pass,
+    _transition_pass,
     arc_displacement,
     transition_for_step,
 )
@@ -58,7 +62,9 @@ def paper_arc(x, y, theta, v, omega, dt):
     return xc + v / omega * np.sin(theta1), yc - v / omega * np.cos(theta1), theta1
 
 
-@pytest.mark.parametrize("omega", [-2.0, -0.3, -0.01, 1e-3, 0.02, 0.2, 0.26, 1.0, 3.0])
+@pytest.mark.parametrize(
+    "omega", [-6.0, -2.0, -0.3, -0.01, 1e-3, 0.02, 0.2, 0.26, 1.0, 3.0, 3.9999, 4.0001, 9.0]
+)
 @pytest.mark.parametrize("path", ["numpy", "compiled"])
 def test_arc_matches_the_papers_closed_form(omega, path):
     theta = np.array([-2.5, -0.4, 0.0, 1.1, 3.0])
@@ -96,8 +102,9 @@ def test_straight_line_limit_is_exact_and_continuous():
         x1, y1, _ = paper_arc(0.0, 0.0, theta, 2.0, phi, 1.0)
         np.testing.assert_allclose(dx, x1.astype(float), rtol=0, atol=1e-13)
         np.testing.assert_allclose(dy, y1.astype(float), rtol=0, atol=1e-13)
-    # the compiled kernel switches to its series at |phi| < 0.25: continuous across it
-    for omega in (0.0, 1e-12, 0.2499999, 0.25, 0.2500001):
+    # the compiled kernel runs its series on phi / 16 up to |phi| = 4 (WIDE_TURN), the
+    # library's sine and cosine beyond: continuous across it
+    for omega in (0.0, 1e-12, 0.2499999, 0.25, 0.2500001, 3.9999999, 4.0, 4.0000001):
         p = particles_at(9, heading=theta)
         p.turn_rate[:] = omega
         x1, y1, _ = paper_arc(p.x, p.y, theta, 1.5, omega if omega else 1e-300, 1.0)
@@ -141,6 +148,33 @@ def test_compiled_kernel_equals_numpy_with_the_same_draws(motion):
         np.testing.assert_allclose(getattr(compiled, name), getattr(reference, name), atol=1e-9)
 
 
+@pytest.mark.parametrize(
+    "motion",
+    [
+        BaselineMotion(sigma=0.8),
+        VelocityMotion(sigma_speed=0.2, sigma_turn_rate=0.1),
+        HMMMotion(movement_model(dt=3.0), heading_diffusion=0.05),
+    ],
+)
+def test_kernels_give_the_same_particles_on_one_or_two_threads(motion):
+    """The chunks are split between threads, never changed by them: identical results."""
+    results = []
+    for threads in (1, 2):
+        p = particles_at(3000, heading=np.linspace(-3, 3, 3000), turn_rate=0.05)
+        motion.initialise(np.random.default_rng(3), p)
+        previous = numba.get_num_threads()
+        numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
+        try:
+            moments = advance(motion, p, 6, 1.0, seed=4)
+        finally:
+            numba.set_num_threads(previous)
+        results.append((moments, p))
+    (m1, p1), (m2, p2) = results
+    np.testing.assert_array_equal(m1, m2)
+    for name in ("x", "y", "heading", "speed", "turn_rate", "state", "time_since_draw"):
+        np.testing.assert_array_equal(getattr(p1, name), getattr(p2, name))
+
+
 def test_hmm_kernel_equals_numpy_on_a_nearly_deterministic_model():
     """Identity transitions, tiny step sd, huge concentration: both paths give one path."""
     model = movement_model(dt=4.0, transition=np.eye(2), step_sd=(1e-7, 1e-7), kappa=(1e12, 1e12))
@@ -163,6 +197,72 @@ def test_hmm_kernel_equals_numpy_on_a_nearly_deterministic_model():
         for name in ("x", "y", "speed", "turn_rate", "cos_heading", "sin_heading"):
             np.testing.assert_allclose(getattr(compiled, name), getattr(reference, name), atol=1e-4)
         np.testing.assert_allclose(compiled.time_since_draw, reference.time_since_draw)
+
+
+@njit
+def _scalar_draws(due, state, streams, v, w, d, c, boost, scale, zero_mass, tables):
+    """The scalar samplers, one due particle after the other (speed factor 2/4, dt 4)."""
+    for i in due:
+        k, s = state[i], streams[i]
+        step, u = 0.0, 1.0
+        if zero_mass[k] > 0:
+            u, s = rs.uniform(s)
+        if u > zero_mass[k]:
+            step, s = rs.gamma(d[k], c[k], boost[k], scale[k], s)
+        angle, s = rs.vonmises(tables, k, s)
+        v[i], w[i], streams[i] = step * 2.0 / 4.0, angle / 4.0, s
+
+
+@njit
+def _scalar_transitions(state, streams, cumulative):
+    for i in range(state.size):
+        state[i], streams[i] = rs.categorical(cumulative[state[i]], streams[i])
+
+
+@pytest.mark.parametrize("latest_clock", [2.0, 1.1])
+def test_vectorised_hmm_passes_make_the_scalar_samplers_draws(latest_clock):
+    """The HMM kernel's draw pass (branch-free first tries, scalar retries; or, when few
+    particles are due, the scalar samplers for those only) and transition pass give,
+    particle by particle, exactly what the scalar samplers draw from the same streams: gamma
+    and von Mises for due particles (also for a zero-inflated state and a boosted shape < 1
+    state, which always take the scalar path) and categorical states."""
+    n = 50_000
+    rng = np.random.default_rng(12)
+    shape = np.array([1.8, 0.6, 5.0])
+    scale = np.array([0.3, 2.0, 0.1])
+    zero_mass = np.array([0.0, 0.0, 0.2])
+    tables = rs.VonMisesTables.build([0.0, 1.0, -2.9], [2.0, 0.3, 40.0]).as_tuple()
+    d, c, boost = rs.gamma_constants(shape)
+    state = rng.integers(0, 3, n)
+    clock = rng.uniform(0.0, latest_clock, n)  # due when >= 1: half, or one in eleven
+    streams = rs.new_streams(rng, n)
+    v, w = np.full(n, -1.0), np.full(n, -2.0)
+    retry = np.zeros(n, dtype=bool)
+    expected_streams = streams.copy()
+    due = clock >= 1.0
+    expected_v, expected_w = v.copy(), w.copy()
+    _scalar_draws(
+        np.flatnonzero(due), state, expected_streams, expected_v, expected_w, d, c, boost,
+        scale, zero_mass, tables,
+    )  # fmt: skip
+    expected_clock = np.where(due, np.where(clock < 2.0, clock - 1.0, 0.0), clock)
+    _draw_pass(
+        v, w, state, clock, streams, 1.0, 1.0, 2.0 / 4.0, 4.0, d, c, boost, scale, zero_mass,
+        tables, (np.empty((4, n)), np.empty((2, n), dtype=np.uint64), np.empty(n, bool)), retry,
+    )  # fmt: skip
+    np.testing.assert_array_equal(v, expected_v)
+    np.testing.assert_array_equal(w, expected_w)
+    np.testing.assert_array_equal(streams, expected_streams)
+    np.testing.assert_array_equal(clock, expected_clock)
+    if latest_clock == 2.0:  # the vectorised path: rejected tries and scalar-only states
+        assert retry[state == 0].any() and retry[(state > 0) & due].all()
+
+    cumulative = np.cumsum([[0.5, 0.5, 0.0], [0.1, 0.0, 0.9], [0.2, 0.3, 0.5]], axis=1)
+    expected_state = state.copy()
+    _scalar_transitions(expected_state, expected_streams, cumulative)
+    _transition_pass(state, streams, cumulative, np.empty(n), np.empty(n, dtype=np.int64))
+    np.testing.assert_array_equal(state, expected_state)
+    np.testing.assert_array_equal(streams, expected_streams)
 
 
 # ----------------------------------------------------------------------------- baseline
