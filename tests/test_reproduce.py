@@ -136,3 +136,19 @@ def test_loss_findings_use_the_paper_bands():
     findings = check_findings(None, broken)
     assert [f.holds for f in findings] == [False, True, False]
     assert "20–80 % 400 m" in findings[2].evidence
+
+
+def test_depth_finding_needs_a_difference_beyond_the_trial_spread():
+    from hmmtrack.report import check_findings
+
+    def table(without, with_correction):
+        rows = [(False, e) for e in without] + [(True, e) for e in with_correction]
+        return pd.DataFrame(rows, columns=["depth_correction", "mean_error_after_convergence"])
+
+    bimodal = [9.0, 81.0, 78.0, 9.1, 81.2, 80.9, 78.5, 9.2, 81.1, 9.0]
+    # the same two modes, one trial moved from the far to the near mode: noise, not an effect
+    shuffled = [9.2, 80.8, 9.3, 9.4, 76.7, 81.4, 9.3, 80.8, 9.3, 79.8]
+    (noise,) = check_findings(None, None, table(bimodal, shuffled))
+    assert noise.holds is False and "p = " in noise.evidence
+    clear = check_findings(None, None, table([60.0, 62.0, 58.0, 61.0], [40.0, 41.0, 39.0, 42.0]))
+    assert clear[0].holds is True

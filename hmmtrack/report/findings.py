@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
+from scipy import stats
 
 from hmmtrack.experiments import LOSS_BANDS, MOTIONS, loss_bands, summarise_trials
 from hmmtrack.report.markdown import fmt
@@ -34,6 +35,26 @@ DIVERGED_ERROR = 100.0
 ALIKE_FACTOR = 2.0
 #: "drastic" growth above 80 % loss: the >80 % band mean at least this times the 20–80 % one
 DRASTIC_FACTOR = 3.0
+#: a difference between two sets of trials counts when a one-sided test gives p below this
+SIGNIFICANCE = 0.05
+
+
+def lower_p_value(a: np.ndarray, b: np.ndarray) -> float:
+    """One-sided Welch t-test p-value of "mean of ``a`` is below mean of ``b``".
+
+    Parameters
+    ----------
+    a, b : numpy.ndarray, shape (n_a,), (n_b,)
+        Per-trial errors (m) of the two settings.
+
+    Returns
+    -------
+    float
+        p-value in [0, 1]; 1.0 when either set has fewer than two trials.
+    """
+    if a.size < 2 or b.size < 2:
+        return 1.0
+    return float(stats.ttest_ind(a, b, equal_var=False, alternative="less").pvalue)
 
 
 @dataclass(frozen=True)
@@ -180,7 +201,8 @@ def check_findings(
         :data:`DIVERGED_ERROR` and the baseline the worst model; "usable" = at least 90 % of
         the 20–80 % band converged with a mean error below :data:`DIVERGED_ERROR`;
         "drastically" = the >80 % band mean at least :data:`DRASTIC_FACTOR` times the
-        20–80 % one, which is not below the <20 % one.
+        20–80 % one, which is not below the <20 % one; "lowers" (depth) = a one-sided Welch
+        test of the per-trial errors gives p below :data:`SIGNIFICANCE`.
     """
     findings = []
     if comparison is not None and len(comparison):
@@ -188,14 +210,18 @@ def check_findings(
     if loss is not None and len(loss):
         findings += _loss_findings(loss)
     if depth_trials is not None and len(depth_trials):
-        by = depth_trials.groupby("depth_correction")["mean_error_after_convergence"].mean()
-        if {True, False} <= set(by.index):
+        errors = depth_trials.groupby("depth_correction")["mean_error_after_convergence"]
+        if {True, False} <= set(errors.groups):
+            with_correction = errors.get_group(True).to_numpy(dtype=float)
+            without = errors.get_group(False).to_numpy(dtype=float)
+            p_value = lower_p_value(with_correction, without)
             findings.append(
                 Finding(
                     "Correcting ranges with the tag's depth lowers the error on a diving shark.",
-                    bool(by[True] < by[False]),
-                    f"mean error after convergence: without correction {fmt(by[False])} m, "
-                    f"with correction {fmt(by[True])} m",
+                    bool(p_value < SIGNIFICANCE),
+                    f"mean error after convergence: without correction {fmt(without.mean())} m, "
+                    f"with correction {fmt(with_correction.mean())} m; one-sided Welch test "
+                    f"p = {p_value:.2g} over {without.size} + {with_correction.size} trials",
                 )
             )
     return findings
