@@ -84,16 +84,7 @@ def settings() -> dict[str, tuple[int, object]]:
 
 def scenario_config(scenario, n_particles: int) -> TrackingConfig:
     """The tracking configuration of the experiments (``hmmtrack.experiments``)."""
-    return TrackingConfig(
-        period=scenario.period,
-        r0=scenario.r0,
-        sound_speed=scenario.sound_speed,
-        transmitter=scenario.transmitter,
-        bounds=scenario.bounds,
-        n_particles=n_particles,
-        start=scenario.start,
-        end=scenario.end,
-    )
+    return scenario.tracking_config(n_particles=n_particles)
 
 
 def geometry_angle(scenario) -> float:

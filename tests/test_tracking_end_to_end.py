@@ -37,16 +37,8 @@ def stationary():
 
 
 def scenario_config(scenario, **changes) -> TrackingConfig:
-    settings = {
-        "period": scenario.period,
-        "r0": scenario.r0,
-        "sound_speed": scenario.sound_speed,
-        "transmitter": scenario.transmitter,
-        "n_particles": N_PARTICLES,
-        "start": scenario.start,
-        "end": scenario.end,
-    }
-    return TrackingConfig(**(settings | changes))
+    # bounds from r0 (TrackingConfig's rule), not the scenario's box
+    return scenario.tracking_config(**({"n_particles": N_PARTICLES, "bounds": None} | changes))
 
 
 def diving_tag_detections(depth_of_time):

@@ -22,7 +22,6 @@ import numpy as np
 import pandas as pd
 
 from hmmtrack import metrics, scenarios, tracking
-from hmmtrack.config import TrackingConfig
 from hmmtrack.filter import ParticleFilter
 from hmmtrack.measurement import RangeRateMeasurement
 from hmmtrack.random import SeedLike, as_generator
@@ -182,17 +181,10 @@ def track_scenario(
     detections = scenario.detections
     if loss_fraction > 0:
         detections = scenarios.thin_evenly(detections, loss_fraction)
-    config = TrackingConfig(
-        period=scenario.period,
-        r0=scenario.r0,
-        sound_speed=scenario.sound_speed,
-        transmitter=scenario.transmitter,
-        bounds=scenario.bounds,
+    config = scenario.tracking_config(
         n_particles=n_particles,
         depth="sensor" if depth_correction else "none",
         shallower="clip",
-        start=scenario.start,
-        end=scenario.end,
     )
     if detections.empty:  # everything dropped: the filter runs on its motion model alone
         pf = ParticleFilter(

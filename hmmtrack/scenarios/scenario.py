@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from hmmtrack.config import TrackingConfig
 from hmmtrack.scenarios.detection import (
     SOUND_SPEED,
     GpsNoise,
@@ -104,6 +105,31 @@ class Scenario:
             "r0": dict(self.r0),
             "bounds": list(self.bounds),
         }
+
+    def tracking_config(self, **changes) -> TrackingConfig:
+        """The :class:`~hmmtrack.config.TrackingConfig` that tracks this scenario.
+
+        Parameters
+        ----------
+        **changes
+            Settings that differ from the scenario's (e.g. ``n_particles``, ``depth``).
+
+        Returns
+        -------
+        TrackingConfig
+            ``period``, ``r0``, ``sound_speed``, ``transmitter``, ``bounds``, ``start`` and
+            ``end`` from the scenario, the rest from ``changes`` or the defaults.
+        """
+        settings = {
+            "period": self.period,
+            "r0": dict(self.r0),
+            "sound_speed": self.sound_speed,
+            "transmitter": self.transmitter,
+            "bounds": self.bounds,
+            "start": self.start,
+            "end": self.end,
+        }
+        return TrackingConfig(**(settings | changes))
 
 
 def assemble_scenario(
