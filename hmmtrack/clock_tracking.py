@@ -945,6 +945,7 @@ def track_arrival_time(
     detection: LogisticDetection | None = None,
     start: float | None = None,
     end: float | None = None,
+    tempering_ess: float = 0.3,
     seed=None,
 ) -> ClockFilterResult:
     """Track a fixed-period tag from its arrival times, without a known initial range.
@@ -981,6 +982,9 @@ def track_arrival_time(
         Count unheard pings with this detection curve.
     start, end : float, optional
         Time window (s).
+    tempering_ess : float
+        See :class:`ClockAwareFilter`; two receivers on a fast-turning plan need 0.6
+        (benchmarks/bench_two_auv_plan.py).
     seed : int, SeedSequence or Generator
 
     Returns
@@ -1012,6 +1016,7 @@ def track_arrival_time(
         bounds,
         smoothing_lag=smoothing_lag,
         silence=silence,
+        tempering_ess=tempering_ess,
         rng=seed,
     )
     return pf.run(obs, start, end)

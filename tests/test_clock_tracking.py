@@ -390,3 +390,24 @@ def test_arrival_observations_refuse_missing_depths():
     detections = pd.DataFrame({"time": [5.0, 6.0], "receiver": ["a", "a"], "depth": [3.0, np.nan]})
     with pytest.raises(ValueError, match=r"detections.*'depth'.*rows \[1\]"):
         arrival_observations(detections, receivers)
+
+
+@pytest.mark.filterwarnings("ignore:.*clock_reacquired")  # 300 particles: a re-acquisition
+def test_track_arrival_time_passes_tempering_ess_to_the_filter():
+    case = moored_array(5, duration=300.0)
+    sc = case.scenario
+    kwargs = dict(
+        motion=VelocityMotion(0.05, 0.02),
+        period=sc.period,
+        n_particles=300,
+        start=sc.start,
+        end=sc.end,
+        seed=1,
+    )
+    with pytest.raises(ValueError, match="tempering_ess"):
+        track_arrival_time(case.corrected_detections(), sc.receivers, tempering_ess=1.5, **kwargs)
+    loose = track_arrival_time(case.corrected_detections(), sc.receivers, **kwargs)
+    strict = track_arrival_time(
+        case.corrected_detections(), sc.receivers, tempering_ess=0.9, **kwargs
+    )
+    assert not np.array_equal(loose.estimates["x"], strict.estimates["x"])
