@@ -35,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from bench_arrival import first_detection_ranges, make_motion, markdown, summarise
+from bench_arrival import inputs, make_motion, markdown, summarise
 from bench_clock_bound import (
     DURATION,
     SKIP,
@@ -47,7 +47,6 @@ from bench_clock_bound import (
 
 from hmmtrack.arrival import ArrivalLikelihood, ArrivalTimeMeasurement
 from hmmtrack.clock_tracking import track_arrival_time
-from hmmtrack.config import TrackingConfig
 from hmmtrack.metrics import position_error
 from hmmtrack.motion import VelocityMotion
 from hmmtrack.tracking import track
@@ -147,17 +146,7 @@ def range_rate_errors(case, seed: int) -> dict:
     ``bench_arrival.py`` runs it; mean error after convergence overall and in the first and
     last 30 minutes after convergence (m)."""
     sc = case.scenario
-    end = sc.start + DURATION
-    detections = case.corrected_detections()
-    detections = detections[detections["time"] < end].reset_index(drop=True)
-    config = TrackingConfig(
-        period=sc.period,
-        r0=first_detection_ranges(case),
-        sound_speed=sc.sound_speed,
-        n_particles=TUNED.n_particles,
-        start=sc.start,
-        end=end,
-    )
+    detections, config, _ = inputs(case, seed, TUNED.n_particles, "velocity", DURATION)
     result = track(detections, sc.receivers, config, make_motion("velocity"), seed=seed)
     paper = summarise(result.estimates, sc.truth)
     return {
