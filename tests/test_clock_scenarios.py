@@ -91,6 +91,20 @@ def test_multipath_delays_a_share_of_pings():
     np.testing.assert_allclose(out["logged_time"], out["multipath_delay"])
 
 
+def auv_geometry(scenario):
+    """Per AUV: 1 s speeds (m/s), unwrapped bearing from the shark (rad) and distance (m)."""
+    truth = scenario.truth.set_index("time")
+    out = {}
+    for name, g in scenario.receivers_truth.groupby("receiver"):
+        g = g.set_index("time")
+        speed = np.hypot(np.diff(g["x"]), np.diff(g["y"])) / np.diff(g.index)
+        dx = g["x"] - truth.loc[g.index, "x"]
+        dy = g["y"] - truth.loc[g.index, "y"]
+        bearing = np.unwrap(np.arctan2(dy, dx).to_numpy())
+        out[name] = (speed, bearing, np.hypot(dx, dy).to_numpy(), g.index[-1] - g.index[0])
+    return out
+
+
 @pytest.mark.parametrize("seed", [0, 1])
 def test_circling_pursuit_is_realistic_and_turns_its_geometry(seed):
     """The default pursuit: the AUVs stay at about the stated distances, no faster than an
@@ -98,18 +112,12 @@ def test_circling_pursuit_is_realistic_and_turns_its_geometry(seed):
     20 minutes while the trailing one's stays put (what makes the tag observable)."""
     case = realistic_shark_pursuit(seed)
     sc = case.scenario
-    truth = sc.truth.set_index("time")
-    for name, g in sc.receivers_truth.groupby("receiver"):
-        g = g.set_index("time")
-        speed = np.hypot(np.diff(g["x"]), np.diff(g["y"])) / np.diff(g.index)
+    for name, (speed, turned, distances, span) in auv_geometry(sc).items():
         assert np.percentile(speed, 99) < 2.2
-        dx = g["x"] - truth.loc[g.index, "x"]
-        dy = g["y"] - truth.loc[g.index, "y"]
-        turned = np.unwrap(np.arctan2(dy, dx).to_numpy())
         laps = (turned[-1] - turned[0]) / (2 * np.pi)
-        distance = np.median(np.hypot(dx, dy))
+        distance = np.median(distances)
         if name == "auv-2":
-            expected = (g.index[-1] - g.index[0]) / 1200.0
+            expected = span / 1200.0
             assert laps == pytest.approx(expected, rel=0.1)
             assert 100 < distance < 140
         else:
@@ -127,18 +135,13 @@ def test_circling_pursuit_is_realistic_and_turns_its_geometry(seed):
 
 def test_formation_keeps_a_right_angle_and_turns_around_the_shark():
     sc = realistic_shark_pursuit(0, steering="formation").scenario
-    truth = sc.truth.set_index("time")
     bearings = {}
-    for name, g in sc.receivers_truth.groupby("receiver"):
-        g = g.set_index("time")
-        speed = np.hypot(np.diff(g["x"]), np.diff(g["y"])) / np.diff(g.index)
+    for name, (speed, bearing, distances, span) in auv_geometry(sc).items():
+        bearings[name] = bearing
         assert np.percentile(speed, 99) < 2.3
-        dx = g["x"] - truth.loc[g.index, "x"]
-        dy = g["y"] - truth.loc[g.index, "y"]
-        bearings[name] = np.unwrap(np.arctan2(dy, dx).to_numpy())
-        assert 40 < np.median(np.hypot(dx, dy)) < 90
-        laps = (bearings[name][-1] - bearings[name][0]) / (2 * np.pi)
-        assert laps == pytest.approx((g.index[-1] - g.index[0]) / 600.0, rel=0.1)
+        assert 40 < np.median(distances) < 90
+        laps = (bearing[-1] - bearing[0]) / (2 * np.pi)
+        assert laps == pytest.approx(span / 600.0, rel=0.1)
     angle = np.degrees(np.angle(np.exp(1j * (bearings["auv-2"] - bearings["auv-1"]))))
     assert np.median(angle) == pytest.approx(90.0, abs=10.0)
     assert np.percentile(np.abs(angle - 90.0), 90) < 30.0
