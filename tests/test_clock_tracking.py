@@ -396,6 +396,7 @@ def test_arrival_observations_refuse_missing_depths():
 def test_track_arrival_time_passes_tempering_ess_to_the_filter():
     case = moored_array(5, duration=300.0)
     sc = case.scenario
+    detections = case.corrected_detections()
     kwargs = dict(
         motion=VelocityMotion(0.05, 0.02),
         period=sc.period,
@@ -405,9 +406,7 @@ def test_track_arrival_time_passes_tempering_ess_to_the_filter():
         seed=1,
     )
     with pytest.raises(ValueError, match="tempering_ess"):
-        track_arrival_time(case.corrected_detections(), sc.receivers, tempering_ess=1.5, **kwargs)
-    loose = track_arrival_time(case.corrected_detections(), sc.receivers, **kwargs)
-    strict = track_arrival_time(
-        case.corrected_detections(), sc.receivers, tempering_ess=0.9, **kwargs
-    )
+        track_arrival_time(detections, sc.receivers, tempering_ess=1.5, **kwargs)
+    loose = track_arrival_time(detections, sc.receivers, **kwargs)
+    strict = track_arrival_time(detections, sc.receivers, tempering_ess=0.9, **kwargs)
     assert not np.array_equal(loose.estimates["x"], strict.estimates["x"])
