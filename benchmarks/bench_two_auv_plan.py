@@ -99,27 +99,17 @@ TUNED = FilterSettings(
 def arrival_run(case, settings: FilterSettings, smoothing_lag, seed):
     """:func:`hmmtrack.clock_tracking.track_arrival_time` with ``settings`` on ``case``'s
     clock-corrected detections (default clock model, the scenario's detection curve)."""
+    detections, _, common = inputs(case, seed, settings.n_particles, "velocity", DURATION)
     sc = case.scenario
-    end = sc.start + DURATION
-    detections = case.corrected_detections()
-    detections = detections[detections["time"] < end].reset_index(drop=True)
-    return track_arrival_time(
-        detections,
-        sc.receivers,
-        motion=VelocityMotion(settings.sigma_speed, settings.sigma_turn_rate),
-        period=sc.period,
-        bounds=case.search_bounds,
-        measurement=ArrivalTimeMeasurement(
+    tuned = {
+        "motion": VelocityMotion(settings.sigma_speed, settings.sigma_turn_rate),
+        "measurement": ArrivalTimeMeasurement(
             ArrivalLikelihood(sigma=settings.sigma), sound_speed=sc.sound_speed
         ),
-        n_particles=settings.n_particles,
-        smoothing_lag=smoothing_lag,
-        detection=case.detection_probability,
-        start=sc.start,
-        end=end,
-        tempering_ess=settings.tempering_ess,
-        seed=seed,
-    )
+        "smoothing_lag": smoothing_lag,
+        "tempering_ess": settings.tempering_ess,
+    }
+    return track_arrival_time(detections, sc.receivers, **(common | tuned))
 
 
 def errors(case, settings: FilterSettings, seed: int) -> dict:
