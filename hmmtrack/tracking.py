@@ -9,7 +9,9 @@ detection time from :class:`hmmtrack.receivers.ReceiverTracks`.
 with :class:`hmmtrack.measurement.RangeRateMeasurement`) on those observations with one
 of the paper's motion models chosen by name (:func:`motion_model`): ``"baseline"``,
 ``"velocity"`` or ``"hmm"`` (a saved :class:`hmmtrack.hmm.MovementHMM`, by default the
-bundled white-shark model ``hmmtrack/data/white_shark_hmm.json``).
+bundled white-shark model ``hmmtrack/data/white_shark_hmm.json``), to which the
+time-consistent variant adds a resting state by default (:data:`HMM_RESTING`: a tag may be
+shed, its animal dead or resting; ``motion_model("hmm", resting=None)`` switches it off).
 
 :func:`expected_measurements` gives the true (range, range-rate) of each observation
 from a known tag track, to estimate Σ_z from a calibration segment or a simulation.
@@ -25,10 +27,11 @@ the defaults here and in :class:`hmmtrack.config.TrackingConfig` were chosen on 
 synthetic analogues of its three datasets (stationary tag, swimmer, shark pursuit; 10-20
 trials per cell at 1,000 particles, fixed seeds; the measurements are quoted beside each
 constant). With them, mean (median) error after convergence over 20 trials, baseline /
-velocity / HMM: stationary tag 3.4 (3.5) / 3.3 (3.2) / 8.1 (6.4) m; swimmer 108 (132) /
-32 (3.5) / 30 (4.2) m; shark pursuit 898 (903) / 39 (12) / 31 (9.5) m. Most of the swimmer's
-mean comes from trials that settle on the mirror intersection of the two range circles
-(20-25 % of them for velocity and HMM); at :class:`~hmmtrack.config.TrackingConfig`'s
+velocity / HMM: stationary tag 3.4 (3.5) / 3.3 (3.2) / 4.2 (3.6) m; swimmer 108 (132) /
+32 (3.5) / 32 (4.3) m; shark pursuit 898 (903) / 39 (12) / 37 (9.9) m (the HMM with its
+resting state, :data:`HMM_RESTING`; without it 7.2 (5.9) / 29 (4.2) / 34 (9.8) m). Most of
+the swimmer's mean comes from trials that settle on the mirror intersection of the two range
+circles (20-25 % of them for velocity and HMM); at :class:`~hmmtrack.config.TrackingConfig`'s
 default of 5,000 particles none of 20 did (velocity 5.4 m, HMM 5.3 m), the baseline still
 in 85 %. The shark-pursuit trials are bimodal at either count (about 9 m, or about 70 m
 when the filter follows the mirror for the first 45 minutes). The paper's algorithm stays reachable:
@@ -55,13 +58,15 @@ from hmmtrack import metrics, ranging
 from hmmtrack.config import TrackingConfig
 from hmmtrack.filter import ParticleFilter
 from hmmtrack.measurement import RangeRateMeasurement
-from hmmtrack.motion import BaselineMotion, HMMMotion, VelocityMotion
+from hmmtrack.motion import STEP_UNITS, BaselineMotion, HMMMotion, VelocityMotion
 from hmmtrack.random import SeedLike, as_generator
 from hmmtrack.receivers import ReceiverTracks
 
 __all__ = [
     "MOTIONS",
+    "HMM_RESTING",
     "OBSERVATION_COLUMNS",
+    "RestingState",
     "TrackingResult",
     "build_observations",
     "bundled_model_path",
@@ -114,6 +119,47 @@ VELOCITY_SIGMA_TURN_RATE = 0.02
 #: fitted to
 HMM_HEADING_DIFFUSION = 0.2
 
+
+@dataclass(frozen=True)
+class RestingState:
+    """A resting state added to a movement HMM at tracking time
+    (:meth:`hmmtrack.hmm.MovementHMM.with_resting_state`).
+
+    Attributes
+    ----------
+    enter_per_hour : float
+        Rate (per hour) at which a swimming animal comes to rest.
+    leave_per_hour : float
+        Rate (per hour) at which a resting tag starts swimming again.
+    drift_speed : float
+        Mean speed of a resting tag (m/s): its steps over the model's time step have mean and
+        standard deviation ``drift_speed * model.dt``, in uniform directions.
+    """
+
+    enter_per_hour: float
+    leave_per_hour: float
+    drift_speed: float
+
+
+#: resting state of the HMM motion model (time-consistent variant) by default: a tag may be
+#: shed, its animal dead or resting, although the bundled white-shark model always swims
+#: (0.36 or 1.05 m/s). Entered at 0.5 per hour, left at 2 per hour (mean rest 30 min; 20 %
+#: of the particles rest under the prior), drifting at 0.05 m/s (an exactly motionless state
+#: lets resampled copies of one resting particle pile up on one point: 95 % ellipse coverage
+#: 0.21 on the stationary tag). Share of stationary-tag trials under 10 m
+#: (``benchmarks/bench_stationary.py``, 100 scenario seeds, 5,000 / 1,000 particles):
+#: without it 62 / 64 %, with it 98 / 84 % (1 / 4 per hour: 96 / 89 %, at 0.1 m/s 97 / 89 %;
+#: 0.5 / 1 per hour: 98 / 90 %; at 5,000 particles 0.2 / 2 per hour: 91 %, 0.03 m/s: 99 %
+#: with coverage 0.92). Its cloud is tight (2.5 m): the few trials that settle on the second
+#: intersection of the range circles are confidently wrong (coverage < 0.5 in 10 % of the
+#: trials at 1,000 particles, 1 % at 5,000; 1 / 4 per hour at 0.1 m/s: 4 % and 0 %). On the
+#: moving tags (200 trials, 1,000 particles, share under 20 m, swimmer / shark pursuit)
+#: 0.66 / 0.51 against 0.70 / 0.53 without (1 / 4 per hour at 0.1 m/s: 0.66 / 0.49; 0.5 / 1
+#: per hour, 33 % resting, 0.58 / 0.50 over 100 trials): within the trial-to-trial noise
+#: (±0.05 on a difference), though every resting setting measured lies a little below.
+#: ``motion_model("hmm", resting=None)`` switches it off
+HMM_RESTING = RestingState(enter_per_hour=0.5, leave_per_hour=2.0, drift_speed=0.05)
+
 #: columns of the observations table, in order (``docs/interfaces.md`` plus the
 #: transmitter and the pings missed since the receiver's previous detection)
 OBSERVATION_COLUMNS = (
@@ -143,6 +189,7 @@ def motion_model(
     model: str | Path | object | None = None,
     variant: str = "time_consistent",
     heading_diffusion: float | None = None,
+    resting: RestingState | None | str = "default",
 ):
     """One of the paper's motion models, by name, with hmmtrack's default parameters.
 
@@ -164,6 +211,14 @@ def motion_model(
         For ``hmm`` only: heading random walk (rad/√s) of
         :class:`~hmmtrack.motion.HMMMotion`; by default :data:`HMM_HEADING_DIFFUSION` in the
         time-consistent variant and 0 in the paper's.
+    resting : RestingState, None or "default"
+        For ``hmm`` only: add a resting state to the model
+        (:meth:`~hmmtrack.hmm.MovementHMM.with_resting_state`), so that the filter can hold
+        a tag that does not move (shed, dead, resting) although the fitted animal always
+        swims; it costs moving tags little (measurements at :data:`HMM_RESTING`). The
+        estimates' particles then carry ``K + 1`` states, the last one resting. ``"default"``:
+        :data:`HMM_RESTING` in the time-consistent variant, none in the paper's; ``None``:
+        the model as given.
 
     Returns
     -------
@@ -171,9 +226,12 @@ def motion_model(
     """
     if name not in MOTIONS:
         raise ValueError(f"motion must be one of {MOTIONS}, got {name!r}")
-    if name != "hmm" and (model is not None or heading_diffusion is not None):
+    if name != "hmm" and (
+        model is not None or heading_diffusion is not None or resting != "default"
+    ):
         raise ValueError(
-            f"a movement model and heading diffusion are used by motion 'hmm' only, not {name!r}"
+            "a movement model, heading diffusion and a resting state are used by motion 'hmm' "
+            f"only, not {name!r}"
         )
     if name == "baseline":
         return BaselineMotion(sigma=BASELINE_SIGMA)
@@ -189,6 +247,22 @@ def motion_model(
         model = MovementHMM.load(model)
     if heading_diffusion is None:
         heading_diffusion = HMM_HEADING_DIFFUSION if variant == "time_consistent" else 0.0
+    if isinstance(resting, str):
+        if resting != "default":
+            raise ValueError(f"resting must be a RestingState, None or 'default', got {resting!r}")
+        resting = HMM_RESTING if variant == "time_consistent" else None
+    if resting is not None:
+        metres = STEP_UNITS.get(model.step_unit)
+        if metres is None:
+            raise ValueError(
+                f"the movement HMM's steps are in {model.step_unit!r}; expected one of "
+                f"{sorted(STEP_UNITS)}"
+            )
+        model = model.with_resting_state(
+            resting.enter_per_hour,
+            resting.leave_per_hour,
+            resting_step=resting.drift_speed * model.dt / metres,
+        )
     return HMMMotion(model, variant=variant, heading_diffusion=heading_diffusion)
 
 

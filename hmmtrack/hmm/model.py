@@ -4,9 +4,11 @@
 distribution, the transition matrix (or the logit coefficients of covariates on it), the
 state-dependent step and angle distributions, the time step of the data it was fitted on -- and
 answers questions about it: transition matrices, the stationary distribution, state
-probabilities and Viterbi paths for data, simulation. :meth:`MovementHMM.save` /
-:meth:`MovementHMM.load` write and read the JSON schema ``"hmmtrack.movement_hmm"``, version 1;
-loading validates every field and refuses anything it does not understand. There is no pickle.
+probabilities and Viterbi paths for data, simulation -- and builds the model with a
+resting state added for tracking (:meth:`MovementHMM.with_resting_state`).
+:meth:`MovementHMM.save` / :meth:`MovementHMM.load` write and read the JSON schema
+``"hmmtrack.movement_hmm"``, version 1; loading validates every field and refuses anything
+it does not understand. There is no pickle.
 
 This module is not for fitting (see :mod:`hmmtrack.hmm.fit`) nor for the recursions (see
 :mod:`hmmtrack.hmm.inference`).
@@ -244,6 +246,91 @@ class MovementHMM:
             raise ValueError(f"covariates have {design.shape[0]} rows; expected {n_rows}")
         return cov.log_transition_matrices(self.coefficients, design[1:])
 
+    def with_resting_state(
+        self, enter_per_hour: float, leave_per_hour: float, resting_step: float
+    ) -> MovementHMM:
+        """This model with one more behavioural state, "resting": a tag that stays put.
+
+        A tracked tag can be at rest although the fitted animal always swims: a shed tag,
+        a dead animal (what mortality and shed-tag checks look for), an animal resting on
+        the bottom. The resting state is appended as state ``K`` (the last). Its steps have
+        mean and standard deviation ``resting_step`` (a slow drift in a uniform direction:
+        the step family's member of those moments, turning angles uniform, concentration
+        0); a strictly motionless state would let a particle filter's copies of one resting
+        particle pile up on a single point. Every swimming state enters it with probability
+        ``p_enter = 1 - exp(-enter_per_hour * dt / 3600)`` per fitted step ``dt`` (the rest
+        of its row scaled by ``1 - p_enter``); the resting state is left with probability
+        ``p_leave = 1 - exp(-leave_per_hour * dt / 3600)``, into the swimming states in
+        proportion to their stationary distribution ``pi``. The stationary distribution of
+        the result is then exactly ``((1 - r) pi, r)`` with resting share
+        ``r = p_enter / (p_enter + p_leave)`` (about ``enter / (enter + leave)`` when both
+        rates are much slower than ``1 / dt``): the swimming states keep their relative
+        shares. ``initial`` becomes ``((1 - r) initial, r)``.
+
+        This is a prior added at tracking time, not a fitted model: the log-likelihood, AIC
+        and BIC of the result are unknown (NaN). ``self`` is unchanged. A covariate model
+        contributes its matrix at the covariate means (what the tracking filter moves
+        particles with, :class:`hmmtrack.motion.HMMMotion`); the result has no covariates.
+
+        Parameters
+        ----------
+        enter_per_hour : float
+            Rate (per hour, >= 0) at which a swimming animal comes to rest.
+        leave_per_hour : float
+            Rate (per hour, > 0) at which a resting tag starts swimming again (mean rest
+            ``1 / leave_per_hour`` h).
+        resting_step : float
+            Mean (and standard deviation) of the resting state's steps per ``dt``, in
+            ``step_unit`` (> 0).
+
+        Returns
+        -------
+        MovementHMM
+            ``K + 1`` states; saved and loaded like any model.
+
+        Raises
+        ------
+        ValueError
+            For a model without a time step, or rates or a step that are not finite numbers
+            in range.
+        """
+        if not (math.isfinite(self.dt) and self.dt > 0):
+            raise ValueError(
+                f"with_resting_state needs the fitted time step (model.dt = {self.dt}) to turn "
+                "rates per hour into probabilities per step"
+            )
+        checks = {
+            "enter_per_hour": (enter_per_hour, enter_per_hour >= 0, ">= 0"),
+            "leave_per_hour": (leave_per_hour, leave_per_hour > 0, "> 0"),
+            "resting_step": (resting_step, resting_step > 0, "> 0"),
+        }
+        for name, (value, ok, expected) in checks.items():
+            if not (math.isfinite(value) and ok):
+                raise ValueError(f"{name} must be a finite number {expected}, got {value}")
+        k = self.n_states
+        p_enter = -math.expm1(-enter_per_hour * self.dt / 3600.0)
+        p_leave = -math.expm1(-leave_per_hour * self.dt / 3600.0)
+        resting_share = p_enter / (p_enter + p_leave)
+        transition = np.zeros((k + 1, k + 1))
+        transition[:k, :k] = (1.0 - p_enter) * self.transition_matrix()
+        transition[:k, k] = p_enter
+        transition[k, :k] = p_leave * self.stationary()
+        transition[k, k] = 1.0 - p_leave
+        resting = type(self.step).from_moments([resting_step], [resting_step]).to_dict()
+        if self.step.zero_mass is not None:
+            resting["zero_mass"] = [0.0]
+        step = _appended(self.step, resting)
+        angle = _appended(self.angle, {"mean": [0.0], "concentration": [0.0]})
+        return MovementHMM(
+            initial=np.append((1.0 - resting_share) * self.initial, resting_share),
+            transition=transition,
+            step=distributions.from_dict(step),
+            angle=distributions.from_dict(angle),
+            dt=self.dt,
+            step_unit=self.step_unit,
+            n_obs=self.n_obs,
+        )
+
     # -- data ---------------------------------------------------------------------------------
 
     def log_likelihood_matrix(self, step: np.ndarray, angle: np.ndarray) -> np.ndarray:
@@ -430,6 +517,16 @@ class MovementHMM:
             aic=reader.number("aic"),
             bic=reader.number("bic"),
         )
+
+
+def _appended(distribution, extra: dict) -> dict:
+    """The document of ``distribution`` (K states) with the per-state parameters (lists) of
+    the one-state document ``extra`` appended as state ``K``."""
+    document = distribution.to_dict()
+    for name, values in extra.items():
+        if isinstance(values, list):
+            document[name] = [*document[name], *values]
+    return document
 
 
 def _float_or_none(value: float) -> float | None:
