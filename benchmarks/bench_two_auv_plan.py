@@ -2,25 +2,26 @@
 
 Issue 5 asks for an error after convergence under 10 m over 2 h with two moving receivers,
 no known initial range and the realistic drifting tag clock. ``bench_clock_bound.py``
-showed that no tracker can reach that on today's steerings, and that a pair of AUVs
-circling the shark together fast enough can (filtering bound about 5.5 m RMS for 30 m
-from the shark, 135° apart, one lap per 200 s). For each plan in :data:`PLANS` this
-script runs the arrival-time particle filter twice from the same detections, with
-``track_arrival_time``'s defaults (:data:`DEFAULT`) and with the settings tuned for these
-plans (:data:`TUNED`), and the paper's range-rate method once (true initial ranges, best
-constant period, velocity motion), and prints per seed the filtered and 60 s-smoothed mean error
-after convergence (the paper's metric), the time to convergence, the filtered RMS error
-from 10 min on beside the posterior Cramér–Rao bound
-(:func:`hmmtrack.bounds.arrival_time_bound`, fitted clock and detection curve, as in
-``bench_clock_bound.py``) and the AUVs' speed percentiles (1 s steps); then the
-filters' throughput (particle-steps per second without the smoother, best of two runs)
-with the machine's load. Not a test: it measures.
+showed that no tracker can reach that on the earlier steerings, and that a pair of AUVs
+circling the shark together fast enough can. For each plan in :data:`PLANS` this script
+runs the arrival-time particle filter twice from the same detections, with
+``track_arrival_time``'s defaults (:data:`DEFAULT`) and with the bundled
+``two-moving-receivers`` preset (:data:`PRESET`, :func:`hmmtrack.config.read_preset`),
+and the paper's range-rate method once (true initial ranges, best constant period,
+velocity motion), and prints per seed the filtered and 60 s-smoothed mean error after
+convergence (the paper's metric), the time to convergence, the filtered RMS error from
+10 min on beside the posterior Cramér–Rao bound (:func:`hmmtrack.bounds.arrival_time_bound`,
+fitted clock and detection curve, as in ``bench_clock_bound.py``) and the AUVs' speed
+percentiles (1 s steps); then the filters' throughput (particle-steps per second without
+the smoother, best of two runs) with the machine's load. Not a test: it measures.
 
-The plans are flown by :func:`hmmtrack.clock_scenarios.rotating_pair` around the shark of
-``realistic_shark_pursuit`` (the tag clock wanders 0.8 s from a constant 8 s schedule,
-65 µs jitter, multipath, correlated GPS error), built by ``bench_clock_bound.py``'s
-``formation_case``. The stations are placed from the true shark position: the steering
-assumes the AUVs know where the shark is to within the filter's error.
+The plans are steerings of :func:`hmmtrack.clock_scenarios.realistic_shark_pursuit` (the
+tag clock wanders 0.8 s from a constant 8 s schedule, 65 µs jitter, multipath, correlated
+GPS error): ``steering="observable"`` (30 m from the shark, 135° apart, one lap per
+150 s) and the same pair turning once per 200 s (a
+:class:`hmmtrack.clock_scenarios.RotatingPlan`). The stations are placed from the true
+shark position: the steering assumes the AUVs know where the shark is to within the
+filter's error.
 
     python benchmarks/bench_two_auv_plan.py [--seeds 3] [--report reports/two_auv_plan.md]
 """
@@ -28,7 +29,6 @@ assumes the AUVs know where the shark is to within the filter's error.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import os
 import time
 from pathlib import Path
@@ -36,83 +36,62 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 from bench_arrival import inputs, make_motion, markdown, summarise
-from bench_clock_bound import (
-    DURATION,
-    SKIP,
-    bound_inputs,
-    bound_table,
-    formation_case,
-    rms_after_skip,
-)
+from bench_clock_bound import DURATION, SKIP, bound_inputs, bound_table, rms_after_skip
 
-from hmmtrack.arrival import ArrivalLikelihood, ArrivalTimeMeasurement
+from hmmtrack.clock_scenarios import ROTATING_PLANS, RotatingPlan, realistic_shark_pursuit
 from hmmtrack.clock_tracking import track_arrival_time
+from hmmtrack.config import TrackingConfig, read_preset
 from hmmtrack.metrics import position_error
-from hmmtrack.motion import VelocityMotion
 from hmmtrack.tracking import track
 
-#: (radius m, lap time s, separation deg): the recommended plan first (its throughput is
-#: measured), then bench_clock_bound.py's planned geometry, which turns the pair more slowly
-PLANS = ((30.0, 150.0, 135.0), (30.0, 200.0, 135.0))
+#: steerings of ``realistic_shark_pursuit``: the recommended plan first (its throughput is
+#: measured), then the same pair turning more slowly (bench_clock_bound.py's planned geometry)
+PLANS = ("observable", RotatingPlan(lap_time=200.0))
 SMOOTHING_LAG = 60
-
-
-@dataclasses.dataclass(frozen=True)
-class FilterSettings:
-    """The arrival-time filter's knobs that this benchmark varies.
-
-    Parameters
-    ----------
-    sigma : float
-        Standard deviation of a direct-path arrival-time residual (s).
-    sigma_speed : float
-        Speed random walk of :class:`hmmtrack.motion.VelocityMotion` (m/s per √s).
-    sigma_turn_rate : float
-        Turn-rate random walk of :class:`hmmtrack.motion.VelocityMotion` (rad/s per √s).
-    tempering_ess : float
-        Fraction of the particles below which a correction is tempered.
-    n_particles : int
-    """
-
-    sigma: float
-    sigma_speed: float
-    sigma_turn_rate: float
-    tempering_ess: float
-    n_particles: int
-
+#: the bundled preset this script measures
+PRESET = "two-moving-receivers"
 
 #: ``track_arrival_time``'s defaults with ``bench_arrival.py``'s velocity motion
-DEFAULT = FilterSettings(
-    sigma=3e-3, sigma_speed=0.05, sigma_turn_rate=0.02, tempering_ess=0.3, n_particles=3000
-)
-#: tuned on these plans (H20): the residual's σ near the scenario's ~1 ms arrival-time noise,
+#: (:func:`bench_arrival.make_motion`), as settings of :class:`hmmtrack.config.TrackingConfig`
+DEFAULT = {
+    "measurement": "arrival-time",
+    "motion": "velocity",
+    "sigma_speed": make_motion("velocity").sigma_speed,
+    "sigma_turn_rate": make_motion("velocity").sigma_turn_rate,
+    "n_particles": 3000,
+}
+#: the preset (H20's tuning): the residual's σ near the scenario's ~1 ms arrival-time noise,
 #: a turn rate that wanders 7× less (a white shark cruises; the mirror fix across the line
 #: through the AUVs has to swim circles to follow the turning pair), and tempering that
 #: keeps 60 % of the particles alive at each stage, with 4,000 particles. With any one of
-#: σ, turn rate and tempering back at its default, a seed goes over 10 m on the 150 s plan
-#: (12.2, 12.6 and 28.4 m; H20's report), and 3,000 particles reach 10.0 m on one seed
-TUNED = FilterSettings(
-    sigma=1.2e-3, sigma_speed=0.05, sigma_turn_rate=0.003, tempering_ess=0.6, n_particles=4000
-)
+#: σ, turn rate and tempering back at its default, a seed went over 10 m on the 150 s plan
+#: (12.2, 12.6 and 28.4 m; H20's report), and 3,000 particles reached 10.0 m on one seed
+TUNED = read_preset(PRESET)
 
 
-def arrival_run(case, settings: FilterSettings, smoothing_lag, seed):
-    """:func:`hmmtrack.clock_tracking.track_arrival_time` with ``settings`` on ``case``'s
-    clock-corrected detections (default clock model, the scenario's detection curve)."""
-    detections, _, common = inputs(case, seed, settings.n_particles, "velocity", DURATION)
+def plan_label(plan) -> str:
+    """``"observable: 30 m, 135°, lap 150 s"`` or the plan's numbers."""
+    if isinstance(plan, RotatingPlan):
+        return plan.describe()
+    return f"{plan}: {ROTATING_PLANS[plan].describe()}"
+
+
+def arrival_run(case, settings: dict, smoothing_lag, seed):
+    """:func:`hmmtrack.clock_tracking.track_arrival_time` with ``settings`` (keys of
+    :class:`hmmtrack.config.TrackingConfig`) on ``case``'s clock-corrected detections
+    (default clock model, the scenario's detection curve)."""
     sc = case.scenario
-    tuned = {
-        "motion": VelocityMotion(settings.sigma_speed, settings.sigma_turn_rate),
-        "measurement": ArrivalTimeMeasurement(
-            ArrivalLikelihood(sigma=settings.sigma), sound_speed=sc.sound_speed
-        ),
+    detections, _, common = inputs(case, seed, settings["n_particles"], "velocity", DURATION)
+    window = {key: common[key] for key in ("period", "bounds", "start", "end")}
+    config = TrackingConfig.from_dict(settings | window | {"sound_speed": sc.sound_speed})
+    chosen = config.arrival_time_options() | {
+        "motion": config.motion_model(),
         "smoothing_lag": smoothing_lag,
-        "tempering_ess": settings.tempering_ess,
     }
-    return track_arrival_time(detections, sc.receivers, **(common | tuned))
+    return track_arrival_time(detections, sc.receivers, **(common | chosen))
 
 
-def errors(case, settings: FilterSettings, seed: int) -> dict:
+def errors(case, settings: dict, seed: int) -> dict:
     """Mean errors after convergence (m) of the filter and its smoother (for the filter also
     over the first and last 30 minutes after convergence), time to convergence (s) and the
     filter's RMS error from ``SKIP`` s on (m)."""
@@ -136,7 +115,7 @@ def range_rate_errors(case, seed: int) -> dict:
     ``bench_arrival.py`` runs it; mean error after convergence overall and in the first and
     last 30 minutes after convergence (m)."""
     sc = case.scenario
-    detections, config, _ = inputs(case, seed, TUNED.n_particles, "velocity", DURATION)
+    detections, config, _ = inputs(case, seed, TUNED["n_particles"], "velocity", DURATION)
     result = track(detections, sc.receivers, config, make_motion("velocity"), seed=seed)
     paper = summarise(result.estimates, sc.truth)
     return {
@@ -146,26 +125,38 @@ def range_rate_errors(case, seed: int) -> dict:
     }
 
 
-def throughput(case, settings: FilterSettings, seed: int, repeats: int = 2) -> float:
+def throughput(case, settings: dict, seed: int, repeats: int = 2) -> float:
     """Particle-steps per second of the filter alone (no smoother), best of ``repeats``."""
     best = np.inf
     for _ in range(repeats):
         tic = time.perf_counter()
         arrival_run(case, settings, None, seed)
         best = min(best, time.perf_counter() - tic)
-    return settings.n_particles * DURATION / best
+    return settings["n_particles"] * DURATION / best
+
+
+def auv_speeds(case) -> np.ndarray:
+    """Both AUVs' speeds over ground (m/s) over 1 s steps of the first ``DURATION`` s."""
+    sc = case.scenario
+    paths = sc.receivers_truth[sc.receivers_truth["time"] < sc.start + DURATION]
+    return np.concatenate(
+        [
+            np.hypot(np.diff(path["x"]), np.diff(path["y"])) / np.diff(path["time"])
+            for _, path in paths.groupby("receiver")
+        ]
+    )
 
 
 def plan_rows(plan, seeds) -> list[dict]:
-    """Bound, AUV speeds and both settings' errors on ``plan`` for each seed."""
-    radius, lap_time, separation = plan
+    """Bound, AUV speeds and both settings' errors on ``plan`` (a steering) for each seed."""
     rows = []
     for seed in seeds:
-        case, speeds = formation_case(seed, radius, lap_time, np.radians(separation))
+        case = realistic_shark_pursuit(seed, steering=plan)
+        speeds = auv_speeds(case)
         inputs = bound_inputs(case, 1.5)
         bound = bound_table(inputs, inputs.fitted_clock)
         common = {
-            "plan": f"{radius:.0f} m, {separation:.0f}°, lap {lap_time:.0f} s",
+            "plan": plan_label(plan),
             "seed": seed,
             "auv_speed_p50_m_s": np.quantile(speeds, 0.5),
             "auv_speed_p99_m_s": np.quantile(speeds, 0.99),
@@ -179,6 +170,14 @@ def plan_rows(plan, seeds) -> list[dict]:
     return rows
 
 
+def settings_lines() -> str:
+    """The two settings compared, as Markdown list items."""
+    return (
+        f"- default (`track_arrival_time`'s, velocity motion): {DEFAULT}\n"
+        f"- tuned (`--preset {PRESET}`, hmmtrack/data/presets/{PRESET}.json): {TUNED}"
+    )
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--seeds", type=int, default=3)
@@ -188,24 +187,24 @@ def main(argv=None) -> int:
     load = os.getloadavg()[0]
     seeds = list(range(args.seeds))
     table = pd.DataFrame([row for plan in PLANS for row in plan_rows(plan, seeds)])
-    radius, lap_time, separation = PLANS[0]
-    case, _ = formation_case(0, radius, lap_time, np.radians(separation))
+    case = realistic_shark_pursuit(0, steering=PLANS[0])
     speed = {name: throughput(case, s, 0) for name, s in (("default", DEFAULT), ("tuned", TUNED))}
     took = time.perf_counter() - began
     pd.set_option("display.width", 250)
     pd.set_option("display.max_columns", 20)
     print(f"two AUVs circling the shark together; {DURATION / 3600:.0f} h, no initial range")
-    for name, settings in (("default", DEFAULT), ("tuned", TUNED)):
-        print(f"{name}: {settings}")
+    print(settings_lines())
     print(table.to_string(index=False, float_format=lambda v: f"{v:.3g}"))
     groups = table.groupby(["plan", "settings"], sort=False)
     summary = groups.mean(numeric_only=True).drop(columns="seed")
     summary["worst_seed_filtered_m"] = groups["filtered_m"].max()
     print(f"\nmean over {len(seeds)} seeds (worst seed in the last column)")
     print(summary.to_string(float_format=lambda v: f"{v:.3g}"))
-    run_time_ratio = (TUNED.n_particles / speed["tuned"]) / (DEFAULT.n_particles / speed["default"])
+    run_time_ratio = (TUNED["n_particles"] / speed["tuned"]) / (
+        DEFAULT["n_particles"] / speed["default"]
+    )
     print(
-        f"\nthroughput, filter alone, {PLANS[0]} seed 0 (particle-steps/s): "
+        f"\nthroughput, filter alone, {plan_label(PLANS[0])}, seed 0 (particle-steps/s): "
         + ", ".join(f"{k} {v / 1e6:.2f} M" for k, v in speed.items())
         + f"; tuned / default {speed['tuned'] / speed['default']:.2f}; "
         f"run time tuned / default {run_time_ratio:.2f}"
@@ -223,11 +222,8 @@ def main(argv=None) -> int:
             "ranges and the best constant period, on the same detections. `filtered_m` / "
             "`smoothed_m`: mean error after convergence of the filter and of its 60 s "
             "fixed-lag smoother; `bound_*`: posterior Cramér–Rao bound (RMS from 10 min on).\n\n"
-            + "".join(
-                f"- {name}: {settings}\n"
-                for name, settings in (("default", DEFAULT), ("tuned", TUNED))
-            )
-            + f"\n## Mean over {len(seeds)} seeds\n\n"
+            + settings_lines()
+            + f"\n\n## Mean over {len(seeds)} seeds\n\n"
             + markdown(summary.reset_index())
             + "\n\n## Every run\n\n"
             + markdown(table)

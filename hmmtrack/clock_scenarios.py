@@ -9,8 +9,9 @@ to the simulation pieces of :mod:`hmmtrack.scenarios` (paths, acoustic arrival t
 detection loss, GPS noise) and builds two test cases:
 
 * :func:`realistic_shark_pursuit` - a shark pursued by two moving hydrophones (2.5 h)
-  with a wandering tag period; by default the AUVs are steered so that the tag is
-  observable (one trails, one circles the shark), optionally the paper's fixed formation;
+  with a wandering tag period; the AUVs are steered by name (one trails while one
+  circles the shark, the paper's fixed formation, or the pair circling the shark
+  together, see :data:`STEERINGS`) or by a :class:`RotatingPlan`;
 * :func:`moored_array` - a resident shark inside a triangle of three moored receivers.
 
 Each returns a :class:`ClockScenario`: a :class:`hmmtrack.scenarios.scenario.Scenario`
@@ -537,32 +538,108 @@ def rotating_pair(
     }
 
 
+@dataclass(frozen=True)
+class RotatingPlan:
+    """A steering plan for two AUVs that circle the shark together (:func:`rotating_pair`).
+
+    The defaults are the observable plan of ``benchmarks/bench_two_auv_plan.py``: both
+    AUVs 30 m from the shark, 135° apart, the pair turning once every 150 s. On the
+    realistic pursuit (:func:`realistic_shark_pursuit`, 2 h, 9 seeds) its posterior
+    Cramér–Rao bound on the filtered position is 4.31 m RMS (3.7-5.0 m by seed; smoothed
+    1.66 m), the AUVs' speeds over ground are 1.0-1.3 m/s median, 2.1-2.5 m/s at the 99th
+    percentile and at most 2.3-2.9 m/s (1 s steps), and the arrival-time filter with the
+    ``two-moving-receivers`` preset (:mod:`hmmtrack.config`) reaches a mean error after
+    convergence of 6.7 m (worst seed 10.1 m; 5.2-8.8 m with 18 other filter seeds;
+    reports/two_auv_plan.md). Homing on a travelling shark the AUVs lag their stations:
+    over those 9 seeds they were a median 24-29 m from the shark (5-95 %: 6-46 m), a
+    median 72-126° apart, and flew 76-97 % of the laps. The stations are placed from the
+    true shark position: a real plan steers on the filter's estimate
+    (off by 6-9 m).
+
+    Parameters
+    ----------
+    radius : float
+        Distance of both stations from the shark (m).
+    lap_time : float
+        Time of one turn of the pair (s).
+    separation : float
+        Angle between the two stations' bearings (rad).
+    time_constant : float
+        Low-pass time constant of the vehicles' homing (s, see :func:`steered_auv`).
+    """
+
+    radius: float = 30.0
+    lap_time: float = 150.0
+    separation: float = float(np.radians(135.0))
+    time_constant: float = 20.0
+
+    def __post_init__(self) -> None:
+        for name in ("radius", "lap_time", "time_constant"):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value > 0):
+                raise ValueError(f"RotatingPlan: {name} must be a positive number, got {value!r}")
+        if not 0 < self.separation < 2 * np.pi:
+            raise ValueError(
+                f"RotatingPlan: separation must lie in (0, 2π) rad, got {self.separation!r}"
+            )
+
+    def receivers(self, tag: Trajectory, phi: float) -> dict[str, Trajectory]:
+        """The two AUVs' true paths around ``tag`` (see :func:`rotating_pair`)."""
+        return rotating_pair(
+            tag,
+            phi,
+            radius=self.radius,
+            lap_time=self.lap_time,
+            separation=self.separation,
+            time_constant=self.time_constant,
+        )
+
+    def describe(self) -> str:
+        """``"30 m, 135°, lap 150 s"``."""
+        return f"{self.radius:g} m, {np.degrees(self.separation):.0f}°, lap {self.lap_time:g} s"
+
+
+#: named plans of :func:`rotating_pair` for ``realistic_shark_pursuit(steering=...)``:
+#: ``formation`` keeps a right angle (70 m, one turn per 10 min); ``observable`` is the
+#: plan on which two AUVs track the shark to under 10 m (:class:`RotatingPlan`'s defaults)
+ROTATING_PLANS = {
+    "formation": RotatingPlan(radius=70.0, lap_time=600.0, separation=0.5 * np.pi),
+    "observable": RotatingPlan(),
+}
+#: names of ``realistic_shark_pursuit``'s steerings
+STEERINGS = ("circling", "paper", *ROTATING_PLANS)
+
+
 def realistic_shark_pursuit(
     seed: SeedLike,
     *,
     dive: bool = False,
     schedule_wander: float = 0.8,
     detection: LogisticDetection | None = None,
-    steering: str = "circling",
+    steering: str | RotatingPlan = "circling",
     smoothing_time: float = 600.0,
 ) -> ClockScenario:
     """A shark pursuit by two AUVs (150 min) with realistic clocks.
 
     The shark's path is that of :func:`hmmtrack.scenarios.paper.shark_pursuit` for the same
-    seed (1 Hz samples, linearly interpolated). With ``steering="circling"`` (default)
-    the AUVs are steered to make the tag observable (:func:`circling_pair`: one trails at
-    80 m, the other circles at 130 m, one lap per 20 min): an operator who must localise
-    a tag whose clock is unknown does not hold a fixed formation, because with the
-    paper's formation a common clock shift and a radial position shift explain the
+    seed (1 Hz samples, linearly interpolated); the steering changes only the AUVs. With
+    ``steering="circling"`` (default) one AUV trails the shark at 80 m and the other
+    circles it at 130 m, one lap per 20 min (:func:`circling_pair`): an operator who must
+    localise a tag whose clock is unknown does not hold a fixed formation, because with
+    the paper's formation a common clock shift and a radial position shift explain the
     arrival times almost equally (the paper itself cites optimal AUV positioning). With
     ``steering="paper"`` the AUVs are the paper's (fixed offsets 90° apart, lagging), kept
     to show that limit. With ``steering="formation"`` both AUVs circle the shark together
-    at a right angle (:func:`rotating_pair`: 70 m, one turn per 10 min), which keeps the
-    geometry of two ranges good at every ping. The tag's period (8 s) wanders
-    ``schedule_wander`` seconds from a constant schedule over 1.8 h, with 65 µs jitter;
-    the AUVs' clocks have offsets of ~0.5 s and drifts of ~20 ppm, calibrated (GPS time)
-    to 0.1 ms and 0.02 ppm; 3 % of detections are multipath arrivals; GPS noise 1.5 m;
-    pings are heard with a logistic range curve (default 50 % at 160 m, 40 m fall-off).
+    at a right angle (:func:`rotating_pair`: 70 m, one turn per 10 min). With
+    ``steering="observable"`` they circle it 30 m away, 135° apart, one turn per 150 s
+    (:class:`RotatingPlan`'s defaults, where its bound and speeds are given): the plan on
+    which the arrival-time filter with the ``two-moving-receivers`` preset stays under
+    10 m; a :class:`RotatingPlan` flies any other such plan. The tag's period (8 s)
+    wanders ``schedule_wander`` seconds from a constant schedule over 1.8 h, with 65 µs
+    jitter; the AUVs' clocks have offsets of ~0.5 s and drifts of ~20 ppm, calibrated (GPS
+    time) to 0.1 ms and 0.02 ppm; 3 % of detections are multipath arrivals; GPS noise
+    1.5 m; pings are heard with a logistic range curve (default 50 % at 160 m, 40 m
+    fall-off).
 
     Parameters
     ----------
@@ -573,26 +650,30 @@ def realistic_shark_pursuit(
         See :class:`WanderingPeriodClock` (s).
     detection : LogisticDetection, optional
         Detection curve of both AUVs.
-    steering : {"circling", "paper", "formation"}
+    steering : {"circling", "paper", "formation", "observable"} or RotatingPlan
         How the AUVs move (see above).
     smoothing_time : float
         Time constant of the period's random walk (s, see :class:`WanderingPeriodClock`;
         0: a plain random walk from ping to ping).
     """
-    if steering not in ("circling", "paper", "formation"):
-        raise ValueError(f"steering must be 'circling', 'paper' or 'formation', got {steering!r}")
+    if isinstance(steering, RotatingPlan):
+        plan, label = steering, f"rotating pair {steering.describe()}"
+    elif steering in STEERINGS:
+        plan, label = ROTATING_PLANS.get(steering), steering
+    else:
+        raise ValueError(f"steering must be one of {STEERINGS} or a RotatingPlan, got {steering!r}")
     rng = as_generator(seed)
     base = shark_pursuit(rng, dive=dive)
     tag, receivers = _paths_from_tables(base.truth, base.receivers_truth)
     if steering != "paper":
-        pair = circling_pair if steering == "circling" else rotating_pair
-        receivers = pair(tag, float(rng.uniform(-np.pi, np.pi)))
+        phi = float(rng.uniform(-np.pi, np.pi))
+        receivers = circling_pair(tag, phi) if plan is None else plan.receivers(tag, phi)
     period = 8.0
     return build_clock_scenario(
         rng,
         name="shark-pursuit-realistic-clock",
         description=(
-            f"Synthetic: a shark pursuit by two AUVs ({steering} steering) with a tag whose "
+            f"Synthetic: a shark pursuit by two AUVs ({label} steering) with a tag whose "
             f"8 s period wanders {schedule_wander} s from a constant schedule over 1.8 h, "
             "receiver clocks with offsets and drifts (calibrated), 3 % multipath arrivals."
         ),

@@ -1,16 +1,23 @@
 """The tracking configuration: the few numbers a tracking run needs beyond its data files.
 
 :class:`TrackingConfig` holds the tag period, sound speed, known initial ranges, search
-bounds, measurement covariance, particle count, prediction step and depth policy. It is
-validated when built (whatever the source) and can be read from a small JSON file whose
-keys are the field names, e.g.::
+bounds, measurement model and its noise, motion model and its noise, particle count,
+prediction step and depth policy. It is validated when built (whatever the source) and
+can be read from a small JSON file whose keys are the field names, e.g.::
 
     {"period": 8.179, "r0": {"VR2W-1": 12.0, "VR2W-2": 230.0},
      "measurement_covariance": [[25.0, 0.0], [0.0, 0.25]], "n_particles": 5000}
 
-Command-line arguments override file values (:meth:`TrackingConfig.override`).
+A *preset* is a bundled JSON file of settings only (no period, ranges, bounds or times:
+those describe the data) for one kind of deployment, read by name with
+:func:`read_preset` (:func:`preset_names` lists them); ``two-moving-receivers`` holds the
+arrival-time filter's settings for two AUVs circling the tag
+(``benchmarks/bench_two_auv_plan.py``). :func:`merge_settings` layers a preset, a file
+and command-line values, later ones winning.
 
-It is not for running anything: :mod:`hmmtrack.tracking` uses it.
+It is not for running anything: :mod:`hmmtrack.tracking` and
+:mod:`hmmtrack.clock_tracking` use it; :meth:`TrackingConfig.motion_model` and
+:meth:`TrackingConfig.arrival_time_options` turn its settings into their arguments.
 """
 
 from __future__ import annotations
@@ -25,7 +32,9 @@ from pathlib import Path
 
 import pandas as pd
 
+from hmmtrack.arrival import ArrivalLikelihood, ArrivalTimeMeasurement
 from hmmtrack.filter import RESAMPLE_WHEN
+from hmmtrack.motion import VelocityMotion
 from hmmtrack.ranging import SOUND_SPEED
 from hmmtrack.resampling import RESAMPLERS
 
@@ -36,13 +45,32 @@ DEPTH_POLICIES = ("none", "sensor")
 #: ``scenario.json`` written by ``hmmtrack simulate`` has them)
 DESCRIPTIVE_KEYS = ("name", "description", "files", "synthetic")
 
+#: measurement models: the paper's ranges and range-rates from the tag period and known
+#: initial ranges (:func:`hmmtrack.tracking.track`), or arrival times scored against the
+#: tag's emission clock carried by each particle
+#: (:func:`hmmtrack.clock_tracking.track_arrival_time`)
+MEASUREMENTS = ("range-rate", "arrival-time")
 
-def _positive(name: str, value) -> float:
+#: keys that describe one data set, which a preset may not hold
+DATA_KEYS = ("period", "r0", "transmitter", "bounds", "start", "end")
+
+#: folder of the bundled presets, one ``<name>.json`` each
+PRESET_DIR = Path(__file__).resolve().parent / "data" / "presets"
+
+
+def _number(name: str, value) -> float:
     try:
         number = float(value)
     except (TypeError, ValueError):
         raise ValueError(f"{name} must be a number, got {value!r}") from None
-    if not math.isfinite(number) or number <= 0:
+    if not math.isfinite(number):
+        raise ValueError(f"{name} must be a finite number, got {value!r}")
+    return number
+
+
+def _positive(name: str, value) -> float:
+    number = _number(name, value)
+    if number <= 0:
         raise ValueError(f"{name} must be a positive finite number, got {value!r}")
     return number
 
@@ -109,6 +137,27 @@ class TrackingConfig:
         clear gain on the synthetic scenarios).
     ess_threshold : float
         Fraction in ``(0, 1]`` for ``resample_when="ess"``.
+    measurement : {"range-rate", "arrival-time"}
+        Measurement model (:data:`MEASUREMENTS`); the paper's ``"range-rate"`` by default.
+    motion : {"baseline", "velocity", "hmm"}
+        Motion model of :meth:`motion_model` (:data:`hmmtrack.tracking.MOTIONS`); ``"hmm"``,
+        the bundled white-shark model, by default.
+    sigma_speed, sigma_turn_rate : float or None
+        ``motion="velocity"`` only: spreads of the speed (m/s per √s) and turn-rate (rad/s
+        per √s) increments of :class:`hmmtrack.motion.VelocityMotion`; ``None`` keeps
+        :data:`hmmtrack.tracking.VELOCITY_SIGMA_SPEED` and ``VELOCITY_SIGMA_TURN_RATE``.
+    arrival_sigma : float or None
+        ``measurement="arrival-time"`` only: standard deviation (s) of a direct-path
+        arrival-time residual (:class:`hmmtrack.arrival.ArrivalLikelihood`'s ``sigma``);
+        ``None`` keeps that class's default.
+    tempering_ess : float or None
+        ``measurement="arrival-time"`` only: fraction in ``(0, 1]`` of the particles below
+        which a correction is tempered (see :class:`hmmtrack.clock_tracking.ClockAwareFilter`);
+        ``None`` keeps :func:`hmmtrack.clock_tracking.track_arrival_time`'s default.
+    search_radius : float or None
+        ``measurement="arrival-time"`` only, without ``bounds``: the search box is the
+        receivers' positions at the start widened by this many metres (about their
+        detection range); ``None`` keeps ``track_arrival_time``'s default.
     """
 
     period: float
@@ -131,6 +180,13 @@ class TrackingConfig:
     resampling: str = "systematic"
     resample_when: str = "always"
     ess_threshold: float = 0.5
+    measurement: str = "range-rate"
+    motion: str = "hmm"
+    sigma_speed: float | None = None
+    sigma_turn_rate: float | None = None
+    arrival_sigma: float | None = None
+    tempering_ess: float | None = None
+    search_radius: float | None = None
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
@@ -198,6 +254,96 @@ class TrackingConfig:
         if threshold > 1:
             raise ValueError(f"ess_threshold must lie in (0, 1], got {self.ess_threshold!r}")
         set_(self, "ess_threshold", threshold)
+        self._check_models()
+
+    def _check_models(self) -> None:
+        from hmmtrack.tracking import MOTIONS  # tracking imports this module
+
+        if self.measurement not in MEASUREMENTS:
+            raise ValueError(f"measurement must be one of {MEASUREMENTS}, got {self.measurement!r}")
+        if self.motion not in MOTIONS:
+            raise ValueError(f"motion must be one of {MOTIONS}, got {self.motion!r}")
+        set_ = object.__setattr__
+        for name in ("sigma_speed", "sigma_turn_rate"):
+            value = getattr(self, name)
+            if value is None:
+                continue
+            if self.motion != "velocity":
+                raise ValueError(f"{name} is a setting of motion 'velocity', not {self.motion!r}")
+            number = _number(name, value)
+            if number < 0:
+                raise ValueError(f"{name} must be a non-negative number, got {value!r}")
+            set_(self, name, number)
+        for name in ("arrival_sigma", "tempering_ess", "search_radius"):
+            value = getattr(self, name)
+            if value is None:
+                continue
+            if self.measurement != "arrival-time":
+                raise ValueError(
+                    f"{name} is a setting of measurement 'arrival-time', not {self.measurement!r}"
+                )
+            set_(self, name, _positive(name, value))
+        if self.tempering_ess is not None and self.tempering_ess > 1:
+            raise ValueError(f"tempering_ess must lie in (0, 1], got {self.tempering_ess!r}")
+
+    def motion_model(self, model=None, variant: str = "time_consistent"):
+        """The motion model these settings name, with their noise.
+
+        Parameters
+        ----------
+        model, variant
+            For ``motion="hmm"`` only, see :func:`hmmtrack.tracking.motion_model`.
+
+        Returns
+        -------
+        BaselineMotion, VelocityMotion or HMMMotion
+            :func:`hmmtrack.tracking.motion_model`'s, with :attr:`sigma_speed` and
+            :attr:`sigma_turn_rate` where given.
+        """
+        from hmmtrack import tracking  # tracking imports this module
+
+        if self.motion != "velocity":
+            return tracking.motion_model(self.motion, model, variant=variant)
+        if model is not None:
+            raise ValueError("a movement model is used by motion 'hmm' only, not 'velocity'")
+        speed, turn_rate = self.sigma_speed, self.sigma_turn_rate
+        return VelocityMotion(
+            sigma_speed=tracking.VELOCITY_SIGMA_SPEED if speed is None else speed,
+            sigma_turn_rate=tracking.VELOCITY_SIGMA_TURN_RATE if turn_rate is None else turn_rate,
+        )
+
+    def arrival_time_options(self) -> dict:
+        """Keyword arguments of :func:`hmmtrack.clock_tracking.track_arrival_time` set here.
+
+        Returns
+        -------
+        dict
+            ``period``, ``bounds``, ``start``, ``end``, ``n_particles``, ``measurement``
+            (:class:`hmmtrack.arrival.ArrivalTimeMeasurement` at :attr:`sound_speed`, with
+            :attr:`arrival_sigma` where given) and, where given, ``tempering_ess`` and
+            ``search_radius``. The
+            motion model (:meth:`motion_model`), detection curve, smoother lag and seed
+            are the caller's.
+        """
+        if self.measurement != "arrival-time":
+            raise ValueError(
+                f"arrival-time options of a configuration with measurement {self.measurement!r}"
+            )
+        likelihood = ArrivalLikelihood()
+        if self.arrival_sigma is not None:
+            likelihood = dataclasses.replace(likelihood, sigma=self.arrival_sigma)
+        options = {
+            "period": self.period,
+            "bounds": self.bounds,
+            "start": self.start,
+            "end": self.end,
+            "n_particles": self.n_particles,
+            "measurement": ArrivalTimeMeasurement(likelihood, sound_speed=self.sound_speed),
+        }
+        for name in ("tempering_ess", "search_radius"):
+            if getattr(self, name) is not None:
+                options[name] = getattr(self, name)
+        return options
 
     def override(self, **changes) -> TrackingConfig:
         """A validated copy with ``changes`` applied; ``None`` values mean "not given"."""
@@ -235,18 +381,77 @@ class TrackingConfig:
 
         An ``r0`` override is merged receiver by receiver into the file's ``r0``.
         """
-        path = Path(path)
-        try:
-            data = json.loads(path.read_text())
-        except json.JSONDecodeError as exc:
-            raise ValueError(f"{path}: not valid JSON ({exc})") from None
-        if not isinstance(data, dict):
-            raise ValueError(f"{path}: expected a JSON object of settings")
-        overrides = {k: v for k, v in overrides.items() if v is not None}
-        if isinstance(data.get("r0"), dict) and "r0" in overrides:
-            overrides["r0"] = data["r0"] | dict(overrides["r0"])
-        data.update(overrides)
-        return cls.from_dict(data, source=str(path))
+        return cls.from_dict(merge_settings(read_settings(path), overrides), source=str(path))
+
+
+def read_settings(path: str | Path) -> dict:
+    """The JSON object of settings in ``path`` (keys unchecked: :meth:`TrackingConfig.from_dict`
+    checks them)."""
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text())
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"{path}: not valid JSON ({exc})") from None
+    if not isinstance(data, dict):
+        raise ValueError(f"{path}: expected a JSON object of settings")
+    return data
+
+
+def merge_settings(*layers: Mapping) -> dict:
+    """Settings of ``layers`` (e.g. preset, file, command line), later layers winning.
+
+    ``None`` values mean "not given" and are skipped; ``r0`` mappings are merged receiver
+    by receiver.
+    """
+    merged: dict = {}
+    for layer in layers:
+        for key, value in layer.items():
+            if value is None:
+                continue
+            if key == "r0" and isinstance(merged.get("r0"), Mapping) and isinstance(value, Mapping):
+                value = dict(merged["r0"]) | dict(value)
+            merged[key] = value
+    return merged
+
+
+def preset_names() -> list[str]:
+    """Names of the bundled presets (:data:`PRESET_DIR`), sorted."""
+    return sorted(path.stem for path in PRESET_DIR.glob("*.json"))
+
+
+def read_preset(name: str) -> dict:
+    """The settings of the bundled preset ``name``, without its descriptive keys.
+
+    Parameters
+    ----------
+    name : str
+        One of :func:`preset_names`.
+
+    Returns
+    -------
+    dict
+        Keys of :class:`TrackingConfig` other than :data:`DATA_KEYS`: combine them with
+        the data's period (and ranges, bounds, times) in :meth:`TrackingConfig.from_dict`.
+
+    Raises
+    ------
+    ValueError
+        For an unknown name (naming the available presets), or a preset file with unknown
+        keys or keys that describe data.
+    """
+    names = preset_names()
+    if name not in names:
+        raise ValueError(f"unknown preset {name!r}; available presets: {', '.join(names)}")
+    path = PRESET_DIR / f"{name}.json"
+    data = {k: v for k, v in read_settings(path).items() if k not in DESCRIPTIVE_KEYS}
+    known = {f.name for f in dataclasses.fields(TrackingConfig)} - set(DATA_KEYS)
+    wrong = sorted(set(data) - known)
+    if wrong:
+        raise ValueError(
+            f"{path}: key(s) {wrong} are not settings a preset may hold; "
+            f"allowed keys are {sorted(known)}"
+        )
+    return data
 
 
 def _covariance(value) -> tuple[tuple[float, float], tuple[float, float]]:

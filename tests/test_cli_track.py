@@ -2,7 +2,8 @@
 
 End to end on the files ``hmmtrack simulate`` writes for the stationary-tag scenario: the
 estimate CSV's columns, one row per second with ISO 8601 UTC times, the printed metrics,
-the lon/lat round trip and the plot.
+the lon/lat round trip and the plot; on a moored array and on two AUVs with the
+``two-moving-receivers`` preset for the arrival-time measurement.
 """
 
 from __future__ import annotations
@@ -17,10 +18,13 @@ import pytest
 from pyproj import Transformer
 
 from hmmtrack import io, metrics, tracking
-from hmmtrack.cli import main
-from hmmtrack.clock_scenarios import moored_array
+from hmmtrack.arrival import ArrivalLikelihood, ArrivalTimeMeasurement
+from hmmtrack.cli import build_parser, main
+from hmmtrack.cli.track import build_config
+from hmmtrack.clock_scenarios import moored_array, realistic_shark_pursuit
 from hmmtrack.clock_tracking import track_arrival_time
 from hmmtrack.config import TrackingConfig
+from hmmtrack.motion import VelocityMotion
 from hmmtrack.scenarios import stationary_tag
 from hmmtrack.scenarios.export import write_scenario
 
@@ -395,3 +399,70 @@ def test_plot_functions_draw_what_they_are_given():
     circles = sorted(patch.radius for patch in ax.patches)
     assert circles == [25.0, 31.0]  # each receiver's latest range at or before 5 s
     matplotlib.pyplot.close("all")
+
+
+@pytest.fixture(scope="module")
+def observable_files(tmp_path_factory):
+    """Two AUVs on the observable plan (clock-corrected times), their first 300 s as CSV."""
+    case = realistic_shark_pursuit(3, steering="observable")
+    detections = case.corrected_detections()
+    end = case.scenario.start + 300.0
+    scenario = dataclasses.replace(
+        case.scenario, detections=detections[detections["time"] <= end], end=end
+    )
+    return scenario, write_scenario(scenario, tmp_path_factory.mktemp("observable"))
+
+
+def test_preset_runs_the_arrival_time_filter_with_its_settings(observable_files, tmp_path):
+    """``--preset two-moving-receivers`` needs only the period: it writes what
+    ``track_arrival_time`` estimates with the preset's motion, likelihood and tempering
+    (the particle count overridden by --particles), unlike the arrival-time defaults."""
+    scenario, paths = observable_files
+    start, end = scenario.start, scenario.end
+    common = [
+        "track", "--detections", str(paths["detections"]), "--receivers",
+        str(paths["receivers"]), "--period", str(scenario.period), "--particles", "600",
+        "--seed", "8", "--start", *io.format_times(np.array([start])), "--end",
+        *io.format_times(np.array([end])),
+    ]  # fmt: skip
+    preset, plain = tmp_path / "preset.csv", tmp_path / "plain.csv"
+    assert main([*common, "--preset", "two-moving-receivers", "-o", str(preset)]) == 0
+    direct = track_arrival_time(
+        io.read_detections(paths["detections"]), io.read_receivers(paths["receivers"]),
+        motion=VelocityMotion(0.05, 0.003),
+        measurement=ArrivalTimeMeasurement(ArrivalLikelihood(sigma=1.2e-3)),
+        tempering_ess=0.6, search_radius=240.0, period=scenario.period, n_particles=600,
+        start=start, end=end, seed=8,
+    )  # fmt: skip
+    written = pd.read_csv(preset)
+    assert len(written) == 301
+    np.testing.assert_allclose(written[["x", "y"]], direct.estimates[["x", "y"]], rtol=1e-9)
+    options = ["--measurement", "arrival-time", "--motion", "velocity"]
+    assert main([*common, *options, "-o", str(plain)]) == 0
+    assert not np.allclose(pd.read_csv(plain)[["x", "y"]], written[["x", "y"]])
+
+
+def test_preset_then_config_file_then_options(tmp_path, capsys):
+    """Each source overrides the one before; an unknown preset lists the available ones."""
+    settings = tmp_path / "settings.json"
+    settings.write_text(json.dumps({"period": 8.0, "n_particles": 2000, "tempering_ess": 0.5}))
+    base = ["track", "--detections", "d.csv", "--receivers", "r.csv", "-o", "e.csv"]
+    preset = ["--preset", "two-moving-receivers"]
+
+    def config_of(*extra):
+        return build_config(build_parser().parse_args([*base, *extra]))
+
+    alone = config_of(*preset, "--period", "8.0")
+    assert (alone.n_particles, alone.tempering_ess, alone.arrival_sigma) == (4000, 0.6, 1.2e-3)
+    filed = config_of(*preset, "--config", str(settings))
+    assert (filed.n_particles, filed.tempering_ess, filed.arrival_sigma) == (2000, 0.5, 1.2e-3)
+    flagged = config_of(*preset, "--config", str(settings), "--particles", "1000")
+    assert (flagged.n_particles, flagged.tempering_ess) == (1000, 0.5)
+    assert flagged.motion_model() == VelocityMotion(0.05, 0.003)
+    assert main([*base, "--preset", "two-auvs", "--period", "8"]) == 2
+    assert "unknown preset 'two-auvs'; available presets: two-moving-receivers" in (
+        capsys.readouterr().err
+    )
+    paper = ["--period", "8", "--r0", "auv-1=10", "--measurement", "range-rate"]
+    assert main([*base, *preset, *paper]) == 2
+    assert "is a setting of measurement 'arrival-time'" in capsys.readouterr().err

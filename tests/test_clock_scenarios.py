@@ -8,7 +8,10 @@ import pytest
 
 from hmmtrack.clock import local_period_ppm, schedule_wander
 from hmmtrack.clock_scenarios import (
+    ROTATING_PLANS,
+    STEERINGS,
     Multipath,
+    RotatingPlan,
     WanderingPeriodClock,
     moored_array,
     realistic_shark_pursuit,
@@ -142,8 +145,58 @@ def test_formation_keeps_a_right_angle_and_turns_around_the_shark():
         assert 40 < np.median(distances) < 90
         laps = (bearing[-1] - bearing[0]) / (2 * np.pi)
         assert laps == pytest.approx(span / 600.0, rel=0.1)
-    angle = np.degrees(np.angle(np.exp(1j * (bearings["auv-2"] - bearings["auv-1"]))))
+    angle = bearing_gap_deg(bearings)
     assert np.median(angle) == pytest.approx(90.0, abs=10.0)
     assert np.percentile(np.abs(angle - 90.0), 90) < 30.0
     default = realistic_shark_pursuit(0).scenario
     pd.testing.assert_frame_equal(default.truth, sc.truth)
+
+
+def bearing_gap_deg(bearings) -> np.ndarray:
+    """Angle (deg, in (-180, 180]) from auv-1's bearing to auv-2's, per second."""
+    return np.degrees(np.angle(np.exp(1j * (bearings["auv-2"] - bearings["auv-1"]))))
+
+
+def test_observable_plan_flies_its_stated_geometry_at_auv_speeds():
+    """``steering="observable"``: stations 30 m from the shark, 135° apart, the pair turning
+    once per 150 s. Homing on a travelling shark the AUVs lag their stations (about 25 m
+    from the shark, 70-125° apart, 75-97 % of the laps over 9 seeds), at speeds an AUV can
+    hold (99 % under 2.5 m/s), around the same shark as the other steerings."""
+    plan = RotatingPlan()
+    assert (plan.radius, plan.lap_time, np.degrees(plan.separation)) == pytest.approx(
+        (30.0, 150.0, 135.0)
+    )
+    sc = realistic_shark_pursuit(1, steering="observable").scenario
+    bearings = {}
+    for name, (speed, bearing, distances, span) in auv_geometry(sc).items():
+        bearings[name] = bearing
+        assert np.percentile(speed, 99) < 2.5
+        assert 20 < np.median(distances) < 35
+        laps = (bearing[-1] - bearing[0]) / (2 * np.pi)
+        assert 0.75 * span / 150.0 < laps < 1.02 * span / 150.0
+    assert 90.0 < np.median(bearing_gap_deg(bearings)) < 140.0
+    pd.testing.assert_frame_equal(realistic_shark_pursuit(1).scenario.truth, sc.truth)
+    assert "observable" in sc.description
+
+
+def test_a_rotating_plan_is_a_steering_and_the_named_plans_are_rotating_plans():
+    """A :class:`RotatingPlan` with the formation's numbers gives exactly the "formation"
+    scenario; other numbers change only the AUVs; bad plans and names are clear errors."""
+    assert set(ROTATING_PLANS) < set(STEERINGS)
+    formation = RotatingPlan(radius=70.0, lap_time=600.0, separation=0.5 * np.pi)
+    named = realistic_shark_pursuit(2, steering="formation").scenario
+    planned = realistic_shark_pursuit(2, steering=formation).scenario
+    pd.testing.assert_frame_equal(named.detections, planned.detections)
+    pd.testing.assert_frame_equal(named.receivers_truth, planned.receivers_truth)
+    slow = realistic_shark_pursuit(2, steering=RotatingPlan(lap_time=300.0)).scenario
+    bearings = {n: g[1] for n, g in auv_geometry(slow).items()}
+    span = auv_geometry(slow)["auv-1"][3]
+    laps = (bearings["auv-1"][-1] - bearings["auv-1"][0]) / (2 * np.pi)
+    assert laps == pytest.approx(span / 300.0, rel=0.05)
+    assert "lap 300 s" in slow.description
+    with pytest.raises(ValueError, match="lap_time must be a positive"):
+        RotatingPlan(lap_time=0.0)
+    with pytest.raises(ValueError, match="separation must lie in"):
+        RotatingPlan(separation=7.0)
+    with pytest.raises(ValueError, match="observable"):
+        realistic_shark_pursuit(2, steering="observed")

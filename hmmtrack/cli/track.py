@@ -13,8 +13,9 @@ the particle state, no initial range needed, optionally smoothed with a fixed la
 (:func:`hmmtrack.clock_tracking.track_arrival_time`; its detection times must be on one
 common time base).
 
-Settings come from ``--config`` (a JSON file, see :mod:`hmmtrack.config`) and are
-overridden by the command-line options.
+Settings come, in increasing precedence, from ``--preset`` (a bundled set of settings
+for one kind of deployment, e.g. ``two-moving-receivers``), ``--config`` (a JSON file, see
+:mod:`hmmtrack.config`) and the command-line options.
 """
 
 from __future__ import annotations
@@ -28,13 +29,17 @@ import pandas as pd
 
 from hmmtrack import io, metrics, tracking
 from hmmtrack.cli import UserInputError
-from hmmtrack.config import TrackingConfig
+from hmmtrack.config import (
+    MEASUREMENTS,
+    TrackingConfig,
+    merge_settings,
+    preset_names,
+    read_preset,
+    read_settings,
+)
 from hmmtrack.filter import RESAMPLE_WHEN
 from hmmtrack.motion import HMM_VARIANTS
 from hmmtrack.resampling import RESAMPLERS
-
-#: measurement models of ``--measurement``
-MEASUREMENTS = ("range-rate", "arrival-time")
 
 
 def _r0_pair(text: str) -> tuple[str, float]:
@@ -62,7 +67,18 @@ def register(subparsers) -> None:
         "--receivers", required=True, help="receiver positions CSV (x/y or lon/lat)"
     )
     parser.add_argument("-o", "--output", required=True, help="estimates CSV to write")
-    parser.add_argument("--config", help="JSON file of settings (keys of TrackingConfig)")
+    parser.add_argument(
+        "--preset",
+        metavar="NAME",
+        help=(
+            "named settings for a kind of deployment (available: "
+            f"{', '.join(preset_names())}); --config and the options override them"
+        ),
+    )
+    parser.add_argument(
+        "--config",
+        help="JSON file of settings (keys of TrackingConfig); overrides --preset",
+    )
     parser.add_argument("--period", type=float, help="transmitter period T (s), e.g. 8.179")
     parser.add_argument(
         "--r0",
@@ -72,7 +88,7 @@ def register(subparsers) -> None:
         help="range at the receiver's first detection (m); once per receiver",
     )
     parser.add_argument(
-        "--motion", choices=tracking.MOTIONS, default="hmm", help="motion model (default hmm)"
+        "--motion", choices=tracking.MOTIONS, help="motion model (default: the preset's, or hmm)"
     )
     parser.add_argument(
         "--model", help="movement HMM JSON for --motion hmm (default: bundled white shark)"
@@ -92,10 +108,10 @@ def register(subparsers) -> None:
     parser.add_argument(
         "--measurement",
         choices=MEASUREMENTS,
-        default="range-rate",
         help=(
-            "range-rate: the paper's ranges and range-rates (needs --r0); arrival-time: the "
-            "tag's emission clock in the particle state, no initial range"
+            "range-rate (default unless the preset says otherwise): the paper's ranges and "
+            "range-rates (needs --r0); "
+            "arrival-time: the tag's emission clock in the particle state, no initial range"
         ),
     )
     parser.add_argument(
@@ -133,7 +149,8 @@ def register(subparsers) -> None:
 
 
 def build_config(args: argparse.Namespace) -> TrackingConfig:
-    """The run's settings: ``--config`` file (if any) overridden by the options."""
+    """The run's settings: ``--preset`` (if any), overridden by the ``--config`` file (if
+    any), overridden by the options."""
     overrides = {
         "period": args.period,
         "r0": dict(args.r0) if args.r0 else None,
@@ -145,16 +162,24 @@ def build_config(args: argparse.Namespace) -> TrackingConfig:
         "depth": args.depth,
         "start": args.start,
         "end": args.end,
+        "measurement": args.measurement,
+        "motion": args.motion,
     }
+    layers, sources = [], []
+    if args.preset:
+        layers.append(read_preset(args.preset))
+        sources.append(f"preset {args.preset!r}")
     if args.config:
-        return TrackingConfig.from_json(args.config, **overrides)
-    needed = ("period",) if args.measurement == "arrival-time" else ("period", "r0")
-    missing = [f"--{k.replace('_', '-')}" for k in needed if overrides[k] is None]
-    if missing:
-        raise UserInputError(f"give {' and '.join(missing)}, or a --config file with them")
-    return TrackingConfig.from_dict(
-        {k: v for k, v in overrides.items() if v is not None}, source="command line"
-    )
+        layers.append(read_settings(args.config))
+        sources.append(args.config)
+    settings = merge_settings(*layers, overrides)
+    if not args.config:
+        arrival = settings.get("measurement") == "arrival-time"
+        needed = ("period",) if arrival else ("period", "r0")
+        missing = [f"--{k}" for k in needed if k not in settings]
+        if missing:
+            raise UserInputError(f"give {' and '.join(missing)}, or a --config file with them")
+    return TrackingConfig.from_dict(settings, source=", ".join([*sources, "command line"]))
 
 
 def read_truth(path: str | Path, projection: io.Projection | None) -> pd.DataFrame:
@@ -201,21 +226,15 @@ def _within_truth(estimates: pd.DataFrame, truth: pd.DataFrame) -> pd.DataFrame:
 
 def _track_arrival_time(args, config, detections, receivers, motion, seed):
     """Estimates and events of an arrival-time run (:mod:`hmmtrack.clock_tracking`)."""
-    from hmmtrack.arrival import ArrivalTimeMeasurement
     from hmmtrack.clock_tracking import track_arrival_time
 
     result = track_arrival_time(
         tracking.select_transmitter(detections, config.transmitter),
         receivers,
         motion=motion,
-        period=config.period,
-        bounds=config.bounds,
-        measurement=ArrivalTimeMeasurement(sound_speed=config.sound_speed),
-        n_particles=config.n_particles,
         smoothing_lag=args.smooth,
-        start=config.start,
-        end=config.end,
         seed=seed,
+        **config.arrival_time_options(),
     )
     ambiguous = result.ambiguity[result.ambiguity["ambiguous"].astype(bool)]
     if not ambiguous.empty:
@@ -230,14 +249,14 @@ def _track_arrival_time(args, config, detections, receivers, motion, seed):
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.smooth is not None and args.measurement != "arrival-time":
+    config = build_config(args)
+    if args.smooth is not None and config.measurement != "arrival-time":
         raise UserInputError("--smooth needs --measurement arrival-time")
     if args.smooth is not None and args.smooth < 1:
         raise UserInputError(
             f"--smooth LAG must be a positive number of seconds, got {args.smooth}"
         )
-    config = build_config(args)
-    if args.model and args.motion != "hmm":
+    if args.model and config.motion != "hmm":
         raise UserInputError("--model is used with --motion hmm only")
     seed = args.seed
     if seed is None:
@@ -246,9 +265,9 @@ def run(args: argparse.Namespace) -> int:
     detections = io.read_detections(args.detections)
     receivers = io.read_receivers(args.receivers)
     projection = io.Projection.from_frame(receivers)
-    motion = tracking.motion_model(args.motion, args.model, variant=args.hmm_variant)
+    motion = config.motion_model(args.model, variant=args.hmm_variant)
     snapshots, observations = {}, None
-    if args.measurement == "arrival-time":
+    if config.measurement == "arrival-time":
         estimates, events = _track_arrival_time(args, config, detections, receivers, motion, seed)
     else:
         snapshot_times = ()

@@ -1,0 +1,131 @@
+"""Tests of the bundled presets and the model settings of :mod:`hmmtrack.config`."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from hmmtrack import config as config_module
+from hmmtrack import tracking
+from hmmtrack.arrival import ArrivalLikelihood, ArrivalTimeMeasurement
+from hmmtrack.config import (
+    DATA_KEYS,
+    TrackingConfig,
+    merge_settings,
+    preset_names,
+    read_preset,
+)
+from hmmtrack.motion import HMMMotion, VelocityMotion
+
+PRESET = "two-moving-receivers"
+
+
+def test_two_receiver_preset_holds_the_settings_tuned_on_the_observable_plan():
+    """The preset gives the arrival-time filter exactly H20's tuned settings
+    (reports/two_auv_plan.md): σ 1.2 ms, VelocityMotion(0.05, 0.003), tempering at 60 %
+    of the particles, 4,000 particles; and the benchmark's search box (240 m around the
+    receivers, the scenario's detection reach)."""
+    config = TrackingConfig.from_dict(read_preset(PRESET) | {"period": 8.0})
+    assert (config.measurement, config.motion) == ("arrival-time", "velocity")
+    assert config.motion_model() == VelocityMotion(sigma_speed=0.05, sigma_turn_rate=0.003)
+    options = config.arrival_time_options()
+    assert options["measurement"] == ArrivalTimeMeasurement(
+        ArrivalLikelihood(sigma=1.2e-3), sound_speed=config.sound_speed
+    )
+    assert options["tempering_ess"] == 0.6
+    assert options["search_radius"] == 240.0
+    assert options["n_particles"] == 4000 == config.n_particles
+    assert options["period"] == 8.0
+
+
+def test_every_bundled_preset_is_settings_only_and_valid():
+    names = preset_names()
+    assert PRESET in names
+    for name in names:
+        settings = read_preset(name)
+        assert settings and not set(settings) & set(DATA_KEYS)
+        assert "description" not in settings  # descriptive text is dropped
+        TrackingConfig.from_dict(settings | {"period": 2.0}, source=name)
+
+
+def test_unknown_preset_names_the_available_ones():
+    with pytest.raises(ValueError, match=f"unknown preset 'nope'; available presets: {PRESET}"):
+        read_preset("nope")
+
+
+def test_a_preset_may_not_hold_data_or_unknown_keys(tmp_path, monkeypatch):
+    monkeypatch.setattr(config_module, "PRESET_DIR", tmp_path)
+    (tmp_path / "with-period.json").write_text(json.dumps({"period": 8.0, "n_particles": 10}))
+    (tmp_path / "typo.json").write_text(json.dumps({"n_particle": 10, "description": "x"}))
+    assert preset_names() == ["typo", "with-period"]
+    with pytest.raises(ValueError, match=r"with-period.json: key\(s\) \['period'\] are not"):
+        read_preset("with-period")
+    with pytest.raises(ValueError, match=r"key\(s\) \['n_particle'\]"):
+        read_preset("typo")
+
+
+def test_later_layers_win_and_r0_merges_by_receiver():
+    """Preset < file < command line; ``None`` is "not given"."""
+    preset = {"n_particles": 4000, "tempering_ess": 0.6, "arrival_sigma": 1.2e-3}
+    file = {"period": 8.0, "n_particles": 2000, "tempering_ess": 0.5, "r0": {"a": 1.0, "b": 2.0}}
+    flags = {"n_particles": 1000, "tempering_ess": None, "r0": {"b": 5.0}}
+    merged = merge_settings(preset, file, flags)
+    assert merged == {
+        "n_particles": 1000,
+        "tempering_ess": 0.5,
+        "arrival_sigma": 1.2e-3,
+        "period": 8.0,
+        "r0": {"a": 1.0, "b": 5.0},
+    }
+    assert merge_settings(preset, file)["n_particles"] == 2000
+    assert merge_settings(preset)["n_particles"] == 4000
+
+
+def test_default_models_are_those_of_the_trackers():
+    """Without model settings a configuration names the trackers' defaults, so a run
+    without a preset is what it was before the settings existed."""
+    plain = TrackingConfig(period=8.0)
+    assert (plain.measurement, plain.motion) == ("range-rate", "hmm")
+    assert isinstance(plain.motion_model(), HMMMotion)
+    velocity = TrackingConfig(period=8.0, motion="velocity")
+    assert velocity.motion_model() == tracking.motion_model("velocity")
+    assert TrackingConfig(period=8.0, motion="velocity", sigma_turn_rate=0.01).motion_model() == (
+        VelocityMotion(tracking.VELOCITY_SIGMA_SPEED, 0.01)
+    )
+    arrival = TrackingConfig(period=8.0, measurement="arrival-time").arrival_time_options()
+    assert not {"tempering_ess", "search_radius"} & set(arrival)
+    assert arrival["measurement"] == ArrivalTimeMeasurement(sound_speed=plain.sound_speed)
+    with pytest.raises(ValueError, match="arrival-time options of a configuration"):
+        plain.arrival_time_options()
+    with pytest.raises(ValueError, match="motion 'hmm' only"):
+        velocity.motion_model(model="shark.json")
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ({"measurement": "toa"}, "measurement must be one of"),
+        ({"motion": "levy"}, "motion must be one of"),
+        ({"sigma_speed": 0.05}, "sigma_speed is a setting of motion 'velocity', not 'hmm'"),
+        ({"motion": "velocity", "sigma_turn_rate": -0.1}, "sigma_turn_rate must be a non-neg"),
+        ({"motion": "velocity", "sigma_speed": "fast"}, "sigma_speed must be a number"),
+        ({"arrival_sigma": 1e-3}, "arrival_sigma is a setting of measurement 'arrival-time'"),
+        ({"measurement": "arrival-time", "arrival_sigma": 0}, "arrival_sigma must be a positive"),
+        ({"measurement": "arrival-time", "tempering_ess": 1.5}, r"tempering_ess must lie in"),
+        ({"measurement": "arrival-time", "tempering_ess": float("nan")}, "finite"),
+        ({"search_radius": 200.0}, "search_radius is a setting of measurement 'arrival-time'"),
+        ({"measurement": "arrival-time", "search_radius": -5}, "search_radius must be a pos"),
+    ],
+)
+def test_model_settings_are_validated(change, message):
+    with pytest.raises(ValueError, match=message):
+        TrackingConfig(**({"period": 8.0} | change))
+
+
+def test_a_preset_with_the_other_measurement_is_a_clear_error():
+    with pytest.raises(ValueError, match=r"cli: (\w+) is a setting of measurement 'arrival-time'"):
+        TrackingConfig.from_dict(
+            merge_settings(read_preset(PRESET), {"period": 8.0, "measurement": "range-rate"}),
+            source="cli",
+        )
