@@ -61,7 +61,7 @@ from hmmtrack.clock_tracking import (
     arrival_observations,
     track_arrival_time,
 )
-from hmmtrack.config import TrackingConfig
+from hmmtrack.config import TrackingConfig, read_preset
 from hmmtrack.detection_probability import LogisticDetection
 from hmmtrack.metrics import position_error, time_to_convergence
 from hmmtrack.motion import VelocityMotion
@@ -359,19 +359,51 @@ def robustness_rows(seeds, n_particles, motion, duration) -> list[dict]:
     return rows
 
 
+#: the bundled preset timed beside the defaults (hmmtrack/data/presets/)
+PRESET = "two-moving-receivers"
+
+
+def preset_inputs(case, seed, duration, preset=PRESET):
+    """:func:`inputs` with the bundled ``preset``'s settings (:func:`hmmtrack.config.read_preset`):
+    the detections, the range-rate configuration at the preset's number of particles, and
+    :func:`track_arrival_time`'s keyword arguments (the preset's likelihood, tempering and
+    motion; the case's window, search box and detection curve)."""
+    settings = read_preset(preset)
+    detections, config, common = inputs(case, seed, settings["n_particles"], "velocity", duration)
+    window = {key: common[key] for key in ("period", "bounds", "start", "end")}
+    chosen = TrackingConfig.from_dict(
+        settings | window | {"sound_speed": case.scenario.sound_speed}
+    )
+    return (
+        detections,
+        config,
+        common | chosen.arrival_time_options() | {"motion": chosen.motion_model()},
+    )
+
+
 def timing_rows(n_particles, motion, lag, duration, repeats=3) -> list[dict]:
     """Best of ``repeats`` alternating runs: range-rate; the core arrival-time filter
     (arrival-time likelihood and clock state, no detection probability); with detection
     probability (the silences, as in the accuracy tables); and with the smoother too, on
-    seed 0 of the circling pursuit and of the moored array. Wall time and the process's
-    CPU time (less sensitive to other work on a shared machine) are both kept."""
+    seed 0 of the circling pursuit and of the moored array; and the same (without the
+    smoother) for the bundled :data:`PRESET` on its pursuit (two AUVs on the observable
+    plan), both filters at the preset's number of particles and with its motion model.
+    Wall time and the process's CPU time (less sensitive to other work on a shared
+    machine) are both kept."""
+    cases = [
+        (name, case, inputs(case, 0, n_particles, motion, duration), lag)
+        for name, case in (
+            ("shark pursuit, 2 AUVs (circling)", realistic_shark_pursuit(0)),
+            ("moored array, 3 receivers", moored_array(0, duration=duration)),
+        )
+    ]
+    case = realistic_shark_pursuit(0, steering="observable")
+    cases.append(
+        (f"preset {PRESET} (observable plan)", case, preset_inputs(case, 0, duration), None)
+    )
     rows = []
-    for name, case in (
-        ("shark pursuit, 2 AUVs (circling)", realistic_shark_pursuit(0)),
-        ("moored array, 3 receivers", moored_array(0, duration=duration)),
-    ):
+    for name, case, (detections, config, common), smoothing_lag in cases:
         sc = case.scenario
-        detections, config, common = inputs(case, 0, n_particles, motion, duration)
         core = {**common, "detection": None}
         runs = {
             "range-rate": partial(
@@ -379,10 +411,11 @@ def timing_rows(n_particles, motion, lag, duration, repeats=3) -> list[dict]:
             ),
             "arrival-time": partial(track_arrival_time, detections, sc.receivers, **core),
             "+ silences": partial(track_arrival_time, detections, sc.receivers, **common),
-            "+ smoother": partial(
-                track_arrival_time, detections, sc.receivers, smoothing_lag=lag, **common
-            ),
         }
+        if smoothing_lag is not None:
+            runs["+ smoother"] = partial(
+                track_arrival_time, detections, sc.receivers, smoothing_lag=lag, **common
+            )
         wall = dict.fromkeys(runs, np.inf)
         cpu = dict.fromkeys(runs, np.inf)
         load = os.getloadavg()[0]
@@ -392,19 +425,21 @@ def timing_rows(n_particles, motion, lag, duration, repeats=3) -> list[dict]:
                 run()
                 wall[label] = min(wall[label], time.perf_counter() - tic)
                 cpu[label] = min(cpu[label], time.process_time() - tic_cpu)
-        steps = n_particles * (config.end - config.start)
+        steps = config.n_particles * (config.end - config.start)
         rows.append(
             {
                 "case": name,
+                "particles": config.n_particles,
                 "detections": len(detections),
-                **{f"{label} s": seconds for label, seconds in wall.items()},
+                **{f"{label} s": wall.get(label, np.nan) for label in (*runs, "+ smoother")},
                 "range-rate M steps/s": steps / wall["range-rate"] / 1e6,
                 "arrival-time M steps/s": steps / wall["arrival-time"] / 1e6,
                 "ratio arrival-time / range-rate": wall["arrival-time"] / wall["range-rate"],
                 "ratio with silences": wall["+ silences"] / wall["range-rate"],
                 "CPU ratio": cpu["arrival-time"] / cpu["range-rate"],
                 "CPU ratio with silences": cpu["+ silences"] / cpu["range-rate"],
-                "smoother cost (x with silences)": wall["+ smoother"] / wall["+ silences"],
+                "smoother cost (x with silences)": wall.get("+ smoother", np.nan)
+                / wall["+ silences"],
                 "load (1 min) before": load,
                 "load after": os.getloadavg()[0],
             }
@@ -503,7 +538,10 @@ def main(argv=None) -> int:
             'likelihood and clock state: what replaces the range-rate filter); "+ silences" '
             'adds detection probability (as in the tables above), "+ smoother" the '
             "fixed-lag smoother on top; ratios are arrival-time time over range-rate time "
-            "(target: at most 2), from wall and from CPU time:\n\n"
+            "(target: at most 2), from wall and from CPU time. The last row is the bundled "
+            f"preset `{PRESET}` (its likelihood, tempering, motion model and number of "
+            "particles, for both filters) on the pursuit it was tuned on, without the "
+            "smoother:\n\n"
             + markdown(timing)
             + f"\n\nFrom the single runs of the tables below (noisier): range-rate / "
             f"arrival-time = {ratio:.2f} (target: at most 2).\n\n"

@@ -13,7 +13,11 @@ the clock model has a period rate); the ``m`` that fits best is chosen
 (:func:`wrap_to_ping`, :func:`match_particle`) and the residual is scored with a mixture
 (:class:`ArrivalLikelihood`): a Gaussian core for jitter and model error, an
 exponentially delayed component for multipath (late) arrivals, and a small uniform floor,
-so a few outliers cannot capture the filter.
+so a few outliers cannot capture the filter. The filter scores thousands of particles per
+detection with one likelihood, so its compiled path tabulates the mixture once per
+detection and interpolates it (:func:`mixture_table`, :func:`mixture_log_densities`:
+within 1e-6 of the exact log density, about 2.5 times cheaper);
+:meth:`ArrivalLikelihood.logpdf` and :func:`mixture_log_density` are the exact references.
 
 The range is evaluated where the tag was when it emitted the ping: the particle's
 position moved back along its velocity from the filter time to ``arrival − range/c``;
@@ -35,7 +39,7 @@ from typing import ClassVar
 import numpy as np
 import pandas as pd
 from numba import njit
-from scipy.special import log_ndtr
+from scipy.special import erfcx, log_ndtr
 
 #: speed of sound in sea water used by the paper (m/s); fresh water is about 1416-1450
 SOUND_SPEED = 1460.0
@@ -173,9 +177,11 @@ def emission_range(
     """Range (m) from a receiver to where a moving tag emitted the ping it heard.
 
     The tag at ``(x, y)`` moving with ``(vx, vy)`` heard ``lag`` seconds ago at the receiver
-    emitted at ``lag + range/sound_speed`` seconds ago. Fixed-point iteration: each step
-    shrinks the error by ``speed / sound_speed`` (~1e-3), so the third is exact to about a
-    micrometre for animal speeds.
+    emitted ``r/c`` seconds before that, where ``r = |q − v·r/c|`` (with the vertical
+    separation), ``q`` the tag's position at the arrival minus the receiver's and ``c`` the
+    sound speed: a quadratic in ``r`` whose positive root is
+    ``r = (|q|² + dz²) / (b + √(b² + a·(|q|² + dz²)))`` with ``b = q·v/c`` and
+    ``a = 1 − |v|²/c²`` (this form has no cancellation).
 
     Parameters
     ----------
@@ -194,12 +200,13 @@ def emission_range(
     -------
     numpy.ndarray, shape (N,)
     """
-    dz2 = np.square(vertical)
-    back = lag
-    for _ in range(3):
-        r = np.sqrt((x - vx * back - receiver_x) ** 2 + (y - vy * back - receiver_y) ** 2 + dz2)
-        back = lag + r / sound_speed
-    return r
+    qx = np.asarray(x, dtype=float) - np.multiply(vx, lag) - receiver_x
+    qy = np.asarray(y, dtype=float) - np.multiply(vy, lag) - receiver_y
+    b = (qx * vx + qy * vy) / sound_speed
+    a = 1.0 - (np.square(vx) + np.square(vy)) / sound_speed**2
+    squared = qx * qx + qy * qy + np.square(vertical)
+    root = b + np.sqrt(b * b + a * squared)
+    return np.divide(squared, root, out=np.zeros(np.shape(root)), where=root > 0)
 
 
 @njit(cache=True)
@@ -224,14 +231,49 @@ def _log_add(a: float, b: float) -> float:
 
 
 @njit(cache=True)
+def emission_distance(x, y, vx, vy, vertical, lag, receiver_x, receiver_y, slowness):
+    """Compiled :func:`emission_range` of one particle (``slowness`` = 1 / sound speed, s/m).
+
+    A loop of it over particles compiles to vector code (no branches but a select).
+    """
+    qx = x - vx * lag - receiver_x
+    qy = y - vy * lag - receiver_y
+    b = (qx * vx + qy * vy) * slowness
+    a = 1.0 - (vx * vx + vy * vy) * (slowness * slowness)
+    squared = qx * qx + qy * qy + vertical * vertical
+    root = b + math.sqrt(b * b + a * squared)
+    return squared / root if root > 0.0 else 0.0
+
+
+@njit(cache=True)
+def wrap_arrival(distance, emission_time, period, rate, arrival, slowness):
+    """Compiled :func:`wrap_to_ping` of one arrival heard from ``distance`` (m).
+
+    With a period rate ``R`` (s per ping) ping ``m`` of a clock is emitted at
+    ``e + m·P + m(m−1)/2·R``; the ping is rounded once more after that correction (which
+    changes nothing when ``R = 0``).
+
+    Returns
+    -------
+    residual : float
+        Arrival-time residual against the matched ping (s).
+    ping : float
+        Whole periods from ``emission_time`` to the matched ping.
+    """
+    offset = arrival - distance * slowness - emission_time
+    frequency = 1.0 / period
+    m = np.rint(offset * frequency)
+    m = np.rint((offset - 0.5 * m * (m - 1.0) * rate) * frequency)
+    return offset - m * period - 0.5 * m * (m - 1.0) * rate, m
+
+
+@njit(cache=True)
 def match_particle(
     x, y, vx, vy, emission_time, period, rate, vertical, lag, arrival, receiver_x, receiver_y,
     sound_speed,
 ):  # fmt: skip
-    """Compiled :func:`emission_range` + :func:`wrap_to_ping` of one particle and detection.
-
-    With a period rate ``R`` (s per ping) ping ``m`` of a clock is emitted at
-    ``e + m·P + m(m−1)/2·R``; the ping is rounded once more after that correction.
+    """Compiled :func:`emission_range` + :func:`wrap_to_ping` of one particle and detection
+    (:func:`emission_distance`, then :func:`wrap_arrival`).
 
     Returns
     -------
@@ -242,19 +284,10 @@ def match_particle(
     distance : float
         Range at emission (m).
     """
-    dz2 = vertical * vertical
-    back = lag
-    r = 0.0
-    for _ in range(3):
-        dx = x - vx * back - receiver_x
-        dy = y - vy * back - receiver_y
-        r = math.sqrt(dx * dx + dy * dy + dz2)
-        back = lag + r / sound_speed
-    offset = arrival - r / sound_speed - emission_time
-    m = np.rint(offset / period)
-    if rate != 0.0:
-        m = np.rint((offset - 0.5 * m * (m - 1.0) * rate) / period)
-    return offset - m * period - 0.5 * m * (m - 1.0) * rate, m, r
+    slowness = 1.0 / sound_speed
+    r = emission_distance(x, y, vx, vy, vertical, lag, receiver_x, receiver_y, slowness)
+    residual, m = wrap_arrival(r, emission_time, period, rate, arrival, slowness)
+    return residual, m, r
 
 
 @njit(cache=True)
@@ -370,6 +403,137 @@ def mixture_log_density(eps, period, constants):
     core_share = _share(core, top)
     scaled = core_share + _share(log_uniform, top) + _share(log_late, top)
     return top + math.log(scaled), core, core_share / scaled
+
+
+#: grid of :func:`mixture_table`: ``w = eps/sigma − sigma/late_mean`` (the standardised
+#: residual less the multipath term's shift) from ``TABLE_START`` to ``TABLE_END`` in steps
+#: of ``TABLE_STEP``; residuals outside it are scored exactly (:func:`mixture_log_density`)
+TABLE_START, TABLE_END, TABLE_STEP = -10.0, 10.0, 1.0 / 40.0
+#: largest ``sigma/late_mean`` for which :func:`mixture_table` tabulates (beyond, the
+#: multipath term bends too sharply within a grid step and every residual is scored exactly)
+TABLE_MAX_RATE_SIGMA = 2.0
+#: largest relative difference of a particle's period from the table's reference period
+TABLE_MAX_PERIOD_RATIO = 0.1
+_TABLE_W = np.linspace(TABLE_START, TABLE_END, round((TABLE_END - TABLE_START) / TABLE_STEP) + 1)
+#: ``M(w) = exp(w²/2)·Φ(w)`` on the grid: the multipath term over the Gaussian core, up to
+#: a constant (its derivative is ``w·M(w) + 1/√(2π)``)
+_MILLS = 0.5 * erfcx(-_TABLE_W / np.sqrt(2.0))
+
+
+@njit(cache=True)
+def mixture_table(constants, reference_period):
+    """Tabulate :func:`mixture_log_density` of one likelihood for cubic interpolation.
+
+    With ``z = eps/sigma``, ``w = z − sigma/late_mean`` and the uniform floor at
+    ``reference_period``, the density relative to the core's weight is
+    ``T(w) = exp(−z²/2)·(1 + B·M(w)) + c`` (``M`` the Mills form :data:`_MILLS`, ``B``
+    and ``c`` the late and uniform weights over the core's). On the grid of
+    :data:`TABLE_START`, :data:`TABLE_END`, :data:`TABLE_STEP` this stores, with their
+    derivatives times the step (closed forms), ``G = log T``, the uniform share ``c/T``
+    and the direct share ``exp(−z²/2)/T``; :func:`mixture_log_densities` interpolates them.
+
+    Parameters
+    ----------
+    constants : tuple of float
+        :func:`mixture_constants` of the likelihood.
+    reference_period : float
+        Period (s) of the uniform floor in the table; particles' own periods enter exactly
+        through the uniform share (:func:`mixture_log_densities`).
+
+    Returns
+    -------
+    numpy.ndarray, shape (K, 6)
+        Per node ``(G, step·G', D, step·D', C, step·C')``; no rows (K = 0) when
+        ``sigma/late_mean`` exceeds :data:`TABLE_MAX_RATE_SIGMA` (nothing is tabulated).
+    """
+    rate_sigma = constants[3]
+    if not rate_sigma <= TABLE_MAX_RATE_SIGMA:
+        return np.empty((0, 6))
+    late_ratio = math.exp(constants[6] - 0.5 * rate_sigma * rate_sigma)  # B (0 without)
+    uniform_ratio = constants[7] / reference_period  # c
+    table = np.empty((_TABLE_W.size, 6))
+    inv_sqrt_2pi = 1.0 / math.sqrt(2.0 * math.pi)
+    # exp(−z²/2) node by node: exp(−z_{k+1}²/2) = exp(−z_k²/2)·q_k with
+    # q_k = exp(−z_k·h − h²/2) and q_{k+1} = q_k·exp(−h²) (relative error ~1e-13)
+    z = _TABLE_W[0] + rate_sigma
+    core = math.exp(-0.5 * z * z)
+    step_ratio = math.exp(-z * TABLE_STEP - 0.5 * TABLE_STEP * TABLE_STEP)
+    ratio_ratio = math.exp(-TABLE_STEP * TABLE_STEP)
+    for k in range(_TABLE_W.size):
+        z = _TABLE_W[k] + rate_sigma
+        if k:
+            core *= step_ratio
+            step_ratio *= ratio_ratio
+        total = core * (1.0 + late_ratio * _MILLS[k]) + uniform_ratio
+        inverse = 1.0 / total
+        # T' = exp(−z²/2)·(−z·(1 + B·M) + B·M') with M' − z·M = 1/√(2π) − rate_sigma·M
+        slope = core * (-z + late_ratio * (inv_sqrt_2pi - rate_sigma * _MILLS[k])) * inverse
+        uniform = uniform_ratio * inverse
+        direct = core * inverse
+        table[k, 0] = math.log(total)
+        table[k, 1] = TABLE_STEP * slope
+        table[k, 2] = uniform
+        table[k, 3] = -TABLE_STEP * uniform * slope
+        table[k, 4] = direct
+        table[k, 5] = TABLE_STEP * direct * (-z - slope)
+    return table
+
+
+@njit(cache=True)
+def mixture_log_densities(residual, period, constants, total, direct):
+    """:func:`mixture_log_density` of N residuals, interpolated in a :func:`mixture_table`.
+
+    The table is built at the mean period ``P̄``; a particle's own period ``P`` enters
+    exactly through the uniform share ``D``: with ``x = (P̄/P − 1)·D`` the log density is
+    ``log_core_weight + G + log1p(x)`` and the direct share ``C/(1 + x)`` (``log1p`` by
+    four terms of its series, exact to 2e-11 for ``|x| ≤ 0.01``). The interpolating pass
+    has no branches (those cost more than the interpolation); a second pass scores exactly
+    (:func:`mixture_log_density`) the residuals off the table's grid, periods with
+    ``|P̄/P − 1|`` above :data:`TABLE_MAX_PERIOD_RATIO` or ``|x| > 0.01``, and every
+    residual of a likelihood that cannot be tabulated. The interpolation error is below
+    1e-6 in the log density and in the direct share (tested against the exact function
+    over the likelihood parameters' range).
+
+    Parameters
+    ----------
+    residual, period : numpy.ndarray, shape (N,)
+        Residuals and the periods they were wrapped with (s).
+    constants : tuple of float
+        :func:`mixture_constants` of the likelihood.
+    total, direct : numpy.ndarray, shape (N,)
+        Filled with the log densities (log 1/s) and the direct shares.
+    """
+    reference_period = period.mean()
+    table = mixture_table(constants, reference_period)
+    last = table.shape[0] - 2  # the last interval's first node
+    to_grid = 1.0 / (constants[0] * TABLE_STEP)
+    grid_shift = (constants[3] + TABLE_START) / TABLE_STEP
+    if last >= 0:
+        for i in range(residual.size):
+            at = residual[i] * to_grid - grid_shift
+            ratio = reference_period / period[i] - 1.0
+            inside = (at >= 0.0) & (at < last + 1.0)  # False for NaN
+            clipped = at if inside else 0.0  # (outside: any node, the value is not kept)
+            k = int(clipped)
+            t = clipped - k
+            t2 = t * t
+            h01 = t2 * (3.0 - 2.0 * t)  # cubic Hermite basis: h00 = 1 − h01
+            h10 = t * (1.0 - t) * (1.0 - t)
+            h11 = t2 * (t - 1.0)
+            log_total = table[k, 0] + h01 * (table[k + 1, 0] - table[k, 0])
+            log_total += h10 * table[k, 1] + h11 * table[k + 1, 1]
+            uniform = table[k, 2] + h01 * (table[k + 1, 2] - table[k, 2])
+            uniform += h10 * table[k, 3] + h11 * table[k + 1, 3]
+            share = table[k, 4] + h01 * (table[k + 1, 4] - table[k, 4])
+            share += h10 * table[k, 5] + h11 * table[k + 1, 5]
+            x = ratio * uniform
+            log1p_x = x * (1.0 - x * (0.5 - x * (1.0 / 3.0 - 0.25 * x)))
+            tabulated = inside & (abs(ratio) <= TABLE_MAX_PERIOD_RATIO) & (abs(x) <= 0.01)
+            total[i] = constants[2] + log_total + log1p_x if tabulated else np.nan
+            direct[i] = share / (1.0 + x)
+    for i in range(residual.size):  # (NaN: not tabulated)
+        if last < 0 or math.isnan(total[i]):
+            total[i], _, direct[i] = mixture_log_density(residual[i], period[i], constants)
 
 
 @njit(cache=True)

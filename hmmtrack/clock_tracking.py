@@ -49,17 +49,19 @@ from numba import njit
 from hmmtrack.arrival import (
     ArrivalTimeMeasurement,
     check_arrival_observations,
+    emission_distance,
     emission_range,
-    match_particle,
     mixture_constants,
-    mixture_log_density,
+    mixture_log_densities,
     vertical_parts,
+    wrap_arrival,
 )
 from hmmtrack.clock import EmissionClockModel
 from hmmtrack.detection_probability import (
     HeardTimes,
     LogisticDetection,
     silence_loglik_recent_pings,
+    softplus,
 )
 from hmmtrack.filter import FilterResult, ParticleFilter
 from hmmtrack.receivers import ReceiverTracks
@@ -78,15 +80,16 @@ CLOCK_COLUMNS = ("time", "emission_time", "period", "emission_time_sd", "period_
 @njit(cache=True)
 def _clock_row_kernel(
     residual, ping, distance, weights, emission_time, period, rate, loglik, sigma,
-    late_fraction, late_mean, uniform_fraction, gain, range_50, width,
+    late_fraction, late_mean, uniform_fraction, gain, range_50, width, total, direct,
 ):  # fmt: skip
     """Score one detection against every particle's clock and update the clocks in place.
 
     Adds to ``loglik`` the marginal log density of each residual (innovation standard
-    deviation ``sigma``) and, when ``range_50`` is not NaN, the logistic
-    ``log p(distance)`` of being heard; moves each clock ``(emission_time, period, rate)``
-    to the matched ping and applies the Kalman gain (3,) scaled by the probability that
-    the arrival is direct.
+    deviation ``sigma``; :func:`hmmtrack.arrival.mixture_log_densities`, into the scratch
+    arrays ``total`` and ``direct``, shape (N,)) and, when ``range_50`` is not NaN, the
+    logistic ``log p(distance)`` of being heard; moves each clock
+    ``(emission_time, period, rate)`` to the matched ping and applies the Kalman gain (3,)
+    scaled by the probability that the arrival is direct.
 
     Returns
     -------
@@ -98,18 +101,18 @@ def _clock_row_kernel(
     accepted = 0.0
     closest = math.inf
     constants = mixture_constants(sigma, late_fraction, late_mean, uniform_fraction)
+    mixture_log_densities(residual, period, constants, total, direct)
     for i in range(residual.size):
         eps = residual[i]
-        total, _, direct = mixture_log_density(eps, period[i], constants)
-        loglik[i] += total
-        if not math.isnan(range_50):
-            x = (distance[i] - range_50) / width  # log expit(-x), stable both ways
-            loglik[i] -= x + math.log1p(math.exp(-x)) if x > 0 else math.log1p(math.exp(x))
+        loglik[i] += total[i]
+        if not math.isnan(range_50):  # log p = −softplus((distance − range_50) / width)
+            loglik[i] -= softplus((distance[i] - range_50) / width)
         m = ping[i]
-        emission_time[i] += m * period[i] + 0.5 * m * (m - 1.0) * rate[i] + gain[0] * direct * eps
-        period[i] += m * rate[i] + gain[1] * direct * eps
-        rate[i] += gain[2] * direct * eps
-        accepted += weights[i] * direct
+        shift = direct[i] * eps
+        emission_time[i] += m * period[i] + 0.5 * m * (m - 1.0) * rate[i] + gain[0] * shift
+        period[i] += m * rate[i] + gain[1] * shift
+        rate[i] += gain[2] * shift
+        accepted += weights[i] * direct[i]
         closest = min(closest, abs(eps))
     return accepted, closest
 
@@ -172,23 +175,34 @@ def _correction_kernel(
     residual = np.empty(n)
     ping = np.empty(n)
     distance = np.empty(n)
+    total = np.empty(n)  # scratch of _clock_row_kernel
+    direct = np.empty(n)
     lost = False
+    slowness = 1.0 / sound_speed
     for j in range(arrival.size):
         lag = time - arrival[j]
+        # match_particle in two loops: the ranges' compiles to vector code
         for i in range(n):
-            residual[i], ping[i], distance[i] = match_particle(
-                x[i], y[i], vx[i], vy[i], emission_time[i], period[i], rate[i],
-                tag_depth[i] + row_offset[j], lag, arrival[j], receiver_x[j], receiver_y[j],
-                sound_speed,
+            distance[i] = emission_distance(
+                x[i], y[i], vx[i], vy[i], tag_depth[i] + row_offset[j], lag, receiver_x[j],
+                receiver_y[j], slowness,
             )  # fmt: skip
-        ahead = max(int(_median_ping(ping)), 0)
+        lo, hi, missing = math.inf, -math.inf, False  # range of the matched pings
+        for i in range(n):
+            residual[i], ping[i] = wrap_arrival(
+                distance[i], emission_time[i], period[i], rate[i], arrival[j], slowness
+            )
+            lo = min(lo, ping[i])
+            hi = max(hi, ping[i])
+            missing |= math.isnan(ping[i])
+        ahead = max(int(np.nan if missing else _median_in_range(ping, lo, hi)), 0)
         predicted = predict_clock_covariance(covariance, ahead, noise)
         innovation_var = predicted[0, 0] + measurement_sd * measurement_sd
         sigma = math.sqrt(innovation_var)
         gain = predicted[:, 0] / innovation_var
         accepted, closest = _clock_row_kernel(
             residual, ping, distance, weights, emission_time, period, rate, loglik, sigma,
-            late_fraction, late_mean, uniform_fraction, gain, range_50, width,
+            late_fraction, late_mean, uniform_fraction, gain, range_50, width, total, direct,
         )  # fmt: skip
         lost = lost or closest > lock_sigmas * sigma
         covariance = predicted - accepted * innovation_var * np.outer(gain, gain)
@@ -206,6 +220,12 @@ def _median_ping(ping):
             return np.nan
         lo = min(lo, value)
         hi = max(hi, value)
+    return _median_in_range(ping, lo, hi)
+
+
+@njit(cache=True)
+def _median_in_range(ping, lo, hi):
+    """:func:`_median_ping` of pings (no NaN) known to lie in ``[lo, hi]``."""
     if not hi - lo < MEDIAN_COUNT_SPAN:
         return np.median(ping)
     counts = np.zeros(int(hi - lo) + 1, dtype=np.int64)
@@ -233,8 +253,13 @@ def _temper(log_weight, loglik, remaining, target):
     """The next tempered step: the largest power ``β ≤ remaining`` of the likelihood whose
     weights keep an effective sample size of at least ``target``, and those weights.
 
-    ``β = remaining`` when its weights keep the target (the usual case: one pass); else
-    30 steps of bisection on :func:`_tempered_ess`, at least ``1e-3·remaining``.
+    ``β = remaining`` when its weights keep the target (the usual case: one pass). Else
+    Newton's method on ``log ESS(β) = log target`` (:func:`_tempered_ess` gives the slope),
+    kept within a bracket ``[lo, hi]`` (bisection when a step would leave it), returns the
+    bracket's low end once its ESS is within :data:`TEMPER_ESS_TOLERANCE` above the target
+    (or the bracket is narrower than ``1e-12·remaining``): about three ESS evaluations
+    (at most ten in the two-receiver preset's runs) instead of the 30 of a bisection. At
+    least ``1e-3·remaining``.
 
     Returns
     -------
@@ -247,45 +272,75 @@ def _temper(log_weight, loglik, remaining, target):
     out, weights, ess = _tempered(log_weight, loglik, remaining)
     if ess >= target:
         return remaining, out, weights
-    lo, hi = 0.0, remaining
-    for _ in range(30):
-        mid = 0.5 * (lo + hi)
-        if _tempered_ess(log_weight, loglik, mid) >= target:
-            lo = mid
+    mean = mean_squared = squares = 0.0  # the slope at β = remaining, from its weights
+    for i in range(weights.size):
+        mean += weights[i] * loglik[i]
+        mean_squared += weights[i] * weights[i] * loglik[i]
+        squares += weights[i] * weights[i]
+    slope = 2.0 * (mean - mean_squared / squares)
+    log_target = math.log(target)
+    gap = math.log(ess) - log_target
+    lo, hi, beta = 0.0, remaining, remaining
+    for _ in range(100):
+        step = beta - gap / slope if slope < 0.0 else -1.0
+        beta = step if lo < step < hi else 0.5 * (lo + hi)
+        ess, slope = _tempered_ess(log_weight, loglik, beta)
+        gap = math.log(ess) - log_target
+        if gap >= 0.0:
+            lo = beta
+            if gap <= math.log1p(TEMPER_ESS_TOLERANCE):
+                break
         else:
-            hi = mid
+            hi = beta
+        if hi - lo <= 1e-12 * remaining:
+            break
     beta = max(lo, 1e-3 * remaining)
     out, weights, _ = _tempered(log_weight, loglik, beta)
     return beta, out, weights
 
 
+#: relative ESS above the target at which :func:`_temper` stops refining the power
+TEMPER_ESS_TOLERANCE = 1e-3
+
+
 @njit(cache=True)
 def _tempered_ess(log_weight, loglik, beta):
-    """Effective sample size of the weights ``exp(log_weight + β·loglik)`` (normalised)."""
+    """Effective sample size of the weights ``exp(log_weight + β·loglik)`` (normalised)
+    and its logarithm's derivative in ``β``, ``2·(E_w[loglik] − E_{w²}[loglik])``."""
     top = -math.inf
     for i in range(log_weight.size):
         top = max(top, log_weight[i] + beta * loglik[i])
-    total = squares = 0.0
+    total = squares = mean = mean_squared = 0.0
     for i in range(log_weight.size):
         w = math.exp(log_weight[i] + beta * loglik[i] - top)
         total += w
         squares += w * w
-    return total * total / squares
+        mean += w * loglik[i]
+        mean_squared += w * w * loglik[i]
+    return total * total / squares, 2.0 * (mean / total - mean_squared / squares)
 
 
 @njit(cache=True)
 def _tempered(log_weight, loglik, beta):
     """``log_weight + β·loglik`` normalised (log-sum-exp 0), the weights (N,) and their
     effective sample size (the same number as :func:`_tempered_ess`)."""
-    out = log_weight + beta * loglik
-    top = out.max()
-    weights = np.exp(out - top)
+    n = log_weight.size
+    out = np.empty(n)
+    weights = np.empty(n)
+    top = -math.inf
+    for i in range(n):
+        out[i] = log_weight[i] + beta * loglik[i]
+        top = max(top, out[i])
     total = squares = 0.0
-    for w in weights:
-        total += w
-        squares += w * w
-    weights /= total
-    out -= top + math.log(total)
+    for i in range(n):
+        weights[i] = math.exp(out[i] - top)
+        total += weights[i]
+        squares += weights[i] * weights[i]
+    scale = 1.0 / total
+    shift = top + math.log(total)
+    for i in range(n):
+        weights[i] *= scale
+        out[i] -= shift
     return out, weights, total * total / squares
 
 
@@ -311,10 +366,11 @@ def _clock_summary(emission_time, period, weights, var_emission, var_period):
     """
     best = np.argmax(weights)
     reference, step = emission_time[best], period[best]
-    offset = emission_time - reference
-    offset -= np.rint(offset / step) * step
+    offset = np.empty(weights.size)
     mean_offset = mean_period = 0.0
     for i in range(weights.size):
+        offset[i] = emission_time[i] - reference
+        offset[i] -= np.rint(offset[i] / step) * step
         mean_offset += weights[i] * offset[i]
         mean_period += weights[i] * period[i]
     spread_offset = spread_period = 0.0
@@ -327,6 +383,46 @@ def _clock_summary(emission_time, period, weights, var_emission, var_period):
         math.sqrt(spread_offset + var_emission),
         math.sqrt(spread_period + var_period),
     )
+
+
+@njit(cache=True)
+def _regularisation_move(x, y, normals, bandwidth):
+    """Move positions by ``bandwidth·L·normals``, ``L`` the Cholesky factor of their sample
+    covariance (``np.cov``, N − 1 in the denominator) plus 1e-4 m² on the diagonal.
+
+    Parameters
+    ----------
+    x, y : numpy.ndarray, shape (N,)
+        Positions (m).
+    normals : numpy.ndarray, shape (2, N)
+        Standard normal draws.
+    bandwidth : float
+
+    Returns
+    -------
+    x, y : numpy.ndarray, shape (N,)
+        New arrays (m).
+    """
+    n = x.size
+    mean_x, mean_y = x.mean(), y.mean()
+    sxx = sxy = syy = 0.0
+    for i in range(n):
+        dx, dy = x[i] - mean_x, y[i] - mean_y
+        sxx += dx * dx
+        sxy += dx * dy
+        syy += dy * dy
+    sxx = sxx / (n - 1) + 1e-4
+    sxy = sxy / (n - 1)
+    syy = syy / (n - 1) + 1e-4
+    l11 = math.sqrt(sxx)  # 2 x 2 Cholesky factor [[l11, 0], [l21, l22]]
+    l21 = sxy / l11
+    l22 = math.sqrt(syy - l21 * l21)
+    moved_x = np.empty(n)
+    moved_y = np.empty(n)
+    for i in range(n):
+        moved_x[i] = x[i] + bandwidth * l11 * normals[0, i]
+        moved_y[i] = y[i] + bandwidth * (l21 * normals[0, i] + l22 * normals[1, i])
+    return moved_x, moved_y
 
 
 def ambiguity(x, y, weights, min_separation: float = 20.0) -> tuple[float, float, bool]:
@@ -372,9 +468,12 @@ AMBIGUITY_BINS = 1024
 @njit(cache=True)
 def _ambiguity_kernel(x, y, w, min_separation, n_bins):
     """:func:`ambiguity` (compiled): weighted moments, principal axis, binned 2-means."""
-    total = w.sum()
-    mx = (w * x).sum() / total
-    my = (w * y).sum() / total
+    total = mx = my = 0.0
+    for i in range(x.size):
+        total += w[i]
+        mx += w[i] * x[i]
+        my += w[i] * y[i]
+    mx, my = mx / total, my / total
     sxx = sxy = syy = 0.0
     for i in range(x.size):
         dx, dy = x[i] - mx, y[i] - my
@@ -395,8 +494,12 @@ def _ambiguity_kernel(x, y, w, min_separation, n_bins):
     )
     norm = math.hypot(ax, ay)
     ax, ay = ax / norm, ay / norm
-    u = (x - mx) * ax + (y - my) * ay
-    low, high = u.min(), u.max()
+    u = np.empty(x.size)
+    low, high = math.inf, -math.inf
+    for i in range(x.size):
+        u[i] = (x[i] - mx) * ax + (y[i] - my) * ay
+        low = min(low, u[i])
+        high = max(high, u[i])
     width = (high - low) / n_bins
     bin_w = np.zeros(n_bins)
     bin_wu = np.zeros(n_bins)
@@ -596,8 +699,9 @@ class ClockAwareFilter(ParticleFilter):
             period_rate=np.zeros(n),
         )
         self._clock_started = False
-        # normalised weights as of the last correction or resampling (which set them)
-        self._weights_now = np.full(n, 1.0 / n)
+        # normalised weights kept by the last correction or resampling, and the log
+        # weights they are of (see _normalised_weights)
+        self._weights_now = self._weights_of = None
         self._lost_count = 0
         self._clock_covariance = np.full((3, 3), np.nan)
         self._silence_from = -np.inf
@@ -621,6 +725,22 @@ class ClockAwareFilter(ParticleFilter):
             self._pending = False
 
     # ------------------------------------------------------------------ predict
+
+    def _normalised_weights(self) -> np.ndarray:
+        """The particles' normalised weights (N,): those the last correction or resampling
+        kept, while the log weights are still the ones they were computed from (no pass
+        over them); else computed afresh."""
+        p = self.particles
+        if self._weights_of is not p.log_weight:
+            self._weights_now, self._weights_of = p.normalised_weights(), p.log_weight
+        return self._weights_now
+
+    def _weights(self):
+        """Normalised weights (N,) (:meth:`_normalised_weights`), their effective sample
+        size and weighted mean position (m)."""
+        w = self._normalised_weights()
+        p = self.particles
+        return w, 1.0 / (w @ w), (float(w @ p.x), float(w @ p.y))
 
     def predict(self, n_steps: int):
         """Move the particles ``n_steps`` steps (the clocks move lazily, ping by ping)."""
@@ -668,14 +788,14 @@ class ClockAwareFilter(ParticleFilter):
         self._clock_covariance = covariance
         self._clock_started = True
 
-    def _clock_update(self, obs: pd.DataFrame):
+    def _clock_update(self, obs: pd.DataFrame, rows=None):
         """Marginal log-likelihood of ``obs`` per particle and the updated clocks.
 
         Rows are taken one after the other: each is scored against every particle's
         predicted clock (mean and shared covariance moved to the ping that fits), then the
         clock is updated with it (Kalman gain scaled by the posterior probability that the
         detection is a direct arrival), so simultaneous detections of one ping are scored
-        jointly.
+        jointly. ``rows``: :meth:`_rows` of ``obs``, when already taken.
 
         Returns
         -------
@@ -693,15 +813,15 @@ class ClockAwareFilter(ParticleFilter):
         clocks = tuple(np.array(p.extra[name], dtype=float) for name in CLOCK_FIELDS)
         loglik = np.zeros(p.n)
         detection = None if self.silence is None else self.silence.detection
-        tag_depth, arrival, receiver_x, receiver_y, row_offset = self._rows(obs)
+        arrival, receiver_x, receiver_y, row_offset = self._rows(obs) if rows is None else rows
         covariance, lost = _correction_kernel(
             p.x,
             p.y,
             p.speed,
             p.cos_heading,
             p.sin_heading,
-            tag_depth,
-            p.normalised_weights(),
+            vertical_parts(p, _NO_ROWS)[0],  # the particles' depths
+            self._normalised_weights(),
             *clocks,
             arrival,
             receiver_x,
@@ -723,29 +843,28 @@ class ClockAwareFilter(ParticleFilter):
         return loglik, clocks, covariance, lost
 
     def _rows(self, obs: pd.DataFrame):
-        """Tag depth (N,) and the rows of ``obs`` as arrays (M,): arrival time, receiver x
-        and y, and depth offset (:func:`hmmtrack.arrival.vertical_parts`).
+        """The rows of ``obs`` as arrays (M,): arrival time, receiver x and y, and depth
+        offset (:func:`hmmtrack.arrival.vertical_parts`).
 
         During :meth:`run`, ``obs`` is a slice of the run's table (its index labels are
         row positions), whose columns were converted once.
         """
-        p = self.particles
         table = obs if self._table is None else self._table
         if self._table is None or self._table_rows is None:
-            tag_depth, offset = vertical_parts(p, table)
+            offset = vertical_parts(self.particles, table)[1]
             columns = [table[c].to_numpy(dtype=float) for c in ("time", "receiver_x", "receiver_y")]
             if self._table is None:
-                return tag_depth, *columns, offset
+                return *columns, offset
             self._table_rows = (*columns, offset)
-        tag_depth = vertical_parts(p, _NO_ROWS)[0]
         at = obs.index.to_numpy()
-        return tag_depth, *(column[at] for column in self._table_rows)
+        return tuple(column[at] for column in self._table_rows)
 
-    def _loglik(self, obs: pd.DataFrame):
-        loglik, clocks, covariance, lost = self._clock_update(obs)
+    def _loglik(self, obs: pd.DataFrame, rows=None):
+        loglik, clocks, covariance, lost = self._clock_update(obs, rows)
         if self.silence is not None:
             loglik = loglik + self._silence_loglik()
-        if loglik.shape != (self.particles.n,) or not np.all(np.isfinite(loglik)):
+        # (the sum of finite log-likelihoods of this size is finite)
+        if loglik.shape != (self.particles.n,) or not math.isfinite(loglik.sum()):
             raise ValueError(
                 f"arrival-time log-likelihood not finite at time {self.time} for "
                 f"observations:\n{obs}"
@@ -789,27 +908,29 @@ class ClockAwareFilter(ParticleFilter):
         if not self._clock_started:
             self._start_clock(obs)
         silence_from = self._silence_from
-        loglik, update, lost = self._loglik(obs)
+        rows = self._rows(obs)  # (the same for every tempered step)
+        loglik, update, lost = self._loglik(obs, rows)
         self._lost_count = self._lost_count + 1 if lost else 0
         if self._lost_count >= self.lost_corrections:
             self._lost_count = 0
             self._start_clock(obs, reacquire=True)
             self._record("clock_reacquired", f"no particle fitted the {len(obs)} detection(s)")
             self._silence_from = silence_from
-            loglik, update, _ = self._loglik(obs)
+            loglik, update, _ = self._loglik(obs, rows)
         remaining = 1.0
         while True:
             p = self.particles
             beta, p.log_weight, self._weights_now = _temper(
                 p.log_weight, loglik, remaining, self.tempering_ess * p.n
             )
+            self._weights_of = p.log_weight
             remaining -= beta
             if remaining <= 1e-12:
                 break
             self._resample_now()
             self._regularise()
             self._silence_from = silence_from
-            loglik, update, _ = self._loglik(obs)
+            loglik, update, _ = self._loglik(obs, rows)
         p = self.particles
         clocks, self._clock_covariance = update
         p.extra.update(zip(CLOCK_FIELDS, clocks, strict=True))
@@ -819,14 +940,13 @@ class ClockAwareFilter(ParticleFilter):
     def _regularise(self) -> None:
         """Gaussian move of (x, y) with the particles' own covariance (after resampling)."""
         p = self.particles
-        cov = np.cov(np.vstack([p.x, p.y])) + 1e-4 * np.eye(2)
-        move = self._bandwidth * (np.linalg.cholesky(cov) @ self.rng.standard_normal((2, p.n)))
-        p.x = p.x + move[0]
-        p.y = p.y + move[1]
+        p.x, p.y = _regularisation_move(
+            p.x, p.y, self.rng.standard_normal((2, p.n)), self._bandwidth
+        )
 
     def _record_diagnostics(self) -> None:
         p = self.particles
-        w = self._weights_now
+        w = self._normalised_weights()
         self._ambiguity_rows.append((self.time, *ambiguity(p.x, p.y, w)))
         self._clock_rows.append(
             (
@@ -845,19 +965,21 @@ class ClockAwareFilter(ParticleFilter):
 
     def _resample_now(self) -> None:
         p = self.particles
-        ancestors = self._resample(self.rng, self._weights_now, p.n)
-        self._ancestors = ancestors
+        ancestors = self._resample(self.rng, self._normalised_weights(), p.n)
+        self.last_ancestors = ancestors  # (ParticleFilter's contract)
         self.particles = p.take(ancestors)
         self.particles.log_weight = np.full(p.n, -np.log(p.n))
         self._weights_now = np.full(p.n, 1.0 / p.n)
-        self._parent = ancestors if self._parent is None else self._parent[ancestors]
+        self._weights_of = self.particles.log_weight
+        if self._smoother is not None:  # (ancestry is only kept for the smoother)
+            self._parent = ancestors if self._parent is None else self._parent[ancestors]
 
     def resample_if_due(self) -> bool:
         """Resample per ``resample_when``, keeping the ancestry for the smoother."""
         self._push_pending()  # the smoother records the corrected, not yet resampled, step
         p = self.particles
         if self.resample_when == "ess":
-            w = self._weights_now
+            w = self._normalised_weights()
             if 1.0 / (w @ w) >= self.ess_threshold * p.n:
                 return False
         self._resample_now()

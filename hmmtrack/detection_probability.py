@@ -361,7 +361,7 @@ def _receiver_ranges(x, y, receiver_xy):
         for i in range(x.size):
             dx = x[i] - receiver_xy[k, 0]
             dy = y[i] - receiver_xy[k, 1]
-            out[k, i] = math.hypot(dx, dy)  # (the same numbers as np.hypot)
+            out[k, i] = math.sqrt(dx * dx + dy * dy)
     return out
 
 
@@ -376,20 +376,63 @@ def _recent_pings_kernel(
         lo = np.searchsorted(heard_k, window_start - tolerance)
         heard_k = heard_k[lo : np.searchsorted(heard_k, window_end + tolerance, side="right")]
         m = heard_k.size
+        slowness = 1.0 / sound_speed
         for i in range(emission_time.size):
-            travel = range_m[k, i] / sound_speed
+            travel = range_m[k, i] * slowness
             last = math.floor((window_end - travel - emission_time[i]) / period[i])
             for back in range(n_back):
                 expected = emission_time[i] + (last - back) * period[i] + travel
                 if not (window_start < expected <= window_end):
                     continue
                 heard = False
-                if m > 0:
+                if m > 8:
                     j = min(np.searchsorted(heard_k, expected - tolerance), m - 1)
                     heard = abs(heard_k[j] - expected) <= tolerance
-                if not heard:  # log(1 - p) = log expit(x), stable both ways
-                    x = (range_m[k, i] - range_50) / width
-                    out[i] += -math.log1p(math.exp(-x)) if x > 0 else x - math.log1p(math.exp(x))
+                else:  # (a window holds a few detections: a scan is cheaper)
+                    for j in range(m):
+                        heard |= abs(heard_k[j] - expected) <= tolerance
+                if not heard:  # log(1 − p) = log expit(x) = −softplus(−x)
+                    out[i] -= softplus((range_50 - range_m[k, i]) / width)
+
+
+#: grid of :func:`softplus`'s table: ``x`` from ``-SOFTPLUS_END`` to ``SOFTPLUS_END`` in
+#: steps of ``SOFTPLUS_STEP``; beyond, ``softplus(x)`` is ``max(x, 0)`` to within 5e-18
+SOFTPLUS_END, SOFTPLUS_STEP = 40.0, 1.0 / 20.0
+_SOFTPLUS_X = np.linspace(-SOFTPLUS_END, SOFTPLUS_END, round(2 * SOFTPLUS_END / SOFTPLUS_STEP) + 1)
+#: ``log(1 + e^x)`` and its slope ``expit(x)`` times the step, per node (one row per node)
+_SOFTPLUS = np.column_stack([np.logaddexp(0.0, _SOFTPLUS_X), SOFTPLUS_STEP * expit(_SOFTPLUS_X)])
+
+
+@njit(cache=True)
+def softplus(x):
+    """``log(1 + e^x)`` by cubic Hermite interpolation in a table built once (compiled).
+
+    Within 3e-9 of the exact function (its fourth derivative is at most 1/8, so the
+    interpolation error is at most ``step⁴/3072``; tested), about three times cheaper than
+    ``log1p(exp(x))``. The compiled scores of the detection curve use it:
+    ``log p = −softplus((r − range_50)/width)`` and ``log(1 − p) = −softplus(−x)``.
+
+    Parameters
+    ----------
+    x : float
+
+    Returns
+    -------
+    float
+    """
+    at = (x + SOFTPLUS_END) * (1.0 / SOFTPLUS_STEP)
+    inside = (at >= 0.0) & (at < _SOFTPLUS.shape[0] - 1.0)  # False for NaN
+    clipped = at if inside else 0.0
+    k = int(clipped)
+    t = clipped - k
+    t2 = t * t
+    h01 = t2 * (3.0 - 2.0 * t)  # cubic Hermite basis: h00 = 1 − h01
+    h10 = t * (1.0 - t) * (1.0 - t)
+    h11 = t2 * (t - 1.0)
+    value = _SOFTPLUS[k, 0] + h01 * (_SOFTPLUS[k + 1, 0] - _SOFTPLUS[k, 0])
+    value += h10 * _SOFTPLUS[k, 1] + h11 * _SOFTPLUS[k + 1, 1]
+    beyond = x if not x <= 0.0 else 0.0  # max(x, 0) off the table; NaN stays NaN
+    return value if inside else beyond
 
 
 def emission_schedule(clock: pd.DataFrame, end: float) -> np.ndarray:

@@ -13,11 +13,16 @@ from hypothesis import strategies as st
 from scipy import stats
 
 from hmmtrack.arrival import (
+    TABLE_END,
+    TABLE_START,
+    TABLE_STEP,
     ArrivalLikelihood,
     ArrivalTimeMeasurement,
     emission_range,
     mixture_constants,
+    mixture_log_densities,
     mixture_log_density,
+    mixture_table,
     wrap_to_ping,
 )
 from hmmtrack.ranging import ranges
@@ -322,3 +327,74 @@ def test_compiled_match_equals_emission_range_and_wrapping():
     np.testing.assert_allclose(r, want_r, rtol=1e-12)
     np.testing.assert_allclose(residual, want_residual, atol=1e-9)
     np.testing.assert_array_equal(ping, want_ping)
+
+
+def exact_densities(likelihood, residual, period):
+    """The NumPy reference: log density and direct share of each residual."""
+    total = likelihood.logpdf(residual, period)
+    return total, np.exp(likelihood.core_logpdf(residual) - total)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    sigma=st.floats(1e-4, 0.1),
+    late=st.sampled_from([0.0, 0.01, 0.05, 0.3, 0.5]),
+    late_mean=st.floats(3e-4, 0.3),
+    uniform=st.sampled_from([0.0, 1e-9, 1e-6, 1e-3, 0.05]),
+    period=st.floats(1.0, 300.0),
+)
+def test_tabulated_mixture_is_within_1e_6_of_the_exact_density(
+    sigma, late, late_mean, uniform, period
+):
+    """The filter's interpolated mixture against the NumPy reference over the whole line:
+    the table's grid (densely), its ends, far tails, the wrap boundaries ±period/2, and
+    particles' periods within and beyond 10 % of the mean (those are scored exactly)."""
+    likelihood = ArrivalLikelihood(sigma, late, late_mean, uniform)
+    rng = np.random.default_rng(0)
+    z = np.concatenate(
+        [
+            np.linspace(-15.0, 15.0, 12001),
+            TABLE_START + sigma / late_mean + np.array([-1e-9, 0.0, 1e-9]),
+            TABLE_END + sigma / late_mean + np.array([-1e-9, 0.0, 1e-9]),
+            [-1e4, -300.0, -40.0, 40.0, 300.0, 1e4],
+        ]
+    )
+    residual = np.concatenate([z * sigma, [-0.5 * period, 0.5 * period]])
+    residual = residual[np.abs(residual) <= 0.5 * period]
+    periods = period * (1.0 + rng.uniform(-0.12, 0.12, residual.size))
+    total, direct = np.empty(residual.size), np.empty(residual.size)
+    mixture_log_densities(
+        residual, periods, mixture_constants(sigma, late, late_mean, uniform), total, direct
+    )
+    want_total, want_direct = exact_densities(likelihood, residual, periods)
+    near = np.abs(want_total) < 1e4  # beyond, the reference's exp(core − total) loses digits
+    np.testing.assert_allclose(total, want_total, rtol=1e-12, atol=1e-6)
+    np.testing.assert_allclose(direct[near], want_direct[near], rtol=0, atol=1e-6)
+
+
+def test_mixture_table_holds_the_exact_density_and_its_slopes_at_the_nodes():
+    """Each node of the table against the NumPy reference: the log density (less the
+    core's log weight), the uniform and direct shares, and their slopes against central
+    differences of the reference; likelihoods too sharp to tabulate get an empty table."""
+    sigma, late, late_mean, uniform, period = 3e-3, 0.05, 0.02, 1e-3, 8.0
+    likelihood = ArrivalLikelihood(sigma, late, late_mean, uniform)
+    constants = mixture_constants(sigma, late, late_mean, uniform)
+    table = mixture_table(constants, period)
+    w = np.linspace(TABLE_START, TABLE_END, table.shape[0])
+    assert np.allclose(np.diff(w), TABLE_STEP)
+    eps = (w + sigma / late_mean) * sigma
+
+    def parts(e):
+        total, direct = exact_densities(likelihood, e, period)
+        uniform_share = np.exp(np.log(uniform / period) - total)
+        return total - constants[2], uniform_share, direct
+
+    h = 1e-5  # in w
+    for column, (value, upper, lower) in enumerate(
+        zip(parts(eps), parts(eps + h * sigma), parts(eps - h * sigma), strict=True)
+    ):
+        np.testing.assert_allclose(table[:, 2 * column], value, rtol=1e-11, atol=1e-10)
+        slope = TABLE_STEP * (upper - lower) / (2 * h)
+        np.testing.assert_allclose(table[:, 2 * column + 1], slope, rtol=1e-5, atol=1e-9)
+    too_sharp = mixture_constants(0.1, late, 0.01, uniform)  # sigma/late_mean = 10
+    assert mixture_table(too_sharp, period).shape == (0, 6)

@@ -10,12 +10,15 @@ from hypothesis import strategies as st
 
 from hmmtrack.clock_scenarios import moored_array
 from hmmtrack.detection_probability import (
+    SOFTPLUS_END,
+    SOFTPLUS_STEP,
     HeardTimes,
     LogisticDetection,
     expected_pings,
     fit_detection_probability,
     silence_loglik,
     silence_loglik_recent_pings,
+    softplus,
 )
 from hmmtrack.receivers import ReceiverTracks
 
@@ -127,17 +130,40 @@ def test_compiled_recent_pings_equal_silence_loglik_ping_by_ping():
     last = np.floor((end - travel - emission) / period)
     due = [emission + (last - back) * period + travel for back in (0, 1)]
     heard = np.sort(np.concatenate([due[0][::20], due[1][::20], rng.uniform(0.0, 60.0, 10)]))
-    got = silence_loglik_recent_pings(
-        emission, period, x, y, receiver, n_back, heard, start, end, curve, tolerance, c
+    nothing_heard = silence_loglik_recent_pings(
+        emission, period, x, y, receiver, n_back, np.empty(0), start, end, curve, tolerance, c
     )
-    want = sum(
-        silence_loglik(
-            emission + (last - back) * period + travel, r, heard, start, end, curve, tolerance
+    # many detections in the window (searched) and a few (scanned)
+    for times in (heard, np.sort(due[0][::100])):
+        got = silence_loglik_recent_pings(
+            emission, period, x, y, receiver, n_back, times, start, end, curve, tolerance, c
         )
-        for back in range(n_back)
+        want = sum(
+            silence_loglik(
+                emission + (last - back) * period + travel, r, times, start, end, curve, tolerance
+            )
+            for back in range(n_back)
+        )
+        # (the compiled log(1 − p) is interpolated to within 3e-9 per ping, see softplus)
+        np.testing.assert_allclose(got, want, rtol=0, atol=n_back * 3e-9)
+        assert (got < 0).sum() > n // 2  # unheard pings count, heard ones do not:
+        assert (got > nothing_heard).sum() >= min(times.size, n // 20)
+    assert (nothing_heard < 0).all()  # every particle has a ping due in the window
+
+
+def test_compiled_softplus_is_within_3e_9_of_the_exact_function():
+    """The table's bound (step⁴/3072 for a fourth derivative of at most 1/8) over the
+    table, its ends and beyond, where it is max(x, 0); NaN stays NaN."""
+    x = np.concatenate(
+        [
+            np.linspace(-SOFTPLUS_END - 5.0, SOFTPLUS_END + 5.0, 400_001),
+            [-SOFTPLUS_END, SOFTPLUS_END, -1e300, 1e300, -np.inf, np.inf],
+        ]
     )
-    np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12)
-    assert (got < 0).sum() > n // 2 and (got == 0).sum() >= n // 20  # both cases exercised
+    got = np.array([softplus(v) for v in x])
+    np.testing.assert_allclose(got, np.logaddexp(0.0, x), rtol=1e-15, atol=3e-9)
+    assert SOFTPLUS_STEP**4 / 3072 < 3e-9
+    assert np.isnan(softplus(np.nan))
 
 
 def test_recent_pings_of_several_receivers_are_the_sum_of_each():
