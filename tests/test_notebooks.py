@@ -40,6 +40,10 @@ CASES = {
         {"n_trials": 1, "n_particles": 100, "workers": 1, "duration": 900.0},
         ["depth.png"],
     ),
+    "05_clock_aware_tracking.py": (
+        {"seed": 1, "duration": 1200.0, "n_particles": 800},
+        ["tag_clock.png", "clock_aware_tracking.png"],
+    ),
 }
 
 
