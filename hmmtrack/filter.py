@@ -45,7 +45,6 @@ This module does not read files or build observations (:mod:`hmmtrack.tracking` 
 from __future__ import annotations
 
 import math
-import os
 import time as clock
 import warnings
 from collections.abc import Iterator, Sequence
@@ -74,13 +73,6 @@ __all__ = [
 
 #: columns of the estimates table (docs/interfaces.md plus the effective sample size)
 ESTIMATE_COLUMNS = ("time", "x", "y", "var_x", "var_y", "cov_xy", "sqrt_lambda1", "n_eff")
-# The filter tells motion.advance how many threads to use through numba.set_num_threads,
-# which starts numba's OpenMP pool (the motion kernels themselves run on Python threads).
-# Idle OpenMP workers spin by default and steal the cores the filter needs on a busy
-# machine; sleeping ones cost nothing here. Read by OpenMP when numba starts its threads; an
-# explicit setting in the environment wins.
-os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
-
 #: below this many particle-steps per compiled call the default is one thread (too short
 #: for more threads to pay); above it the filter times one and all threads and keeps the
 #: faster (pass ``threads=`` to fix the number)
@@ -505,19 +497,14 @@ class ParticleFilter:
         threads = self.threads
         if threads is None:
             threads = 1 if work < PARALLEL_MIN_WORK else self._thread_choice.pick()
-        previous = numba.get_num_threads()
         threads = min(threads, numba.config.NUMBA_NUM_THREADS)
-        if threads != previous:
-            numba.set_num_threads(threads)
-        try:
-            started = clock.perf_counter()
-            moments = self.motion.advance(p, self._streams, n_steps, self.dt, weights, origin)
-            if self.threads is None and work >= PARALLEL_MIN_WORK:
-                self._thread_choice.record(threads, (clock.perf_counter() - started) / work)
-            return moments
-        finally:
-            if threads != previous:
-                numba.set_num_threads(previous)
+        started = clock.perf_counter()
+        moments = self.motion.advance(
+            p, self._streams, n_steps, self.dt, weights, origin, threads=threads
+        )
+        if self.threads is None and work >= PARALLEL_MIN_WORK:
+            self._thread_choice.record(threads, (clock.perf_counter() - started) / work)
+        return moments
 
     # ------------------------------------------------------------------ correct
 

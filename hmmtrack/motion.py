@@ -5,11 +5,12 @@ Three models from the paper's section "Motion Models", each with the same two en
 ``propagate(rng, particles, dt)``
     The reference implementation: one prediction step of ``dt`` seconds for all particles at
     once, written with NumPy arrays and a ``numpy.random.Generator``.
-``advance(particles, streams, n_steps, dt, weights, origin)``
+``advance(particles, streams, n_steps, dt, weights, origin, threads=None)``
     The fast path used by :class:`hmmtrack.filter.ParticleFilter`: ``n_steps`` prediction
     steps fused into one compiled (numba) kernel, run over fixed chunks of particles on
-    ``numba.get_num_threads()`` threads (it releases the GIL), that draws from the
-    per-particle random streams of :mod:`hmmtrack.streams` and returns the weighted moments
+    ``threads`` threads (the caller's and worker threads kept between calls: the kernel
+    releases the GIL), that draws from the per-particle random streams of
+    :mod:`hmmtrack.streams` and returns the weighted moments
     of the particle positions after every step, so that per-second estimates need no second
     pass over the particles. The kernels implement the same equations as ``propagate``;
     ``tests/test_motion.py`` checks them against each other with the same random draws.
@@ -48,12 +49,15 @@ import logging
 import math
 import os
 import warnings
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numba
 import numpy as np
-from numba import njit
+from llvmlite import ir
+from numba import njit, types
+from numba.core import cgutils
+from numba.extending import intrinsic
 from scipy.linalg import fractional_matrix_power
 
 from hmmtrack import streams as rs
@@ -72,11 +76,13 @@ logger = logging.getLogger(__name__)
 #: below this |omega dt| the NumPy arc uses its Taylor series (first omitted term ~2e-16)
 _SERIES_BELOW = 1e-2
 #: the compiled kernels split particles into at most this many chunks (one partial sum
-#: each), of at least MIN_CHUNK particles (shorter ones cost more to set up than their
-#: parallelism gains); the split depends on N only, so that sums, hence estimates, do not
-#: depend on how many threads run them
+#: each), of at least MIN_CHUNK particles; the split depends on N only, so that sums, hence
+#: estimates, do not depend on how many threads run them. Per particle-step on one thread,
+#: chunks of 512 ran the HMM kernel 4-5 % faster than chunks of 256, and 1024 1-2 % faster
+#: still; whole two-thread filter runs at N = 10,000 (10 chunks of 1024 to share) were 1-2 %
+#: faster with 1024 than with 512
 N_CHUNKS = 64
-MIN_CHUNK = 256
+MIN_CHUNK = 1024
 #: the HMM kernel draws with its vectorised passes for all particles of a chunk when more
 #: than 1/SPARSE_DRAWS of them are due, else with the scalar samplers for the due ones only
 SPARSE_DRAWS = 4
@@ -279,55 +285,146 @@ def _finish_headings(heading, c, s):
         s[i] *= factor
 
 
-#: threads that run chunks of a kernel call beside the caller's (created on first use)
+@intrinsic
+def _fetch_add(typingctx, counter, index, value):
+    """``counter[index] += value`` as one atomic operation, ordered with every other memory
+    access of the thread (safe between threads); returns the value before the addition.
+    ``counter`` is an int64 array; ``value`` 0 reads the counter atomically."""
+    if not (isinstance(counter, types.Array) and counter.dtype == types.int64):
+        return None
+
+    def codegen(context, builder, signature, args):
+        array_type = signature.args[0]
+        array = context.make_array(array_type)(context, builder, args[0])
+        position = context.cast(builder, args[1], signature.args[1], types.intp)
+        pointer = cgutils.get_item_pointer(context, builder, array_type, array, [position])
+        amount = context.cast(builder, args[2], signature.args[2], types.int64)
+        return builder.atomic_rmw("add", pointer, amount, "seq_cst")
+
+    return types.int64(counter, index, value), codegen
+
+
+@njit(cache=True, inline="always")
+def _next_chunk(counter, n, finished):
+    """Count chunk ``finished`` (-1: none) as done and claim the next chunk of ``n``
+    particles not yet claimed by any thread: ``(chunk, lo, hi)``, the particles ``lo:hi``;
+    ``chunk`` is -1 once all are claimed. ``counter`` (int64, 2) holds the chunks claimed
+    and the chunks done, both starting at 0."""
+    if finished >= 0:
+        _fetch_add(counter, 1, 1)
+    n_chunks, size = _chunking(n)
+    chunk = _fetch_add(counter, 0, 1)
+    if chunk >= n_chunks:
+        return -1, 0, 0
+    return chunk, chunk * size, min(n, (chunk + 1) * size)
+
+
+@intrinsic
+def _yield_processor(typingctx):
+    """The C library's ``sched_yield()``: let another runnable thread have this core (returns
+    at once when none is waiting)."""
+
+    def codegen(context, builder, signature, args):
+        function = cgutils.get_or_insert_function(
+            builder.module, ir.FunctionType(ir.IntType(32), []), "sched_yield"
+        )
+        builder.call(function, [])
+        return context.get_dummy_value()
+
+    return types.void(), codegen
+
+
+#: atomic reads between two offers of the core to other threads in :func:`_spin_until`
+_READS_PER_YIELD = 64
+
+
+@njit(cache=True, nogil=True)
+def _spin_until(counter, index, target, spins):
+    """Whether ``counter[index]`` reaches ``target`` within ``spins`` atomic reads: a busy
+    wait without the GIL (about 5 ns a read) that offers the core to other threads every
+    :data:`_READS_PER_YIELD` reads, so that on a busy machine it does not take the time of
+    the thread it waits for."""
+    for k in range(spins):
+        if _fetch_add(counter, index, 0) >= target:
+            return True
+        if k % _READS_PER_YIELD == _READS_PER_YIELD - 1:
+            _yield_processor()
+    return False
+
+
+#: atomic reads (0.1-0.4 ms with the yields of :func:`_spin_until`) for which the caller,
+#: done with its chunks, waits awake for the helper threads' last chunks before it sleeps
+#: until they return: a thread that sleeps may take 0.1 ms or more to wake on a quiet
+#: virtual machine, longer than a chunk takes
+CALLER_SPINS = 20_000
+#: :func:`_yield_processor` calls POSIX ``sched_yield``; elsewhere (Windows) the caller does
+#: not spin and sleeps at once until the helper threads return
+_CAN_SPIN = os.name == "posix"
+
+#: threads that run chunks of kernel calls beside the caller's (created on first use, kept
+#: for later calls), and how many
 _POOL: ThreadPoolExecutor | None = None
+_POOL_SIZE = 0
+#: helper calls that had finished their chunks but perhaps not yet returned when their
+#: kernel call returned; checked (for errors) at the next call
+_PENDING: list[Future] = []
 
 
 def _forget_pool() -> None:
     """In a forked child the pool's threads are gone: start a new pool when needed."""
-    global _POOL
-    _POOL = None
+    global _POOL, _POOL_SIZE
+    _POOL, _POOL_SIZE = None, 0
+    _PENDING.clear()
 
 
 os.register_at_fork(after_in_child=_forget_pool)
 
 
-def _run_chunks(kernel, n: int, n_steps: int, *args) -> np.ndarray:
-    """Run ``kernel(*args, first_chunk, last_chunk, sums)`` over all chunks of ``n``
-    particles and return the weighted moments ``(n_steps, 5)`` (the per-chunk sums reduced
-    in a fixed order).
+def _run_chunks(kernel, n: int, n_steps: int, threads: int | None, *args) -> np.ndarray:
+    """Run ``kernel(*args, counter, sums)`` over all chunks of ``n`` particles and return
+    the weighted moments ``(n_steps, 5)`` (the per-chunk sums reduced in a fixed order).
 
-    With ``numba.get_num_threads()`` > 1 the chunks are split into that many contiguous
-    ranges run at once on a pool of Python threads (the kernels release the GIL). The chunks
-    and their sums do not depend on the split, so neither do the results.
+    With ``threads`` > 1 (``None``: ``numba.get_num_threads()``) the calling thread and
+    ``threads - 1`` threads of a pool kept between calls run the kernel at once (it releases
+    the GIL), each claiming the next unclaimed chunk whenever it finishes one
+    (:func:`_next_chunk`): a thread that starts late or is slowed by other work on the
+    machine simply runs fewer chunks. The caller then waits for the chunks still running,
+    awake for :data:`CALLER_SPINS` reads, then asleep. Every chunk writes its own particles
+    and its own row of ``sums``, so the results do not depend on which thread ran it.
     """
-    global _POOL
+    global _POOL, _POOL_SIZE
     n_chunks, _ = _chunking(n)
     sums = np.zeros((n_chunks, n_steps, N_MOMENTS))
-    threads = min(numba.get_num_threads(), n_chunks)
-    if threads <= 1:
-        kernel(*args, 0, n_chunks, sums)
+    counter = np.zeros(2, dtype=np.int64)
+    if threads is None:
+        threads = numba.get_num_threads()
+    threads = max(1, min(threads, n_chunks))
+    for helper in [f for f in _PENDING if f.done()]:
+        _PENDING.remove(helper)
+        helper.result()  # raises the helper's error, if any
+    if threads > 1 and _POOL_SIZE < threads - 1:
+        if _POOL is not None:
+            _POOL.shutdown(wait=False)
+        _POOL_SIZE = max(threads, numba.config.NUMBA_NUM_THREADS) - 1
+        _POOL = ThreadPoolExecutor(max_workers=_POOL_SIZE)
+    helpers = [_POOL.submit(kernel, *args, counter, sums) for _ in range(threads - 1)]
+    kernel(*args, counter, sums)
+    if helpers and _CAN_SPIN and _spin_until(counter, 1, n_chunks, CALLER_SPINS):
+        _PENDING.extend(helpers)
     else:
-        if _POOL is None:
-            _POOL = ThreadPoolExecutor(max_workers=numba.config.NUMBA_NUM_THREADS)
-        edges = [n_chunks * k // threads for k in range(threads + 1)]
-        futures = [
-            _POOL.submit(kernel, *args, first, last, sums)
-            for first, last in zip(edges[:-1], edges[1:], strict=True)
-        ]
-        for future in futures:
-            future.result()
+        for helper in helpers:
+            helper.result()
     return sums.sum(axis=0)
 
 
 # --------------------------------------------------------------------------- baseline
 
 
-# The kernels below run chunks first_chunk..last_chunk - 1 of the particles (_chunking), one
-# after the other, each into its row of ``sums``; _run_chunks spreads the chunks over threads
-# (the kernels are serial and release the GIL: numba's parallel=True kernels, loaded from
-# the on-disk cache, ran at half the speed of freshly compiled ones). Inside a chunk,
-# time-major: every particle of the chunk takes step t before any takes step
+# The kernels below run the chunks of the particles (_chunking) that they claim
+# (_next_chunk), one after the other, each into its row of ``sums``; _run_chunks runs them on
+# several threads at once (the kernels are serial and release the GIL: numba's parallel=True
+# kernels, loaded from the on-disk cache, ran at half the speed of freshly compiled ones).
+# Inside a chunk, time-major: every particle of the chunk takes step t before any takes step
 # t + 1, the chunk staying in cache. Each step is a few passes over the chunk (draw the
 # normals, move along the arcs, sum the moments), each a branch-free loop that the compiler
 # vectorises, followed by a scalar loop for the rare draws or turns the fast path leaves.
@@ -335,13 +432,11 @@ def _run_chunks(kernel, n: int, n_steps: int, *args) -> np.ndarray:
 
 @njit(cache=True, nogil=True)
 def _baseline_kernel(
-    x, y, heading, c, s, v, w, streams, n_steps, dt, sigma, weights, ox, oy, first_chunk,
-    last_chunk, sums,
+    x, y, heading, c, s, v, w, streams, n_steps, dt, sigma, weights, ox, oy, counter, sums,
 ):  # fmt: skip
-    _, size = _chunking(x.size)
     scale = sigma * math.sqrt(dt)
-    for chunk in range(first_chunk, last_chunk):
-        lo, hi = chunk * size, min(x.size, (chunk + 1) * size)
+    chunk, lo, hi = _next_chunk(counter, x.size, -1)
+    while chunk >= 0:
         xs, ys, hs, cs, ss, vs, ws = _motion_views(lo, hi, x, y, heading, c, s, v, w)
         chunk_streams = streams[lo:hi]
         z1 = np.empty(hi - lo)
@@ -368,6 +463,7 @@ def _baseline_kernel(
             hs[i] = math.atan2(ss[i], cs[i])
             turn = hs[i] - previous
             ws[i] = (turn - 2.0 * math.pi * math.floor((turn + math.pi) / (2.0 * math.pi))) / dt
+        chunk, lo, hi = _next_chunk(counter, x.size, chunk)
 
 
 def _wrap(angle: np.ndarray) -> np.ndarray:
@@ -420,11 +516,11 @@ class BaselineMotion:
         p.heading = new_heading
         p.speed = length / dt
 
-    def advance(self, particles, streams, n_steps, dt, weights, origin) -> np.ndarray:
+    def advance(self, particles, streams, n_steps, dt, weights, origin, threads=None) -> np.ndarray:
         """As :meth:`VelocityMotion.advance` (compiled steps; weighted moments per step)."""
         p = particles
         return _run_chunks(
-            _baseline_kernel, p.n, n_steps,
+            _baseline_kernel, p.n, n_steps, threads,
             p.x, p.y, p.heading, p.cos_heading, p.sin_heading, p.speed, p.turn_rate,
             streams, n_steps, float(dt), float(self.sigma), weights, *origin,
         )  # fmt: skip
@@ -436,12 +532,11 @@ class BaselineMotion:
 @njit(cache=True, nogil=True)
 def _velocity_kernel(
     x, y, heading, c, s, v, w, streams, n_steps, dt, sigma_speed, sigma_turn, weights, ox, oy,
-    first_chunk, last_chunk, sums,
+    counter, sums,
 ):  # fmt: skip
-    _, size = _chunking(x.size)
     root_dt = math.sqrt(dt)
-    for chunk in range(first_chunk, last_chunk):
-        lo, hi = chunk * size, min(x.size, (chunk + 1) * size)
+    chunk, lo, hi = _next_chunk(counter, x.size, -1)
+    while chunk >= 0:
         xs, ys, hs, cs, ss, vs, ws = _motion_views(lo, hi, x, y, heading, c, s, v, w)
         chunk_streams = streams[lo:hi]
         z = np.empty(hi - lo)
@@ -454,6 +549,7 @@ def _velocity_kernel(
             _arc_pass(xs, ys, cs, ss, hs, vs, ws, dt)
             _moments_pass(xs, ys, weights[lo:hi], ox, oy, sums[chunk, t])
         _finish_headings(hs, cs, ss)
+        chunk, lo, hi = _next_chunk(counter, x.size, chunk)
 
 
 @dataclass(frozen=True)
@@ -497,7 +593,7 @@ class VelocityMotion:
         particles.turn_rate = particles.turn_rate + self.sigma_turn_rate * np.sqrt(dt) * normals[1]
         _move_along_arc(particles, dt)
 
-    def advance(self, particles, streams, n_steps, dt, weights, origin) -> np.ndarray:
+    def advance(self, particles, streams, n_steps, dt, weights, origin, threads=None) -> np.ndarray:
         """``n_steps`` prediction steps of ``dt`` s in one compiled call, in place.
 
         Parameters
@@ -514,6 +610,9 @@ class VelocityMotion:
         origin : (float, float)
             Point (m) the moments are taken about (the weighted mean is a good choice: it
             keeps the second moments free of cancellation).
+        threads : int, optional
+            Threads to run on (default ``numba.get_num_threads()``); the results do not
+            depend on it.
 
         Returns
         -------
@@ -523,7 +622,7 @@ class VelocityMotion:
         """
         p = particles
         return _run_chunks(
-            _velocity_kernel, p.n, n_steps,
+            _velocity_kernel, p.n, n_steps, threads,
             p.x, p.y, p.heading, p.cos_heading, p.sin_heading, p.speed, p.turn_rate,
             streams, n_steps, float(dt), float(self.sigma_speed), float(self.sigma_turn_rate),
             weights, *origin,
@@ -662,7 +761,9 @@ def _redraw(
     """Draw speed and turn rate with the scalar samplers for the particles marked in
     ``retry`` (the few that :func:`_draw_pass` leaves to them; a separate function keeps
     that pass's loops small)."""
-    for i in np.flatnonzero(retry):
+    for i in range(retry.size):
+        if not retry[i]:
+            continue
         k = behaviour[i]
         state = streams[i]
         step = 0.0
@@ -697,15 +798,13 @@ def _transition_pass(behaviour, streams, cumulative, u, next_state):
 def _hmm_kernel(
     x, y, heading, c, s, v, w, behaviour, clock, streams, n_steps, n_sub, sub_step,
     draw_interval, metres_per_step_unit, fitted_dt, cumulative, gamma_d, gamma_c, gamma_boost,
-    gamma_scale, zero_mass, vonmises_tables, heading_diffusion, weights, ox, oy, first_chunk,
-    last_chunk, sums,
+    gamma_scale, zero_mass, vonmises_tables, heading_diffusion, weights, ox, oy, counter, sums,
 ):  # fmt: skip
-    _, size = _chunking(x.size)
     due = draw_interval * (1.0 - 1e-9)
     jitter_scale = heading_diffusion / math.sqrt(sub_step)  # rad/s of this sub-step
     speed_factor = metres_per_step_unit / fitted_dt
-    for chunk in range(first_chunk, last_chunk):
-        lo, hi = chunk * size, min(x.size, (chunk + 1) * size)
+    chunk, lo, hi = _next_chunk(counter, x.size, -1)
+    while chunk >= 0:
         xs, ys, hs, cs, ss, vs, ws = _motion_views(lo, hi, x, y, heading, c, s, v, w)
         ks, clocks, chunk_streams = behaviour[lo:hi], clock[lo:hi], streams[lo:hi]
         scratch = np.empty(hi - lo)
@@ -735,6 +834,7 @@ def _hmm_kernel(
                 _transition_pass(ks, chunk_streams, cumulative, scratch, next_state)
             _moments_pass(xs, ys, weights[lo:hi], ox, oy, sums[chunk, t])
         _finish_headings(hs, cs, ss)
+        chunk, lo, hi = _next_chunk(counter, x.size, chunk)
 
 
 HMM_VARIANTS = ("paper", "time_consistent")
@@ -931,7 +1031,7 @@ class HMMMotion:
             p.state = (u[:, None] > plan.cumulative[p.state]).sum(axis=1).astype(np.int64)
             p.state = np.minimum(p.state, plan.cumulative.shape[0] - 1)
 
-    def advance(self, particles, streams, n_steps, dt, weights, origin) -> np.ndarray:
+    def advance(self, particles, streams, n_steps, dt, weights, origin, threads=None) -> np.ndarray:
         """As :meth:`VelocityMotion.advance` (compiled steps; weighted moments per step)."""
         if not self.compiled:
             raise NotImplementedError(
@@ -950,7 +1050,7 @@ class HMMMotion:
             )  # fmt: skip
         p = particles
         return _run_chunks(
-            _hmm_kernel, p.n, n_steps,
+            _hmm_kernel, p.n, n_steps, threads,
             p.x, p.y, p.heading, p.cos_heading, p.sin_heading, p.speed, p.turn_rate,
             p.state, p.time_since_draw, streams, n_steps, plan.n_sub, plan.sub_step,
             plan.draw_interval, self._metres, float(self.model.dt), plan.cumulative,

@@ -312,6 +312,29 @@ def test_particles_carry_extra_fields_through_resampling():
         Particles.uniform(rng, 5, (1.0, 0.0, 0.0, 1.0))
 
 
+def test_take_is_numpy_indexing_of_every_field_and_refuses_bad_indices():
+    """The compiled gather (and the NumPy fallback for a field replaced by a strided view)
+    give exactly ``field[indices]``; indices outside 0..N-1 are an error, not a wrap."""
+    rng = np.random.default_rng(1)
+    p = Particles.uniform(rng, 1000, BOUNDS)
+    p.state = rng.integers(0, 3, 1000)
+    p.speed = rng.normal(size=1000)
+    indices = np.sort(rng.integers(0, 1000, 1500))
+    strided = p.copy()
+    strided.turn_rate = rng.normal(size=2000)[::2]  # assigned: not made contiguous
+    for particles in (p, strided):
+        taken = particles.take(indices)
+        for name in _ARRAY_NAMES:
+            want = getattr(particles, name)[indices]
+            got = getattr(taken, name)
+            assert got.dtype == want.dtype and got.flags.c_contiguous
+            np.testing.assert_array_equal(got, want)
+    for particles in (p, strided):
+        for bad in ([0, 1000], [-1, 3]):
+            with pytest.raises(ValueError, match=r"indices in 0\.\.999"):
+                particles.take(np.array(bad))
+
+
 def test_weigh_matches_log_normalise_and_the_weight_summary():
     rng = np.random.default_rng(5)
     x, y = rng.normal(0, 50, 500), rng.normal(0, 80, 500)

@@ -1,6 +1,5 @@
 import dataclasses
 
-import numba
 import numpy as np
 import pytest
 from numba import njit
@@ -156,23 +155,23 @@ def test_compiled_kernel_equals_numpy_with_the_same_draws(motion):
         HMMMotion(movement_model(dt=3.0), heading_diffusion=0.05),
     ],
 )
-def test_kernels_give_the_same_particles_on_one_or_two_threads(motion):
-    """The chunks are split between threads, never changed by them: identical results."""
+def test_kernels_give_the_same_particles_on_any_number_of_threads(motion):
+    """Threads claim chunks as they go but never change them: identical results on one
+    thread, two, more threads than cores, and numba's thread count (the default)."""
     results = []
-    for threads in (1, 2):
-        p = particles_at(3000, heading=np.linspace(-3, 3, 3000), turn_rate=0.05)
+    for threads in (1, 2, 5, None):
+        p = particles_at(6000, heading=np.linspace(-3, 3, 6000), turn_rate=0.05)  # 6 chunks
         motion.initialise(np.random.default_rng(3), p)
-        previous = numba.get_num_threads()
-        numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
-        try:
-            moments = advance(motion, p, 6, 1.0, seed=4)
-        finally:
-            numba.set_num_threads(previous)
-        results.append((moments, p))
-    (m1, p1), (m2, p2) = results
-    np.testing.assert_array_equal(m1, m2)
-    for name in ("x", "y", "heading", "speed", "turn_rate", "state", "time_since_draw"):
-        np.testing.assert_array_equal(getattr(p1, name), getattr(p2, name))
+        streams = rs.new_streams(np.random.default_rng(4), p.n)
+        weights = p.normalised_weights()
+        moments = motion.advance(p, streams, 6, 1.0, weights, (0.0, 0.0), threads=threads)
+        results.append((moments, p, streams))
+    m1, p1, s1 = results[0]
+    for m2, p2, s2 in results[1:]:
+        np.testing.assert_array_equal(m1, m2)
+        np.testing.assert_array_equal(s1, s2)
+        for name in ("x", "y", "heading", "speed", "turn_rate", "state", "time_since_draw"):
+            np.testing.assert_array_equal(getattr(p1, name), getattr(p2, name))
 
 
 def test_hmm_kernel_equals_numpy_on_a_nearly_deterministic_model():
