@@ -401,7 +401,11 @@ def _paths_from_tables(truth: pd.DataFrame, receivers_truth: pd.DataFrame):
 
 
 def steered_auv(
-    tag: Trajectory, radius: float, bearing: np.ndarray, time_constant: float = 60.0
+    tag: Trajectory,
+    radius: float,
+    bearing: np.ndarray,
+    time_constant: float = 60.0,
+    lead_window: float | None = None,
 ) -> Trajectory:
     """An AUV steered to a station ``radius`` metres from the shark at a given bearing.
 
@@ -409,7 +413,15 @@ def steered_auv(
     AUV follows it through a first-order low-pass filter of time constant
     ``time_constant`` (a vehicle that homes on a moving set point), as the paper's
     hydrophones follow their fixed offsets. A constant ``bearing`` is the paper's trailing
-    vehicle; a bearing that turns makes the vehicle circle the shark.
+    vehicle; a bearing that turns makes the vehicle circle the shark. Such a vehicle
+    trails a set point moving at a steady velocity ``v`` by ``v · lag`` with
+    ``lag = e^(-1/τ) / (1 - e^(-1/τ))`` s (≈ ``time_constant`` − ½ s), so behind a
+    travelling shark it flies behind its station; with ``lead_window`` the station is moved
+    ahead of the shark by the shark's recent velocity times ``lag``, the velocity being the
+    exponential average, with time constant ``lead_window``, of its 1 s displacements up to
+    that second (what an operator who follows the track knows), and the vehicle then holds
+    its station on a shark that keeps its course. The stations are placed from the true
+    shark track, as the paper's simulated hydrophone paths are built from it.
 
     Parameters
     ----------
@@ -421,6 +433,9 @@ def steered_auv(
         Bearing of the station from the shark at each of ``tag.time`` (rad, from +x).
     time_constant : float
         Low-pass time constant (s).
+    lead_window : float, optional
+        Time constant (s) of the average of the shark's velocity that leads the station;
+        ``None`` (default): the station is on the shark's position, without lead.
 
     Returns
     -------
@@ -432,10 +447,37 @@ def steered_auv(
     keep = np.exp(-1.0 / time_constant)
     x = tag.x + radius * np.cos(bearing)
     y = tag.y + radius * np.sin(bearing)
+    if lead_window is not None:
+        lag = keep / (1.0 - keep)
+        x = x + lag * recent_velocity(tag.x, lead_window)
+        y = y + lag * recent_velocity(tag.y, lead_window)
     # y[k] = keep·y[k-1] + (1 - keep)·target[k], started at the first target
     x = lfilter([1.0 - keep], [1.0, -keep], x - x[0]) + x[0]
     y = lfilter([1.0 - keep], [1.0, -keep], y - y[0]) + y[0]
     return Trajectory(tag.time, x, y)
+
+
+def recent_velocity(position: np.ndarray, window: float) -> np.ndarray:
+    """Exponential average of the 1 s displacements of one coordinate up to each second.
+
+    Parameters
+    ----------
+    position : numpy.ndarray, shape (n,)
+        One coordinate sampled every second (m).
+    window : float
+        Time constant of the average (s, > 0).
+
+    Returns
+    -------
+    numpy.ndarray, shape (n,)
+        ``v[k] = a·v[k-1] + (1 - a)·(position[k] - position[k-1])`` with ``a = e^(-1/window)``,
+        ``v[0] = 0`` (m/s): causal, it uses no later position.
+    """
+    if not (np.isfinite(window) and window > 0):
+        raise ValueError(f"recent_velocity: window must be a positive number of s, got {window!r}")
+    keep = np.exp(-1.0 / window)
+    step = np.diff(position, prepend=position[0])
+    return lfilter([1.0 - keep], [1.0, -keep], step)
 
 
 def circling_pair(
@@ -496,6 +538,7 @@ def rotating_pair(
     lap_time: float = 600.0,
     separation: float = 0.5 * np.pi,
     time_constant: float = 20.0,
+    lead_window: float | None = None,
 ) -> dict[str, Trajectory]:
     """Two AUVs that keep a right angle at the shark and circle it together.
 
@@ -509,7 +552,9 @@ def rotating_pair(
     tightly than :func:`steered_auv`'s default (20 s), or the pair would lag behind a
     travelling shark instead of circling it; the defaults keep their speeds like
     :func:`circling_pair`'s (about 1 m/s median, 99 % of the time under ~2.2 m/s for a
-    shark at ≤ 1.5 m/s).
+    shark at ≤ 1.5 m/s). Even at 20 s a pair that turns in minutes falls behind a fast
+    shark and closes its angle; ``lead_window`` leads the stations by the shark's
+    velocity so that it does not (:class:`RotatingPlan`).
 
     Parameters
     ----------
@@ -525,6 +570,9 @@ def rotating_pair(
         Angle between the two stations' bearings (rad).
     time_constant : float
         Low-pass time constant of the vehicles' homing (s, see :func:`steered_auv`).
+    lead_window : float, optional
+        Stations led ahead of the shark by its recent velocity (see :func:`steered_auv`);
+        ``None`` (default): no lead.
 
     Returns
     -------
@@ -533,8 +581,8 @@ def rotating_pair(
     """
     bearing = phi + 2.0 * np.pi * (tag.time - tag.time[0]) / lap_time
     return {
-        "auv-1": steered_auv(tag, radius, bearing, time_constant),
-        "auv-2": steered_auv(tag, radius, bearing + separation, time_constant),
+        name: steered_auv(tag, radius, bearing + turn, time_constant, lead_window)
+        for name, turn in (("auv-1", 0.0), ("auv-2", separation))
     }
 
 
@@ -543,18 +591,23 @@ class RotatingPlan:
     """A steering plan for two AUVs that circle the shark together (:func:`rotating_pair`).
 
     The defaults are the observable plan of ``benchmarks/bench_two_auv_plan.py``: both
-    AUVs 30 m from the shark, 135° apart, the pair turning once every 150 s. On the
-    realistic pursuit (:func:`realistic_shark_pursuit`, 2 h, 9 seeds) its posterior
-    Cramér–Rao bound on the filtered position is 4.31 m RMS (3.7-5.0 m by seed; smoothed
-    1.66 m), the AUVs' speeds over ground are 1.0-1.3 m/s median, 2.1-2.5 m/s at the 99th
-    percentile and at most 2.3-2.9 m/s (1 s steps), and the arrival-time filter with the
+    stations 27 m from the shark, 135° apart, the pair turning once every 150 s, each
+    station led ahead of the shark by the shark's recent velocity (``lead_window``, see
+    :func:`steered_auv`). Homing with a 20 s time constant, the vehicles fly the lap on a
+    circle of 27 × 0.77 ≈ 21 m (the low-pass's gain at one turn per 150 s; 5-95 %:
+    16-26 m), hold the angle (median 134-135° by seed; 5th percentile 114-122°) and
+    fly every lap. Without the lead they fell behind a travelling shark: on the same
+    plan at 30 m they were 72-126° apart by seed (median), 6-46 m from the shark, and
+    flew 76-97 % of the laps, and on the fastest shark (seed 8, median 0.79 m/s) the
+    filter's error reached 10.1 m. On the realistic pursuit (:func:`realistic_shark_pursuit`,
+    2 h, 9 seeds) the AUVs' speeds over ground are 2.1-2.5 m/s at the 99th percentile and
+    at most 2.4-2.9 m/s (1 s steps), and the arrival-time filter with the
     ``two-moving-receivers`` preset (:mod:`hmmtrack.config`) reaches a mean error after
-    convergence of 6.7 m (worst seed 10.1 m; 5.2-8.8 m with 18 other filter seeds;
-    reports/two_auv_plan.md). Homing on a travelling shark the AUVs lag their stations:
-    over those 9 seeds they were a median 24-29 m from the shark (5-95 %: 6-46 m), a
-    median 72-126° apart, and flew 76-97 % of the laps. The stations are placed from the
-    true shark position: a real plan steers on the filter's estimate
-    (off by 6-9 m).
+    convergence of 5.3 m (worst of 18 runs, 9 scenarios × 2 filter seeds, 6.0 m; 4.7-6.1 m
+    over 63 runs with 7 filter seeds; reports/two_auv_plan.md). The
+    stations are placed from the true shark track, as the paper's simulated hydrophone
+    paths are built from it: a real plan steers on the filter's estimate (off by 5-7 m)
+    and its velocity.
 
     Parameters
     ----------
@@ -566,16 +619,22 @@ class RotatingPlan:
         Angle between the two stations' bearings (rad).
     time_constant : float
         Low-pass time constant of the vehicles' homing (s, see :func:`steered_auv`).
+    lead_window : float or None
+        Stations led ahead of the shark by its velocity averaged over this time constant
+        (s, see :func:`steered_auv`); ``None``: stations on the shark's position.
     """
 
-    radius: float = 30.0
+    radius: float = 27.0
     lap_time: float = 150.0
     separation: float = float(np.radians(135.0))
     time_constant: float = 20.0
+    lead_window: float | None = 30.0
 
     def __post_init__(self) -> None:
-        for name in ("radius", "lap_time", "time_constant"):
+        for name in ("radius", "lap_time", "time_constant", "lead_window"):
             value = getattr(self, name)
+            if name == "lead_window" and value is None:
+                continue
             if not (np.isfinite(value) and value > 0):
                 raise ValueError(f"RotatingPlan: {name} must be a positive number, got {value!r}")
         if not 0 < self.separation < 2 * np.pi:
@@ -592,18 +651,25 @@ class RotatingPlan:
             lap_time=self.lap_time,
             separation=self.separation,
             time_constant=self.time_constant,
+            lead_window=self.lead_window,
         )
 
     def describe(self) -> str:
-        """``"30 m, 135°, lap 150 s"``."""
-        return f"{self.radius:g} m, {np.degrees(self.separation):.0f}°, lap {self.lap_time:g} s"
+        """``"30 m, 135°, lap 150 s, led"`` (``led``: stations led by the shark's velocity)."""
+        led = "" if self.lead_window is None else ", led"
+        return (
+            f"{self.radius:g} m, {np.degrees(self.separation):.0f}°, lap {self.lap_time:g} s{led}"
+        )
 
 
 #: named plans of :func:`rotating_pair` for ``realistic_shark_pursuit(steering=...)``:
-#: ``formation`` keeps a right angle (70 m, one turn per 10 min); ``observable`` is the
-#: plan on which two AUVs track the shark to under 10 m (:class:`RotatingPlan`'s defaults)
+#: ``formation`` keeps a right angle (70 m, one turn per 10 min, no lead); ``observable``
+#: is the plan on which two AUVs track the shark to under 10 m in every run measured
+#: (:class:`RotatingPlan`'s defaults)
 ROTATING_PLANS = {
-    "formation": RotatingPlan(radius=70.0, lap_time=600.0, separation=0.5 * np.pi),
+    "formation": RotatingPlan(
+        radius=70.0, lap_time=600.0, separation=0.5 * np.pi, lead_window=None
+    ),
     "observable": RotatingPlan(),
 }
 #: names of ``realistic_shark_pursuit``'s steerings
@@ -631,10 +697,11 @@ def realistic_shark_pursuit(
     ``steering="paper"`` the AUVs are the paper's (fixed offsets 90° apart, lagging), kept
     to show that limit. With ``steering="formation"`` both AUVs circle the shark together
     at a right angle (:func:`rotating_pair`: 70 m, one turn per 10 min). With
-    ``steering="observable"`` they circle it 30 m away, 135° apart, one turn per 150 s
-    (:class:`RotatingPlan`'s defaults, where its bound and speeds are given): the plan on
-    which the arrival-time filter with the ``two-moving-receivers`` preset stays under
-    10 m; a :class:`RotatingPlan` flies any other such plan. The tag's period (8 s)
+    ``steering="observable"`` they circle it on stations 27 m away, 135° apart, one turn
+    per 150 s, led by the shark's recent velocity (:class:`RotatingPlan`'s defaults, where
+    its geometry, speeds and errors are given): the plan on which the arrival-time filter
+    with the ``two-moving-receivers`` preset stays under 10 m; a :class:`RotatingPlan`
+    flies any other such plan. The tag's period (8 s)
     wanders ``schedule_wander`` seconds from a constant schedule over 1.8 h, with 65 µs
     jitter; the AUVs' clocks have offsets of ~0.5 s and drifts of ~20 ppm, calibrated (GPS
     time) to 0.1 ms and 0.02 ppm; 3 % of detections are multipath arrivals; GPS noise

@@ -286,13 +286,14 @@ class TrackingConfig:
         if self.tempering_ess is not None and self.tempering_ess > 1:
             raise ValueError(f"tempering_ess must lie in (0, 1], got {self.tempering_ess!r}")
 
-    def motion_model(self, model=None, variant: str = "time_consistent"):
+    def motion_model(self, model=None, variant: str = "time_consistent", resting="default"):
         """The motion model these settings name, with their noise.
 
         Parameters
         ----------
-        model, variant
-            For ``motion="hmm"`` only, see :func:`hmmtrack.tracking.motion_model`.
+        model, variant, resting
+            For ``motion="hmm"`` only, see :func:`hmmtrack.tracking.motion_model`
+            (``resting=None``: no resting state added to the movement HMM).
 
         Returns
         -------
@@ -303,9 +304,11 @@ class TrackingConfig:
         from hmmtrack import tracking  # tracking imports this module
 
         if self.motion != "velocity":
-            return tracking.motion_model(self.motion, model, variant=variant)
-        if model is not None:
-            raise ValueError("a movement model is used by motion 'hmm' only, not 'velocity'")
+            return tracking.motion_model(self.motion, model, variant=variant, resting=resting)
+        if model is not None or resting != "default":
+            raise ValueError(
+                "a movement model and a resting state are used by motion 'hmm' only, not 'velocity'"
+            )
         speed, turn_rate = self.sigma_speed, self.sigma_turn_rate
         return VelocityMotion(
             sigma_speed=tracking.VELOCITY_SIGMA_SPEED if speed is None else speed,

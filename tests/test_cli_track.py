@@ -283,6 +283,31 @@ def test_the_papers_configuration_is_reachable_from_the_command_line(scenario_fi
     assert not np.allclose(pd.read_csv(default)["x"], written["x"])
 
 
+def test_no_resting_reaches_the_hmm_motion_model(scenario_files, tmp_path, capsys, monkeypatch):
+    """The HMM gets the resting state by default (K + 1 states, the last one resting);
+    ``--no-resting`` tracks with the fitted K states; with another motion it is an error."""
+    from hmmtrack.hmm import MovementHMM
+
+    _, paths = scenario_files
+    fitted = MovementHMM.load(tracking.bundled_model_path()).n_states
+    used, track = [], tracking.track
+
+    def spy(detections, receivers, config, motion, **options):
+        used.append(motion.model.n_states)
+        return track(detections, receivers, config, motion, **options)
+
+    monkeypatch.setattr(tracking, "track", spy)
+    assert main([*track_args(paths, tmp_path / "r.csv"), "--motion", "hmm"]) == 0
+    assert main([*track_args(paths, tmp_path / "n.csv"), "--motion", "hmm", "--no-resting"]) == 0
+    assert used == [fitted + 1, fitted]
+    capsys.readouterr()
+    assert (
+        main([*track_args(paths, tmp_path / "b.csv"), "--motion", "baseline", "--no-resting"]) == 2
+    )
+    assert "--no-resting is used with --motion hmm only" in capsys.readouterr().err
+    assert used == [fitted + 1, fitted]  # the error comes before any tracking
+
+
 def test_smooth_needs_the_arrival_time_measurement(scenario_files, tmp_path, capsys):
     _, paths = scenario_files
     assert main([*track_args(paths, tmp_path / "e.csv"), "--smooth", "10"]) == 2
@@ -429,7 +454,7 @@ def test_preset_runs_the_arrival_time_filter_with_its_settings(observable_files,
     assert main([*common, "--preset", "two-moving-receivers", "-o", str(preset)]) == 0
     direct = track_arrival_time(
         io.read_detections(paths["detections"]), io.read_receivers(paths["receivers"]),
-        motion=VelocityMotion(0.05, 0.003),
+        motion=VelocityMotion(0.1, 0.003),
         measurement=ArrivalTimeMeasurement(ArrivalLikelihood(sigma=1.2e-3)),
         tempering_ess=0.6, search_radius=240.0, period=scenario.period, n_particles=600,
         start=start, end=end, seed=8,
@@ -458,7 +483,7 @@ def test_preset_then_config_file_then_options(tmp_path, capsys):
     assert (filed.n_particles, filed.tempering_ess, filed.arrival_sigma) == (2000, 0.5, 1.2e-3)
     flagged = config_of(*preset, "--config", str(settings), "--particles", "1000")
     assert (flagged.n_particles, flagged.tempering_ess) == (1000, 0.5)
-    assert flagged.motion_model() == VelocityMotion(0.05, 0.003)
+    assert flagged.motion_model() == VelocityMotion(0.1, 0.003)
     assert main([*base, "--preset", "two-auvs", "--period", "8"]) == 2
     assert "unknown preset 'two-auvs'; available presets: two-moving-receivers" in (
         capsys.readouterr().err

@@ -15,7 +15,10 @@ from hmmtrack.clock_scenarios import (
     WanderingPeriodClock,
     moored_array,
     realistic_shark_pursuit,
+    recent_velocity,
+    steered_auv,
 )
+from hmmtrack.scenarios.trajectory import Trajectory
 
 
 def test_wandering_clock_has_the_stated_wander_and_jitter():
@@ -152,29 +155,64 @@ def test_formation_keeps_a_right_angle_and_turns_around_the_shark():
     pd.testing.assert_frame_equal(default.truth, sc.truth)
 
 
+def test_a_led_station_cancels_the_homing_lag_on_a_steady_shark():
+    """A vehicle homing with time constant τ on a set point moving at a constant velocity
+    trails it by v·e^(-1/τ)/(1 - e^(-1/τ)) (closed form of the discrete low-pass); with the
+    lead it sits on its station once the transients (e^(-t/τ), e^(-t/window)) have died."""
+    time = np.arange(0.0, 1201.0)
+    velocity = np.array([0.8, -0.6])  # m/s
+    shark = Trajectory(time, 5.0 + velocity[0] * time, -3.0 + velocity[1] * time)
+    bearing = np.full(time.size, 0.7)
+    station = np.column_stack([shark.x + 30 * np.cos(0.7), shark.y + 30 * np.sin(0.7)])
+    keep = np.exp(-1.0 / 20.0)
+    lagging = steered_auv(shark, 30.0, bearing, time_constant=20.0)
+    trail = np.column_stack([lagging.x, lagging.y]) - station
+    np.testing.assert_allclose(trail[-200:], np.tile(-velocity * keep / (1 - keep), (200, 1)))
+    led = steered_auv(shark, 30.0, bearing, time_constant=20.0, lead_window=30.0)
+    np.testing.assert_allclose(np.column_stack([led.x, led.y])[-200:], station[-200:], atol=1e-6)
+    # the velocity it leads with is causal: a later turn does not change earlier positions
+    turned = Trajectory(time, shark.x, np.where(time > 600, shark.y - (time - 600), shark.y))
+    early = steered_auv(turned, 30.0, bearing, time_constant=20.0, lead_window=30.0)
+    np.testing.assert_array_equal(early.x[:601], led.x[:601])
+    assert recent_velocity(shark.x, 30.0)[-1] == pytest.approx(velocity[0])
+    with pytest.raises(ValueError, match="window must be a positive"):
+        recent_velocity(shark.x, 0.0)
+
+
 def bearing_gap_deg(bearings) -> np.ndarray:
     """Angle (deg, in (-180, 180]) from auv-1's bearing to auv-2's, per second."""
     return np.degrees(np.angle(np.exp(1j * (bearings["auv-2"] - bearings["auv-1"]))))
 
 
 def test_observable_plan_flies_its_stated_geometry_at_auv_speeds():
-    """``steering="observable"``: stations 30 m from the shark, 135° apart, the pair turning
-    once per 150 s. Homing on a travelling shark the AUVs lag their stations (about 25 m
-    from the shark, 70-125° apart, 75-97 % of the laps over 9 seeds), at speeds an AUV can
-    hold (99 % under 2.5 m/s), around the same shark as the other steerings."""
+    """``steering="observable"``: stations 27 m from the shark, 135° apart, the pair turning
+    once per 150 s, led by the shark's recent velocity. The vehicles then hold the angle
+    and fly every lap behind a travelling shark, on the circle that the homing low-pass
+    passes (radius × |H(e^(iω))| at the lap's frequency ω), at speeds an AUV can hold
+    (99 % under 2.5 m/s); without the lead the same pair falls behind the shark, closes
+    its angle and skips laps."""
     plan = RotatingPlan()
     assert (plan.radius, plan.lap_time, np.degrees(plan.separation)) == pytest.approx(
-        (30.0, 150.0, 135.0)
+        (27.0, 150.0, 135.0)
     )
+    keep, omega = np.exp(-1.0 / plan.time_constant), 2 * np.pi / plan.lap_time
+    flown = plan.radius * (1 - keep) / abs(1 - keep * np.exp(-1j * omega))
     sc = realistic_shark_pursuit(1, steering="observable").scenario
     bearings = {}
     for name, (speed, bearing, distances, span) in auv_geometry(sc).items():
         bearings[name] = bearing
         assert np.percentile(speed, 99) < 2.5
-        assert 20 < np.median(distances) < 35
+        assert np.median(distances) == pytest.approx(flown, abs=0.5)
+        assert np.percentile(np.abs(distances - flown), 95) < 6.0  # the shark turns, speeds up
         laps = (bearing[-1] - bearing[0]) / (2 * np.pi)
-        assert 0.75 * span / 150.0 < laps < 1.02 * span / 150.0
-    assert 90.0 < np.median(bearing_gap_deg(bearings)) < 140.0
+        assert laps == pytest.approx(span / 150.0, rel=0.01)
+    gap = np.abs(bearing_gap_deg(bearings))
+    assert np.median(gap) == pytest.approx(135.0, abs=2.0)
+    assert np.percentile(gap, 5) > 110.0
+    unled = RotatingPlan(lead_window=None)
+    lagging = auv_geometry(realistic_shark_pursuit(1, steering=unled).scenario)
+    assert np.median(np.abs(bearing_gap_deg({n: g[1] for n, g in lagging.items()}))) < 125.0
+    assert np.percentile(lagging["auv-1"][2], 5) < 15.0
     pd.testing.assert_frame_equal(realistic_shark_pursuit(1).scenario.truth, sc.truth)
     assert "observable" in sc.description
 
@@ -183,7 +221,7 @@ def test_a_rotating_plan_is_a_steering_and_the_named_plans_are_rotating_plans():
     """A :class:`RotatingPlan` with the formation's numbers gives exactly the "formation"
     scenario; other numbers change only the AUVs; bad plans and names are clear errors."""
     assert set(ROTATING_PLANS) < set(STEERINGS)
-    formation = RotatingPlan(radius=70.0, lap_time=600.0, separation=0.5 * np.pi)
+    formation = RotatingPlan(radius=70.0, lap_time=600.0, separation=0.5 * np.pi, lead_window=None)
     named = realistic_shark_pursuit(2, steering="formation").scenario
     planned = realistic_shark_pursuit(2, steering=formation).scenario
     pd.testing.assert_frame_equal(named.detections, planned.detections)
@@ -198,5 +236,7 @@ def test_a_rotating_plan_is_a_steering_and_the_named_plans_are_rotating_plans():
         RotatingPlan(lap_time=0.0)
     with pytest.raises(ValueError, match="separation must lie in"):
         RotatingPlan(separation=7.0)
+    with pytest.raises(ValueError, match="lead_window must be a positive"):
+        RotatingPlan(lead_window=-1.0)
     with pytest.raises(ValueError, match="observable"):
         realistic_shark_pursuit(2, steering="observed")

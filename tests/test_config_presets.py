@@ -22,13 +22,14 @@ PRESET = "two-moving-receivers"
 
 
 def test_two_receiver_preset_holds_the_settings_tuned_on_the_observable_plan():
-    """The preset gives the arrival-time filter exactly H20's tuned settings
-    (reports/two_auv_plan.md): σ 1.2 ms, VelocityMotion(0.05, 0.003), tempering at 60 %
-    of the particles, 4,000 particles; and the benchmark's search box (240 m around the
-    receivers, the scenario's detection reach)."""
+    """The preset gives the arrival-time filter the settings tuned on the observable plan
+    (reports/two_auv_plan.md): σ 1.2 ms, VelocityMotion(0.1, 0.003) (a speed that wanders
+    twice as fast as the default's, so that particles keep up with a shark that speeds
+    up), tempering at 60 % of the particles, 4,000 particles; and the benchmark's search
+    box (240 m around the receivers, the scenario's detection reach)."""
     config = TrackingConfig.from_dict(read_preset(PRESET) | {"period": 8.0})
     assert (config.measurement, config.motion) == ("arrival-time", "velocity")
-    assert config.motion_model() == VelocityMotion(sigma_speed=0.05, sigma_turn_rate=0.003)
+    assert config.motion_model() == VelocityMotion(sigma_speed=0.1, sigma_turn_rate=0.003)
     options = config.arrival_time_options()
     assert options["measurement"] == ArrivalTimeMeasurement(
         ArrivalLikelihood(sigma=1.2e-3), sound_speed=config.sound_speed
@@ -100,6 +101,10 @@ def test_default_models_are_those_of_the_trackers():
         plain.arrival_time_options()
     with pytest.raises(ValueError, match="motion 'hmm' only"):
         velocity.motion_model(model="shark.json")
+    with pytest.raises(ValueError, match="motion 'hmm' only"):
+        velocity.motion_model(resting=None)
+    fitted = plain.motion_model(resting=None).model.n_states
+    assert plain.motion_model().model.n_states == fitted + 1  # the resting state by default
 
 
 @pytest.mark.parametrize(

@@ -106,6 +106,14 @@ def register(subparsers) -> None:
         ),
     )
     parser.add_argument(
+        "--no-resting",
+        action="store_true",
+        help=(
+            "--motion hmm only: track with the movement HMM as fitted, without the resting "
+            "state added by default (hmmtrack.tracking.HMM_RESTING)"
+        ),
+    )
+    parser.add_argument(
         "--measurement",
         choices=MEASUREMENTS,
         help=(
@@ -258,6 +266,8 @@ def run(args: argparse.Namespace) -> int:
         )
     if args.model and config.motion != "hmm":
         raise UserInputError("--model is used with --motion hmm only")
+    if args.no_resting and config.motion != "hmm":
+        raise UserInputError("--no-resting is used with --motion hmm only")
     seed = args.seed
     if seed is None:
         seed = int(np.random.SeedSequence().entropy % 2**63)
@@ -265,7 +275,8 @@ def run(args: argparse.Namespace) -> int:
     detections = io.read_detections(args.detections)
     receivers = io.read_receivers(args.receivers)
     projection = io.Projection.from_frame(receivers)
-    motion = config.motion_model(args.model, variant=args.hmm_variant)
+    resting = None if args.no_resting else "default"
+    motion = config.motion_model(args.model, variant=args.hmm_variant, resting=resting)
     snapshots, observations = {}, None
     if config.measurement == "arrival-time":
         estimates, events = _track_arrival_time(args, config, detections, receivers, motion, seed)
