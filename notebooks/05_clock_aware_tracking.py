@@ -17,8 +17,9 @@
 # known, and from a known range at each hydrophone's first detection. A real "fixed-period"
 # tag does not keep its period: its emissions wander by most of a second from any
 # constant-period schedule within two hours, and nobody knows the range when the first ping
-# is heard. Here two AUVs circle a tagged shark (30 m from it, 135° apart, one lap per
-# 150 s: the `observable` steering of `hmmtrack.clock_scenarios.realistic_shark_pursuit`),
+# is heard. Here two AUVs circle a tagged shark (stations 27 m from it and led ahead of it by
+# its recent velocity, 135° apart, one lap per 150 s: the `observable` steering of
+# `hmmtrack.clock_scenarios.realistic_shark_pursuit`),
 # the tag's period wanders, the AUVs' clocks are calibrated to GPS time only to 0.1 ms and a
 # few per cent of the detections come by multipath. We track that shark twice from the same
 # detections:
@@ -246,8 +247,9 @@ if out is not None:
 # * The arrival-time filter needs neither: it estimates the clock with the position, from
 #   two moving receivers, as long as they are steered so that the tag is observable (here
 #   circling it fast). Its smoother about halves the error again, for offline work.
-# * The preset was tuned on this steering; over nine seeds and both plans, with the
-#   posterior Cramér–Rao bound beside each run, see `reports/two_auv_plan.md`
+# * The preset was tuned on this steering; for nine scenario seeds with two filter seeds
+#   each, the same plan without its lead, and the posterior Cramér–Rao bound beside each
+#   run, see `reports/two_auv_plan.md`
 #   (`benchmarks/bench_two_auv_plan.py`). On your own detections:
 #   `hmmtrack track --preset two-moving-receivers --smooth 60 ...` (see `hmmtrack track
 #   --help`; a `bounds` key in a `--config` file gives a search box other than 240 m
