@@ -73,10 +73,12 @@ DEFAULT = {
 #: cruises; the mirror fix across the line through the AUVs has to swim circles to follow
 #: the turning pair), a speed that wanders 2× more (0.1 m/s per √s: with 0.05, particles
 #: that could not follow a shark speeding up by ~1 m/s gave way to a clock-shifted fix
-#: circling 40-90 m off for minutes, 8-13 m over a run), and tempering that keeps 60 % of
-#: the particles alive at each stage, with 4,000 particles. With any one of σ, turn rate
-#: and tempering back at its default, a seed went over 10 m on the unled plan (12.2, 12.6
-#: and 28.4 m; H20's report), and 3,000 particles reached 10.0 m on one seed
+#: circling 40-90 m off for minutes, 8-13 m over a run), with 4,000 particles and the
+#: filter's default tempering (below 30 % of the particles). With σ or turn rate back at
+#: its default, a seed went over 10 m on the unled plan (12.2 and 12.6 m; H20's report), as
+#: did tempering at 30 % there (28.4 m), so H20 tempered at 60 %; on the led plan 60 % gave
+#: 5.30 m mean and 6.02 m worst over the 18 runs against 5.61 and 6.56 m at 30 %, for 1.6×
+#: the run time (lead, 11:20 UTC), and the preset keeps 30 %
 TUNED = read_preset(PRESET)
 
 

@@ -456,7 +456,7 @@ def test_preset_runs_the_arrival_time_filter_with_its_settings(observable_files,
         io.read_detections(paths["detections"]), io.read_receivers(paths["receivers"]),
         motion=VelocityMotion(0.1, 0.003),
         measurement=ArrivalTimeMeasurement(ArrivalLikelihood(sigma=1.2e-3)),
-        tempering_ess=0.6, search_radius=240.0, period=scenario.period, n_particles=600,
+        tempering_ess=0.3, search_radius=240.0, period=scenario.period, n_particles=600,
         start=start, end=end, seed=8,
     )  # fmt: skip
     written = pd.read_csv(preset)
@@ -478,7 +478,7 @@ def test_preset_then_config_file_then_options(tmp_path, capsys):
         return build_config(build_parser().parse_args([*base, *extra]))
 
     alone = config_of(*preset, "--period", "8.0")
-    assert (alone.n_particles, alone.tempering_ess, alone.arrival_sigma) == (4000, 0.6, 1.2e-3)
+    assert (alone.n_particles, alone.tempering_ess, alone.arrival_sigma) == (4000, 0.3, 1.2e-3)
     filed = config_of(*preset, "--config", str(settings))
     assert (filed.n_particles, filed.tempering_ess, filed.arrival_sigma) == (2000, 0.5, 1.2e-3)
     flagged = config_of(*preset, "--config", str(settings), "--particles", "1000")
