@@ -41,6 +41,8 @@ import pandas as pd
 from numba import njit
 from scipy.special import erfcx, log_ndtr
 
+from hmmtrack.hermite import hermite_basis, hermite_value
+
 #: speed of sound in sea water used by the paper (m/s); fresh water is about 1416-1450
 SOUND_SPEED = 1460.0
 
@@ -515,17 +517,10 @@ def mixture_log_densities(residual, period, constants, total, direct):
             inside = (at >= 0.0) & (at < last + 1.0)  # False for NaN
             clipped = at if inside else 0.0  # (outside: any node, the value is not kept)
             k = int(clipped)
-            t = clipped - k
-            t2 = t * t
-            h01 = t2 * (3.0 - 2.0 * t)  # cubic Hermite basis: h00 = 1 − h01
-            h10 = t * (1.0 - t) * (1.0 - t)
-            h11 = t2 * (t - 1.0)
-            log_total = table[k, 0] + h01 * (table[k + 1, 0] - table[k, 0])
-            log_total += h10 * table[k, 1] + h11 * table[k + 1, 1]
-            uniform = table[k, 2] + h01 * (table[k + 1, 2] - table[k, 2])
-            uniform += h10 * table[k, 3] + h11 * table[k + 1, 3]
-            share = table[k, 4] + h01 * (table[k + 1, 4] - table[k, 4])
-            share += h10 * table[k, 5] + h11 * table[k + 1, 5]
+            h01, h10, h11 = hermite_basis(clipped - k)
+            log_total = hermite_value(table, k, 0, h01, h10, h11)
+            uniform = hermite_value(table, k, 2, h01, h10, h11)
+            share = hermite_value(table, k, 4, h01, h10, h11)
             x = ratio * uniform
             log1p_x = x * (1.0 - x * (0.5 - x * (1.0 / 3.0 - 0.25 * x)))
             tabulated = inside & (abs(ratio) <= TABLE_MAX_PERIOD_RATIO) & (abs(x) <= 0.01)

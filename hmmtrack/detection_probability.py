@@ -28,6 +28,7 @@ from numba import njit
 from scipy.optimize import minimize
 from scipy.special import expit, log_expit
 
+from hmmtrack.hermite import hermite_basis, hermite_value
 from hmmtrack.receivers import ReceiverTracks
 
 
@@ -424,13 +425,8 @@ def softplus(x):
     inside = (at >= 0.0) & (at < _SOFTPLUS.shape[0] - 1.0)  # False for NaN
     clipped = at if inside else 0.0
     k = int(clipped)
-    t = clipped - k
-    t2 = t * t
-    h01 = t2 * (3.0 - 2.0 * t)  # cubic Hermite basis: h00 = 1 − h01
-    h10 = t * (1.0 - t) * (1.0 - t)
-    h11 = t2 * (t - 1.0)
-    value = _SOFTPLUS[k, 0] + h01 * (_SOFTPLUS[k + 1, 0] - _SOFTPLUS[k, 0])
-    value += h10 * _SOFTPLUS[k, 1] + h11 * _SOFTPLUS[k + 1, 1]
+    h01, h10, h11 = hermite_basis(clipped - k)
+    value = hermite_value(_SOFTPLUS, k, 0, h01, h10, h11)
     beyond = x if not x <= 0.0 else 0.0  # max(x, 0) off the table; NaN stays NaN
     return value if inside else beyond
 
