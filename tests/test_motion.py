@@ -218,21 +218,25 @@ def _scalar_transitions(state, streams, cumulative):
         state[i], streams[i] = rs.categorical(cumulative[state[i]], streams[i])
 
 
+@pytest.mark.parametrize("n_states", [3, 4, 6])
 @pytest.mark.parametrize("latest_clock", [2.0, 1.1])
-def test_vectorised_hmm_passes_make_the_scalar_samplers_draws(latest_clock):
+def test_vectorised_hmm_passes_make_the_scalar_samplers_draws(latest_clock, n_states):
     """The HMM kernel's draw pass (branch-free first tries, scalar retries; or, when few
     particles are due, the scalar samplers for those only) and transition pass give,
     particle by particle, exactly what the scalar samplers draw from the same streams: gamma
     and von Mises for due particles (also for a zero-inflated state and a boosted shape < 1
-    state, which always take the scalar path) and categorical states."""
+    state, which always take the scalar path) and categorical states, for models of three
+    to six states."""
     n = 50_000
     rng = np.random.default_rng(12)
-    shape = np.array([1.8, 0.6, 5.0])
-    scale = np.array([0.3, 2.0, 0.1])
-    zero_mass = np.array([0.0, 0.0, 0.2])
-    tables = rs.VonMisesTables.build([0.0, 1.0, -2.9], [2.0, 0.3, 40.0]).as_tuple()
+    shape = np.array([1.8, 0.6, 5.0, 2.5, 1.2, 9.0])[:n_states]
+    scale = np.array([0.3, 2.0, 0.1, 0.7, 1.1, 0.05])[:n_states]
+    zero_mass = np.array([0.0, 0.0, 0.2, 0.0, 0.0, 0.0])[:n_states]
+    tables = rs.VonMisesTables.build(
+        [0.0, 1.0, -2.9, 0.5, 3.0, -1.0][:n_states], [2.0, 0.3, 40.0, 8.0, 1.0, 15.0][:n_states]
+    ).as_tuple()
     d, c, boost = rs.gamma_constants(shape)
-    state = rng.integers(0, 3, n)
+    state = rng.integers(0, n_states, n)
     clock = rng.uniform(0.0, latest_clock, n)  # due when >= 1: half, or one in eleven
     streams = rs.new_streams(rng, n)
     v, w = np.full(n, -1.0), np.full(n, -2.0)
@@ -254,9 +258,13 @@ def test_vectorised_hmm_passes_make_the_scalar_samplers_draws(latest_clock):
     np.testing.assert_array_equal(streams, expected_streams)
     np.testing.assert_array_equal(clock, expected_clock)
     if latest_clock == 2.0:  # the vectorised path: rejected tries and scalar-only states
-        assert retry[state == 0].any() and retry[(state > 0) & due].all()
+        plain = (state == 0) | (state > 2)
+        assert retry[plain].any() and not retry[plain].all() and retry[~plain & due].all()
 
-    cumulative = np.cumsum([[0.5, 0.5, 0.0], [0.1, 0.0, 0.9], [0.2, 0.3, 0.5]], axis=1)
+    transition = rng.dirichlet(np.ones(n_states), n_states)
+    transition[0, 2] = 0.0  # a tie in the cumulative row
+    cumulative = np.cumsum(transition / transition.sum(axis=1, keepdims=True), axis=1)
+    cumulative[:, -1] = 1.0
     expected_state = state.copy()
     _scalar_transitions(expected_state, expected_streams, cumulative)
     _transition_pass(state, streams, cumulative, np.empty(n), np.empty(n, dtype=np.int64))
