@@ -551,7 +551,7 @@ def track(
     detections: pd.DataFrame,
     receivers: pd.DataFrame | ReceiverTracks,
     config: TrackingConfig,
-    motion: str | object = "hmm",
+    motion: str | object | None = None,
     *,
     model: str | Path | object | None = None,
     seed: SeedLike = None,
@@ -565,8 +565,10 @@ def track(
     ----------
     detections, receivers, config
         See :func:`build_observations`.
-    motion : {"baseline", "velocity", "hmm"} or motion model
-        A name for :func:`motion_model`, or a motion model object.
+    motion : {"baseline", "velocity", "hmm"}, motion model or None
+        A name for :func:`motion_model`, or a motion model object; ``None`` (default): the
+        one ``config`` names, with its noise (:meth:`TrackingConfig.motion_model`; "hmm" by
+        default).
     model : path or MovementHMM, optional
         Movement HMM for ``motion="hmm"``; the bundled white-shark model when ``None``.
     seed : int, SeedSequence or Generator
@@ -584,7 +586,9 @@ def track(
     observations = build_observations(detections, receivers, config)
     if observations.empty:
         raise ValueError("no detections to track from")
-    if isinstance(motion, str):
+    if motion is None:
+        motion = config.motion_model(model)
+    elif isinstance(motion, str):
         motion = motion_model(motion, model)
     elif model is not None:
         raise ValueError("model is used only with motion='hmm' given by name")

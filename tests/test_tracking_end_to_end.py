@@ -17,6 +17,7 @@ import pytest
 
 from hmmtrack import metrics, ranging, scenarios, tracking
 from hmmtrack.config import TrackingConfig
+from hmmtrack.motion import VelocityMotion
 from hmmtrack.receivers import ReceiverTracks
 
 PERIOD = 8.179
@@ -157,6 +158,29 @@ def test_same_seed_same_estimates(stationary):
     assert not np.allclose(runs[0].estimates["x"], runs[2].estimates["x"])
     events = runs[0].events
     assert (events["kind"] == "anchor_detection").sum() == 2
+
+
+@pytest.mark.filterwarnings("ignore:.*observations_outside_window:RuntimeWarning")
+def test_without_a_motion_the_config_chooses_it(stationary):
+    """``track`` with no motion model uses the one the configuration names, with its noise
+    (here velocity motion with a turn-rate noise of 0.005): the same estimates as that
+    model given explicitly, not those of the "hmm" default."""
+    config = scenario_config(
+        stationary, n_particles=300, end=stationary.start + 200, motion="velocity",
+        sigma_turn_rate=0.005,
+    )  # fmt: skip
+    data = stationary.detections, stationary.receivers
+    implicit = tracking.track(*data, config, seed=3)
+    explicit = tracking.track(
+        *data, config, VelocityMotion(tracking.VELOCITY_SIGMA_SPEED, 0.005), seed=3
+    )
+    by_name = tracking.track(*data, config, "velocity", seed=3)
+    pd.testing.assert_frame_equal(implicit.estimates, explicit.estimates)
+    assert not np.allclose(implicit.estimates["x"], by_name.estimates["x"])
+    default = tracking.track(
+        *data, dataclasses.replace(config, motion="hmm", sigma_turn_rate=None), seed=3
+    )
+    assert not np.allclose(implicit.estimates["x"], default.estimates["x"])
 
 
 def data_error(scenario) -> float:
