@@ -842,6 +842,22 @@ HMM_VARIANTS = ("paper", "time_consistent")
 STEP_UNITS = {"m": 1.0, "km": 1000.0}
 
 
+def step_metres(model) -> float:
+    """Metres per unit of ``model``'s step lengths (its ``step_unit``, metres if it has none).
+
+    Raises
+    ------
+    ValueError
+        For a unit not in :data:`STEP_UNITS`.
+    """
+    unit = getattr(model, "step_unit", "m")
+    if unit not in STEP_UNITS:
+        raise ValueError(
+            f"the movement HMM's steps are in {unit!r}; expected one of {sorted(STEP_UNITS)}"
+        )
+    return STEP_UNITS[unit]
+
+
 @dataclass(frozen=True)
 class HMMMotion:
     """Motion driven by a fitted movement HMM; each particle carries a behavioural state.
@@ -922,11 +938,7 @@ class HMMMotion:
                 f"the movement HMM has no usable time step (model.dt = {self.model.dt}); "
                 "speed = step / dt needs the fitted data's time step in seconds"
             )
-        unit = getattr(self.model, "step_unit", "m")
-        if unit not in STEP_UNITS:
-            raise ValueError(
-                f"the movement HMM's steps are in {unit!r}; expected one of {sorted(STEP_UNITS)}"
-            )
+        step_metres(self.model)
         if not (np.isfinite(self.heading_diffusion) and self.heading_diffusion >= 0):
             raise ValueError(
                 f"heading_diffusion must be >= 0 rad/sqrt(s), got {self.heading_diffusion}"
@@ -941,7 +953,7 @@ class HMMMotion:
     @property
     def _metres(self) -> float:
         """Metres per unit of the model's step lengths."""
-        return STEP_UNITS[getattr(self.model, "step_unit", "m")]
+        return step_metres(self.model)
 
     @property
     def compiled(self) -> bool:

@@ -58,7 +58,7 @@ from hmmtrack import metrics, ranging
 from hmmtrack.config import TrackingConfig
 from hmmtrack.filter import ParticleFilter
 from hmmtrack.measurement import RangeRateMeasurement
-from hmmtrack.motion import STEP_UNITS, BaselineMotion, HMMMotion, VelocityMotion
+from hmmtrack.motion import BaselineMotion, HMMMotion, VelocityMotion, step_metres
 from hmmtrack.random import SeedLike, as_generator
 from hmmtrack.receivers import ReceiverTracks
 
@@ -252,16 +252,10 @@ def motion_model(
             raise ValueError(f"resting must be a RestingState, None or 'default', got {resting!r}")
         resting = HMM_RESTING if variant == "time_consistent" else None
     if resting is not None:
-        metres = STEP_UNITS.get(model.step_unit)
-        if metres is None:
-            raise ValueError(
-                f"the movement HMM's steps are in {model.step_unit!r}; expected one of "
-                f"{sorted(STEP_UNITS)}"
-            )
         model = model.with_resting_state(
             resting.enter_per_hour,
             resting.leave_per_hour,
-            resting_step=resting.drift_speed * model.dt / metres,
+            resting_step=resting.drift_speed * model.dt / step_metres(model),
         )
     return HMMMotion(model, variant=variant, heading_diffusion=heading_diffusion)
 
