@@ -447,7 +447,7 @@ class _StepFamily(_Family):
     def _validate(self) -> None:
         self._validate_positive_part()
         if self.zero_mass is not None:
-            self._require("zero_mass", (self.zero_mass >= 0) & (self.zero_mass <= 1), "in [0, 1]")
+            self._require("zero_mass", (self.zero_mass >= 0) & (self.zero_mass < 1), "in [0, 1)")
 
     def _validate_positive_part(self) -> None:
         for field in self._parameters:
@@ -508,8 +508,7 @@ class _StepFamily(_Family):
                 data.n_obs, self.n_states, lambda k: self._state_logpdf(k, safe, log_safe)
             )
         else:
-            with np.errstate(divide="ignore"):  # zero_mass 1: positive steps impossible
-                positive_share = np.log1p(-self.zero_mass)
+            positive_share = np.log1p(-self.zero_mass)
             out = _by_state(
                 data.n_obs,
                 self.n_states,
@@ -656,7 +655,7 @@ class Gamma(_StepFamily):
     mean, sd : (K,) float > 0
         Mean and standard deviation of the positive part, in the units of the steps.
         Shape ``(mean / sd)**2``, scale ``sd**2 / mean``.
-    zero_mass : (K,) float in [0, 1] or None (1: a state that never moves)
+    zero_mass : (K,) float in [0, 1) or None
         Probability of a step of exactly 0 (zero-inflation); None switches it off.
     """
 
@@ -749,7 +748,7 @@ class Weibull(_StepFamily):
         Shape k (dimensionless).
     scale : (K,) float > 0
         Scale l, in the units of the steps.
-    zero_mass : (K,) float in [0, 1] or None (1: a state that never moves)
+    zero_mass : (K,) float in [0, 1) or None
         Probability of a step of exactly 0; None switches zero-inflation off.
     """
 
@@ -816,7 +815,7 @@ class LogNormal(_StepFamily):
         Mean of log step (log of the units of the steps).
     scale : (K,) float > 0
         Standard deviation of log step.
-    zero_mass : (K,) float in [0, 1] or None (1: a state that never moves)
+    zero_mass : (K,) float in [0, 1) or None
         Probability of a step of exactly 0; None switches zero-inflation off.
     """
 
@@ -882,7 +881,7 @@ class Exponential(_StepFamily):
     ----------
     rate : (K,) float > 0
         Rate, in 1 / (units of the steps).
-    zero_mass : (K,) float in [0, 1] or None (1: a state that never moves)
+    zero_mass : (K,) float in [0, 1) or None
         Probability of a step of exactly 0; None switches zero-inflation off.
     """
 
