@@ -34,7 +34,6 @@ import pandas as pd
 
 from hmmtrack.arrival import ArrivalLikelihood, ArrivalTimeMeasurement
 from hmmtrack.filter import RESAMPLE_WHEN
-from hmmtrack.motion import VelocityMotion
 from hmmtrack.ranging import SOUND_SPEED
 from hmmtrack.resampling import RESAMPLERS
 
@@ -303,17 +302,13 @@ class TrackingConfig:
         """
         from hmmtrack import tracking  # tracking imports this module
 
-        if self.motion != "velocity":
-            return tracking.motion_model(self.motion, model, variant=variant, resting=resting)
-        if model is not None or resting != "default":
-            raise ValueError(
-                "a movement model and a resting state are used by motion 'hmm' only, not 'velocity'"
-            )
-        speed, turn_rate = self.sigma_speed, self.sigma_turn_rate
-        return VelocityMotion(
-            sigma_speed=tracking.VELOCITY_SIGMA_SPEED if speed is None else speed,
-            sigma_turn_rate=tracking.VELOCITY_SIGMA_TURN_RATE if turn_rate is None else turn_rate,
-        )
+        motion = tracking.motion_model(self.motion, model, variant=variant, resting=resting)
+        noise = {
+            name: getattr(self, name)
+            for name in ("sigma_speed", "sigma_turn_rate")
+            if getattr(self, name) is not None
+        }
+        return dataclasses.replace(motion, **noise) if noise else motion
 
     def arrival_time_options(self) -> dict:
         """Keyword arguments of :func:`hmmtrack.clock_tracking.track_arrival_time` set here.
