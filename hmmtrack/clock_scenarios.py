@@ -603,25 +603,16 @@ class RotatingPlan:
     2 h, 9 seeds) the AUVs' speeds over ground are 2.1-2.5 m/s at the 99th percentile and
     at most 2.4-2.9 m/s (1 s steps), and the arrival-time filter with the
     ``two-moving-receivers`` preset (:mod:`hmmtrack.config`) reaches a mean error after
-    convergence of 5.3 m (worst of 18 runs, 9 scenarios × 2 filter seeds, 6.0 m; 4.7-6.1 m
-    over 63 runs with 7 filter seeds; reports/two_auv_plan.md). The
+    convergence of 5.6 m (worst of 18 runs, 9 scenarios × 2 filter seeds, 6.6 m;
+    reports/two_auv_plan.md). The
     stations are placed from the true shark track, as the paper's simulated hydrophone
     paths are built from it: a real plan steers on the filter's estimate (off by 5-7 m)
     and its velocity.
 
     Parameters
     ----------
-    radius : float
-        Distance of both stations from the shark (m).
-    lap_time : float
-        Time of one turn of the pair (s).
-    separation : float
-        Angle between the two stations' bearings (rad).
-    time_constant : float
-        Low-pass time constant of the vehicles' homing (s, see :func:`steered_auv`).
-    lead_window : float or None
-        Stations led ahead of the shark by its velocity averaged over this time constant
-        (s, see :func:`steered_auv`); ``None``: stations on the shark's position.
+    radius, lap_time, separation, time_constant, lead_window
+        As :func:`rotating_pair`'s (other defaults).
     """
 
     radius: float = 27.0
@@ -644,15 +635,7 @@ class RotatingPlan:
 
     def receivers(self, tag: Trajectory, phi: float) -> dict[str, Trajectory]:
         """The two AUVs' true paths around ``tag`` (see :func:`rotating_pair`)."""
-        return rotating_pair(
-            tag,
-            phi,
-            radius=self.radius,
-            lap_time=self.lap_time,
-            separation=self.separation,
-            time_constant=self.time_constant,
-            lead_window=self.lead_window,
-        )
+        return rotating_pair(tag, phi, **dataclasses.asdict(self))
 
     def describe(self) -> str:
         """``"30 m, 135°, lap 150 s, led"`` (``led``: stations led by the shark's velocity)."""
