@@ -73,13 +73,6 @@ from hmmtrack.tracking import motion_model, track
 HALF_HOUR = 1800
 
 
-def first_detection_ranges(case) -> dict[str, float]:
-    """True range (m) of each receiver at its first detection: the paper's ``r0``."""
-    pings = case.scenario.pings
-    heard = pings[pings["detected"]].sort_values("arrival_time")
-    return {str(r): float(g["range"].iloc[0]) for r, g in heard.groupby("receiver")}
-
-
 def three_auv_pursuit(seed: int):
     """Diagnostic, not issue 5's case: the same shark followed by three AUVs (each 100 m
     away on fixed bearings 120° apart), clocks and detection as in the two-AUV pursuit.
@@ -202,7 +195,7 @@ def inputs(case, seed, n_particles, motion, duration):
     detections = detections[detections["time"] < end].reset_index(drop=True)
     config = TrackingConfig(
         period=sc.period,
-        r0=first_detection_ranges(case),
+        r0=case.scenario.r0,
         sound_speed=sc.sound_speed,
         n_particles=n_particles,
         start=start,

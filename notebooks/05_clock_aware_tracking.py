@@ -101,20 +101,11 @@ if out is not None:
 # turn rate wandering 0.05 m/s and 0.02 rad/s per √s, as `benchmarks/bench_arrival.py`);
 # the arrival-time run takes everything from the preset (its likelihood, tempering, motion
 # model and number of particles) and searches a box around the AUVs at the start as wide
-# as their detection reach. `first_detection_ranges` is the one piece not in the library:
-# the truth the paper's method is given.
+# as their detection reach. The paper's method is also given the truth it needs: the range
+# from each AUV to the tag at that AUV's first detection (`scenario.r0`).
 
 
 # %%
-def first_detection_ranges(case, end: float) -> dict[str, float]:
-    """True range (m) from each receiver to the tag at its first detection before ``end``
-    (s): the paper's known initial ranges ``r0``."""
-    pings = case.scenario.pings
-    heard = pings[pings["detected"] & (pings["arrival_time"] < end)]
-    first = heard.sort_values("arrival_time").groupby("receiver", observed=True).head(1)
-    return {str(r): float(m) for r, m in zip(first["receiver"], first["range"], strict=True)}
-
-
 detections = case.corrected_detections()
 detections = detections[detections["time"] < end].reset_index(drop=True)
 preset = read_preset(PRESET)
@@ -124,7 +115,7 @@ window = {"period": sc.period, "start": start, "end": end, "sound_speed": sc.sou
 
 range_rate_config = TrackingConfig(
     **window,
-    r0=first_detection_ranges(case, end),
+    r0=sc.r0,
     n_particles=preset["n_particles"],
     motion="velocity",
     sigma_speed=0.05,
