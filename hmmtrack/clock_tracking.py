@@ -967,8 +967,7 @@ class ClockAwareFilter(ParticleFilter):
         p = self.particles
         ancestors = self._resample(self.rng, self._normalised_weights(), p.n)
         self.last_ancestors = ancestors  # (ParticleFilter's contract)
-        self.particles = p.take(ancestors)
-        self.particles.log_weight = np.full(p.n, -np.log(p.n))
+        self.particles = p.take(ancestors, equal_weights=True)
         self._weights_now = np.full(p.n, 1.0 / p.n)
         self._weights_of = self.particles.log_weight
         if self._smoother is not None:  # (ancestry is only kept for the smoother)

@@ -589,8 +589,7 @@ class ParticleFilter:
         if self.resample_when == "ess" and n_eff >= self.ess_threshold * p.n:
             return False
         ancestors = self._resample(self.rng, weights, p.n)
-        self.particles = p.take(ancestors)
-        self.particles.log_weight = np.full(p.n, -np.log(p.n))
+        self.particles = p.take(ancestors, equal_weights=True)
         self.last_ancestors = ancestors
         # equal weights now; the old weighted mean still lies inside the cloud
         self._weighed = (self.particles.log_weight, np.full(p.n, 1.0 / p.n), float(p.n), origin)

@@ -323,16 +323,20 @@ def test_take_is_numpy_indexing_of_every_field_and_refuses_bad_indices():
     strided = p.copy()
     strided.turn_rate = rng.normal(size=2000)[::2]  # assigned: not made contiguous
     for particles in (p, strided):
-        taken = particles.take(indices)
-        for name in _ARRAY_NAMES:
-            want = getattr(particles, name)[indices]
-            got = getattr(taken, name)
-            assert got.dtype == want.dtype and got.flags.c_contiguous
-            np.testing.assert_array_equal(got, want)
+        for equal_weights in (False, True):
+            taken = particles.take(indices, equal_weights=equal_weights)
+            for name in _ARRAY_NAMES:
+                want = getattr(particles, name)[indices]
+                if equal_weights and name == "log_weight":
+                    want = np.full(indices.size, -np.log(indices.size))
+                got = getattr(taken, name)
+                assert got.dtype == want.dtype and got.flags.c_contiguous
+                np.testing.assert_array_equal(got, want)
     for particles in (p, strided):
         for bad in ([0, 1000], [-1, 3]):
-            with pytest.raises(ValueError, match=r"indices in 0\.\.999"):
-                particles.take(np.array(bad))
+            for equal_weights in (False, True):
+                with pytest.raises(ValueError, match=r"indices in 0\.\.999"):
+                    particles.take(np.array(bad), equal_weights=equal_weights)
 
 
 def test_weigh_matches_log_normalise_and_the_weight_summary():

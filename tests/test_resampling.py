@@ -116,3 +116,39 @@ def test_inverse_cdf_never_picks_trailing_weightless_particles():
     points = np.array([0.1, 0.5, 0.9999999999999999])
     assert np.cumsum(w)[-1] < points[-1]
     assert inverse_cdf(w, points).tolist() == [0, 1, 1]
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    m=st.integers(1, 400),
+    n=st.integers(1, 400),
+    power=st.integers(1, 30),
+    zero_share=st.floats(0.0, 0.9),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_resampled_ancestors_bracket_their_points(m, n, power, zero_share, seed):
+    """Oracle for the four-run merge: each scheme's k-th ancestor ``j`` has its point in
+    ``[C[j-1], C[j])`` of the cumulative weights ``C`` (points redrawn from the same seed),
+    never a weightless particle, for weights from flat to very peaked."""
+    g = np.random.default_rng(seed)
+    w = g.random(m) ** power
+    w[g.random(m) < zero_share] = 0.0
+    w[g.integers(m)] += 1e-3
+    cumulative = np.cumsum(w / w.sum())
+    for name, points in (
+        ("multinomial", None),
+        ("systematic", lambda r: (np.arange(n) + r.random()) / n),
+        ("stratified", lambda r: (np.arange(n) + r.random(n)) / n),
+    ):
+        ancestors = get_resampler(name)(np.random.default_rng(seed + 1), w, n)
+        if name == "multinomial":
+            e = np.random.default_rng(seed + 1).standard_exponential(n + 1)
+            p = np.cumsum(e)[:n] / e.sum()
+        else:
+            p = points(np.random.default_rng(seed + 1))
+        assert ancestors.shape == (n,) and np.all(np.diff(ancestors) >= 0)
+        assert np.all(w[ancestors] > 0)
+        below = np.where(ancestors > 0, cumulative[ancestors - 1], 0.0)
+        assert np.all(below <= p + 1e-12)
+        last = np.flatnonzero(w > 0)[-1]
+        assert np.all((cumulative[ancestors] > p - 1e-12) | (ancestors == last))
