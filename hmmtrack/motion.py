@@ -8,8 +8,8 @@ Three models from the paper's section "Motion Models", each with the same two en
 ``advance(particles, streams, n_steps, dt, weights, origin, threads=None)``
     The fast path used by :class:`hmmtrack.filter.ParticleFilter`: ``n_steps`` prediction
     steps fused into one compiled (numba) kernel, run over fixed chunks of particles on
-    ``threads`` threads (the caller's and worker threads kept between calls: the kernel
-    releases the GIL), that draws from the per-particle random streams of
+    ``threads`` threads (numba's parallel loop, one serial kernel call per thread, the
+    threads claiming chunks as they go), that draws from the per-particle random streams of
     :mod:`hmmtrack.streams` and returns the weighted moments
     of the particle positions after every step, so that per-second estimates need no second
     pass over the particles. The kernels implement the same equations as ``propagate``;
@@ -47,14 +47,12 @@ from __future__ import annotations
 
 import logging
 import math
-import os
+import threading
 import warnings
-from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numba
 import numpy as np
-from llvmlite import ir
 from numba import njit, types
 from numba.core import cgutils
 from numba.extending import intrinsic
@@ -305,13 +303,10 @@ def _fetch_add(typingctx, counter, index, value):
 
 
 @njit(cache=True, inline="always")
-def _next_chunk(counter, n, finished):
-    """Count chunk ``finished`` (-1: none) as done and claim the next chunk of ``n``
-    particles not yet claimed by any thread: ``(chunk, lo, hi)``, the particles ``lo:hi``;
-    ``chunk`` is -1 once all are claimed. ``counter`` (int64, 2) holds the chunks claimed
-    and the chunks done, both starting at 0."""
-    if finished >= 0:
-        _fetch_add(counter, 1, 1)
+def _next_chunk(counter, n):
+    """Claim the next chunk of ``n`` particles not yet claimed by any thread:
+    ``(chunk, lo, hi)``, the particles ``lo:hi``; ``chunk`` is -1 once all are claimed.
+    ``counter`` (int64, 1) holds the chunks claimed, starting at 0."""
     n_chunks, size = _chunking(n)
     chunk = _fetch_add(counter, 0, 1)
     if chunk >= n_chunks:
@@ -319,101 +314,47 @@ def _next_chunk(counter, n, finished):
     return chunk, chunk * size, min(n, (chunk + 1) * size)
 
 
-@intrinsic
-def _yield_processor(typingctx):
-    """The C library's ``sched_yield()``: let another runnable thread have this core (returns
-    at once when none is waiting)."""
-
-    def codegen(context, builder, signature, args):
-        function = cgutils.get_or_insert_function(
-            builder.module, ir.FunctionType(ir.IntType(32), []), "sched_yield"
-        )
-        builder.call(function, [])
-        return context.get_dummy_value()
-
-    return types.void(), codegen
+#: numba's "workqueue" threading layer (its fallback where neither OpenMP nor TBB can be
+#: loaded) aborts the process when two threads start parallel work at once: parallel kernel
+#: calls then hold this lock, and a call that finds it taken runs on its own thread instead
+_WORKQUEUE_LOCK = threading.Lock()
 
 
-#: atomic reads between two offers of the core to other threads in :func:`_spin_until`
-_READS_PER_YIELD = 64
-
-
-@njit(cache=True, nogil=True)
-def _spin_until(counter, index, target, spins):
-    """Whether ``counter[index]`` reaches ``target`` within ``spins`` atomic reads: a busy
-    wait without the GIL (about 5 ns a read) that offers the core to other threads every
-    :data:`_READS_PER_YIELD` reads, so that on a busy machine it does not take the time of
-    the thread it waits for."""
-    for k in range(spins):
-        if _fetch_add(counter, index, 0) >= target:
-            return True
-        if k % _READS_PER_YIELD == _READS_PER_YIELD - 1:
-            _yield_processor()
-    return False
-
-
-#: atomic reads (0.1-0.4 ms with the yields of :func:`_spin_until`) for which the caller,
-#: done with its chunks, waits awake for the helper threads' last chunks before it sleeps
-#: until they return: a thread that sleeps may take 0.1 ms or more to wake on a quiet
-#: virtual machine, longer than a chunk takes
-CALLER_SPINS = 20_000
-#: :func:`_yield_processor` calls POSIX ``sched_yield``; elsewhere (Windows) the caller does
-#: not spin and sleeps at once until the helper threads return
-_CAN_SPIN = os.name == "posix"
-
-#: threads that run chunks of kernel calls beside the caller's (created on first use, kept
-#: for later calls), and how many
-_POOL: ThreadPoolExecutor | None = None
-_POOL_SIZE = 0
-#: helper calls that had finished their chunks but perhaps not yet returned when their
-#: kernel call returned; checked (for errors) at the next call
-_PENDING: list[Future] = []
-
-
-def _forget_pool() -> None:
-    """In a forked child the pool's threads are gone: start a new pool when needed."""
-    global _POOL, _POOL_SIZE
-    _POOL, _POOL_SIZE = None, 0
-    _PENDING.clear()
-
-
-os.register_at_fork(after_in_child=_forget_pool)
-
-
-def _run_chunks(kernel, n: int, n_steps: int, threads: int | None, *args) -> np.ndarray:
+def _run_chunks(kernel, parallel, n: int, n_steps: int, threads: int | None, *args) -> np.ndarray:
     """Run ``kernel(*args, counter, sums)`` over all chunks of ``n`` particles and return
     the weighted moments ``(n_steps, 5)`` (the per-chunk sums reduced in a fixed order).
 
-    With ``threads`` > 1 (``None``: ``numba.get_num_threads()``) the calling thread and
-    ``threads - 1`` threads of a pool kept between calls run the kernel at once (it releases
-    the GIL), each claiming the next unclaimed chunk whenever it finishes one
-    (:func:`_next_chunk`): a thread that starts late or is slowed by other work on the
-    machine simply runs fewer chunks. The caller then waits for the chunks still running,
-    awake for :data:`CALLER_SPINS` reads, then asleep. Every chunk writes its own particles
-    and its own row of ``sums``, so the results do not depend on which thread ran it.
+    With ``threads`` > 1 (``None``: ``numba.get_num_threads()``), ``parallel(threads,
+    *args, counter, sums)`` (tuple arguments spread into their items) runs the kernel on
+    that many threads of numba's threading layer at once (OpenMP's threads wait awake for
+    a while between calls, so a call starts in a few microseconds), each claiming the next
+    unclaimed chunk whenever it finishes one (:func:`_next_chunk`): a thread that starts
+    late or is slowed by other work on the machine simply runs fewer chunks. Every chunk
+    writes its own particles and its own row of ``sums``, so the results do not depend on
+    which thread ran it. Under numba's "workqueue" layer only one Python thread at a time
+    runs kernels in parallel; the others run them on their own thread.
     """
-    global _POOL, _POOL_SIZE
     n_chunks, _ = _chunking(n)
     sums = np.zeros((n_chunks, n_steps, N_MOMENTS))
-    counter = np.zeros(2, dtype=np.int64)
-    if threads is None:
-        threads = numba.get_num_threads()
-    threads = max(1, min(threads, n_chunks))
-    for helper in [f for f in _PENDING if f.done()]:
-        _PENDING.remove(helper)
-        helper.result()  # raises the helper's error, if any
-    if threads > 1 and _POOL_SIZE < threads - 1:
-        if _POOL is not None:
-            _POOL.shutdown(wait=False)
-        _POOL_SIZE = max(threads, numba.config.NUMBA_NUM_THREADS) - 1
-        _POOL = ThreadPoolExecutor(max_workers=_POOL_SIZE)
-    helpers = [_POOL.submit(kernel, *args, counter, sums) for _ in range(threads - 1)]
+    counter = np.zeros(1, dtype=np.int64)
+    previous = numba.get_num_threads()  # of this thread (numba's default: all); starts the layer
+    threads = previous if threads is None else threads
+    threads = max(1, min(threads, n_chunks, numba.config.NUMBA_NUM_THREADS))
+    exclusive = numba.threading_layer() == "workqueue"
+    if threads > 1 and (not exclusive or _WORKQUEUE_LOCK.acquire(blocking=False)):
+        # tuples of arrays (the von Mises tables) are passed to ``parallel`` as their items
+        flat = [item for arg in args for item in (arg if isinstance(arg, tuple) else (arg,))]
+        if previous != threads:
+            numba.set_num_threads(threads)
+        try:
+            parallel(threads, *flat, counter, sums)
+        finally:
+            if previous != threads:
+                numba.set_num_threads(previous)
+            if exclusive:
+                _WORKQUEUE_LOCK.release()
+        return sums.sum(axis=0)
     kernel(*args, counter, sums)
-    if helpers and _CAN_SPIN and _spin_until(counter, 1, n_chunks, CALLER_SPINS):
-        _PENDING.extend(helpers)
-    else:
-        for helper in helpers:
-            helper.result()
     return sums.sum(axis=0)
 
 
@@ -422,8 +363,9 @@ def _run_chunks(kernel, n: int, n_steps: int, threads: int | None, *args) -> np.
 
 # The kernels below run the chunks of the particles (_chunking) that they claim
 # (_next_chunk), one after the other, each into its row of ``sums``; _run_chunks runs them on
-# several threads at once (the kernels are serial and release the GIL: numba's parallel=True
-# kernels, loaded from the on-disk cache, ran at half the speed of freshly compiled ones).
+# several threads at once through their parallel twins (the kernels themselves stay serial:
+# numba's parallel loops over particles inside a kernel, loaded from the on-disk cache, ran
+# at half the speed of freshly compiled ones).
 # Inside a chunk, time-major: every particle of the chunk takes step t before any takes step
 # t + 1, the chunk staying in cache. Each step is a few passes over the chunk (draw the
 # normals, move along the arcs, sum the moments), each a branch-free loop that the compiler
@@ -435,7 +377,7 @@ def _baseline_kernel(
     x, y, heading, c, s, v, w, streams, n_steps, dt, sigma, weights, ox, oy, counter, sums,
 ):  # fmt: skip
     scale = sigma * math.sqrt(dt)
-    chunk, lo, hi = _next_chunk(counter, x.size, -1)
+    chunk, lo, hi = _next_chunk(counter, x.size)
     while chunk >= 0:
         xs, ys, hs, cs, ss, vs, ws = _motion_views(lo, hi, x, y, heading, c, s, v, w)
         chunk_streams = streams[lo:hi]
@@ -463,7 +405,22 @@ def _baseline_kernel(
             hs[i] = math.atan2(ss[i], cs[i])
             turn = hs[i] - previous
             ws[i] = (turn - 2.0 * math.pi * math.floor((turn + math.pi) / (2.0 * math.pi))) / dt
-        chunk, lo, hi = _next_chunk(counter, x.size, chunk)
+        chunk, lo, hi = _next_chunk(counter, x.size)
+
+
+# The parallel twins of the kernels: numba's parallel loop runs one kernel call per thread,
+# all claiming chunks from the same counter (the kernels' arguments are listed, not passed as
+# a tuple: the parallel loop cannot take tuples holding arrays).
+@njit(cache=True, nogil=True, parallel=True)
+def _baseline_parallel(
+    threads, x, y, heading, c, s, v, w, streams, n_steps, dt, sigma, weights, ox, oy, counter,
+    sums,
+):  # fmt: skip
+    for _ in numba.prange(threads):
+        _baseline_kernel(
+            x, y, heading, c, s, v, w, streams, n_steps, dt, sigma, weights, ox, oy, counter,
+            sums,
+        )  # fmt: skip
 
 
 def _wrap(angle: np.ndarray) -> np.ndarray:
@@ -520,7 +477,7 @@ class BaselineMotion:
         """As :meth:`VelocityMotion.advance` (compiled steps; weighted moments per step)."""
         p = particles
         return _run_chunks(
-            _baseline_kernel, p.n, n_steps, threads,
+            _baseline_kernel, _baseline_parallel, p.n, n_steps, threads,
             p.x, p.y, p.heading, p.cos_heading, p.sin_heading, p.speed, p.turn_rate,
             streams, n_steps, float(dt), float(self.sigma), weights, *origin,
         )  # fmt: skip
@@ -535,7 +492,7 @@ def _velocity_kernel(
     counter, sums,
 ):  # fmt: skip
     root_dt = math.sqrt(dt)
-    chunk, lo, hi = _next_chunk(counter, x.size, -1)
+    chunk, lo, hi = _next_chunk(counter, x.size)
     while chunk >= 0:
         xs, ys, hs, cs, ss, vs, ws = _motion_views(lo, hi, x, y, heading, c, s, v, w)
         chunk_streams = streams[lo:hi]
@@ -549,7 +506,19 @@ def _velocity_kernel(
             _arc_pass(xs, ys, cs, ss, hs, vs, ws, dt)
             _moments_pass(xs, ys, weights[lo:hi], ox, oy, sums[chunk, t])
         _finish_headings(hs, cs, ss)
-        chunk, lo, hi = _next_chunk(counter, x.size, chunk)
+        chunk, lo, hi = _next_chunk(counter, x.size)
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def _velocity_parallel(
+    threads, x, y, heading, c, s, v, w, streams, n_steps, dt, sigma_speed, sigma_turn, weights,
+    ox, oy, counter, sums,
+):  # fmt: skip
+    for _ in numba.prange(threads):
+        _velocity_kernel(
+            x, y, heading, c, s, v, w, streams, n_steps, dt, sigma_speed, sigma_turn, weights,
+            ox, oy, counter, sums,
+        )  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -622,7 +591,7 @@ class VelocityMotion:
         """
         p = particles
         return _run_chunks(
-            _velocity_kernel, p.n, n_steps, threads,
+            _velocity_kernel, _velocity_parallel, p.n, n_steps, threads,
             p.x, p.y, p.heading, p.cos_heading, p.sin_heading, p.speed, p.turn_rate,
             streams, n_steps, float(dt), float(self.sigma_speed), float(self.sigma_turn_rate),
             weights, *origin,
@@ -803,7 +772,7 @@ def _hmm_kernel(
     due = draw_interval * (1.0 - 1e-9)
     jitter_scale = heading_diffusion / math.sqrt(sub_step)  # rad/s of this sub-step
     speed_factor = metres_per_step_unit / fitted_dt
-    chunk, lo, hi = _next_chunk(counter, x.size, -1)
+    chunk, lo, hi = _next_chunk(counter, x.size)
     while chunk >= 0:
         xs, ys, hs, cs, ss, vs, ws = _motion_views(lo, hi, x, y, heading, c, s, v, w)
         ks, clocks, chunk_streams = behaviour[lo:hi], clock[lo:hi], streams[lo:hi]
@@ -834,7 +803,26 @@ def _hmm_kernel(
                 _transition_pass(ks, chunk_streams, cumulative, scratch, next_state)
             _moments_pass(xs, ys, weights[lo:hi], ox, oy, sums[chunk, t])
         _finish_headings(hs, cs, ss)
-        chunk, lo, hi = _next_chunk(counter, x.size, chunk)
+        chunk, lo, hi = _next_chunk(counter, x.size)
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def _hmm_parallel(
+    threads, x, y, heading, c, s, v, w, behaviour, clock, streams, n_steps, n_sub, sub_step,
+    draw_interval, metres_per_step_unit, fitted_dt, cumulative, gamma_d, gamma_c, gamma_boost,
+    gamma_scale, zero_mass, vm_mean, vm_kappa, vm_width, vm_f_left, vm_f_right, vm_cut,
+    vm_alias, heading_diffusion, weights, ox, oy, counter, sums,
+):  # fmt: skip
+    """:func:`_hmm_kernel` on ``threads`` threads; the von Mises tables (a tuple in the
+    kernel) are passed as their seven arrays."""
+    for _ in numba.prange(threads):
+        _hmm_kernel(
+            x, y, heading, c, s, v, w, behaviour, clock, streams, n_steps, n_sub, sub_step,
+            draw_interval, metres_per_step_unit, fitted_dt, cumulative, gamma_d, gamma_c,
+            gamma_boost, gamma_scale, zero_mass,
+            (vm_mean, vm_kappa, vm_width, vm_f_left, vm_f_right, vm_cut, vm_alias),
+            heading_diffusion, weights, ox, oy, counter, sums,
+        )  # fmt: skip
 
 
 HMM_VARIANTS = ("paper", "time_consistent")
@@ -1062,7 +1050,7 @@ class HMMMotion:
             )  # fmt: skip
         p = particles
         return _run_chunks(
-            _hmm_kernel, p.n, n_steps, threads,
+            _hmm_kernel, _hmm_parallel, p.n, n_steps, threads,
             p.x, p.y, p.heading, p.cos_heading, p.sin_heading, p.speed, p.turn_rate,
             p.state, p.time_since_draw, streams, n_steps, plan.n_sub, plan.sub_step,
             plan.draw_interval, self._metres, float(self.model.dt), plan.cumulative,

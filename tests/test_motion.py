@@ -1,4 +1,7 @@
 import dataclasses
+import os
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -172,6 +175,65 @@ def test_kernels_give_the_same_particles_on_any_number_of_threads(motion):
         np.testing.assert_array_equal(s1, s2)
         for name in ("x", "y", "heading", "speed", "turn_rate", "state", "time_since_draw"):
             np.testing.assert_array_equal(getattr(p1, name), getattr(p2, name))
+
+
+# Python threads that each advance their own particles with two kernel threads, at once;
+# every result must equal a one-thread run. Run in this process (numba's OpenMP layer here)
+# and in a child process forced onto numba's "workqueue" layer, which aborts the process on
+# concurrent parallel calls unless motion.py serialises them.
+CONCURRENT_ADVANCES = """
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+
+from hmmtrack import streams as rs
+from hmmtrack.hmm import Gamma, MovementHMM, VonMises
+from hmmtrack.motion import HMMMotion
+from hmmtrack.particles import Particles
+
+model = MovementHMM(
+    initial=np.array([0.5, 0.5]),
+    transition=np.array([[0.9, 0.1], [0.2, 0.8]]),
+    step=Gamma(mean=np.array([2.0, 15.0]), sd=np.array([1.0, 5.0])),
+    angle=VonMises(mean=np.zeros(2), concentration=np.array([1.0, 20.0])),
+    dt=1.0,
+)
+motion = HMMMotion(model, "paper")
+
+
+def run(seed, threads):
+    rng = np.random.default_rng(seed)
+    p = Particles.uniform(rng, 5000, (-100.0, 100.0, -100.0, 100.0))
+    motion.initialise(rng, p)
+    streams = rs.new_streams(rng, p.n)
+    moments = [
+        motion.advance(p, streams, 4, 1.0, p.normalised_weights(), (0.0, 0.0), threads=threads)
+        for _ in range(20)
+    ]
+    return np.concatenate([np.ravel(moments), p.x, p.y, p.state])
+
+
+with ThreadPoolExecutor(4) as pool:
+    together = list(pool.map(lambda seed: run(seed, 2), range(8)))
+for seed, result in enumerate(together):
+    assert np.array_equal(result, run(seed, 1)), seed
+print("same")
+"""
+
+
+def test_kernels_on_several_python_threads_at_once_give_the_one_thread_answer():
+    exec(CONCURRENT_ADVANCES, {})
+
+
+def test_concurrent_parallel_kernels_are_safe_under_numbas_workqueue_layer(tmp_path):
+    environment = {**os.environ, "NUMBA_THREADING_LAYER": "workqueue"}
+    script = CONCURRENT_ADVANCES + "\nimport numba; print(numba.threading_layer())"
+    done = subprocess.run(
+        [sys.executable, "-c", script],
+        capture_output=True, text=True, env=environment, cwd=tmp_path, timeout=600,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert done.stdout.split() == ["same", "workqueue"]
 
 
 def test_hmm_kernel_equals_numpy_on_a_nearly_deterministic_model():
