@@ -57,6 +57,7 @@ import pandas as pd
 from numba import njit
 
 from hmmtrack import streams as rs
+from hmmtrack.metrics import sqrt_largest_eigenvalue
 from hmmtrack.particles import Particles, as_bounds
 from hmmtrack.random import SeedLike, as_generator
 from hmmtrack.resampling import get_resampler, log_normalise
@@ -79,18 +80,6 @@ ESTIMATE_COLUMNS = ("time", "x", "y", "var_x", "var_y", "cov_xy", "sqrt_lambda1"
 PARALLEL_MIN_WORK = 20_000
 BACKENDS = ("auto", "numba", "numpy")
 RESAMPLE_WHEN = ("always", "ess")
-
-
-def sqrt_largest_eigenvalue(var_x, var_y, cov_xy):
-    """``sqrt(lambda_1)`` of the 2x2 covariance ``[[var_x, cov_xy], [cov_xy, var_y]]``
-    (floats or arrays of one shape).
-
-    ``lambda_1 = (var_x + var_y)/2 + sqrt(((var_x - var_y)/2)^2 + cov_xy^2)``, the paper's
-    formula: the standard deviation along the direction of largest spread (m).
-    """
-    half_sum = 0.5 * (var_x + var_y)
-    half_diff = 0.5 * (var_x - var_y)
-    return np.sqrt(half_sum + np.hypot(half_diff, cov_xy))
 
 
 class Estimate(NamedTuple):
