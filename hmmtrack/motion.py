@@ -47,6 +47,7 @@ from __future__ import annotations
 
 import logging
 import math
+import os
 import threading
 import warnings
 from dataclasses import dataclass, field
@@ -318,6 +319,19 @@ def _next_chunk(counter, n):
 #: loaded) aborts the process when two threads start parallel work at once: parallel kernel
 #: calls then hold this lock, and a call that finds it taken runs on its own thread instead
 _WORKQUEUE_LOCK = threading.Lock()
+#: whether this process has run kernels on GNU OpenMP threads. OpenMP is not fork-safe:
+#: numba ends a forked child that starts OpenMP work its parent had started, so such a
+#: child (a ``multiprocessing`` fork) runs every kernel on its own thread
+_OPENMP_STARTED = False
+_FORKED_AFTER_OPENMP = False
+
+
+def _note_fork() -> None:
+    global _FORKED_AFTER_OPENMP
+    _FORKED_AFTER_OPENMP = _FORKED_AFTER_OPENMP or _OPENMP_STARTED
+
+
+os.register_at_fork(after_in_child=_note_fork)
 
 
 def _run_chunks(kernel, parallel, n: int, n_steps: int, threads: int | None, *args) -> np.ndarray:
@@ -332,16 +346,24 @@ def _run_chunks(kernel, parallel, n: int, n_steps: int, threads: int | None, *ar
     late or is slowed by other work on the machine simply runs fewer chunks. Every chunk
     writes its own particles and its own row of ``sums``, so the results do not depend on
     which thread ran it. Under numba's "workqueue" layer only one Python thread at a time
-    runs kernels in parallel; the others run them on their own thread.
+    runs kernels in parallel, the others run them on their own thread; in a process forked
+    after this one started OpenMP threads, every call runs on the calling thread.
     """
+    global _OPENMP_STARTED
     n_chunks, _ = _chunking(n)
     sums = np.zeros((n_chunks, n_steps, N_MOMENTS))
     counter = np.zeros(1, dtype=np.int64)
     previous = numba.get_num_threads()  # of this thread (numba's default: all); starts the layer
     threads = previous if threads is None else threads
     threads = max(1, min(threads, n_chunks, numba.config.NUMBA_NUM_THREADS))
-    exclusive = numba.threading_layer() == "workqueue"
-    if threads > 1 and (not exclusive or _WORKQUEUE_LOCK.acquire(blocking=False)):
+    layer = numba.threading_layer()
+    exclusive = layer == "workqueue"
+    if (
+        threads > 1
+        and not _FORKED_AFTER_OPENMP
+        and (not exclusive or _WORKQUEUE_LOCK.acquire(blocking=False))
+    ):
+        _OPENMP_STARTED = _OPENMP_STARTED or layer == "omp"
         # tuples of arrays (the von Mises tables) are passed to ``parallel`` as their items
         flat = [item for arg in args for item in (arg if isinstance(arg, tuple) else (arg,))]
         if previous != threads:

@@ -236,6 +236,35 @@ def test_concurrent_parallel_kernels_are_safe_under_numbas_workqueue_layer(tmp_p
     assert done.stdout.split() == ["same", "workqueue"]
 
 
+FORK_AFTER_OPENMP = (
+    CONCURRENT_ADVANCES.split("with ThreadPoolExecutor")[0]
+    + """
+import multiprocessing
+
+if __name__ == "__main__":
+    parent = run(0, 2)  # starts numba's OpenMP threads in this process
+    with multiprocessing.get_context("fork").Pool(2) as pool:
+        children = pool.starmap(run, [(0, 2), (1, 2)])
+    assert np.array_equal(children[0], parent)
+    assert np.array_equal(children[1], run(1, 1))
+    print("same")
+"""
+)
+
+
+@pytest.mark.skipif(os.name != "posix", reason="fork exists on POSIX systems only")
+def test_a_process_forked_after_openmp_started_still_runs_kernels(tmp_path):
+    """numba ends a forked child that starts GNU OpenMP work its parent had started; the
+    kernels must notice the fork and run on the child's own thread, same answers."""
+    script = tmp_path / "fork_after_openmp.py"
+    script.write_text(FORK_AFTER_OPENMP)
+    done = subprocess.run(
+        [sys.executable, str(script)], capture_output=True, text=True, timeout=180
+    )  # without the guard the pool waits for ever on its ended workers
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert done.stdout.split() == ["same"]
+
+
 def test_hmm_kernel_equals_numpy_on_a_nearly_deterministic_model():
     """Identity transitions, tiny step sd, huge concentration: both paths give one path."""
     model = movement_model(dt=4.0, transition=np.eye(2), step_sd=(1e-7, 1e-7), kappa=(1e12, 1e12))
