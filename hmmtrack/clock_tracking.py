@@ -699,9 +699,7 @@ class ClockAwareFilter(ParticleFilter):
             period_rate=np.zeros(n),
         )
         self._clock_started = False
-        # normalised weights kept by the last correction or resampling, and the log
-        # weights they are of (see _normalised_weights)
-        self._weights_now = self._weights_of = None
+        self._keep_weights(self.particles.normalised_weights())
         self._lost_count = 0
         self._clock_covariance = np.full((3, 3), np.nan)
         self._silence_from = -np.inf
@@ -724,23 +722,29 @@ class ClockAwareFilter(ParticleFilter):
                 self._smoothed_rows.append(row)
             self._pending = False
 
+    # ------------------------------------------------------------------ weights
+
+    def _keep_weights(self, weights: np.ndarray) -> None:
+        """Keep ``weights`` (N,), the normalised weights of the particles' current log
+        weights, in :class:`ParticleFilter`'s cache (``_weighed``, read through
+        :meth:`ParticleFilter._weights` by prediction, correction, resampling and the
+        diagnostics) with their effective sample size ``1 / Σ w²`` and weighted mean
+        position (m).
+
+        Called wherever this filter replaces the log weights (initialisation, each
+        tempered step, resampling), so the cache is never missed; moving the particles
+        (prediction, regularisation) leaves the weights valid and the mean a point inside
+        the cloud.
+        """
+        p = self.particles
+        self._weighed = (
+            p.log_weight,
+            weights,
+            1.0 / (weights @ weights),
+            (float(weights @ p.x), float(weights @ p.y)),
+        )
+
     # ------------------------------------------------------------------ predict
-
-    def _normalised_weights(self) -> np.ndarray:
-        """The particles' normalised weights (N,): those the last correction or resampling
-        kept, while the log weights are still the ones they were computed from (no pass
-        over them); else computed afresh."""
-        p = self.particles
-        if self._weights_of is not p.log_weight:
-            self._weights_now, self._weights_of = p.normalised_weights(), p.log_weight
-        return self._weights_now
-
-    def _weights(self):
-        """Normalised weights (N,) (:meth:`_normalised_weights`), their effective sample
-        size and weighted mean position (m)."""
-        w = self._normalised_weights()
-        p = self.particles
-        return w, 1.0 / (w @ w), (float(w @ p.x), float(w @ p.y))
 
     def predict(self, n_steps: int):
         """Move the particles ``n_steps`` steps (the clocks move lazily, ping by ping)."""
@@ -821,7 +825,7 @@ class ClockAwareFilter(ParticleFilter):
             p.cos_heading,
             p.sin_heading,
             vertical_parts(p, _NO_ROWS)[0],  # the particles' depths
-            self._normalised_weights(),
+            self._weights()[0],
             *clocks,
             arrival,
             receiver_x,
@@ -920,10 +924,10 @@ class ClockAwareFilter(ParticleFilter):
         remaining = 1.0
         while True:
             p = self.particles
-            beta, p.log_weight, self._weights_now = _temper(
+            beta, p.log_weight, weights = _temper(
                 p.log_weight, loglik, remaining, self.tempering_ess * p.n
             )
-            self._weights_of = p.log_weight
+            self._keep_weights(weights)
             remaining -= beta
             if remaining <= 1e-12:
                 break
@@ -946,7 +950,7 @@ class ClockAwareFilter(ParticleFilter):
 
     def _record_diagnostics(self) -> None:
         p = self.particles
-        w = self._normalised_weights()
+        w = self._weights()[0]
         self._ambiguity_rows.append((self.time, *ambiguity(p.x, p.y, w)))
         self._clock_rows.append(
             (
@@ -965,11 +969,10 @@ class ClockAwareFilter(ParticleFilter):
 
     def _resample_now(self) -> None:
         p = self.particles
-        ancestors = self._resample(self.rng, self._normalised_weights(), p.n)
+        ancestors = self._resample(self.rng, self._weights()[0], p.n)
         self.last_ancestors = ancestors  # (ParticleFilter's contract)
         self.particles = p.take(ancestors, equal_weights=True)
-        self._weights_now = np.full(p.n, 1.0 / p.n)
-        self._weights_of = self.particles.log_weight
+        self._keep_weights(np.full(p.n, 1.0 / p.n))
         if self._smoother is not None:  # (ancestry is only kept for the smoother)
             self._parent = ancestors if self._parent is None else self._parent[ancestors]
 
@@ -977,10 +980,8 @@ class ClockAwareFilter(ParticleFilter):
         """Resample per ``resample_when``, keeping the ancestry for the smoother."""
         self._push_pending()  # the smoother records the corrected, not yet resampled, step
         p = self.particles
-        if self.resample_when == "ess":
-            w = self._normalised_weights()
-            if 1.0 / (w @ w) >= self.ess_threshold * p.n:
-                return False
+        if self.resample_when == "ess" and self._weights()[1] >= self.ess_threshold * p.n:
+            return False
         self._resample_now()
         return True
 

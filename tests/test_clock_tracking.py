@@ -8,6 +8,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+import hmmtrack.clock_tracking as ct
 from hmmtrack.arrival import ArrivalLikelihood, ArrivalTimeMeasurement, emission_range
 from hmmtrack.clock import EmissionClockModel
 from hmmtrack.clock_scenarios import moored_array
@@ -26,7 +27,6 @@ from hmmtrack.clock_tracking import (
     track_arrival_time,
 )
 from hmmtrack.detection_probability import LogisticDetection
-from hmmtrack.filter import ParticleFilter
 from hmmtrack.metrics import position_error
 from hmmtrack.motion import BaselineMotion, VelocityMotion
 from hmmtrack.receivers import ReceiverTracks
@@ -79,21 +79,81 @@ def test_clock_and_position_are_recovered_without_initial_range():
     assert result.events.empty
 
 
-def test_kept_weights_are_the_normalised_log_weights_and_follow_changes():
-    """The weights the filter keeps for prediction and resampling (no pass over the log
-    weights) equal ParticleFilter's, computed afresh, after a correction (ESS resampling,
-    so the weights are uneven), and again once the log weights are replaced."""
+def test_one_cache_of_weights_serves_correction_resampling_prediction_and_smoothing(
+    monkeypatch,
+):
+    """The clock-aware filter keeps its normalised weights only in ParticleFilter's cache:
+    the weights handed to the clock correction, the resampler, the compiled prediction and
+    the diagnostics are that cache's array, of the current log weights (the very array the
+    smoother gets), equal to the log weights normalised afresh, with the cached ESS equal
+    to theirs - through tempered steps (resampling and regularisation between them),
+    corrections, ESS-triggered resampling and prediction."""
+    obs, _ = fixed_tag_observations(n_pings=8)
+    pf = clock_filter(smoothing_lag=3, resample_when="ess", ess_threshold=0.5)
+    seen = dict.fromkeys(("correction", "resampling", "prediction", "diagnostics", "smoother"), 0)
+    powers = []
+
+    def check(kind, weights):
+        cached_log_weight, cached, n_eff, _ = pf._weighed
+        assert cached_log_weight is pf.particles.log_weight, kind
+        assert weights is cached, kind
+        log_weight = pf.particles.log_weight
+        fresh = np.exp(log_normalise(log_weight))
+        np.testing.assert_allclose(cached, fresh, rtol=1e-12, atol=1e-300, err_msg=kind)
+        assert n_eff == pytest.approx(effective_sample_size(log_weight), rel=1e-12), kind
+        seen[kind] += 1
+
+    def spy(kind, function, position):
+        def wrapped(*args, **kwargs):
+            check(kind, args[position])
+            return function(*args, **kwargs)
+
+        return wrapped
+
+    def temper(*args):
+        beta, *rest = compiled_temper(*args)
+        powers.append(beta)
+        return beta, *rest
+
+    compiled_temper = ct._temper
+
+    def push(smoother, time, x, y, log_weight, parent=None):
+        assert log_weight is pf._weighed[0] and log_weight is pf.particles.log_weight
+        seen["smoother"] += 1
+        return smoother_push(smoother, time, x, y, log_weight, parent)
+
+    smoother_push = ct.FixedLagSmoother.push
+
+    monkeypatch.setattr(ct, "_correction_kernel", spy("correction", ct._correction_kernel, 6))
+    monkeypatch.setattr(ct, "ambiguity", spy("diagnostics", ct.ambiguity, 2))
+    monkeypatch.setattr(ct, "_temper", temper)
+    monkeypatch.setattr(ct.FixedLagSmoother, "push", push)
+    monkeypatch.setattr(pf, "_resample", spy("resampling", pf._resample, 1))
+    motion = type(pf.motion)
+    monkeypatch.setattr(motion, "advance", spy("prediction", motion.advance, 5))
+    for _ in pf.iterate(obs, 100.0, 170.0):
+        pass
+    assert all(seen.values()), seen
+    assert min(powers) < 1.0  # some correction was tempered
+    assert seen["resampling"] < len(powers)  # some corrections kept uneven weights
+
+
+def test_weights_follow_log_weights_replaced_from_outside():
+    """Log weights replaced by someone else than the filter: the weights, ESS and mean are
+    those of the new log weights (oracles: the resampling helpers, np.average)."""
     obs, _ = fixed_tag_observations(n_pings=5)
-    pf = clock_filter(resample_when="ess", ess_threshold=0.05)
+    pf = clock_filter()
     for _ in pf.iterate(obs, 100.0, 140.0):
         pass
-    for attempt in range(2):
-        kept, n_eff, origin = pf._weights()
-        fresh, fresh_n_eff, fresh_origin = ParticleFilter._weights(pf)
-        np.testing.assert_allclose(kept, fresh, rtol=1e-12, atol=1e-300)
-        assert n_eff == pytest.approx(fresh_n_eff, rel=1e-9) and n_eff < 0.99 * pf.particles.n
-        np.testing.assert_allclose(origin, fresh_origin, rtol=1e-12)
-        pf.particles.log_weight = np.random.default_rng(attempt).normal(0, 2, pf.particles.n)
+    p = pf.particles
+    p.log_weight = np.random.default_rng(1).normal(0.0, 2.0, p.n)
+    weights, n_eff, origin = pf._weights()
+    fresh = np.exp(log_normalise(p.log_weight))
+    np.testing.assert_allclose(weights, fresh, rtol=1e-12, atol=1e-300)
+    assert n_eff == pytest.approx(effective_sample_size(p.log_weight), rel=1e-12)
+    np.testing.assert_allclose(
+        origin, (np.average(p.x, weights=fresh), np.average(p.y, weights=fresh)), rtol=1e-12
+    )
 
 
 def test_a_drifting_period_is_followed_by_the_integrated_random_walk():
