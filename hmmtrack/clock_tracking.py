@@ -968,22 +968,17 @@ class ClockAwareFilter(ParticleFilter):
     # ------------------------------------------------------------------ resample
 
     def _resample_now(self) -> None:
-        p = self.particles
-        ancestors = self._resample(self.rng, self._weights()[0], p.n)
-        self.last_ancestors = ancestors  # (ParticleFilter's contract)
-        self.particles = p.take(ancestors, equal_weights=True)
-        self._keep_weights(np.full(p.n, 1.0 / p.n))
+        """The base filter's resampling, keeping the ancestry for the smoother."""
+        super()._resample_now()
         if self._smoother is not None:  # (ancestry is only kept for the smoother)
+            ancestors = self.last_ancestors
             self._parent = ancestors if self._parent is None else self._parent[ancestors]
 
     def resample_if_due(self) -> bool:
-        """Resample per ``resample_when``, keeping the ancestry for the smoother."""
-        self._push_pending()  # the smoother records the corrected, not yet resampled, step
-        p = self.particles
-        if self.resample_when == "ess" and self._weights()[1] >= self.ess_threshold * p.n:
-            return False
-        self._resample_now()
-        return True
+        """Resample per ``resample_when``, after the smoother has recorded the corrected,
+        not yet resampled, step."""
+        self._push_pending()
+        return super().resample_if_due()
 
     # ------------------------------------------------------------------ offline
 

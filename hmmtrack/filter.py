@@ -574,15 +574,21 @@ class ParticleFilter:
     def resample_if_due(self) -> bool:
         """Resample per ``resample_when``; return whether it happened."""
         p = self._require_particles()
-        weights, n_eff, origin = self._weights()
-        if self.resample_when == "ess" and n_eff >= self.ess_threshold * p.n:
+        if self.resample_when == "ess" and self._weights()[1] >= self.ess_threshold * p.n:
             return False
+        self._resample_now()
+        return True
+
+    def _resample_now(self) -> None:
+        """Resample by the normalised weights (:meth:`_weights`): equal weights after it and
+        :attr:`last_ancestors` set."""
+        p = self.particles
+        weights, _, origin = self._weights()
         ancestors = self._resample(self.rng, weights, p.n)
         self.particles = p.take(ancestors, equal_weights=True)
         self.last_ancestors = ancestors
         # equal weights now; the old weighted mean still lies inside the cloud
         self._weighed = (self.particles.log_weight, np.full(p.n, 1.0 / p.n), float(p.n), origin)
-        return True
 
     # ------------------------------------------------------------------ online
 
