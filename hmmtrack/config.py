@@ -13,7 +13,9 @@ those describe the data) for one kind of deployment, read by name with
 :func:`read_preset` (:func:`preset_names` lists them); ``two-moving-receivers`` holds the
 arrival-time filter's settings for two AUVs circling the tag
 (``benchmarks/bench_two_auv_plan.py``). :func:`merge_settings` layers a preset, a file
-and command-line values, later ones winning.
+and command-line values, later ones winning; :func:`measurement_covariance_with` sets the
+standard deviations of Σ_z (``hmmtrack track --sigma-range``). The arrival-time filter's
+detection curve is a key too, e.g. ``"detection_curve": {"range_50": 160, "width": 40}``.
 
 It is not for running anything: :mod:`hmmtrack.tracking` and
 :mod:`hmmtrack.clock_tracking` use it; :meth:`TrackingConfig.motion_model` and
@@ -33,6 +35,7 @@ from pathlib import Path
 import pandas as pd
 
 from hmmtrack.arrival import ArrivalLikelihood, ArrivalTimeMeasurement
+from hmmtrack.detection_probability import LogisticDetection
 from hmmtrack.filter import RESAMPLE_WHEN
 from hmmtrack.ranging import SOUND_SPEED
 from hmmtrack.resampling import RESAMPLERS
@@ -92,11 +95,16 @@ class TrackingConfig:
     transmitter : str or None
         Transmitter to track; ``None`` when the detections hold just one.
     bounds : (xmin, xmax, ymin, ymax) or None
-        Search region for the initial particles (m, receivers' frame). ``None`` derives it
-        from the receivers' first positions and ``r0`` (see
-        :func:`hmmtrack.tracking.search_bounds`).
+        Search region for the initial particles, in metres of the tracking frame: the
+        receivers' ``x``/``y``, or for receivers read as lon/lat the projection
+        :func:`hmmtrack.io.read_receivers` chose for them (the UTM zone of their centre by
+        default; ``hmmtrack track --bounds`` converts a lon/lat box into it). ``None``
+        derives it: from the receivers' first positions and ``r0``
+        (:func:`hmmtrack.tracking.search_bounds`) for ``"range-rate"``, from
+        ``search_radius`` for ``"arrival-time"``.
     bounds_margin : float
-        Margin added around derived bounds (m).
+        ``"range-rate"``: margin (m) added around derived bounds, and the slack of
+        :func:`hmmtrack.tracking.check_bounds` for given ones.
     velocity_window : float
         Width (s) of the window over which receiver velocities are averaged from their GPS
         tracks (see :class:`hmmtrack.receivers.ReceiverTracks`); 0 takes the slope of the
@@ -157,6 +165,12 @@ class TrackingConfig:
         ``measurement="arrival-time"`` only, without ``bounds``: the search box is the
         receivers' positions at the start widened by this many metres (about their
         detection range); ``None`` keeps ``track_arrival_time``'s default.
+    detection_curve : LogisticDetection, mapping or None
+        ``measurement="arrival-time"`` only: the receivers' probability of hearing a ping
+        against range, so that pings a particle says should have been heard but were not
+        count against it (:class:`hmmtrack.detection_probability.LogisticDetection`,
+        ``max_probability`` 1; in a file ``{"range_50": m, "width": m}``). ``None``:
+        missed pings carry no information.
     """
 
     period: float
@@ -186,6 +200,7 @@ class TrackingConfig:
     arrival_sigma: float | None = None
     tempering_ess: float | None = None
     search_radius: float | None = None
+    detection_curve: LogisticDetection | None = None
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
@@ -284,6 +299,13 @@ class TrackingConfig:
             set_(self, name, _positive(name, value))
         if self.tempering_ess is not None and self.tempering_ess > 1:
             raise ValueError(f"tempering_ess must lie in (0, 1], got {self.tempering_ess!r}")
+        if self.detection_curve is not None:
+            if self.measurement != "arrival-time":
+                raise ValueError(
+                    "detection_curve is a setting of measurement 'arrival-time' (missed pings "
+                    f"count in its filter only), not {self.measurement!r}"
+                )
+            set_(self, "detection_curve", _detection_curve(self.detection_curve))
 
     def motion_model(self, model=None, variant: str = "time_consistent", resting="default"):
         """The motion model these settings name, with their noise.
@@ -318,10 +340,9 @@ class TrackingConfig:
         dict
             ``period``, ``bounds``, ``start``, ``end``, ``n_particles``, ``measurement``
             (:class:`hmmtrack.arrival.ArrivalTimeMeasurement` at :attr:`sound_speed`, with
-            :attr:`arrival_sigma` where given) and, where given, ``tempering_ess`` and
-            ``search_radius``. The
-            motion model (:meth:`motion_model`), detection curve, smoother lag and seed
-            are the caller's.
+            :attr:`arrival_sigma` where given) and, where given, ``tempering_ess``,
+            ``search_radius`` and ``detection`` (:attr:`detection_curve`). The motion model
+            (:meth:`motion_model`), smoother lag and seed are the caller's.
         """
         if self.measurement != "arrival-time":
             raise ValueError(
@@ -341,6 +362,8 @@ class TrackingConfig:
         for name in ("tempering_ess", "search_radius"):
             if getattr(self, name) is not None:
                 options[name] = getattr(self, name)
+        if self.detection_curve is not None:
+            options["detection"] = self.detection_curve
         return options
 
     def override(self, **changes) -> TrackingConfig:
@@ -353,6 +376,9 @@ class TrackingConfig:
         out["r0"] = dict(self.r0)
         out["bounds"] = None if self.bounds is None else list(self.bounds)
         out["measurement_covariance"] = [list(row) for row in self.measurement_covariance]
+        if self.detection_curve is not None:
+            curve = self.detection_curve
+            out["detection_curve"] = {"range_50": curve.range_50, "width": curve.width}
         return out
 
     @classmethod
@@ -467,6 +493,54 @@ def _covariance(value) -> tuple[tuple[float, float], tuple[float, float]]:
     if not all(map(math.isfinite, (a, b, c, d))) or b != c or a <= 0 or a * d - b * c <= 0:
         raise ValueError(message)
     return rows
+
+
+def measurement_covariance_with(
+    covariance, sigma_range: float | None = None, sigma_range_rate: float | None = None
+) -> tuple[tuple[float, float], tuple[float, float]]:
+    """Σ_z with new standard deviations of range and/or range-rate, correlation kept.
+
+    Parameters
+    ----------
+    covariance : 2×2 nested sequence
+        Σ_z of (range m, range-rate m/s), as :attr:`TrackingConfig.measurement_covariance`.
+    sigma_range : float, optional
+        New standard deviation of the range (m); ``None`` keeps Σ_z's.
+    sigma_range_rate : float, optional
+        New standard deviation of the range-rate (m/s); ``None`` keeps Σ_z's.
+
+    Returns
+    -------
+    ((var_r, cov), (cov, var_rdot))
+        Diagonal set from the standard deviations; the off-diagonal term rescaled so that
+        the correlation of range and range-rate stays that of ``covariance`` (0 for the
+        paper's diagonal Σ_z).
+    """
+    (var_r, cov), (_, var_rdot) = _covariance(covariance)
+    sigmas = [math.sqrt(var_r), math.sqrt(var_rdot)]
+    correlation = cov / (sigmas[0] * sigmas[1])
+    for i, (name, value) in enumerate(
+        (("sigma_range", sigma_range), ("sigma_range_rate", sigma_range_rate))
+    ):
+        if value is not None:
+            sigmas[i] = _positive(name, value)
+    cov = correlation * sigmas[0] * sigmas[1]
+    return ((sigmas[0] ** 2, cov), (cov, sigmas[1] ** 2))
+
+
+def _detection_curve(value) -> LogisticDetection:
+    if isinstance(value, LogisticDetection):
+        curve = value
+    else:
+        keys = ("range_50", "width")
+        if not isinstance(value, Mapping) or set(value) != set(keys):
+            raise ValueError(
+                'detection_curve must be {"range_50": metres, "width": metres} (the logistic '
+                f"curve of hmmtrack.detection_probability.LogisticDetection), got {value!r}"
+            )
+        curve = LogisticDetection(*(_number(f"detection_curve {k}", value[k]) for k in keys))
+    curve.require_unit_maximum("detection_curve")
+    return curve
 
 
 def _instant(name: str, value) -> float | None:

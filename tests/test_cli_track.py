@@ -24,6 +24,7 @@ from hmmtrack.cli.track import build_config
 from hmmtrack.clock_scenarios import moored_array, realistic_shark_pursuit
 from hmmtrack.clock_tracking import track_arrival_time
 from hmmtrack.config import TrackingConfig
+from hmmtrack.detection_probability import LogisticDetection
 from hmmtrack.motion import VelocityMotion
 from hmmtrack.scenarios import stationary_tag
 from hmmtrack.scenarios.export import write_scenario
@@ -491,3 +492,330 @@ def test_preset_then_config_file_then_options(tmp_path, capsys):
     paper = ["--period", "8", "--r0", "auv-1=10", "--measurement", "range-rate"]
     assert main([*base, *preset, *paper]) == 2
     assert "is a setting of measurement 'arrival-time'" in capsys.readouterr().err
+
+
+@pytest.fixture
+def starting_particles(monkeypatch):
+    """``main(args)`` that must succeed and returns the positions (x, y), shape (N, 2), of
+    the particles its filter started from (Algorithm 1, recorded from ``Particles.uniform``;
+    a later re-initialisation is not the start)."""
+    from hmmtrack.particles import Particles
+
+    uniform, runs = Particles.uniform, []
+
+    def spy(cls, rng, n, bounds):
+        particles = uniform(rng, n, bounds)
+        runs.append(np.column_stack([particles.x, particles.y]))
+        return particles
+
+    monkeypatch.setattr(Particles, "uniform", classmethod(spy))
+
+    def run(args):
+        runs.clear()
+        assert main(args) == 0
+        return runs[0]
+
+    return run
+
+
+def inside(points: np.ndarray, box) -> np.ndarray:
+    xmin, xmax, ymin, ymax = box
+    x, y = points[:, 0], points[:, 1]
+    return (xmin <= x) & (x <= xmax) & (ymin <= y) & (y <= ymax)
+
+
+def test_bounds_option_is_the_starting_particles_box(scenario_files, tmp_path, starting_particles):
+    """--bounds (metres for x/y receivers) is the box the particles start in, here a box
+    around the tag that holds neither receiver; it overrides the --config file's (wider)
+    box; without either, --bounds-margin widens the box derived from r0."""
+    scenario, paths = scenario_files
+    box = (-12.0, 18.0, -9.0, 11.0)
+    first = scenario.receivers.groupby("receiver")[["x", "y"]].first().to_numpy()
+    assert not inside(first, box).any()
+    given = starting_particles([*track_args(paths, tmp_path / "b.csv"), "--bounds", *map(str, box)])
+    filed = starting_particles(track_args(paths, tmp_path / "file.csv"))
+    plain = ["--config", str(paths["metadata"]), "--bounds-margin", "0"]
+    without_file = [a for a in track_args(paths, tmp_path / "d.csv") if a not in plain]
+    r0 = [f"--r0={name}={metres}" for name, metres in scenario.r0.items()]
+    derived = [*without_file, "--period", str(scenario.period), *r0]
+    tight = starting_particles([*derived, "--bounds-margin", "0"])
+    wide = starting_particles([*derived, "--bounds-margin", "50"])
+    assert inside(given, box).all() and len(given) == 1000
+    file_box = json.loads(paths["metadata"].read_text())["bounds"]
+    assert inside(filed, file_box).all() and not inside(filed, box).all()
+    # derived: each receiver's first position ± (r0 + margin)
+    observations = tracking.build_observations(
+        scenario.detections, scenario.receivers, TrackingConfig(scenario.period, scenario.r0)
+    )
+    for run, margin in ((tight, 0.0), (wide, 50.0)):
+        expected = tracking.search_bounds(observations, scenario.r0, margin)
+        assert inside(run, expected).all()
+        assert run[:, 0].min() < expected[0] + 5 and run[:, 0].max() > expected[1] - 5
+    assert np.ptp(wide[:, 0]) > np.ptp(tight[:, 0]) + 80
+
+
+def test_lonlat_bounds_are_degrees_converted_like_the_receivers(
+    scenario_files, tmp_path, starting_particles, capsys
+):
+    """With lon/lat receivers --bounds are LON_MIN LON_MAX LAT_MIN LAT_MAX in degrees; the
+    particles start in the smallest box of the receivers' projection (UTM 11N) holding that
+    lon/lat box (pyproj's transform_bounds as oracle), i.e. around the tag; metres are
+    refused with a message that says degrees."""
+    _, paths = scenario_files
+    lonlat = dict(paths)
+    settings = json.loads(paths["metadata"].read_text())
+    del settings["bounds"]
+    lonlat["metadata"] = tmp_path / "scenario_lonlat.json"
+    lonlat["metadata"].write_text(json.dumps(settings))
+    lonlat["receivers"] = tmp_path / "receivers_lonlat.csv"
+    to_lonlat(pd.read_csv(paths["receivers"])).to_csv(
+        lonlat["receivers"], index=False, float_format="%.9f"
+    )
+    corners = to_lonlat(pd.DataFrame({"x": [-12.0, 18.0], "y": [-9.0, 11.0]}))
+    box = (corners["lon"][0], corners["lon"][1], corners["lat"][0], corners["lat"][1])
+    degrees = [f"{b:.9f}" for b in box]
+    particles = starting_particles([*track_args(lonlat, tmp_path / "e.csv"), "--bounds", *degrees])
+    expected = Transformer.from_crs("EPSG:4326", UTM_11N, always_xy=True).transform_bounds(
+        *(float(d) for d in np.array(degrees)[[0, 2, 1, 3]]), densify_pts=201
+    )
+    xmin, ymin, xmax, ymax = expected
+    assert inside(particles, (xmin - 1e-6, xmax + 1e-6, ymin - 1e-6, ymax + 1e-6)).all()
+    shifted = particles - np.array(ORIGIN)
+    assert inside(shifted, (-12.5, 18.5, -9.5, 11.5)).all()  # the metres box, to 0.5 m
+    assert shifted[:, 0].min() < -11.0 and shifted[:, 0].max() > 17.0
+    derived = starting_particles(track_args(lonlat, tmp_path / "d.csv")) - np.array(ORIGIN)
+    assert not inside(derived, (-12.5, 18.5, -9.5, 11.5)).all()  # without --bounds: wider
+    metres = ["389988", "390018", "3729991", "3730011"]
+    assert main([*track_args(lonlat, tmp_path / "m.csv"), "--bounds", *metres]) == 2
+    assert "LON_MIN LON_MAX LAT_MIN LAT_MAX in degrees" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        (["--bounds", "10", "0", "0", "1"], "XMIN < XMAX and YMIN < YMAX (metres for x/y"),
+        (["--bounds", "0", "10", "5", "5"], "LON_MIN LON_MAX LAT_MIN LAT_MAX degrees for"),
+        (["--bounds", "5000", "5010", "0", "1"], "are the bounds in the receivers' frame?"),
+        (["--measurement", "arrival-time", "--bounds-margin", "5"], "--bounds-margin is used"),
+        (["--measurement", "arrival-time", "--sigma-range", "5"], "--sigma-range is used with"),
+        (["--sigma-range-rate", "0.1", "--measurement", "arrival-time"], "--measurement range"),
+        (["--arrival-sigma", "0.001"], "--arrival-sigma is used with --measurement arrival-time"),
+        (["--detection-curve", "500", "50"], "--detection-curve is used with --measurement arr"),
+        (["--measurement", "arrival-time", "--detection-curve", "500", "0"], "positive width"),
+        (["--search-radius", "100"], "--search-radius is used with --measurement arrival-time"),
+        (["--tempering-ess", "0.5"], "--tempering-ess is used with --measurement arrival-time"),
+        (["--measurement", "arrival-time", "--tempering-ess", "1.5"], "tempering_ess must lie"),
+        (["--sigma-speed", "0.1"], "--sigma-speed is used with --motion velocity only (this"),
+        (["--motion", "baseline", "--sigma-turn-rate", "0"], "run's motion is baseline)"),
+        (["--ess-threshold", "0.5"], "--ess-threshold is used with --resample-when ess only"),
+        (["--resample-when", "ess", "--ess-threshold", "2"], "ess_threshold must lie in"),
+    ],
+)
+def test_bad_settings_options_are_clear_errors(scenario_files, tmp_path, capsys, change, message):
+    _, paths = scenario_files
+    assert main([*track_args(paths, tmp_path / "e.csv"), *change]) == 2
+    assert message in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        (["--bounds", "0", "nan", "0", "1"], "argument --bounds: expected a finite number"),
+        (["--bounds", "0", "1", "west", "1"], "argument --bounds: expected a number, got 'west'"),
+        (["--bounds", "0", "1", "0"], "argument --bounds: expected 4 arguments"),
+        (["--bounds-margin", "-1"], "argument --bounds-margin: expected a number >= 0"),
+        (["--sigma-range", "0"], "argument --sigma-range: expected a positive number"),
+        (["--sigma-range-rate", "inf"], "argument --sigma-range-rate: expected a finite"),
+        (["--arrival-sigma", "-0.001"], "argument --arrival-sigma: expected a positive"),
+        (["--detection-curve", "500"], "argument --detection-curve: expected 2 arguments"),
+        (["--search-radius", "0"], "argument --search-radius: expected a positive number"),
+        (["--sigma-speed", "-0.1"], "argument --sigma-speed: expected a number >= 0"),
+        (["--sound-speed", "nan"], "argument --sound-speed: expected a finite number"),
+    ],
+)
+def test_settings_options_that_do_not_parse(scenario_files, tmp_path, capsys, change, message):
+    _, paths = scenario_files
+    with pytest.raises(SystemExit) as exit_:
+        main([*track_args(paths, tmp_path / "e.csv"), *change])
+    assert exit_.value.code == 2
+    assert message in capsys.readouterr().err
+
+
+def test_sigma_options_reach_the_range_rate_likelihood(scenario_files, tmp_path):
+    """--sigma-range / --sigma-range-rate set Σ_z's diagonal: the run equals the library's
+    with that Σ_z and differs from the default run of the same seed."""
+    _, paths = scenario_files
+    tight, default = tmp_path / "tight.csv", tmp_path / "default.csv"
+    sigmas = ["--sigma-range", "2", "--sigma-range-rate", "0.3", "--motion", "velocity"]
+    assert main([*track_args(paths, tight), *sigmas]) == 0
+    assert main([*track_args(paths, default), "--motion", "velocity"]) == 0
+    config = TrackingConfig.from_json(
+        paths["metadata"],
+        n_particles=1000,
+        measurement_covariance=[[4.0, 0.0], [0.0, 0.09]],
+        motion="velocity",
+    )
+    expected = tracking.track(
+        io.read_detections(paths["detections"]), io.read_receivers(paths["receivers"]), config,
+        seed=3,
+    ).estimates  # fmt: skip
+    written = pd.read_csv(tight)
+    np.testing.assert_allclose(written[["x", "y"]], expected[["x", "y"]], rtol=1e-9)
+    assert np.abs(pd.read_csv(default)["x"] - written["x"]).max() > 0.1
+
+
+def test_detection_curve_reaches_the_arrival_time_filter(arrival_files, tmp_path):
+    """--detection-curve RANGE_50 WIDTH: the run equals track_arrival_time with that
+    LogisticDetection (the scenario's own curve) and differs from the run without it."""
+    scenario, paths = arrival_files
+    window = io.format_times(np.array([scenario.start, scenario.end]))
+    common = [
+        "track", "--detections", str(paths["detections"]), "--receivers",
+        str(paths["receivers"]), "--period", str(scenario.period), "--measurement",
+        "arrival-time", "--motion", "velocity", "--particles", "400", "--seed", "6",
+        "--start", window[0], "--end", window[1],
+    ]  # fmt: skip
+    curve, plain = tmp_path / "curve.csv", tmp_path / "plain.csv"
+    assert main([*common, "--detection-curve", "700", "100", "-o", str(curve)]) == 0
+    assert main([*common, "-o", str(plain)]) == 0
+    direct = track_arrival_time(
+        io.read_detections(paths["detections"]), io.read_receivers(paths["receivers"]),
+        motion=tracking.motion_model("velocity"), period=scenario.period, n_particles=400,
+        detection=LogisticDetection(700.0, 100.0), start=scenario.start, end=scenario.end,
+        seed=6,
+    )  # fmt: skip
+    written = pd.read_csv(curve)
+    np.testing.assert_allclose(written[["x", "y"]], direct.estimates[["x", "y"]], rtol=1e-9)
+    assert np.abs(pd.read_csv(plain)["x"] - written["x"]).max() > 0.1
+
+
+def test_arrival_time_settings_by_options_and_bounds_outside_the_array(
+    arrival_files, tmp_path, starting_particles
+):
+    """--arrival-sigma and --bounds reach track_arrival_time: a box around the tag's start
+    that holds no mooring is where the particles start."""
+    scenario, paths = arrival_files
+    box = (-60.0, 60.0, -50.0, 70.0)
+    assert not inside(scenario.receivers[["x", "y"]].to_numpy(), box).any()
+    window = io.format_times(np.array([scenario.start, scenario.end]))
+    args = [
+        "track", "--detections", str(paths["detections"]), "--receivers",
+        str(paths["receivers"]), "--period", str(scenario.period), "--measurement",
+        "arrival-time", "--motion", "velocity", "--particles", "400", "--seed", "6",
+        "--start", window[0], "--end", window[1], "--arrival-sigma", "0.002", "--bounds",
+        *map(str, box), "-o", str(tmp_path / "e.csv"),
+    ]  # fmt: skip
+    assert inside(starting_particles(args), box).all()
+    direct = track_arrival_time(
+        io.read_detections(paths["detections"]), io.read_receivers(paths["receivers"]),
+        motion=tracking.motion_model("velocity"), period=scenario.period, n_particles=400,
+        measurement=ArrivalTimeMeasurement(ArrivalLikelihood(sigma=0.002)), bounds=box,
+        start=scenario.start, end=scenario.end, seed=6,
+    )  # fmt: skip
+    written = pd.read_csv(tmp_path / "e.csv")
+    np.testing.assert_allclose(written[["x", "y"]], direct.estimates[["x", "y"]], rtol=1e-9)
+
+
+def test_new_settings_keep_preset_then_config_then_options(tmp_path):
+    """Bounds, Σ_z's standard deviations, arrival σ and the detection curve: the options
+    override a --config file, which overrides the preset; a --sigma option keeps the
+    file's other standard deviation and its range/range-rate correlation."""
+    base = ["track", "--detections", "d.csv", "--receivers", "r.csv", "-o", "e.csv"]
+    preset = ["--preset", "two-moving-receivers"]
+    arrival = tmp_path / "arrival.json"
+    arrival.write_text(
+        json.dumps(
+            {"period": 8.0, "bounds": [0, 10, 0, 10], "arrival_sigma": 0.003,
+             "detection_curve": {"range_50": 300, "width": 30}}
+        )
+    )  # fmt: skip
+    paper = tmp_path / "paper.json"
+    paper.write_text(
+        json.dumps(
+            {"period": 8.0, "r0": {"a": 5.0}, "bounds_margin": 20,
+             "measurement_covariance": [[9.0, 0.3], [0.3, 0.04]]}
+        )
+    )  # fmt: skip
+
+    def config_of(*extra):
+        return build_config(build_parser().parse_args([*base, *extra]))
+
+    alone = config_of(*preset, "--period", "8")
+    assert (alone.bounds, alone.arrival_sigma, alone.detection_curve) == (None, 1.2e-3, None)
+    filed = config_of(*preset, "--config", str(arrival))
+    assert (filed.bounds, filed.arrival_sigma) == ((0.0, 10.0, 0.0, 10.0), 0.003)
+    assert filed.detection_curve == LogisticDetection(300.0, 30.0)
+    assert filed.arrival_time_options()["detection"] == LogisticDetection(300.0, 30.0)
+    options = ["--bounds", "-5", "5", "-6", "6", "--arrival-sigma", "0.001"]
+    flagged = config_of(
+        *preset, "--config", str(arrival), *options, "--detection-curve", "200", "20"
+    )
+    assert (flagged.bounds, flagged.arrival_sigma) == ((-5.0, 5.0, -6.0, 6.0), 0.001)
+    assert flagged.detection_curve == LogisticDetection(200.0, 20.0)
+    ranged = config_of("--config", str(paper))
+    assert ranged.bounds_margin == 20.0 and ranged.measurement_covariance[0] == (9.0, 0.3)
+    ranged = config_of("--config", str(paper), "--sigma-range", "6", "--bounds-margin", "0")
+    assert ranged.bounds_margin == 0.0
+    # correlation 0.3 / (3 * 0.2) = 0.5 kept: 0.5 * 6 * 0.2 = 0.6
+    np.testing.assert_allclose(ranged.measurement_covariance, [[36.0, 0.6], [0.6, 0.04]])
+    plain = config_of("--period", "8", "--r0", "a=5", "--sigma-range-rate", "0.1")
+    np.testing.assert_allclose(plain.measurement_covariance, [[25.0, 0.0], [0.0, 0.01]])
+
+
+def test_search_and_motion_settings_by_options(arrival_files, tmp_path, starting_particles):
+    """--search-radius, --tempering-ess, --sigma-speed and --sigma-turn-rate reach
+    track_arrival_time: the particles start within the receivers ± the radius, and the run
+    equals the library's with those settings."""
+    scenario, paths = arrival_files
+    window = io.format_times(np.array([scenario.start, scenario.end]))
+    args = [
+        "track", "--detections", str(paths["detections"]), "--receivers",
+        str(paths["receivers"]), "--period", str(scenario.period), "--measurement",
+        "arrival-time", "--motion", "velocity", "--particles", "400", "--seed", "5",
+        "--start", window[0], "--end", window[1], "--search-radius", "150",
+        "--tempering-ess", "0.6", "--sigma-speed", "0.08", "--sigma-turn-rate", "0.004",
+        "-o", str(tmp_path / "e.csv"),
+    ]  # fmt: skip
+    particles = starting_particles(args)
+    x, y = scenario.receivers["x"], scenario.receivers["y"]
+    box = (x.min() - 150, x.max() + 150, y.min() - 150, y.max() + 150)
+    assert inside(particles, box).all()
+    assert particles[:, 0].min() < box[0] + 20 and particles[:, 0].max() > box[1] - 20
+    direct = track_arrival_time(
+        io.read_detections(paths["detections"]), io.read_receivers(paths["receivers"]),
+        motion=VelocityMotion(0.08, 0.004), period=scenario.period, n_particles=400,
+        search_radius=150.0, tempering_ess=0.6, start=scenario.start, end=scenario.end,
+        seed=5,
+    )  # fmt: skip
+    written = pd.read_csv(tmp_path / "e.csv")
+    np.testing.assert_allclose(written[["x", "y"]], direct.estimates[["x", "y"]], rtol=1e-9)
+
+
+def test_ess_threshold_reaches_the_range_rate_filter(scenario_files, tmp_path):
+    """--resample-when ess --ess-threshold F equals the library's run with that threshold,
+    and a different threshold gives a different run."""
+    _, paths = scenario_files
+    ess = ["--motion", "velocity", "--resample-when", "ess"]
+    low, high = tmp_path / "low.csv", tmp_path / "high.csv"
+    assert main([*track_args(paths, low), *ess, "--ess-threshold", "0.1"]) == 0
+    assert main([*track_args(paths, high), *ess, "--ess-threshold", "0.9"]) == 0
+    config = TrackingConfig.from_json(
+        paths["metadata"], n_particles=1000, motion="velocity", resample_when="ess",
+        ess_threshold=0.1,
+    )  # fmt: skip
+    expected = tracking.track(
+        io.read_detections(paths["detections"]), io.read_receivers(paths["receivers"]), config,
+        seed=3,
+    ).estimates  # fmt: skip
+    written = pd.read_csv(low)
+    np.testing.assert_allclose(written[["x", "y"]], expected[["x", "y"]], rtol=1e-9)
+    assert np.abs(pd.read_csv(high)["x"] - written["x"]).max() > 0.1
+
+
+def test_sigma_options_name_a_bad_covariance_of_the_config_file(tmp_path, capsys):
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps({"period": 8.0, "measurement_covariance": [[1, 2], [2, 1]]}))
+    base = ["track", "--detections", "d.csv", "--receivers", "r.csv", "-o", "e.csv"]
+    assert main([*base, "--config", str(bad), "--r0", "a=1", "--sigma-range", "3"]) == 2
+    err = capsys.readouterr().err
+    assert f"{bad}: measurement_covariance must be a symmetric positive definite" in err

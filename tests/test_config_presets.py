@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
 import pytest
 
 from hmmtrack import config as config_module
@@ -12,10 +13,12 @@ from hmmtrack.arrival import ArrivalLikelihood, ArrivalTimeMeasurement
 from hmmtrack.config import (
     DATA_KEYS,
     TrackingConfig,
+    measurement_covariance_with,
     merge_settings,
     preset_names,
     read_preset,
 )
+from hmmtrack.detection_probability import LogisticDetection
 from hmmtrack.motion import HMMMotion, VelocityMotion
 
 PRESET = "two-moving-receivers"
@@ -23,10 +26,11 @@ PRESET = "two-moving-receivers"
 
 def test_two_receiver_preset_holds_the_settings_tuned_on_the_observable_plan():
     """The preset gives the arrival-time filter the settings tuned on the observable plan
-    (reports/two_auv_plan.md): σ 1.2 ms, VelocityMotion(0.1, 0.003) (a speed that wanders
-    twice as fast as the default's, so that particles keep up with a shark that speeds
-    up), tempering below 30 % of the particles, 4,000 particles; and the benchmark's search
-    box (240 m around the receivers, the scenario's detection reach)."""
+    (reports/two_auv_plan.md): σ 1.2 ms, VelocityMotion(0.1, 0.003) (the default speed
+    spread, twice the earlier tuning's 0.05, so that particles keep up with a shark that
+    speeds up; a turn rate that wanders about 7 times less than the default's), tempering
+    below 30 % of the particles, 4,000 particles; and the benchmark's search box (240 m
+    around the receivers, the scenario's detection reach)."""
     config = TrackingConfig.from_dict(read_preset(PRESET) | {"period": 8.0})
     assert (config.measurement, config.motion) == ("arrival-time", "velocity")
     assert config.motion_model() == VelocityMotion(sigma_speed=0.1, sigma_turn_rate=0.003)
@@ -134,3 +138,83 @@ def test_a_preset_with_the_other_measurement_is_a_clear_error():
             merge_settings(read_preset(PRESET), {"period": 8.0, "measurement": "range-rate"}),
             source="cli",
         )
+
+
+def test_detection_curve_setting_round_trips_and_reaches_the_arrival_time_options():
+    """A mapping or a LogisticDetection; JSON round trip; the curve becomes
+    ``track_arrival_time``'s ``detection``; absent, no ``detection`` is passed."""
+    config = TrackingConfig(
+        period=8.0, measurement="arrival-time", detection_curve={"range_50": 160, "width": "40"}
+    )
+    assert config.detection_curve == LogisticDetection(range_50=160.0, width=40.0)
+    assert config.arrival_time_options()["detection"] is config.detection_curve
+    data = json.loads(json.dumps(config.to_dict()))
+    assert data["detection_curve"] == {"range_50": 160.0, "width": 40.0}
+    assert TrackingConfig.from_dict(data) == config
+    same = TrackingConfig(
+        period=8.0, measurement="arrival-time", detection_curve=LogisticDetection(160.0, 40.0)
+    )
+    assert same == config
+    plain = TrackingConfig(period=8.0, measurement="arrival-time")
+    assert "detection" not in plain.arrival_time_options()
+    assert TrackingConfig.from_dict(json.loads(json.dumps(plain.to_dict()))) == plain
+
+
+@pytest.mark.parametrize(
+    ("curve", "message"),
+    [
+        ({"range_50": 160}, r'detection_curve must be \{"range_50": metres, "width": metres\}'),
+        ([160, 40], "detection_curve must be"),
+        ({"range_50": 160, "width": 40, "slope": 1}, "detection_curve must be"),
+        ({"range_50": 160, "width": "wide"}, "detection_curve width must be a number"),
+        ({"range_50": float("nan"), "width": 40}, "detection_curve range_50 must be a finite"),
+        ({"range_50": 160, "width": 0}, "positive width"),
+        (LogisticDetection(160.0, 40.0, max_probability=0.9), "max_probability 1"),
+    ],
+)
+def test_bad_detection_curves_are_clear_errors(curve, message):
+    with pytest.raises(ValueError, match=message):
+        TrackingConfig(period=8.0, measurement="arrival-time", detection_curve=curve)
+
+
+def test_detection_curve_is_refused_for_the_range_rate_measurement():
+    with pytest.raises(ValueError, match=r"file.json: detection_curve is a setting of measure"):
+        TrackingConfig.from_dict(
+            {"period": 8.0, "detection_curve": {"range_50": 160, "width": 40}},
+            source="file.json",
+        )
+
+
+def test_a_preset_may_carry_a_detection_curve(tmp_path, monkeypatch):
+    monkeypatch.setattr(config_module, "PRESET_DIR", tmp_path)
+    settings = {"measurement": "arrival-time", "detection_curve": {"range_50": 90, "width": 15}}
+    (tmp_path / "reef.json").write_text(json.dumps(settings))
+    config = TrackingConfig.from_dict(read_preset("reef") | {"period": 30.0})
+    assert config.arrival_time_options()["detection"] == LogisticDetection(90.0, 15.0)
+
+
+def test_measurement_covariance_with_new_standard_deviations():
+    """Σ_z = [[σ_r², ρ σ_r σ_ṙ], [ρ σ_r σ_ṙ, σ_ṙ²]]: the given σ replace the old ones, ρ
+    stays (here 0.3 / (3 × 0.2) = 0.5)."""
+    covariance = [[9.0, 0.3], [0.3, 0.04]]
+    np.testing.assert_allclose(
+        measurement_covariance_with(covariance, sigma_range=6.0), [[36.0, 0.6], [0.6, 0.04]]
+    )
+    np.testing.assert_allclose(
+        measurement_covariance_with(covariance, sigma_range_rate=0.1),
+        [[9.0, 0.15], [0.15, 0.01]],
+    )
+    np.testing.assert_allclose(measurement_covariance_with(covariance), covariance)
+    np.testing.assert_allclose(
+        measurement_covariance_with(((25.0, 0.0), (0.0, 0.25)), 2.0, 0.3),
+        [[4.0, 0.0], [0.0, 0.09]],
+    )
+    new = np.array(measurement_covariance_with(covariance, 4.0, 0.7))
+    rho = new[0, 1] / np.sqrt(new[0, 0] * new[1, 1])
+    assert rho == pytest.approx(0.5) and np.linalg.eigvalsh(new).min() > 0
+    with pytest.raises(ValueError, match="sigma_range must be a positive finite number"):
+        measurement_covariance_with(covariance, sigma_range=0.0)
+    with pytest.raises(ValueError, match="sigma_range_rate must be a finite number"):
+        measurement_covariance_with(covariance, sigma_range_rate=float("inf"))
+    with pytest.raises(ValueError, match="positive definite"):
+        measurement_covariance_with([[1, 2], [2, 1]], sigma_range=1.0)

@@ -15,12 +15,21 @@ common time base).
 
 Settings come, in increasing precedence, from ``--preset`` (a bundled set of settings
 for one kind of deployment, e.g. ``two-moving-receivers``), ``--config`` (a JSON file, see
-:mod:`hmmtrack.config`) and the command-line options.
+:mod:`hmmtrack.config`) and the command-line options; every setting a run usually needs
+has an option: search box (``--bounds``, in the receivers file's frame: metres, or degrees
+for lon/lat receivers, converted with their projection by :func:`bounds_in_metres`),
+measurement noise (``--sigma-range``, ``--sigma-range-rate``; ``--arrival-sigma``), the
+detection curve that makes missed pings count (``--detection-curve``), the search radius,
+tempering and velocity-motion noise. An option that the run's measurement or motion model
+does not use is an error, not ignored.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import inspect
+import math
 import sys
 from pathlib import Path
 
@@ -28,10 +37,13 @@ import numpy as np
 import pandas as pd
 
 from hmmtrack import io, metrics, tracking
+from hmmtrack.arrival import ArrivalLikelihood
 from hmmtrack.cli import UserInputError
+from hmmtrack.clock_tracking import track_arrival_time
 from hmmtrack.config import (
     MEASUREMENTS,
     TrackingConfig,
+    measurement_covariance_with,
     merge_settings,
     preset_names,
     read_preset,
@@ -40,6 +52,10 @@ from hmmtrack.config import (
 from hmmtrack.filter import RESAMPLE_WHEN
 from hmmtrack.motion import HMM_VARIANTS
 from hmmtrack.resampling import RESAMPLERS
+
+#: defaults of the arrival-time filter and of the configuration (help texts, build_config)
+_ARRIVAL_DEFAULTS = inspect.signature(track_arrival_time).parameters
+_CONFIG_DEFAULTS = {f.name: f.default for f in dataclasses.fields(TrackingConfig)}
 
 
 def _r0_pair(text: str) -> tuple[str, float]:
@@ -50,6 +66,70 @@ def _r0_pair(text: str) -> tuple[str, float]:
         return name, float(value)
     except ValueError:
         raise argparse.ArgumentTypeError(f"r0 of {name!r} is not a number: {value!r}") from None
+
+
+def _finite(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not np.isfinite(value):
+        raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
+    return value
+
+
+def _positive(text: str) -> float:
+    value = _finite(text)
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
+    return value
+
+
+def _non_negative(text: str) -> float:
+    value = _finite(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a number >= 0, got {text!r}")
+    return value
+
+
+def bounds_in_metres(
+    bounds: tuple[float, float, float, float], projection: io.Projection
+) -> tuple[float, float, float, float]:
+    """The smallest x/y box (m) that holds a lon/lat box, in the receivers' projection.
+
+    Parameters
+    ----------
+    bounds : (lon_min, lon_max, lat_min, lat_max)
+        Degrees (WGS 84), ``lon_min < lon_max`` (a box across the antimeridian is not
+        supported), latitudes in [-90, 90].
+    projection : hmmtrack.io.Projection
+        The projection the receivers were converted with.
+
+    Returns
+    -------
+    (xmin, xmax, ymin, ymax) : tuple of float
+        Metres: the box's edges, each projected at 201 points, bounded (a projected
+        lon/lat box is not a rectangle: the x/y box is slightly larger).
+    """
+    lon_min, lon_max, lat_min, lat_max = bounds
+    if not (-180.0 <= lon_min < lon_max <= 180.0 and -90.0 <= lat_min < lat_max <= 90.0):
+        raise UserInputError(
+            "--bounds are LON_MIN LON_MAX LAT_MIN LAT_MAX in degrees when the receivers file "
+            "gives lon/lat: longitudes in [-180, 180], latitudes in [-90, 90], min < max; "
+            f"got {tuple(bounds)} (metres of a projection are not accepted)"
+        )
+    t = np.linspace(0.0, 1.0, 201)
+    lon = lon_min + (lon_max - lon_min) * t
+    lat = lat_min + (lat_max - lat_min) * t
+    edge_lon = np.concatenate([lon, lon, np.full_like(lat, lon_min), np.full_like(lat, lon_max)])
+    edge_lat = np.concatenate([np.full_like(lon, lat_min), np.full_like(lon, lat_max), lat, lat])
+    x, y = projection.to_xy(edge_lon, edge_lat)
+    if not (np.isfinite(x).all() and np.isfinite(y).all()):
+        raise UserInputError(
+            f"--bounds {tuple(bounds)} (lon/lat degrees) reach outside the receivers' "
+            "projection: give a box near the receivers"
+        )
+    return float(x.min()), float(x.max()), float(y.min()), float(y.max())
 
 
 def register(subparsers) -> None:
@@ -139,7 +219,122 @@ def register(subparsers) -> None:
         choices=RESAMPLE_WHEN,
         help="resample after every correction (always: default, the paper) or on low ESS",
     )
-    parser.add_argument("--sound-speed", type=float, help="speed of sound (m/s, default 1460)")
+    parser.add_argument(
+        "--bounds",
+        type=_finite,
+        nargs=4,
+        metavar=("XMIN", "XMAX", "YMIN", "YMAX"),
+        help=(
+            "search box of the initial particles, in the frame of the receivers file: "
+            "metres for x/y receivers; for lon/lat receivers LON_MIN LON_MAX LAT_MIN LAT_MAX "
+            "in degrees, converted with the receivers' projection (the smallest x/y box "
+            "holding it; a --config file's bounds are metres of that projection). "
+            "Default: range-rate, the receivers' first positions widened by "
+            "r0 + --bounds-margin; arrival-time, the receivers widened by --search-radius"
+        ),
+    )
+    parser.add_argument(
+        "--bounds-margin",
+        type=_non_negative,
+        metavar="METRES",
+        help=(
+            "range-rate only: metres added around the derived search box (default "
+            f"{_CONFIG_DEFAULTS['bounds_margin']:g}), "
+            "and how far given --bounds may miss a receiver's first range"
+        ),
+    )
+    parser.add_argument(
+        "--sigma-range",
+        type=_positive,
+        metavar="METRES",
+        help=(
+            "range-rate only: standard deviation of the range in the measurement covariance "
+            f"(m; default {math.sqrt(_CONFIG_DEFAULTS['measurement_covariance'][0][0]):g}); "
+            "a --config file's correlation of range and range-rate is kept"
+        ),
+    )
+    parser.add_argument(
+        "--sigma-range-rate",
+        type=_positive,
+        metavar="M_PER_S",
+        help=(
+            "range-rate only: standard deviation of the range-rate (m/s; default "
+            f"{math.sqrt(_CONFIG_DEFAULTS['measurement_covariance'][1][1]):g})"
+        ),
+    )
+    parser.add_argument(
+        "--arrival-sigma",
+        type=_positive,
+        metavar="SECONDS",
+        help=(
+            "arrival-time only: standard deviation of an arrival-time residual "
+            f"(s; default {ArrivalLikelihood().sigma:g})"
+        ),
+    )
+    parser.add_argument(
+        "--detection-curve",
+        type=_finite,
+        nargs=2,
+        metavar=("RANGE_50", "WIDTH"),
+        help=(
+            "arrival-time only: probability of hearing a ping against range, "
+            "1 / (1 + exp((r - RANGE_50) / WIDTH)) (both in metres), so that pings the "
+            "particles say should have been heard but were not count against them"
+        ),
+    )
+    parser.add_argument(
+        "--search-radius",
+        type=_positive,
+        metavar="METRES",
+        help=(
+            "arrival-time only, without --bounds: the search box is the receivers' positions "
+            "at the start widened by this (about their detection range; default "
+            f"{_ARRIVAL_DEFAULTS['search_radius'].default:g})"
+        ),
+    )
+    parser.add_argument(
+        "--tempering-ess",
+        type=_positive,
+        metavar="FRACTION",
+        help=(
+            "arrival-time only: temper a correction that would leave fewer than this "
+            f"fraction of the particles, in (0, 1] (default "
+            f"{_ARRIVAL_DEFAULTS['tempering_ess'].default:g})"
+        ),
+    )
+    parser.add_argument(
+        "--sigma-speed",
+        type=_non_negative,
+        metavar="M_PER_S",
+        help=(
+            "velocity motion only: spread of the speed increments "
+            f"(m/s per sqrt(s); default {tracking.VELOCITY_SIGMA_SPEED:g})"
+        ),
+    )
+    parser.add_argument(
+        "--sigma-turn-rate",
+        type=_non_negative,
+        metavar="RAD_PER_S",
+        help=(
+            "velocity motion only: spread of the turn-rate increments "
+            f"(rad/s per sqrt(s); default {tracking.VELOCITY_SIGMA_TURN_RATE:g})"
+        ),
+    )
+    parser.add_argument(
+        "--ess-threshold",
+        type=_positive,
+        metavar="FRACTION",
+        help=(
+            "with --resample-when ess: resample below this fraction of N, in (0, 1] "
+            f"(default {_CONFIG_DEFAULTS['ess_threshold']:g})"
+        ),
+    )
+    parser.add_argument(
+        "--sound-speed",
+        type=_positive,
+        metavar="M_PER_S",
+        help=f"speed of sound (m/s, default {_CONFIG_DEFAULTS['sound_speed']:g})",
+    )
     parser.add_argument(
         "--transmitter", help="transmitter to track (full id or ID part) when the log holds several"
     )
@@ -156,10 +351,50 @@ def register(subparsers) -> None:
     parser.set_defaults(func=run)
 
 
+#: options that one measurement or motion model only uses: option -> (setting, value)
+_MODEL_OPTIONS = {
+    "bounds_margin": ("measurement", "range-rate"),
+    "sigma_range": ("measurement", "range-rate"),
+    "sigma_range_rate": ("measurement", "range-rate"),
+    "arrival_sigma": ("measurement", "arrival-time"),
+    "detection_curve": ("measurement", "arrival-time"),
+    "search_radius": ("measurement", "arrival-time"),
+    "tempering_ess": ("measurement", "arrival-time"),
+    "sigma_speed": ("motion", "velocity"),
+    "sigma_turn_rate": ("motion", "velocity"),
+    "ess_threshold": ("resample_when", "ess"),
+}
+
+
 def build_config(args: argparse.Namespace) -> TrackingConfig:
     """The run's settings: ``--preset`` (if any), overridden by the ``--config`` file (if
-    any), overridden by the options."""
+    any), overridden by the options.
+
+    ``--bounds`` are taken as metres here; :func:`run` converts them with
+    :func:`bounds_in_metres` when the receivers are lon/lat.
+    """
+    if args.bounds is not None:
+        xmin, xmax, ymin, ymax = args.bounds
+        if not (xmin < xmax and ymin < ymax):
+            raise UserInputError(
+                "--bounds must be XMIN XMAX YMIN YMAX with XMIN < XMAX and YMIN < YMAX (metres "
+                "for x/y receivers, LON_MIN LON_MAX LAT_MIN LAT_MAX degrees for lon/lat ones), "
+                f"got {' '.join(f'{b:g}' for b in args.bounds)}"
+            )
     overrides = {
+        "bounds": args.bounds,
+        "bounds_margin": args.bounds_margin,
+        "arrival_sigma": args.arrival_sigma,
+        "search_radius": args.search_radius,
+        "tempering_ess": args.tempering_ess,
+        "sigma_speed": args.sigma_speed,
+        "sigma_turn_rate": args.sigma_turn_rate,
+        "ess_threshold": args.ess_threshold,
+        "detection_curve": (
+            None
+            if args.detection_curve is None
+            else {"range_50": args.detection_curve[0], "width": args.detection_curve[1]}
+        ),
         "period": args.period,
         "r0": dict(args.r0) if args.r0 else None,
         "n_particles": args.particles,
@@ -181,6 +416,22 @@ def build_config(args: argparse.Namespace) -> TrackingConfig:
         layers.append(read_settings(args.config))
         sources.append(args.config)
     settings = merge_settings(*layers, overrides)
+    for name, (setting, needed) in _MODEL_OPTIONS.items():
+        used = settings.get(setting, _CONFIG_DEFAULTS[setting])
+        if getattr(args, name) is not None and used != needed:
+            raise UserInputError(
+                f"--{name.replace('_', '-')} is used with --{setting.replace('_', '-')} "
+                f"{needed} only (this run's {setting} is {used})"
+            )
+    if args.sigma_range is not None or args.sigma_range_rate is not None:
+        try:
+            settings["measurement_covariance"] = measurement_covariance_with(
+                settings.get("measurement_covariance", _CONFIG_DEFAULTS["measurement_covariance"]),
+                args.sigma_range,
+                args.sigma_range_rate,
+            )
+        except ValueError as exc:  # the covariance of the preset or file
+            raise ValueError(f"{', '.join(sources)}: {exc}") from None
     if not args.config:
         arrival = settings.get("measurement") == "arrival-time"
         needed = ("period",) if arrival else ("period", "r0")
@@ -234,8 +485,6 @@ def _within_truth(estimates: pd.DataFrame, truth: pd.DataFrame) -> pd.DataFrame:
 
 def _track_arrival_time(args, config, detections, receivers, motion, seed):
     """Estimates and events of an arrival-time run (:mod:`hmmtrack.clock_tracking`)."""
-    from hmmtrack.clock_tracking import track_arrival_time
-
     result = track_arrival_time(
         tracking.select_transmitter(detections, config.transmitter),
         receivers,
@@ -275,6 +524,8 @@ def run(args: argparse.Namespace) -> int:
     detections = io.read_detections(args.detections)
     receivers = io.read_receivers(args.receivers)
     projection = io.Projection.from_frame(receivers)
+    if args.bounds is not None and projection is not None:
+        config = config.override(bounds=bounds_in_metres(args.bounds, projection))
     resting = None if args.no_resting else "default"
     motion = config.motion_model(args.model, variant=args.hmm_variant, resting=resting)
     snapshots, observations = {}, None
