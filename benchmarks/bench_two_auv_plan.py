@@ -95,7 +95,7 @@ def arrival_run(case, settings: dict, smoothing_lag, seed, silences: bool = True
     """:func:`hmmtrack.clock_tracking.track_arrival_time` with ``settings`` (keys of
     :class:`hmmtrack.config.TrackingConfig`) on ``case``'s clock-corrected detections
     (default clock model; the scenario's detection curve, so that missed pings count,
-    unless ``silences`` is False, as ``hmmtrack track`` runs it)."""
+    unless ``silences`` is False, as ``hmmtrack track`` runs without ``--detection-curve``)."""
     sc = case.scenario
     detections, _, common = inputs(case, seed, settings["n_particles"], "velocity", DURATION)
     window = {key: common[key] for key in ("period", "bounds", "start", "end")}
@@ -200,7 +200,7 @@ def settings_lines() -> str:
         f"- default (`track_arrival_time`'s, velocity motion): {DEFAULT}\n"
         f"- tuned (`--preset {PRESET}`, hmmtrack/data/presets/{PRESET}.json): {TUNED}\n"
         f"- {NO_SILENCES}: the same without the detection curve (missed pings carry no "
-        "information), as `hmmtrack track --preset` runs it"
+        "information), as `hmmtrack track --preset` runs without `--detection-curve 160 40`"
     )
 
 

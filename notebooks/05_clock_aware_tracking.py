@@ -132,10 +132,9 @@ arrival = track_arrival_time(
     detections,
     sc.receivers,
     motion=arrival_config.motion_model(),
-    detection=case.detection_probability,
     smoothing_lag=SMOOTHING_LAG,
     seed=seed,
-    **arrival_config.arrival_time_options(),
+    **(arrival_config.arrival_time_options() | {"detection": case.detection_probability}),
 )
 runs = {RANGE_RATE: range_rate.estimates, FILTERED: arrival.estimates, SMOOTHED: arrival.smoothed}
 for name, estimates in runs.items():
