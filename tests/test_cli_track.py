@@ -61,6 +61,36 @@ def track_args(paths, output, *extra):
     ]
 
 
+def arrival_args(scenario, paths, particles, seed):
+    """``hmmtrack track`` arguments for the arrival-time fixture: its files, period and
+    time window, velocity motion, ``particles`` and ``seed`` (add ``-o`` and options)."""
+    window = io.format_times(np.array([scenario.start, scenario.end]))
+    return [
+        "track", "--detections", str(paths["detections"]), "--receivers",
+        str(paths["receivers"]), "--period", str(scenario.period), "--measurement",
+        "arrival-time", "--motion", "velocity", "--particles", str(particles), "--seed",
+        str(seed), "--start", window[0], "--end", window[1],
+    ]  # fmt: skip
+
+
+def library_estimates(paths, motion_model=None, **settings):
+    """What ``tracking.track`` gives on the fixture files with the metadata file's settings,
+    1000 particles and ``settings``, seed 3 (the CLI runs are compared with it)."""
+    config = TrackingConfig.from_json(paths["metadata"], n_particles=1000, **settings)
+    detections = io.read_detections(paths["detections"])
+    return tracking.track(
+        detections, io.read_receivers(paths["receivers"]), config, motion_model, seed=3
+    ).estimates
+
+
+def assert_written_is(written, expected, other):
+    """The CSV ``written`` holds ``expected``'s positions, and the CSV ``other`` (the run
+    without the option) differs from it."""
+    written = pd.read_csv(written)
+    np.testing.assert_allclose(written[["x", "y"]], expected[["x", "y"]], rtol=1e-9)
+    assert np.abs(pd.read_csv(other)["x"] - written["x"]).max() > 0.1
+
+
 def printed_number(text: str, label: str) -> float:
     line = next(line for line in text.splitlines() if line.startswith(label))
     return float(line.split(":")[-1].split()[0])
@@ -235,13 +265,7 @@ def test_arrival_time_measurement_without_r0_runs_the_clock_aware_tracker(
     :func:`hmmtrack.clock_tracking.track_arrival_time` estimates from the same files;
     ``--smooth`` writes the fixed-lag smoothed track instead."""
     scenario, paths = arrival_files
-    window = io.format_times(np.array([scenario.start, scenario.end]))
-    common = [
-        "track", "--detections", str(paths["detections"]), "--receivers",
-        str(paths["receivers"]), "--period", str(scenario.period), "--measurement",
-        "arrival-time", "--motion", "velocity", "--particles", "500", "--seed", "4",
-        "--start", window[0], "--end", window[1],
-    ]  # fmt: skip
+    common = arrival_args(scenario, paths, 500, 4)
     filtered, smoothed = tmp_path / "filtered.csv", tmp_path / "smoothed.csv"
     assert main([*common, "-o", str(filtered)]) == 0
     truth = ["--truth", str(paths["truth"])]
@@ -271,17 +295,10 @@ def test_the_papers_configuration_is_reachable_from_the_command_line(scenario_fi
     options = ["--resampling", "multinomial", "--resample-when", "always"]
     assert main([*track_args(paths, paper), *options, "--hmm-variant", "paper"]) == 0
     assert main(track_args(paths, default)) == 0
-    config = TrackingConfig.from_json(paths["metadata"], n_particles=1000, resampling="multinomial")
-    expected = tracking.track(
-        io.read_detections(paths["detections"]),
-        io.read_receivers(paths["receivers"]),
-        config,
-        tracking.motion_model("hmm", variant="paper"),
-        seed=3,
-    ).estimates
-    written = pd.read_csv(paper)
-    np.testing.assert_allclose(written[["x", "y"]], expected[["x", "y"]], rtol=1e-9)
-    assert not np.allclose(pd.read_csv(default)["x"], written["x"])
+    expected = library_estimates(
+        paths, tracking.motion_model("hmm", variant="paper"), resampling="multinomial"
+    )
+    assert_written_is(paper, expected, default)
 
 
 def test_no_resting_reaches_the_hmm_motion_model(scenario_files, tmp_path, capsys, monkeypatch):
@@ -649,32 +666,17 @@ def test_sigma_options_reach_the_range_rate_likelihood(scenario_files, tmp_path)
     sigmas = ["--sigma-range", "2", "--sigma-range-rate", "0.3", "--motion", "velocity"]
     assert main([*track_args(paths, tight), *sigmas]) == 0
     assert main([*track_args(paths, default), "--motion", "velocity"]) == 0
-    config = TrackingConfig.from_json(
-        paths["metadata"],
-        n_particles=1000,
-        measurement_covariance=[[4.0, 0.0], [0.0, 0.09]],
-        motion="velocity",
+    expected = library_estimates(
+        paths, measurement_covariance=[[4.0, 0.0], [0.0, 0.09]], motion="velocity"
     )
-    expected = tracking.track(
-        io.read_detections(paths["detections"]), io.read_receivers(paths["receivers"]), config,
-        seed=3,
-    ).estimates  # fmt: skip
-    written = pd.read_csv(tight)
-    np.testing.assert_allclose(written[["x", "y"]], expected[["x", "y"]], rtol=1e-9)
-    assert np.abs(pd.read_csv(default)["x"] - written["x"]).max() > 0.1
+    assert_written_is(tight, expected, default)
 
 
 def test_detection_curve_reaches_the_arrival_time_filter(arrival_files, tmp_path):
     """--detection-curve RANGE_50 WIDTH: the run equals track_arrival_time with that
     LogisticDetection (the scenario's own curve) and differs from the run without it."""
     scenario, paths = arrival_files
-    window = io.format_times(np.array([scenario.start, scenario.end]))
-    common = [
-        "track", "--detections", str(paths["detections"]), "--receivers",
-        str(paths["receivers"]), "--period", str(scenario.period), "--measurement",
-        "arrival-time", "--motion", "velocity", "--particles", "400", "--seed", "6",
-        "--start", window[0], "--end", window[1],
-    ]  # fmt: skip
+    common = arrival_args(scenario, paths, 400, 6)
     curve, plain = tmp_path / "curve.csv", tmp_path / "plain.csv"
     assert main([*common, "--detection-curve", "700", "100", "-o", str(curve)]) == 0
     assert main([*common, "-o", str(plain)]) == 0
@@ -684,9 +686,7 @@ def test_detection_curve_reaches_the_arrival_time_filter(arrival_files, tmp_path
         detection=LogisticDetection(700.0, 100.0), start=scenario.start, end=scenario.end,
         seed=6,
     )  # fmt: skip
-    written = pd.read_csv(curve)
-    np.testing.assert_allclose(written[["x", "y"]], direct.estimates[["x", "y"]], rtol=1e-9)
-    assert np.abs(pd.read_csv(plain)["x"] - written["x"]).max() > 0.1
+    assert_written_is(curve, direct.estimates, plain)
 
 
 def test_arrival_time_settings_by_options_and_bounds_outside_the_array(
@@ -697,12 +697,9 @@ def test_arrival_time_settings_by_options_and_bounds_outside_the_array(
     scenario, paths = arrival_files
     box = (-60.0, 60.0, -50.0, 70.0)
     assert not inside(scenario.receivers[["x", "y"]].to_numpy(), box).any()
-    window = io.format_times(np.array([scenario.start, scenario.end]))
     args = [
-        "track", "--detections", str(paths["detections"]), "--receivers",
-        str(paths["receivers"]), "--period", str(scenario.period), "--measurement",
-        "arrival-time", "--motion", "velocity", "--particles", "400", "--seed", "6",
-        "--start", window[0], "--end", window[1], "--arrival-sigma", "0.002", "--bounds",
+        *arrival_args(scenario, paths, 400, 6),
+        "--arrival-sigma", "0.002", "--bounds",
         *map(str, box), "-o", str(tmp_path / "e.csv"),
     ]  # fmt: skip
     assert inside(starting_particles(args), box).all()
@@ -767,12 +764,9 @@ def test_search_and_motion_settings_by_options(arrival_files, tmp_path, starting
     track_arrival_time: the particles start within the receivers ± the radius, and the run
     equals the library's with those settings."""
     scenario, paths = arrival_files
-    window = io.format_times(np.array([scenario.start, scenario.end]))
     args = [
-        "track", "--detections", str(paths["detections"]), "--receivers",
-        str(paths["receivers"]), "--period", str(scenario.period), "--measurement",
-        "arrival-time", "--motion", "velocity", "--particles", "400", "--seed", "5",
-        "--start", window[0], "--end", window[1], "--search-radius", "150",
+        *arrival_args(scenario, paths, 400, 5),
+        "--search-radius", "150",
         "--tempering-ess", "0.6", "--sigma-speed", "0.08", "--sigma-turn-rate", "0.004",
         "-o", str(tmp_path / "e.csv"),
     ]  # fmt: skip
@@ -799,17 +793,8 @@ def test_ess_threshold_reaches_the_range_rate_filter(scenario_files, tmp_path):
     low, high = tmp_path / "low.csv", tmp_path / "high.csv"
     assert main([*track_args(paths, low), *ess, "--ess-threshold", "0.1"]) == 0
     assert main([*track_args(paths, high), *ess, "--ess-threshold", "0.9"]) == 0
-    config = TrackingConfig.from_json(
-        paths["metadata"], n_particles=1000, motion="velocity", resample_when="ess",
-        ess_threshold=0.1,
-    )  # fmt: skip
-    expected = tracking.track(
-        io.read_detections(paths["detections"]), io.read_receivers(paths["receivers"]), config,
-        seed=3,
-    ).estimates  # fmt: skip
-    written = pd.read_csv(low)
-    np.testing.assert_allclose(written[["x", "y"]], expected[["x", "y"]], rtol=1e-9)
-    assert np.abs(pd.read_csv(high)["x"] - written["x"]).max() > 0.1
+    expected = library_estimates(paths, motion="velocity", resample_when="ess", ess_threshold=0.1)
+    assert_written_is(low, expected, high)
 
 
 def test_sigma_options_name_a_bad_covariance_of_the_config_file(tmp_path, capsys):
