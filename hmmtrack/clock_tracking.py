@@ -1047,6 +1047,23 @@ def arrival_observations(detections: pd.DataFrame, receivers: ReceiverTracks) ->
     return obs.sort_values("time", kind="stable").reset_index(drop=True)
 
 
+def default_clock_model(period: float) -> EmissionClockModel:
+    """The tag clock model of :func:`track_arrival_time` when none is given.
+
+    ``EmissionClockModel(period, period_step_sd=3e-4, phase_step_sd=1e-4,
+    initial_period_sd=1e-3·period)``: a period random walk of 0.3 ms per ping (~40 ppm of an
+    8 s period), which over 100-400 pings spreads the period by 375-750 ppm, the size of a
+    real tag's block-to-block changes (DESIGN.md), and stays bounded when the tag's clock
+    wanders otherwise (robustness table of reports/clock_aware.md).
+
+    Parameters
+    ----------
+    period : float
+        Nominal transmitter period (s).
+    """
+    return EmissionClockModel(period, 3e-4, 1e-4, 1e-3 * period)
+
+
 def track_arrival_time(
     detections: pd.DataFrame,
     receivers: pd.DataFrame,
@@ -1085,13 +1102,9 @@ def track_arrival_time(
     measurement : ArrivalTimeMeasurement, optional
         Default: :class:`ArrivalTimeMeasurement` with its default likelihood.
     clock : EmissionClockModel, optional
-        Default: ``EmissionClockModel(period, period_step_sd=3e-4, phase_step_sd=1e-4,
-        initial_period_sd=1e-3·period)``: a period random walk of 0.3 ms per ping (~40 ppm
-        of an 8 s period), which over 100-400 pings spreads the period by 375-750 ppm,
-        the size of a real tag's block-to-block changes (DESIGN.md), and stays bounded
-        when the tag's clock wanders otherwise (robustness table of
-        reports/clock_aware.md). :meth:`EmissionClockModel.temperature_drift` is the
-        alternative for tags known to drift smoothly.
+        Default: :func:`default_clock_model` of ``period``.
+        :meth:`EmissionClockModel.temperature_drift` is the alternative for tags known to
+        drift smoothly.
     n_particles : int
     smoothing_lag : int, optional
         Steps (s) of the fixed-lag smoother; None: no smoothing.
@@ -1121,7 +1134,7 @@ def track_arrival_time(
             ys.max() + search_radius,
         )
     measurement = measurement or ArrivalTimeMeasurement()
-    clock = clock or EmissionClockModel(period, 3e-4, 1e-4, 1e-3 * period)
+    clock = clock or default_clock_model(period)
     silence = None
     if detection is not None:
         silence = SilenceModel.from_observations(obs, tracks, detection)

@@ -13,9 +13,13 @@ from hmmtrack.clock_scenarios import (
     Multipath,
     RotatingPlan,
     WanderingPeriodClock,
+    homing_memory,
     moored_array,
+    pair_bearings,
     realistic_shark_pursuit,
     recent_velocity,
+    rotating_pair,
+    station,
     steered_auv,
 )
 from hmmtrack.scenarios.trajectory import Trajectory
@@ -240,3 +244,26 @@ def test_a_rotating_plan_is_a_steering_and_the_named_plans_are_rotating_plans():
         RotatingPlan(lead_window=-1.0)
     with pytest.raises(ValueError, match="observable"):
         realistic_shark_pursuit(2, steering="observed")
+
+
+def test_the_plan_geometry_pieces_in_closed_form():
+    """``homing_memory``: ``keep = e^(-1/τ)`` and the lag ``keep / (1 - keep)`` is the time a
+    vehicle homing on a set point moving at constant speed trails it (1 s steps, the
+    geometric series); ``station``: ``radius`` from the shark at ``bearing``, shifted by the
+    lead; ``pair_bearings``: ``separation`` apart, turning ``2π`` per ``lap_time``; and
+    :func:`rotating_pair` is :func:`steered_auv` flown on those bearings."""
+    keep, lag = homing_memory(20.0)
+    assert keep == pytest.approx(np.exp(-0.05))
+    assert lag == pytest.approx(sum(k * (1 - keep) * keep**k for k in range(2000)))
+    x, y = station(3.0, -4.0, 27.0, np.pi / 3)
+    assert (x, y) == pytest.approx((3.0 + 13.5, -4.0 + 27.0 * np.sqrt(3) / 2))
+    assert station(3.0, -4.0, 27.0, np.pi / 3, (1.0, 2.0)) == pytest.approx((x + 1.0, y + 2.0))
+    bearings = pair_bearings(np.array([0.0, 75.0]), 0.2, 150.0, 2.0)
+    np.testing.assert_allclose(bearings["auv-1"], [0.2, 0.2 + np.pi])
+    np.testing.assert_allclose(bearings["auv-2"] - bearings["auv-1"], [2.0, 2.0])
+    time = np.arange(0.0, 301.0)
+    shark = Trajectory(time, 0.5 * time, np.sin(time / 50.0))
+    pair = rotating_pair(shark, 0.2, radius=27.0, lap_time=150.0, separation=2.0, lead_window=30.0)
+    for name, bearing in pair_bearings(time, 0.2, 150.0, 2.0).items():
+        alone = steered_auv(shark, 27.0, bearing, 20.0, 30.0)
+        np.testing.assert_array_equal(pair[name].x, alone.x)
