@@ -111,33 +111,29 @@ class Estimate(NamedTuple):
 
 def _estimates(times, origin, moments: np.ndarray, n_eff: float) -> list[Estimate]:
     """Estimates at ``times`` (K,) from weighted moments ``(K, 5)`` of positions relative to
-    ``origin``: mean x, mean y, mean x^2, mean y^2, mean xy."""
-    return [
-        _estimate(
-            time,
-            origin[0] + mx,
-            origin[1] + my,
-            max(sxx - mx * mx, 0.0),
-            max(syy - my * my, 0.0),
-            sxy - mx * my,
-            n_eff,
+    ``origin``: mean x, mean y, mean x^2, mean y^2, mean xy (plain floats throughout: made
+    every second of a run)."""
+    x0, y0, n_eff = float(origin[0]), float(origin[1]), float(n_eff)
+    estimates = []
+    for time, (mx, my, sxx, syy, sxy) in zip(
+        np.asarray(times, dtype=np.float64).tolist(), np.atleast_2d(moments).tolist(), strict=True
+    ):
+        var_x, var_y, cov_xy = max(sxx - mx * mx, 0.0), max(syy - my * my, 0.0), sxy - mx * my
+        sqrt_lambda1 = sqrt_largest_eigenvalue(var_x, var_y, cov_xy)
+        estimates.append(
+            Estimate(time, x0 + mx, y0 + my, var_x, var_y, cov_xy, sqrt_lambda1, n_eff)
         )
-        for time, (mx, my, sxx, syy, sxy) in zip(
-            np.asarray(times, dtype=np.float64).tolist(),
-            np.atleast_2d(moments).tolist(),
-            strict=True,
-        )
-    ]
+    return estimates
 
 
 def _estimate(time, mean_x, mean_y, var_x, var_y, cov_xy, n_eff) -> Estimate:
     """One :class:`Estimate` from the weighted mean and covariance (plain floats, no arrays:
     the correction's estimate is made 900 times in an hour's run)."""
-    sqrt_lambda1 = float(sqrt_largest_eigenvalue(var_x, var_y, cov_xy))
-    return Estimate(
-        float(time), float(mean_x), float(mean_y), float(var_x), float(var_y),
-        float(cov_xy), sqrt_lambda1, float(n_eff),
-    )  # fmt: skip
+    time, mean_x, mean_y, var_x, var_y, cov_xy, n_eff = map(
+        float, (time, mean_x, mean_y, var_x, var_y, cov_xy, n_eff)
+    )
+    sqrt_lambda1 = sqrt_largest_eigenvalue(var_x, var_y, cov_xy)
+    return Estimate(time, mean_x, mean_y, var_x, var_y, cov_xy, sqrt_lambda1, n_eff)
 
 
 @njit(cache=True)
@@ -682,12 +678,19 @@ class ParticleFilter:
             matrix = as_matrix(obs)
         snap_ticks = self._snapshot_ticks(snapshot_times, start, n_ticks)
         stops = np.union1d(np.union1d(ticks, snap_ticks), [0, n_ticks])
+        # each stop's observations are rows lo:hi (one search for all stops, plain ints)
+        rows = zip(
+            stops.tolist(),
+            np.searchsorted(ticks, stops).tolist(),
+            np.searchsorted(ticks, stops + 1).tolist(),
+            strict=True,
+        )
+        snap_ticks = set(snap_ticks.tolist())
         current = 0
-        for stop in stops:
-            predicted = self.predict(int(stop - current))
+        for stop, lo, hi in rows:
+            predicted = self.predict(stop - current)
             yield from predicted[:-1]
             estimate = predicted[-1] if predicted else self.estimate()
-            lo, hi = np.searchsorted(ticks, [stop, stop + 1])
             if hi > lo and matrix is not None:
                 loglik = self.measurement.loglik_matrix(self.particles, matrix[lo:hi])
                 estimate = self._weigh(loglik, lambda lo=lo, hi=hi: obs.iloc[lo:hi])
