@@ -369,8 +369,8 @@ class ParticleFilter:
     threads : int or None
         Threads for compiled prediction; ``None`` uses one thread for small calls (fewer
         than :data:`PARALLEL_MIN_WORK` particle-steps) and otherwise whichever of one
-        thread and numba's maximum has been faster per particle-step so far
-        (:class:`ThreadChoice`). Results do not depend on it.
+        thread and ``numba.get_num_threads()`` (when the filter is made) has been faster per
+        particle-step so far (:class:`ThreadChoice`). Results do not depend on it.
     """
 
     def __init__(
@@ -412,7 +412,9 @@ class ParticleFilter:
         self.dt = float(dt)
         self.compiled = compiled and backend != "numpy"
         self.threads = threads
-        self._thread_choice = ThreadChoice(numba.config.NUMBA_NUM_THREADS)
+        # numba's thread count of this thread (``numba.set_num_threads``: 1 in the worker
+        # processes of hmmtrack.executors, which run one trial per core)
+        self._thread_choice = ThreadChoice(numba.get_num_threads())
         self.particles: Particles | None = None
         self.time: float | None = None
         self.events: list[dict] = []

@@ -1,5 +1,6 @@
 import warnings
 
+import numba
 import numpy as np
 import pandas as pd
 import pytest
@@ -419,6 +420,34 @@ def test_thread_choice_tries_both_keeps_the_cheaper_and_backs_off():
     for _ in range(40):
         assert single.pick() == 1
         single.record(1, 1e-8)
+
+
+def test_automatic_threads_respect_numbas_thread_count(monkeypatch):
+    """Under ``numba.set_num_threads(1)`` (the executors' worker processes) a filter with
+    ``threads=None`` runs every compiled call on one thread."""
+    obs = circling_observations(duration=120.0)
+    seen = []
+    advance = VelocityMotion.advance
+    monkeypatch.setattr(
+        VelocityMotion,
+        "advance",
+        lambda self, *args, threads=None: (
+            seen.append(threads) or advance(self, *args, threads=threads)
+        ),
+    )
+    previous = numba.get_num_threads()
+    numba.set_num_threads(1)
+    try:
+        pf = make_filter("velocity", n=5000, seed=3)
+        pf.run(obs)
+    finally:
+        numba.set_num_threads(previous)
+    assert pf._thread_choice.options == (1,)
+    assert seen and set(seen) == {1}
+    if previous > 1:  # and with numba's default count both are tried
+        seen.clear()
+        make_filter("velocity", n=5000, seed=3).run(obs)
+        assert set(seen) == {1, previous}
 
 
 def test_automatic_threads_measure_both_and_give_the_threads_1_answer():
