@@ -356,31 +356,29 @@ def _run_chunks(kernel, parallel, n: int, n_steps: int, threads: int | None, *ar
     previous = numba.get_num_threads()  # of this thread (numba's default: all); starts the layer
     threads = previous if threads is None else threads
     threads = max(1, min(threads, n_chunks, numba.config.NUMBA_NUM_THREADS))
-    layer = numba.threading_layer()
-    exclusive = layer == "workqueue"
-    if (
-        threads > 1
-        and not _FORKED_AFTER_OPENMP
-        and (not exclusive or _WORKQUEUE_LOCK.acquire(blocking=False))
-    ):
-        _OPENMP_STARTED = _OPENMP_STARTED or layer == "omp"
-        # tuples of arrays (the von Mises tables) are passed to ``parallel`` as their items
-        flat = [item for arg in args for item in (arg if isinstance(arg, tuple) else (arg,))]
-        if previous != threads:
-            numba.set_num_threads(threads)
-        # Load the serial kernel before its parallel twin: a call with every chunk already
-        # claimed does nothing. When the twin was loaded from numba's on-disk cache first,
-        # it ran its own copy of the kernel, 20-25 % slower (HMM at 1 s, N = 10,000: 0.97 s
-        # against 0.78 s a run); with the kernel loaded first it runs the kernel's (2.7 us)
-        kernel(*args, np.array([n_chunks], dtype=np.int64), sums)
-        try:
-            parallel(threads, *flat, counter, sums)
-        finally:
-            if previous != threads:
-                numba.set_num_threads(previous)
-            if exclusive:
-                _WORKQUEUE_LOCK.release()
-        return sums.sum(axis=0)
+    if threads > 1 and not _FORKED_AFTER_OPENMP:
+        layer = numba.threading_layer()
+        exclusive = layer == "workqueue"
+        if not exclusive or _WORKQUEUE_LOCK.acquire(blocking=False):
+            _OPENMP_STARTED = _OPENMP_STARTED or layer == "omp"
+            # tuples of arrays (the von Mises tables) are passed to ``parallel`` as their items
+            flat = [item for arg in args for item in (arg if isinstance(arg, tuple) else (arg,))]
+            try:
+                # Load the serial kernel before its parallel twin: a call with every chunk
+                # already claimed does nothing. When the twin was loaded from numba's on-disk
+                # cache first, it ran its own copy of the kernel, 20-25 % slower (HMM at 1 s,
+                # N = 10,000: 0.97 s against 0.78 s a run); with the kernel loaded first it
+                # runs the kernel's (2.7 us)
+                kernel(*args, np.array([n_chunks], dtype=np.int64), sums)
+                if previous != threads:
+                    numba.set_num_threads(threads)
+                parallel(threads, *flat, counter, sums)
+            finally:
+                if previous != threads:
+                    numba.set_num_threads(previous)
+                if exclusive:
+                    _WORKQUEUE_LOCK.release()
+            return sums.sum(axis=0)
     kernel(*args, counter, sums)
     return sums.sum(axis=0)
 
