@@ -279,10 +279,8 @@ def match_particle(
 
     Returns
     -------
-    residual : float
-        Arrival-time residual against the matched ping (s).
-    ping : float
-        Whole periods from ``emission_time`` to the matched ping.
+    residual, ping : float
+        As :func:`wrap_arrival`.
     distance : float
         Range at emission (m).
     """
