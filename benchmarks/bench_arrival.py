@@ -1,6 +1,6 @@
 """The paper's range-rate filter against the arrival-time filter on realistic clocks.
 
-For each realistic-clock scenario (:mod:`hmmtrack.clock_scenarios`: the shark pursuit by
+For each realistic-clock scenario (:mod:`hmmtrack.scenarios.clocks`: the shark pursuit by
 two AUVs steered to make the tag observable - one trails, one circles the shark - the same
 pursuit with the paper's fixed formation and with both AUVs circling the shark at a right
 angle, and a moored array of three receivers) and seed, both methods track the same
@@ -9,15 +9,16 @@ scenario provides):
 
 * range-rate (the paper): ΔTOF ranges with the scenario's mean period - the best constant
   period there is - and the true range at each receiver's first detection (``r0``),
-  :func:`hmmtrack.tracking.track`;
+  :func:`hmmtrack.tracking.pipeline.track`;
 * arrival-time: no initial range, the clock in the state, detection probability as
-  information, fixed-lag smoothing, :func:`hmmtrack.clock_tracking.track_arrival_time`.
+  information, fixed-lag smoothing, :func:`hmmtrack.tracking.clock_filter.track_arrival_time`.
 
 Diagnostics beside them: the same pursuit with a third AUV, and the circling and
 right-angle pursuits with the true emission schedule given (the clock known: what the
 two-AUV geometry allows by itself); a robustness table (the pursuit with clocks unlike the
 default's assumptions, tracked with the default period random walk and with the
-integrated random walk :meth:`hmmtrack.clock.EmissionClockModel.temperature_drift`); and
+integrated random walk
+:meth:`hmmtrack.tracking.measurement.clock.EmissionClockModel.temperature_drift`); and
 a timing table (best of three alternating runs, wall and CPU time, of the range-rate
 filter and of the arrival-time filter - core, with detection probability, with the
 smoother too - on one pursuit and one moored run, with the machine's load).
@@ -45,9 +46,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from hmmtrack.arrival import ArrivalTimeMeasurement
-from hmmtrack.clock import EmissionClockModel, local_period_ppm, schedule_wander
-from hmmtrack.clock_scenarios import (
+from hmmtrack.analysis.metrics import position_error, time_to_convergence
+from hmmtrack.scenarios.clocks import (
     Multipath,
     WanderingPeriodClock,
     build_clock_scenario,
@@ -55,20 +55,25 @@ from hmmtrack.clock_scenarios import (
     realistic_shark_pursuit,
     steered_auv,
 )
-from hmmtrack.clock_tracking import (
+from hmmtrack.scenarios.detection import GpsNoise
+from hmmtrack.scenarios.trajectory import Trajectory
+from hmmtrack.tracking.clock_filter import (
     ClockAwareFilter,
     SilenceModel,
     arrival_observations,
     track_arrival_time,
 )
-from hmmtrack.config import TrackingConfig, read_preset
-from hmmtrack.detection_probability import LogisticDetection
-from hmmtrack.metrics import position_error, time_to_convergence
-from hmmtrack.motion import VelocityMotion
-from hmmtrack.receivers import ReceiverTracks
-from hmmtrack.scenarios.detection import GpsNoise
-from hmmtrack.scenarios.trajectory import Trajectory
-from hmmtrack.tracking import motion_model, track
+from hmmtrack.tracking.config import TrackingConfig, read_preset
+from hmmtrack.tracking.measurement.arrival_time import ArrivalTimeMeasurement
+from hmmtrack.tracking.measurement.clock import (
+    EmissionClockModel,
+    local_period_ppm,
+    schedule_wander,
+)
+from hmmtrack.tracking.measurement.detection import LogisticDetection
+from hmmtrack.tracking.motion import VelocityMotion
+from hmmtrack.tracking.pipeline import motion_model, track
+from hmmtrack.tracking.receivers import ReceiverTracks
 
 HALF_HOUR = 1800
 
@@ -357,7 +362,8 @@ PRESET = "two-moving-receivers"
 
 
 def preset_inputs(case, seed, duration, preset=PRESET):
-    """:func:`inputs` with the bundled ``preset``'s settings (:func:`hmmtrack.config.read_preset`):
+    """:func:`inputs` with the bundled ``preset``'s settings
+    (:func:`hmmtrack.tracking.config.read_preset`):
     the detections, the range-rate configuration at the preset's number of particles, and
     :func:`track_arrival_time`'s keyword arguments (the preset's likelihood, tempering and
     motion; the case's window, search box and detection curve)."""

@@ -3,11 +3,11 @@
 For each realistic-clock scenario the particle filters of ``bench_arrival.py`` run on (the
 shark pursuit by two AUVs with "circling", right-angle "formation" and "paper" steering,
 the same pursuit with three AUVs, the moored array of three receivers) and seed, it
-computes :func:`hmmtrack.bounds.arrival_time_bound` over the first 2 h (as the filters
+computes :func:`hmmtrack.analysis.bounds.arrival_time_bound` over the first 2 h (as the filters
 run) with the realised detections, four ways:
 
 * clock unknown, the clock prior an integrated random walk fitted to the scenario's true
-  emission times (:func:`hmmtrack.bounds.emission_clock_from_schedule`, jitter 65 µs),
+  emission times (:func:`hmmtrack.analysis.bounds.emission_clock_from_schedule`, jitter 65 µs),
   the prior of this model family closest to the truth's own clock (whose period rate is
   mean-reverting, so the fitted walk is a little looser over long horizons); from the
   arrival times only, and with the
@@ -18,7 +18,7 @@ run) with the realised detections, four ways:
 * clock known (the emission times given), with the detection curve.
 
 The tag's prior is nearly-constant-velocity with ``q`` fitted to the true path
-(:func:`hmmtrack.bounds.acceleration_psd_from_path` with 8 s windows, the tag's period),
+(:func:`hmmtrack.analysis.bounds.acceleration_psd_from_path` with 8 s windows, the tag's period),
 and each arrival time has noise ``σ = sqrt(jitter² + calibration² + (GPS / c)²)``:
 65 µs jitter, 0.1 ms receiver-clock calibration, GPS 1.5 m on the AUVs and 0.5 m on the
 moorings (both treated as white noise, which only makes the bound smaller). It prints
@@ -28,7 +28,7 @@ over the same window (run here as ``bench_arrival.py`` runs it: 3,000 particles,
 motion, 60 s smoother lag; ``--no-filter`` skips it) and its mean errors read from
 ``reports/clock_aware.md``, a sensitivity table (q, clock noise ×3 and ÷3, σ of the
 filter's 3 ms), and a planning sweep of two AUVs circling the shark together
-(:func:`hmmtrack.clock_scenarios.rotating_pair`: radius, lap time, angle between them)
+(:func:`hmmtrack.scenarios.clocks.rotating_pair`: radius, lap time, angle between them)
 with their speeds, and runs the particle filter on three of those plans (``FILTER_PLANS``)
 to see how close it comes. With ``--report`` it writes the tables and a figure (bound over
 time).
@@ -50,13 +50,13 @@ import pandas as pd
 from bench_arrival import inputs as filter_inputs
 from bench_arrival import markdown, summarise, three_auv_pursuit
 
-from hmmtrack.bounds import (
+from hmmtrack.analysis.bounds import (
     acceleration_psd_from_path,
     arrival_time_bound,
     emission_clock_from_schedule,
 )
-from hmmtrack.clock import EmissionClockModel
-from hmmtrack.clock_scenarios import (
+from hmmtrack.analysis.metrics import position_error
+from hmmtrack.scenarios.clocks import (
     Multipath,
     WanderingPeriodClock,
     build_clock_scenario,
@@ -64,11 +64,11 @@ from hmmtrack.clock_scenarios import (
     realistic_shark_pursuit,
     rotating_pair,
 )
-from hmmtrack.clock_tracking import track_arrival_time
-from hmmtrack.detection_probability import LogisticDetection
-from hmmtrack.metrics import position_error
 from hmmtrack.scenarios.detection import GpsNoise
 from hmmtrack.scenarios.trajectory import Trajectory
+from hmmtrack.tracking.clock_filter import track_arrival_time
+from hmmtrack.tracking.measurement.clock import EmissionClockModel
+from hmmtrack.tracking.measurement.detection import LogisticDetection
 
 DURATION = 7200.0
 SKIP = 600.0

@@ -1,10 +1,10 @@
 """Two AUVs steered on the filter's estimate against the same plan steered on the truth.
 
 ``bench_two_auv_plan.py`` measures the ``two-moving-receivers`` preset on the observable
-plan (:class:`hmmtrack.clock_scenarios.RotatingPlan`: stations 27 m from the shark, 135°
+plan (:class:`hmmtrack.scenarios.clocks.RotatingPlan`: stations 27 m from the shark, 135°
 apart, one lap per 150 s, led by the shark's recent velocity), whose stations are placed
-from the true shark track. Here :func:`hmmtrack.closed_loop.fly_closed_loop` flies the
-same plan twice on each scenario of :func:`hmmtrack.clock_scenarios.realistic_shark_pursuit`
+from the true shark track. Here :func:`hmmtrack.experiments.closed_loop.fly_closed_loop` flies the
+same plan twice on each scenario of :func:`hmmtrack.scenarios.clocks.realistic_shark_pursuit`
 (``steering="observable"``), with the preset's filter stepped online:
 
 * open loop: stations around the true shark (``steer_on="truth"``), the scenario's own
@@ -42,12 +42,12 @@ import pandas as pd
 from bench_arrival import markdown, summarise
 from bench_clock_bound import bound_inputs, bound_table, rms_after_skip
 
-from hmmtrack.clock import to_common_time
-from hmmtrack.clock_scenarios import RotatingPlan, realistic_shark_pursuit
-from hmmtrack.clock_tracking import track_arrival_time
-from hmmtrack.closed_loop import arrival_time_tracker, fly_closed_loop
-from hmmtrack.config import TrackingConfig, read_preset
-from hmmtrack.metrics import position_error
+from hmmtrack.analysis.metrics import position_error
+from hmmtrack.experiments.closed_loop import arrival_time_tracker, fly_closed_loop
+from hmmtrack.scenarios.clocks import RotatingPlan, realistic_shark_pursuit
+from hmmtrack.tracking.clock_filter import track_arrival_time
+from hmmtrack.tracking.config import TrackingConfig, read_preset
+from hmmtrack.tracking.measurement.clock import to_common_time
 
 #: the plan flown (``steering="observable"``)
 PLAN = RotatingPlan()
@@ -278,7 +278,7 @@ def main(argv=None) -> int:
             f"({PLAN.describe()}); open loop: stations around the true shark; closed loop: "
             f"around the filter's online estimate ({args.latency:g} s old, carried forward by "
             f"the lead velocity), AUVs capped at {MAX_SPEED:g} m/s "
-            "(`hmmtrack.closed_loop.fly_closed_loop`). Errors in metres; `filtered_m`: "
+            "(`hmmtrack.experiments.closed_loop.fly_closed_loop`). Errors in metres; `filtered_m`: "
             "mean error after convergence; `smoothed_m`: the 60 s fixed-lag smoother rerun "
             f"offline; geometry at the true shark from {SETTLED} s on.\n\n"
             "## Summary\n\n"

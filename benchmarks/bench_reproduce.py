@@ -25,7 +25,7 @@ import matplotlib
 matplotlib.use("Agg")
 
 from hmmtrack import experiments  # noqa: E402
-from hmmtrack.executors import default_workers, get_executor  # noqa: E402
+from hmmtrack.experiments.executors import default_workers, get_executor  # noqa: E402
 from hmmtrack.report import FULL, QUICK, reproduce  # noqa: E402
 
 

@@ -11,17 +11,18 @@ so the geometry changes from trial to trial) and relates each trial's error to
   position across that line is poorly observed);
 * the information limit: the Cramér–Rao bound on a fixed tag's position from that trial's
   scored (range, range-rate) observations with the filter's Σ_z
-  (:func:`hmmtrack.metrics.static_tag_crb`; ``sqrt(trace)``, m); the error of the best
-  fixed-tag fit to the same observations (:func:`hmmtrack.metrics.static_tag_fit` started at
+  (:func:`hmmtrack.analysis.metrics.static_tag_crb`; ``sqrt(trace)``, m); the error of the best
+  fixed-tag fit to the same observations (:func:`hmmtrack.analysis.metrics.static_tag_fit` started
+  at
   the truth): how far the data themselves, hydrophone GPS errors included, place the tag;
   and the mirror ambiguity: the fit started at the other intersection of the two range
   circles, its distance from the tag and the χ² it costs over all observations and over
   those after the first 300 s (once the AUV is far, the two are hard to tell apart);
 * the filter's honesty: the share of estimates after convergence whose 95 % ellipse (the
-  filter's own x-y covariance) holds the truth (:func:`hmmtrack.metrics.ellipse_coverage`;
+  filter's own x-y covariance) holds the truth (:func:`hmmtrack.analysis.metrics.ellipse_coverage`;
   0.95 for a consistent filter) and the median NEES (1.39 for a consistent filter).
 
-Settings: the three models with :mod:`hmmtrack.tracking`'s defaults (the HMM with its
+Settings: the three models with :mod:`hmmtrack.tracking.pipeline`'s defaults (the HMM with its
 resting state, ``tracking.HMM_RESTING``), the baseline with the σ it had before this study
 (1 m/√s), the HMM without the resting state (as before), without it but with heading
 diffusion 0.4 rad/√s (passes a fixed tag, loses the shark pursuit), and with other resting
@@ -57,8 +58,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from hmmtrack import metrics, scenarios, tracking  # noqa: E402
-from hmmtrack.config import TrackingConfig  # noqa: E402
+from hmmtrack import scenarios  # noqa: E402
+from hmmtrack.analysis import metrics
 from hmmtrack.experiments import (  # noqa: E402
     MOTIONS,
     PAPER_SCENARIOS,
@@ -66,9 +67,11 @@ from hmmtrack.experiments import (  # noqa: E402
     experiment_seed,
     paper_scenarios,
 )
-from hmmtrack.motion import BaselineMotion  # noqa: E402
-from hmmtrack.receivers import ReceiverTracks  # noqa: E402
 from hmmtrack.report.markdown import markdown_table  # noqa: E402
+from hmmtrack.tracking import pipeline as tracking  # noqa: E402
+from hmmtrack.tracking.config import TrackingConfig  # noqa: E402
+from hmmtrack.tracking.motion import BaselineMotion  # noqa: E402
+from hmmtrack.tracking.receivers import ReceiverTracks  # noqa: E402
 
 #: the baseline's random-walk spread before this study (m/√s)
 PREVIOUS_BASELINE_SIGMA = 1.0
@@ -424,7 +427,7 @@ def report(
         "`stationary_tag_trials.csv`. One trial = one scenario seed of "
         "`hmmtrack.scenarios.stationary_tag` (new geometry, GPS noise, ping jitter) and one "
         "filter seed; settings of one motion model share the filter seed. Defaults: "
-        f"`hmmtrack.tracking` (baseline σ = {tracking.BASELINE_SIGMA:g} m/√s; HMM heading "
+        f"`hmmtrack.tracking.pipeline` (baseline σ = {tracking.BASELINE_SIGMA:g} m/√s; HMM heading "
         f"diffusion {tracking.HMM_HEADING_DIFFUSION:g} rad/√s and a resting state entered at "
         f"{resting.enter_per_hour:g} per hour, left at {resting.leave_per_hour:g} per hour, "
         f"drifting at {resting.drift_speed:g} m/s, `tracking.HMM_RESTING`); also shown: the "
@@ -510,7 +513,8 @@ DIAGNOSIS = (
     "10 m; most of their error comes later (error over the last 600 s above: 13-16 m "
     "against 2-4 m), as the early information is forgotten.",
     "- **Baseline: fixed.** σ = 1 m/√s let the cloud wander (median spread 7.6 m); "
-    "σ = 0.3 m/√s (`hmmtrack.tracking.BASELINE_SIGMA`) keeps the early information: 98 % of "
+    "σ = 0.3 m/√s (`hmmtrack.tracking.pipeline.BASELINE_SIGMA`) keeps the early information: "
+    "98 % of "
     "the trials under 10 m at 5,000 particles, 93 % at 1,000, against about 70 % before. "
     "The baseline stays lost on the moving tags, as in the paper.",
     "- **Velocity: robust.** Its speed settles near 0 under the range-rates, so it keeps "

@@ -6,22 +6,23 @@ showed that no tracker can reach that on the earlier steerings, and that a pair 
 circling the shark together fast enough can. For each plan in :data:`PLANS` this script
 runs the arrival-time particle filter twice from the same detections, with
 ``track_arrival_time``'s defaults (:data:`DEFAULT`) and with the bundled
-``two-moving-receivers`` preset (:data:`PRESET`, :func:`hmmtrack.config.read_preset`),
+``two-moving-receivers`` preset (:data:`PRESET`, :func:`hmmtrack.tracking.config.read_preset`),
 and the paper's range-rate method once (true initial ranges, best constant period,
 velocity motion), and prints per seed the filtered and 60 s-smoothed mean error after
 convergence (the paper's metric), the time to convergence, the filtered RMS error from
-10 min on beside the posterior Cramér–Rao bound (:func:`hmmtrack.bounds.arrival_time_bound`,
+10 min on beside the posterior Cramér–Rao bound
+(:func:`hmmtrack.analysis.bounds.arrival_time_bound`,
 fitted clock and detection curve, as in ``bench_clock_bound.py``) and the AUVs' speed
 percentiles (1 s steps); then the filters' throughput (particle-steps per second without
 the smoother, best of two runs) with the machine's load. Not a test: it measures.
 
-The plans are steerings of :func:`hmmtrack.clock_scenarios.realistic_shark_pursuit` (the
+The plans are steerings of :func:`hmmtrack.scenarios.clocks.realistic_shark_pursuit` (the
 tag clock wanders 0.8 s from a constant 8 s schedule, 65 µs jitter, multipath, correlated
 GPS error): ``steering="observable"`` (stations 27 m from the shark, 135° apart, one lap
 per 150 s, led ahead of the shark by its recent velocity so that the vehicles hold that
 geometry behind a travelling shark) and, for comparison, the plan as it was before the
 lead (30 m, stations on the shark's position; a
-:class:`hmmtrack.clock_scenarios.RotatingPlan`). The stations are placed from the true
+:class:`hmmtrack.scenarios.clocks.RotatingPlan`). The stations are placed from the true
 shark track (as the paper's simulated hydrophone paths are): the steering assumes the
 AUVs know where the shark is to within the filter's error. The tuned settings run with
 two filter seeds per scenario (:data:`TUNED_FILTER_SEEDS`); the summary gives the worst
@@ -42,11 +43,11 @@ import pandas as pd
 from bench_arrival import inputs, make_motion, markdown, summarise
 from bench_clock_bound import DURATION, SKIP, bound_inputs, bound_table, rms_after_skip
 
-from hmmtrack.clock_scenarios import ROTATING_PLANS, RotatingPlan, realistic_shark_pursuit
-from hmmtrack.clock_tracking import track_arrival_time
-from hmmtrack.config import TrackingConfig, read_preset
-from hmmtrack.metrics import position_error
-from hmmtrack.tracking import track
+from hmmtrack.analysis.metrics import position_error
+from hmmtrack.scenarios.clocks import ROTATING_PLANS, RotatingPlan, realistic_shark_pursuit
+from hmmtrack.tracking.clock_filter import track_arrival_time
+from hmmtrack.tracking.config import TrackingConfig, read_preset
+from hmmtrack.tracking.pipeline import track
 
 #: steerings of ``realistic_shark_pursuit``: the recommended plan first (its throughput is
 #: measured), then the observable plan as it was without the lead (stations 30 m from the
@@ -62,7 +63,8 @@ PRESET = "two-moving-receivers"
 NO_SILENCES = "tuned, no detection curve"
 
 #: ``track_arrival_time``'s defaults with ``bench_arrival.py``'s velocity motion
-#: (:func:`bench_arrival.make_motion`), as settings of :class:`hmmtrack.config.TrackingConfig`
+#: (:func:`bench_arrival.make_motion`), as settings of
+#: :class:`hmmtrack.tracking.config.TrackingConfig`
 DEFAULT = {
     "measurement": "arrival-time",
     "motion": "velocity",
@@ -92,8 +94,8 @@ def plan_label(plan) -> str:
 
 
 def arrival_run(case, settings: dict, smoothing_lag, seed, silences: bool = True):
-    """:func:`hmmtrack.clock_tracking.track_arrival_time` with ``settings`` (keys of
-    :class:`hmmtrack.config.TrackingConfig`) on ``case``'s clock-corrected detections
+    """:func:`hmmtrack.tracking.clock_filter.track_arrival_time` with ``settings`` (keys of
+    :class:`hmmtrack.tracking.config.TrackingConfig`) on ``case``'s clock-corrected detections
     (default clock model; the scenario's detection curve, so that missed pings count,
     unless ``silences`` is False, as ``hmmtrack track`` runs without ``--detection-curve``)."""
     sc = case.scenario

@@ -19,7 +19,7 @@
 # constant-period schedule within two hours, and nobody knows the range when the first ping
 # is heard. Here two AUVs circle a tagged shark (stations 27 m from it and led ahead of it by
 # its recent velocity, 135° apart, one lap per 150 s: the `observable` steering of
-# `hmmtrack.clock_scenarios.realistic_shark_pursuit`),
+# `hmmtrack.scenarios.clocks.realistic_shark_pursuit`),
 # the tag's period wanders, the AUVs' clocks are calibrated to GPS time only to 0.1 ms and a
 # few per cent of the detections come by multipath. We track that shark twice from the same
 # detections:
@@ -27,7 +27,7 @@
 # * with the paper's range-rate method, given what it needs and more than the field gives:
 #   the true range at each AUV's first detection and the best constant period there is
 #   (the mean of the true emission intervals);
-# * with the arrival-time filter (`hmmtrack.clock_tracking.track_arrival_time`), which
+# * with the arrival-time filter (`hmmtrack.tracking.clock_filter.track_arrival_time`), which
 #   carries the tag's clock in each particle and needs no initial range, with the bundled
 #   `two-moving-receivers` preset, and its fixed-lag smoother.
 
@@ -44,12 +44,16 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 
-from hmmtrack.clock import local_period_ppm, schedule_wander
-from hmmtrack.clock_scenarios import realistic_shark_pursuit
-from hmmtrack.clock_tracking import track_arrival_time
-from hmmtrack.config import TrackingConfig, read_preset
-from hmmtrack.metrics import mean_error_after_convergence, position_error, time_to_convergence
-from hmmtrack.tracking import track
+from hmmtrack.analysis.metrics import (
+    mean_error_after_convergence,
+    position_error,
+    time_to_convergence,
+)
+from hmmtrack.scenarios.clocks import realistic_shark_pursuit
+from hmmtrack.tracking.clock_filter import track_arrival_time
+from hmmtrack.tracking.config import TrackingConfig, read_preset
+from hmmtrack.tracking.measurement.clock import local_period_ppm, schedule_wander
+from hmmtrack.tracking.pipeline import track
 
 PRESET = "two-moving-receivers"
 SMOOTHING_LAG = 60  # s of the fixed-lag smoother (as benchmarks/bench_two_auv_plan.py)
@@ -144,7 +148,7 @@ print(f"{len(detections)} detections, {preset['n_particles']} particles, {end - 
 # %% [markdown]
 # ## Errors
 #
-# The paper's metrics (`hmmtrack.metrics`): the time the particles' spread √λ₁ first falls
+# The paper's metrics (`hmmtrack.analysis.metrics`): the time the particles' spread √λ₁ first falls
 # below 10 m, and the mean position error from then on. The smoothed track is scored from
 # its filter's convergence. Convergence is about the particles' spread, not about being
 # right: the range-rate filter's particles gather quickly, in the wrong place.

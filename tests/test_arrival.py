@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import stats
 
-from hmmtrack.arrival import (
+from hmmtrack.tracking.measurement.arrival_time import (
     TABLE_END,
     TABLE_START,
     TABLE_STEP,
@@ -25,7 +25,7 @@ from hmmtrack.arrival import (
     mixture_table,
     wrap_to_ping,
 )
-from hmmtrack.ranging import ranges
+from hmmtrack.tracking.measurement.ranging import ranges
 
 C = 1460.0
 

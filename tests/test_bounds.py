@@ -1,4 +1,5 @@
-"""Tests of hmmtrack.bounds: closed forms, a brute-force batch information matrix, invariants."""
+"""Tests of hmmtrack.analysis.bounds: closed forms, a brute-force batch information matrix,
+invariants."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from hmmtrack.bounds import (
+from hmmtrack.analysis.bounds import (
     BoundPrior,
     acceleration_psd_from_path,
     arrival_jacobians,
@@ -20,8 +21,8 @@ from hmmtrack.bounds import (
     kalman_covariances,
     rts_covariances,
 )
-from hmmtrack.clock import EmissionClockModel
-from hmmtrack.detection_probability import LogisticDetection
+from hmmtrack.tracking.measurement.clock import EmissionClockModel
+from hmmtrack.tracking.measurement.detection import LogisticDetection
 
 C = 1500.0
 PERIOD = 8.0

@@ -1,4 +1,4 @@
-"""Tests of ``hmmtrack track`` and its configuration (hmmtrack.cli.track, hmmtrack.config).
+"""Tests of ``hmmtrack track`` and its configuration (hmmtrack.cli.track, hmmtrack.tracking.config).
 
 End to end on the files ``hmmtrack simulate`` writes for the stationary-tag scenario: the
 estimate CSV's columns, one row per second with ISO 8601 UTC times, the printed metrics,
@@ -17,17 +17,19 @@ import pandas as pd
 import pytest
 from pyproj import Transformer
 
-from hmmtrack import io, metrics, tracking
-from hmmtrack.arrival import ArrivalLikelihood, ArrivalTimeMeasurement
+from hmmtrack import io
+from hmmtrack.analysis import metrics
 from hmmtrack.cli import build_parser, main
 from hmmtrack.cli.track import build_config
-from hmmtrack.clock_scenarios import moored_array, realistic_shark_pursuit
-from hmmtrack.clock_tracking import track_arrival_time
-from hmmtrack.config import TrackingConfig
-from hmmtrack.detection_probability import LogisticDetection
-from hmmtrack.motion import VelocityMotion
 from hmmtrack.scenarios import stationary_tag
+from hmmtrack.scenarios.clocks import moored_array, realistic_shark_pursuit
 from hmmtrack.scenarios.export import write_scenario
+from hmmtrack.tracking import pipeline as tracking
+from hmmtrack.tracking.clock_filter import track_arrival_time
+from hmmtrack.tracking.config import TrackingConfig
+from hmmtrack.tracking.measurement.arrival_time import ArrivalLikelihood, ArrivalTimeMeasurement
+from hmmtrack.tracking.measurement.detection import LogisticDetection
+from hmmtrack.tracking.motion import VelocityMotion
 
 ESTIMATE_COLUMNS = ["time", "x", "y", "var_x", "var_y", "cov_xy", "sqrt_lambda1"]
 #: a UTM zone 11N origin off Long Beach, CA (m): scenario metres are shifted by it
@@ -262,7 +264,7 @@ def test_arrival_time_measurement_without_r0_runs_the_clock_aware_tracker(
     arrival_files, tmp_path, capsys
 ):
     """``--measurement arrival-time`` needs no --r0 and writes what
-    :func:`hmmtrack.clock_tracking.track_arrival_time` estimates from the same files;
+    :func:`hmmtrack.tracking.clock_filter.track_arrival_time` estimates from the same files;
     ``--smooth`` writes the fixed-lag smoothed track instead."""
     scenario, paths = arrival_files
     common = arrival_args(scenario, paths, 500, 4)
@@ -516,7 +518,7 @@ def starting_particles(monkeypatch):
     """``main(args)`` that must succeed and returns the positions (x, y), shape (N, 2), of
     the particles its filter started from (Algorithm 1, recorded from ``Particles.uniform``;
     a later re-initialisation is not the start)."""
-    from hmmtrack.particles import Particles
+    from hmmtrack.tracking.particles import Particles
 
     uniform, runs = Particles.uniform, []
 

@@ -9,14 +9,14 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import stats
 
-from hmmtrack.clock import (
+from hmmtrack.tracking.clock_filter import predict_clock_covariance
+from hmmtrack.tracking.measurement.clock import (
     EmissionClockModel,
     ReceiverClock,
     local_period_ppm,
     schedule_wander,
     to_common_time,
 )
-from hmmtrack.clock_tracking import predict_clock_covariance
 
 
 @settings(max_examples=100, deadline=None)

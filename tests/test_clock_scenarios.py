@@ -6,8 +6,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from hmmtrack.clock import local_period_ppm, schedule_wander
-from hmmtrack.clock_scenarios import (
+from hmmtrack.scenarios.clocks import (
     ROTATING_PLANS,
     STEERINGS,
     Multipath,
@@ -23,6 +22,7 @@ from hmmtrack.clock_scenarios import (
     steered_auv,
 )
 from hmmtrack.scenarios.trajectory import Trajectory
+from hmmtrack.tracking.measurement.clock import local_period_ppm, schedule_wander
 
 
 def test_wandering_clock_has_the_stated_wander_and_jitter():

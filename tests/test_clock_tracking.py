@@ -8,11 +8,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-import hmmtrack.clock_tracking as ct
-from hmmtrack.arrival import ArrivalLikelihood, ArrivalTimeMeasurement, emission_range
-from hmmtrack.clock import EmissionClockModel
-from hmmtrack.clock_scenarios import moored_array
-from hmmtrack.clock_tracking import (
+import hmmtrack.tracking.clock_filter as ct
+from hmmtrack.analysis.metrics import position_error
+from hmmtrack.scenarios.clocks import moored_array
+from hmmtrack.tracking.clock_filter import (
     TEMPER_ESS_TOLERANCE,
     ClockAwareFilter,
     SilenceModel,
@@ -26,11 +25,16 @@ from hmmtrack.clock_tracking import (
     arrival_observations,
     track_arrival_time,
 )
-from hmmtrack.detection_probability import LogisticDetection
-from hmmtrack.metrics import position_error
-from hmmtrack.motion import BaselineMotion, VelocityMotion
-from hmmtrack.receivers import ReceiverTracks
-from hmmtrack.resampling import effective_sample_size, log_normalise
+from hmmtrack.tracking.measurement.arrival_time import (
+    ArrivalLikelihood,
+    ArrivalTimeMeasurement,
+    emission_range,
+)
+from hmmtrack.tracking.measurement.clock import EmissionClockModel
+from hmmtrack.tracking.measurement.detection import LogisticDetection
+from hmmtrack.tracking.motion import BaselineMotion, VelocityMotion
+from hmmtrack.tracking.receivers import ReceiverTracks
+from hmmtrack.tracking.resampling import effective_sample_size, log_normalise
 
 C = 1460.0
 

@@ -10,10 +10,15 @@ import pandas as pd
 import pytest
 from scipy import stats
 
-from hmmtrack.clock_scenarios import RotatingPlan, realistic_shark_pursuit
-from hmmtrack.clock_tracking import track_arrival_time
-from hmmtrack.closed_loop import _Channel, arrival_time_tracker, fly_closed_loop, plan_phase
-from hmmtrack.config import TrackingConfig, read_preset
+from hmmtrack.experiments.closed_loop import (
+    _Channel,
+    arrival_time_tracker,
+    fly_closed_loop,
+    plan_phase,
+)
+from hmmtrack.scenarios.clocks import RotatingPlan, realistic_shark_pursuit
+from hmmtrack.tracking.clock_filter import track_arrival_time
+from hmmtrack.tracking.config import TrackingConfig, read_preset
 
 PLAN = RotatingPlan()  # the "observable" plan
 

@@ -1,4 +1,4 @@
-"""Tests of the bundled presets and the model settings of :mod:`hmmtrack.config`."""
+"""Tests of the bundled presets and the model settings of :mod:`hmmtrack.tracking.config`."""
 
 from __future__ import annotations
 
@@ -7,10 +7,9 @@ import json
 import numpy as np
 import pytest
 
-from hmmtrack import config as config_module
-from hmmtrack import tracking
-from hmmtrack.arrival import ArrivalLikelihood, ArrivalTimeMeasurement
-from hmmtrack.config import (
+from hmmtrack.tracking import config as config_module
+from hmmtrack.tracking import pipeline as tracking
+from hmmtrack.tracking.config import (
     DATA_KEYS,
     TrackingConfig,
     measurement_covariance_with,
@@ -18,8 +17,9 @@ from hmmtrack.config import (
     preset_names,
     read_preset,
 )
-from hmmtrack.detection_probability import LogisticDetection
-from hmmtrack.motion import HMMMotion, VelocityMotion
+from hmmtrack.tracking.measurement.arrival_time import ArrivalLikelihood, ArrivalTimeMeasurement
+from hmmtrack.tracking.measurement.detection import LogisticDetection
+from hmmtrack.tracking.motion import HMMMotion, VelocityMotion
 
 PRESET = "two-moving-receivers"
 

@@ -8,8 +8,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from hmmtrack.clock_scenarios import moored_array
-from hmmtrack.detection_probability import (
+from hmmtrack.scenarios.clocks import moored_array
+from hmmtrack.tracking.measurement.detection import (
     SOFTPLUS_END,
     SOFTPLUS_STEP,
     HeardTimes,
@@ -20,7 +20,7 @@ from hmmtrack.detection_probability import (
     silence_loglik_recent_pings,
     softplus,
 )
-from hmmtrack.receivers import ReceiverTracks
+from hmmtrack.tracking.receivers import ReceiverTracks
 
 
 @given(r=st.floats(-1e4, 1e5), r50=st.floats(10, 5000), width=st.floats(1, 1000))
@@ -205,9 +205,9 @@ def test_curve_fitted_from_a_tracking_run_is_close_to_the_truth():
     of the simulated one."""
     import warnings
 
-    from hmmtrack.clock_tracking import track_arrival_time
-    from hmmtrack.detection_probability import fit_detection_probability_from_track
-    from hmmtrack.motion import VelocityMotion
+    from hmmtrack.tracking.clock_filter import track_arrival_time
+    from hmmtrack.tracking.measurement.detection import fit_detection_probability_from_track
+    from hmmtrack.tracking.motion import VelocityMotion
 
     case = moored_array(2, duration=1800.0)
     sc = case.scenario

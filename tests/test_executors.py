@@ -15,7 +15,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from hmmtrack.executors import (
+from hmmtrack.experiments.executors import (
     SerialExecutor,
     _runs_on_import,
     default_workers,
@@ -150,7 +150,7 @@ def test_a_script_asking_for_processes_outside_a_main_guard_is_refused_by_line(t
     done = run_script(
         tmp_path,
         """\
-        from hmmtrack.executors import get_executor, map_ordered
+        from hmmtrack.experiments.executors import get_executor, map_ordered
 
         with get_executor("processes", max_workers=1) as ex:
             print(map_ordered(ex, abs, [-1, -2]))
@@ -166,7 +166,7 @@ def test_a_guarded_script_runs_its_tasks_on_processes(tmp_path):
     done = run_script(
         tmp_path,
         """\
-        from hmmtrack.executors import get_executor, map_ordered
+        from hmmtrack.experiments.executors import get_executor, map_ordered
 
 
         def main():

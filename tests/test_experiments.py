@@ -173,7 +173,7 @@ def test_more_trials_only_append_rows(small_scenarios):
 
 
 def test_trial_scores_and_error_curve_match_metrics(small_scenarios):
-    from hmmtrack import metrics
+    from hmmtrack.analysis import metrics
 
     swimmer = small_scenarios[0]
     result = ex.run_trial(swimmer, "hmm", 9, N_PARTICLES)

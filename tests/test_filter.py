@@ -6,7 +6,8 @@ import pandas as pd
 import pytest
 from scipy import special
 
-from hmmtrack.filter import (
+from hmmtrack.hmm import Gamma, MovementHMM, VonMises
+from hmmtrack.tracking.filter import (
     ESTIMATE_COLUMNS,
     ParticleFilter,
     ThreadChoice,
@@ -14,11 +15,10 @@ from hmmtrack.filter import (
     _weight_summary,
     sqrt_largest_eigenvalue,
 )
-from hmmtrack.hmm import Gamma, MovementHMM, VonMises
-from hmmtrack.measurement import RangeRateMeasurement
-from hmmtrack.motion import BaselineMotion, HMMMotion, VelocityMotion
-from hmmtrack.particles import _ARRAY_NAMES, Particles
-from hmmtrack.resampling import effective_sample_size, log_normalise, multinomial
+from hmmtrack.tracking.measurement.range_rate import RangeRateMeasurement
+from hmmtrack.tracking.motion import BaselineMotion, HMMMotion, VelocityMotion
+from hmmtrack.tracking.particles import _ARRAY_NAMES, Particles
+from hmmtrack.tracking.resampling import effective_sample_size, log_normalise, multinomial
 
 TAG = np.array([30.0, -20.0])
 T0 = 1.7e9

@@ -3,8 +3,8 @@ import pandas as pd
 import pytest
 from scipy.stats import multivariate_normal
 
-from hmmtrack.measurement import RangeRateMeasurement, predicted_range_and_rate
-from hmmtrack.particles import Particles
+from hmmtrack.tracking.measurement.range_rate import RangeRateMeasurement, predicted_range_and_rate
+from hmmtrack.tracking.particles import Particles
 
 COVARIANCE = np.array([[4.0, 0.3], [0.3, 0.25]])
 

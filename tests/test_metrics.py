@@ -1,4 +1,4 @@
-"""Tests of hmmtrack.metrics: hand-computed values, eigenvalue oracle, mean ≤ RMS."""
+"""Tests of hmmtrack.analysis.metrics: hand-computed values, eigenvalue oracle, mean ≤ RMS."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from hmmtrack import metrics
+from hmmtrack.analysis import metrics
 
 
 def estimates_table(times, x, y, spread):
@@ -189,7 +189,7 @@ def test_crb_of_a_receiver_passing_the_tag():
 
 def test_fisher_information_matches_a_numerical_jacobian():
     """J = Σ Hᵀ Σ_z⁻¹ H with H from finite differences of tracking.expected_measurements."""
-    from hmmtrack import tracking
+    from hmmtrack.tracking import pipeline as tracking
 
     rng = np.random.default_rng(5)
     obs = receivers_table(*rng.uniform(-200, 200, (2, 12)), *rng.normal(0, 1.5, (2, 12)))
@@ -219,7 +219,7 @@ def test_crb_is_infinite_when_a_direction_is_unobserved():
 
 def fixed_tag_measurements(obs, tag):
     """(range, range-rate) of a fixed tag: tracking.expected_measurements as the oracle."""
-    from hmmtrack import tracking
+    from hmmtrack.tracking import pipeline as tracking
 
     truth = pd.DataFrame({"time": [np.nan], "x": [tag[0]], "y": [tag[1]]})
     return tracking.expected_measurements(obs, truth)

@@ -8,9 +8,9 @@ import pytest
 from numba import njit
 from scipy import stats
 
-from hmmtrack import streams as rs
 from hmmtrack.hmm import Gamma, MovementHMM, VonMises
-from hmmtrack.motion import (
+from hmmtrack.tracking.compiled import streams as rs
+from hmmtrack.tracking.motion import (
     BaselineMotion,
     HMMMotion,
     VelocityMotion,
@@ -19,7 +19,7 @@ from hmmtrack.motion import (
     arc_displacement,
     transition_for_step,
 )
-from hmmtrack.particles import Particles
+from hmmtrack.tracking.particles import Particles
 
 TRANSITION = np.array([[0.9, 0.1], [0.2, 0.8]])
 
@@ -186,10 +186,10 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
-from hmmtrack import streams as rs
+from hmmtrack.tracking.compiled import streams as rs
 from hmmtrack.hmm import Gamma, MovementHMM, VonMises
-from hmmtrack.motion import HMMMotion
-from hmmtrack.particles import Particles
+from hmmtrack.tracking.motion import HMMMotion
+from hmmtrack.tracking.particles import Particles
 
 model = MovementHMM(
     initial=np.array([0.5, 0.5]),

@@ -1,4 +1,5 @@
-"""Tests of hmmtrack.ranging against detection times built from known trajectories."""
+"""Tests of hmmtrack.tracking.measurement.ranging against detection times built from known
+trajectories."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from hmmtrack import ranging
+from hmmtrack.tracking.measurement import ranging
 
 PERIOD = 8.179
 SOUND = 1460.0

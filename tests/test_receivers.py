@@ -1,4 +1,4 @@
-"""Tests of hmmtrack.receivers.ReceiverTracks: exact interpolation, exact velocities of
+"""Tests of hmmtrack.tracking.receivers.ReceiverTracks: exact interpolation, exact velocities of
 straight-line motion, moored receivers, errors and GPS-noise smoothing."""
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from hmmtrack.io import read_receivers
-from hmmtrack.receivers import ReceiverTracks
+from hmmtrack.tracking.receivers import ReceiverTracks
 
 GPS = Path(__file__).resolve().parents[2] / "shared" / "data" / "yaps_ssu1" / "ssu1_gps.csv"
 

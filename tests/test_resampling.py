@@ -3,7 +3,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from hmmtrack.resampling import (
+from hmmtrack.tracking.resampling import (
     RESAMPLERS,
     effective_sample_size,
     get_resampler,

@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from hmmtrack import streams as rs
-from hmmtrack import tracking
 from hmmtrack.experiments import paper_scenarios
 from hmmtrack.hmm import Gamma, MovementHMM, VonMises, Weibull, WrappedCauchy
-from hmmtrack.motion import HMMMotion, transition_for_step
-from hmmtrack.particles import Particles
+from hmmtrack.tracking import pipeline as tracking
+from hmmtrack.tracking.compiled import streams as rs
+from hmmtrack.tracking.motion import HMMMotion, transition_for_step
+from hmmtrack.tracking.particles import Particles
 
 
 def swimmer_model(dt=60.0, step_cls=Gamma, zero_mass=None):

@@ -5,7 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hmmtrack.smoothing import FixedLagSmoother, smoothed_table, trace_ancestry, weighted_moments
+from hmmtrack.tracking.smoothing import (
+    FixedLagSmoother,
+    smoothed_table,
+    trace_ancestry,
+    weighted_moments,
+)
 
 
 def random_run(seed, n_steps=40, n=30):

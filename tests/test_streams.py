@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from hmmtrack import streams as rs
+from hmmtrack.tracking.compiled import streams as rs
 
 N = 200_000
 

@@ -1,4 +1,4 @@
-"""End-to-end tests of hmmtrack.tracking: detections → observations → filter → estimates.
+"""End-to-end tests of hmmtrack.tracking.pipeline: detections → observations → filter → estimates.
 
 The acceptance case of issue 3 is the stationary-tag scenario (a moored tag, an anchored
 boat hydrophone and an AUV hydrophone driving away in 50 m steps): every motion model must
@@ -15,10 +15,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from hmmtrack import metrics, ranging, scenarios, tracking
-from hmmtrack.config import TrackingConfig
-from hmmtrack.motion import VelocityMotion
-from hmmtrack.receivers import ReceiverTracks
+from hmmtrack import scenarios
+from hmmtrack.analysis import metrics
+from hmmtrack.tracking import pipeline as tracking
+from hmmtrack.tracking.config import TrackingConfig
+from hmmtrack.tracking.measurement import ranging
+from hmmtrack.tracking.motion import VelocityMotion
+from hmmtrack.tracking.receivers import ReceiverTracks
 
 PERIOD = 8.179
 SOUND = 1460.0
@@ -27,7 +30,7 @@ N_PARTICLES = 2000
 #: issue 3's acceptance runs on every stationary-tag scenario seed of this range ...
 ACCEPTANCE_SEEDS = range(24)
 #: ... whose own observations place the tag within this distance (m) of the truth (best
-#: fixed-tag fit, :func:`hmmtrack.metrics.static_tag_fit`): no filter can be asked to beat
+#: fixed-tag fit, :func:`hmmtrack.analysis.metrics.static_tag_fit`): no filter can be asked to beat
 #: its data by much
 DATA_ERROR_LIMIT = 5.0
 
@@ -270,7 +273,7 @@ def test_hmm_without_resting_state_meets_the_acceptance_with_more_heading_diffus
     acceptance_cases, chosen_seeds
 ):
     """Without the resting state but with heading diffusion 0.5 rad/√s (a less ballistic
-    cloud; it loses the shark pursuit, see hmmtrack.tracking.HMM_HEADING_DIFFUSION) the
+    cloud; it loses the shark pursuit, see hmmtrack.tracking.pipeline.HMM_HEADING_DIFFUSION) the
     HMM converges on every chosen seed and is under 10 m on at least 90 % of them (measured:
     95 % at three filter seeds; 97 % over 100 scenario seeds) and under 12 m on all."""
     motion = tracking.motion_model("hmm", heading_diffusion=0.5, resting=None)

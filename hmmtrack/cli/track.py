@@ -8,14 +8,14 @@ the tracker and writes one estimate per second as CSV (``time`` ISO 8601 UTC, ``
 
 Two measurement models (``--measurement``): ``range-rate``, the paper's ranges and
 range-rates from the tag period and known initial ranges ``--r0``
-(:func:`hmmtrack.tracking.track`); ``arrival-time``, the tag's emission clock carried in
+(:func:`hmmtrack.tracking.pipeline.track`); ``arrival-time``, the tag's emission clock carried in
 the particle state, no initial range needed, optionally smoothed with a fixed lag
-(:func:`hmmtrack.clock_tracking.track_arrival_time`; its detection times must be on one
+(:func:`hmmtrack.tracking.clock_filter.track_arrival_time`; its detection times must be on one
 common time base).
 
 Settings come, in increasing precedence, from ``--preset`` (a bundled set of settings
 for one kind of deployment, e.g. ``two-moving-receivers``), ``--config`` (a JSON file, see
-:mod:`hmmtrack.config`) and the command-line options; every setting a run usually needs
+:mod:`hmmtrack.tracking.config`) and the command-line options; every setting a run usually needs
 has an option: search box (``--bounds``, in the receivers file's frame: metres, or degrees
 for lon/lat receivers, converted with their projection by :func:`bounds_in_metres`),
 measurement noise (``--sigma-range``, ``--sigma-range-rate``; ``--arrival-sigma``), the
@@ -36,11 +36,12 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from hmmtrack import io, metrics, tracking
-from hmmtrack.arrival import ArrivalLikelihood
+from hmmtrack import io
+from hmmtrack.analysis import metrics
 from hmmtrack.cli import UserInputError
-from hmmtrack.clock_tracking import track_arrival_time
-from hmmtrack.config import (
+from hmmtrack.tracking import pipeline as tracking
+from hmmtrack.tracking.clock_filter import track_arrival_time
+from hmmtrack.tracking.config import (
     MEASUREMENTS,
     TrackingConfig,
     measurement_covariance_with,
@@ -49,9 +50,10 @@ from hmmtrack.config import (
     read_preset,
     read_settings,
 )
-from hmmtrack.filter import RESAMPLE_WHEN
-from hmmtrack.motion import HMM_VARIANTS
-from hmmtrack.resampling import RESAMPLERS
+from hmmtrack.tracking.filter import RESAMPLE_WHEN
+from hmmtrack.tracking.measurement.arrival_time import ArrivalLikelihood
+from hmmtrack.tracking.motion import HMM_VARIANTS
+from hmmtrack.tracking.resampling import RESAMPLERS
 
 #: defaults of the arrival-time filter and of the configuration (help texts, build_config)
 _ARRIVAL_DEFAULTS = inspect.signature(track_arrival_time).parameters
@@ -190,7 +192,7 @@ def register(subparsers) -> None:
         action="store_true",
         help=(
             "--motion hmm only: track with the movement HMM as fitted, without the resting "
-            "state added by default (hmmtrack.tracking.HMM_RESTING)"
+            "state added by default (hmmtrack.tracking.pipeline.HMM_RESTING)"
         ),
     )
     parser.add_argument(
@@ -484,7 +486,7 @@ def _within_truth(estimates: pd.DataFrame, truth: pd.DataFrame) -> pd.DataFrame:
 
 
 def _track_arrival_time(args, config, detections, receivers, motion, seed):
-    """Estimates and events of an arrival-time run (:mod:`hmmtrack.clock_tracking`)."""
+    """Estimates and events of an arrival-time run (:mod:`hmmtrack.tracking.clock_filter`)."""
     result = track_arrival_time(
         tracking.select_transmitter(detections, config.transmitter),
         receivers,

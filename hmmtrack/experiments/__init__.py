@@ -1,7 +1,7 @@
 """Monte Carlo experiments of the paper's "Results" section.
 
 * :func:`run_trial` — one particle-filter run on a scenario with one motion model, scored
-  with :mod:`hmmtrack.metrics` (time to convergence, the paper's "RMSE", which is a mean
+  with :mod:`hmmtrack.analysis.metrics` (time to convergence, the paper's "RMSE", which is a mean
   error after convergence, and the true RMSE after convergence);
 * :func:`compare_motion_models` — many trials per motion model per scenario (the paper's
   300 trials per dataset), as a tidy table;
@@ -21,7 +21,8 @@ Submodules: :mod:`~hmmtrack.experiments.trials` (one trial, its seed and score),
 :mod:`~hmmtrack.experiments.tables` (trial tables, loss bands) and
 :mod:`~hmmtrack.experiments.studies` (the paper's datasets and studies).
 
-Trials are dispatched through :mod:`hmmtrack.executors` (serial, local processes or a Dask
+Trials are dispatched through :mod:`hmmtrack.experiments.executors` (serial, local processes or a
+Dask
 cluster). This package computes results; it draws nothing (see
 :mod:`hmmtrack.plots.results`) and writes no files (see :mod:`hmmtrack.report`).
 

@@ -2,7 +2,7 @@
 
 A :class:`Cell` is a scenario, a motion model and a treatment (loss fraction, depth
 correction) with its own seed; :func:`run_trials` runs ``n_trials`` trials of each cell on
-any executor of :mod:`hmmtrack.executors`, a few trials per task so that the scenario is
+any executor of :mod:`hmmtrack.experiments.executors`, a few trials per task so that the scenario is
 pickled once per batch. Trial ``k`` of a cell is always seeded with child ``k`` of the
 cell's seed, so the results do not depend on the executor, the batching or the order in
 which tasks finish. :func:`run_options` spells the settings of a run on local processes.
@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from hmmtrack.executors import get_executor, map_ordered
+from hmmtrack.experiments.executors import get_executor, map_ordered
 from hmmtrack.experiments.trials import DEFAULT_PARTICLES, TrialResult, child_seed, run_trial
 from hmmtrack.scenarios import Scenario
 
@@ -80,7 +80,8 @@ def run_trials(
         Trials per cell.
     n_particles : int
     executor : "serial", "processes", distributed.Client or Executor
-        See :func:`hmmtrack.executors.get_executor`; an executor passed in is not shut down.
+        See :func:`hmmtrack.experiments.executors.get_executor`; an executor passed in is not shut
+        down.
     max_workers : int, optional
         Local processes (default: all cores).
     progress : bool

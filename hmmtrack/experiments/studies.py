@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from hmmtrack import ranging, scenarios
+from hmmtrack import scenarios
 from hmmtrack.experiments.dispatch import Cell, run_trials
 from hmmtrack.experiments.tables import trials_table
 from hmmtrack.experiments.trials import (
@@ -31,6 +31,7 @@ from hmmtrack.experiments.trials import (
 )
 from hmmtrack.random import SeedLike
 from hmmtrack.scenarios import Scenario
+from hmmtrack.tracking.measurement import ranging
 
 #: the paper's tag depth (m), the deepest white shark in its tracks
 PAPER_DEPTH = 10.7

@@ -1,9 +1,9 @@
 """One particle-filter trial on a scenario, scored against its truth; and the trials' seeds.
 
-:func:`track_scenario` runs the tracker of :mod:`hmmtrack.tracking` on a
+:func:`track_scenario` runs the tracker of :mod:`hmmtrack.tracking.pipeline` on a
 :class:`~hmmtrack.scenarios.Scenario` with one of the paper's motion models (optionally on
 evenly thinned detections or with depth-corrected ranges); :func:`run_trial` scores such a
-run with :mod:`hmmtrack.metrics` into a :class:`TrialResult`; :func:`example_run` keeps the
+run with :mod:`hmmtrack.analysis.metrics` into a :class:`TrialResult`; :func:`example_run` keeps the
 particle snapshots for the single-trial figures. :func:`experiment_seed` and
 :func:`child_seed` give every trial its own ``SeedSequence`` child.
 
@@ -21,17 +21,20 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from hmmtrack import metrics, scenarios, tracking
-from hmmtrack.filter import ParticleFilter
-from hmmtrack.measurement import RangeRateMeasurement
+from hmmtrack import scenarios
+from hmmtrack.analysis import metrics
 from hmmtrack.random import SeedLike, as_generator
 from hmmtrack.scenarios import Scenario
+from hmmtrack.tracking import pipeline as tracking
+from hmmtrack.tracking.filter import ParticleFilter
+from hmmtrack.tracking.measurement.range_rate import RangeRateMeasurement
 
 #: the paper's three motion models, in its order
 MOTIONS = ("baseline", "velocity", "hmm")
 
 #: how the HMM motion model runs a model fitted at a time step other than the filter's 1 s
-#: (see :class:`hmmtrack.motion.HMMMotion`): the bundled white-shark HMM is fitted on a 60 s
+#: (see :class:`hmmtrack.tracking.motion.HMMMotion`): the bundled white-shark HMM is fitted on a 60
+#: s
 #: grid, so its transition matrix and step/turn draws are made consistent with 1 s
 #: predictions. (The "paper" variant, a new state and new draws every second from the 60 s
 #: model, switches behaviour 60 times too often and loses the shark on our analogue.)
@@ -160,7 +163,7 @@ def track_scenario(
     ----------
     scenario : Scenario
     motion_name : {"baseline", "velocity", "hmm"}
-        :func:`hmmtrack.tracking.motion_model` with its defaults; the HMM (the bundled
+        :func:`hmmtrack.tracking.pipeline.motion_model` with its defaults; the HMM (the bundled
         white-shark model) in the :data:`HMM_VARIANT` variant.
     seed : int, SeedSequence or Generator
     n_particles : int
@@ -173,7 +176,7 @@ def track_scenario(
 
     Returns
     -------
-    hmmtrack.tracking.TrackingResult or hmmtrack.filter.FilterResult
+    hmmtrack.tracking.pipeline.TrackingResult or hmmtrack.tracking.filter.FilterResult
         Estimates every second from ``scenario.start`` to ``scenario.end``, and snapshots.
         When no detection is left (``loss_fraction = 1``) the filter runs on its motion
         model alone and its own result is returned (no observations to report).
@@ -220,11 +223,11 @@ class ExampleRun:
     Attributes
     ----------
     scenario : Scenario
-    result : hmmtrack.tracking.TrackingResult
+    result : hmmtrack.tracking.pipeline.TrackingResult
         Estimates, snapshots and observations of the run.
     errors : numpy.ndarray, shape (n,)
         Position error at each estimate (m).
-    convergence : hmmtrack.metrics.Convergence
+    convergence : hmmtrack.analysis.metrics.Convergence
     """
 
     scenario: Scenario

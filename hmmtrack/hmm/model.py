@@ -270,7 +270,7 @@ class MovementHMM:
         This is a prior added at tracking time, not a fitted model: the log-likelihood, AIC
         and BIC of the result are unknown (NaN). ``self`` is unchanged. A covariate model
         contributes its matrix at the covariate means (what the tracking filter moves
-        particles with, :class:`hmmtrack.motion.HMMMotion`); the result has no covariates.
+        particles with, :class:`hmmtrack.tracking.motion.HMMMotion`); the result has no covariates.
 
         Parameters
         ----------

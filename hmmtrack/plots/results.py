@@ -228,7 +228,8 @@ def depth_percent_error(
     ranges : numpy.ndarray, shape (n,)
         Measured (slant) ranges (m).
     percent_error : numpy.ndarray, shape (n,)
-        Percent error at those ranges (%), from :func:`hmmtrack.ranging.depth_percent_error`.
+        Percent error at those ranges (%), from
+        :func:`hmmtrack.tracking.measurement.ranging.depth_percent_error`.
     depth : float
         Tag depth the curve is for (m).
     paper : mapping of range (m) to percent error (%), optional

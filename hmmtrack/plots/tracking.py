@@ -7,7 +7,8 @@
   ...) and their latest measured ranges drawn as circles around them;
 * :func:`plot_tracking_run` — the composite: error over time on top, snapshots below.
 
-They draw what :func:`hmmtrack.tracking.track` and :mod:`hmmtrack.metrics` return and
+They draw what :func:`hmmtrack.tracking.pipeline.track` and :mod:`hmmtrack.analysis.metrics` return
+and
 compute nothing but display positions (a receiver's position at a snapshot time).
 """
 
@@ -19,8 +20,8 @@ import pandas as pd
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from hmmtrack.metrics import Convergence
-from hmmtrack.receivers import ReceiverTracks
+from hmmtrack.analysis.metrics import Convergence
+from hmmtrack.tracking.receivers import ReceiverTracks
 
 #: hydrophone colours in the paper's order (orange, blue), then further ones
 RECEIVER_COLOURS = ("tab:orange", "tab:blue", "tab:purple", "tab:brown")
@@ -63,7 +64,7 @@ def plot_error_over_time(
     times : array_like, shape (n,)
         Estimate times (s).
     errors : array_like, shape (n,)
-        Position errors (m), from :func:`hmmtrack.metrics.position_error`.
+        Position errors (m), from :func:`hmmtrack.analysis.metrics.position_error`.
     convergence : Convergence, optional
         Marks the time to convergence (dashed line) when the run converged.
     ax : matplotlib Axes, optional
@@ -184,7 +185,7 @@ def plot_tracking_run(
     estimates : pandas.DataFrame
         Estimates table of the run.
     snapshots : dict of float to pandas.DataFrame
-        Particle snapshots by time (:attr:`hmmtrack.tracking.TrackingResult.snapshots`).
+        Particle snapshots by time (:attr:`hmmtrack.tracking.pipeline.TrackingResult.snapshots`).
     receivers : pandas.DataFrame
         Receiver positions table.
     observations, truth : pandas.DataFrame, optional

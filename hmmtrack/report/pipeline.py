@@ -20,7 +20,6 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 
-from hmmtrack.executors import default_workers, get_executor
 from hmmtrack.experiments import (
     DEFAULT_PARTICLES,
     LOSS_FRACTIONS,
@@ -31,6 +30,7 @@ from hmmtrack.experiments import (
     loss_sweep,
     paper_scenarios,
 )
+from hmmtrack.experiments.executors import default_workers, get_executor
 from hmmtrack.plots import results as plots
 from hmmtrack.plots.experiments import plot_scenario
 from hmmtrack.report.paper import PAPER

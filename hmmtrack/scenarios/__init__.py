@@ -15,7 +15,6 @@ models. One module per job:
 * :mod:`~hmmtrack.scenarios.export` — write a scenario as the files ``hmmtrack track`` reads.
 """
 
-from hmmtrack.detection_probability import LogisticDetection
 from hmmtrack.scenarios.detection import (
     ExponentialDetection,
     GpsNoise,
@@ -28,6 +27,7 @@ from hmmtrack.scenarios.scenario import Scenario
 from hmmtrack.scenarios.shark_motion import WHITE_SHARK_GROUND_TRUTH, SharkMotionModel
 from hmmtrack.scenarios.thinning import thin_evenly
 from hmmtrack.scenarios.trajectory import Trajectory
+from hmmtrack.tracking.measurement.detection import LogisticDetection
 
 #: the scenario generators by their command-line names
 GENERATORS = {

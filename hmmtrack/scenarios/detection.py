@@ -10,7 +10,8 @@ The pieces, each replaceable:
   3-D when the tag has a depth, hydrophones at the surface);
 * *detection loss*: a per-hydrophone probability of detection as a function of range
   (:class:`ExponentialDetection`, the paper's fixed loss per metre;
-  :class:`hmmtrack.detection_probability.LogisticDetection`, a range curve with a 50 % range;
+  :class:`hmmtrack.tracking.measurement.detection.LogisticDetection`, a range curve with a 50 %
+  range;
   any callable of range);
 * *receiver clocks*: an optional map from true arrival time to logged time per hydrophone
   (identity by default), where offsets and drifts plug in;
@@ -21,7 +22,8 @@ transmitter`` and ``depth`` for a depth-sensor tag) and receiver positions
 (``receiver, time, x, y``), plus a *pings* table with every emission at every hydrophone,
 detected or lost, for tests and analyses.
 
-This module simulates; it does not estimate ranges (:mod:`hmmtrack.ranging`) or read files.
+This module simulates; it does not estimate ranges (:mod:`hmmtrack.tracking.measurement.ranging`)
+or read files.
 """
 
 from __future__ import annotations

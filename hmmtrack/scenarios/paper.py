@@ -22,7 +22,6 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from hmmtrack.detection_probability import LogisticDetection
 from hmmtrack.random import SeedLike, as_generator
 from hmmtrack.scenarios.detection import (
     ExponentialDetection,
@@ -35,6 +34,7 @@ from hmmtrack.scenarios.historical import ARRAY_SAMPLING
 from hmmtrack.scenarios.scenario import Scenario, assemble_scenario
 from hmmtrack.scenarios.shark_motion import WHITE_SHARK_GROUND_TRUTH, SharkMotionModel
 from hmmtrack.scenarios.trajectory import Trajectory
+from hmmtrack.tracking.measurement.detection import LogisticDetection
 
 #: period (s) of the field tag used at Long Beach and Santa Elena Bay
 FIELD_TAG_PERIOD = 8.179

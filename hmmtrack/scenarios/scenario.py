@@ -15,7 +15,6 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from hmmtrack.config import TrackingConfig
 from hmmtrack.scenarios.detection import (
     SOUND_SPEED,
     GpsNoise,
@@ -24,6 +23,7 @@ from hmmtrack.scenarios.detection import (
     simulate_pings,
 )
 from hmmtrack.scenarios.trajectory import Trajectory
+from hmmtrack.tracking.config import TrackingConfig
 
 #: margin (m) added around the discs of radius r0 to make the initialisation box
 BOUNDS_MARGIN = 100.0
@@ -107,7 +107,7 @@ class Scenario:
         }
 
     def tracking_config(self, **changes) -> TrackingConfig:
-        """The :class:`~hmmtrack.config.TrackingConfig` that tracks this scenario.
+        """The :class:`~hmmtrack.tracking.config.TrackingConfig` that tracks this scenario.
 
         Parameters
         ----------

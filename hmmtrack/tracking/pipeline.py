@@ -1,12 +1,14 @@
 """The tracking pipeline: detections + receiver positions + configuration → position estimates.
 
 :func:`build_observations` turns a detections table into the filter's observations table
-(``docs/interfaces.md``): ranges and range-rates from :mod:`hmmtrack.ranging` (optionally
+(``docs/interfaces.md``): ranges and range-rates from :mod:`hmmtrack.tracking.measurement.ranging`
+(optionally
 depth-corrected), each joined with the detecting receiver's position and velocity at the
-detection time from :class:`hmmtrack.receivers.ReceiverTracks`.
+detection time from :class:`hmmtrack.tracking.receivers.ReceiverTracks`.
 
-:func:`track` runs the paper's particle filter (:class:`hmmtrack.filter.ParticleFilter`
-with :class:`hmmtrack.measurement.RangeRateMeasurement`) on those observations with one
+:func:`track` runs the paper's particle filter (:class:`hmmtrack.tracking.filter.ParticleFilter`
+with :class:`hmmtrack.tracking.measurement.range_rate.RangeRateMeasurement`) on those observations
+with one
 of the paper's motion models chosen by name (:func:`motion_model`): ``"baseline"``,
 ``"velocity"`` or ``"hmm"`` (a saved :class:`hmmtrack.hmm.MovementHMM`, by default the
 bundled white-shark model ``hmmtrack/data/white_shark_hmm.json``), to which the
@@ -23,7 +25,7 @@ but has no range-rate, so it is not passed to the paper's (range, range-rate) li
 Defaults and the paper's configuration
 ---------------------------------------
 The paper leaves the noise levels, measurement covariance and particle count unstated;
-the defaults here and in :class:`hmmtrack.config.TrackingConfig` were chosen on the
+the defaults here and in :class:`hmmtrack.tracking.config.TrackingConfig` were chosen on the
 synthetic analogues of its three datasets (stationary tag, swimmer, shark pursuit; 10-20
 trials per cell at 1,000 particles, fixed seeds; the measurements are quoted beside each
 constant). With them, mean (median) error after convergence over 20 trials, baseline /
@@ -31,16 +33,17 @@ velocity / HMM: stationary tag 3.4 (3.5) / 3.3 (3.2) / 4.2 (3.6) m; swimmer 108 
 32 (3.5) / 32 (4.3) m; shark pursuit 898 (903) / 39 (12) / 37 (9.9) m (the HMM with its
 resting state, :data:`HMM_RESTING`; without it 7.2 (5.9) / 29 (4.2) / 34 (9.8) m). Most of
 the swimmer's mean comes from trials that settle on the mirror intersection of the two range
-circles (20-25 % of them for velocity and HMM); at :class:`~hmmtrack.config.TrackingConfig`'s
+circles (20-25 % of them for velocity and HMM); at
+:class:`~hmmtrack.tracking.config.TrackingConfig`'s
 default of 5,000 particles none of 20 did (velocity 5.4 m, HMM 5.3 m), the baseline still
 in 85 %. The shark-pursuit trials are bimodal at either count (about 9 m, or about 70 m
 when the filter follows the mirror for the first 45 minutes). The paper's algorithm stays reachable:
 ``TrackingConfig(resampling="multinomial", resample_when="always")`` with
 ``motion_model("hmm", variant="paper")``; on the same trials it gives HMM errors of 76 / 53 /
-325 m (the paper variant under-disperses headings, see :class:`hmmtrack.motion.HMMMotion`).
+325 m (the paper variant under-disperses headings, see :class:`hmmtrack.tracking.motion.HMMMotion`).
 
 This module reads no files and computes no metrics (see :mod:`hmmtrack.io`,
-:mod:`hmmtrack.metrics`).
+:mod:`hmmtrack.analysis.metrics`).
 """
 
 from __future__ import annotations
@@ -54,13 +57,14 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from hmmtrack import metrics, ranging
-from hmmtrack.config import TrackingConfig
-from hmmtrack.filter import ParticleFilter
-from hmmtrack.measurement import RangeRateMeasurement
-from hmmtrack.motion import BaselineMotion, HMMMotion, VelocityMotion, step_metres
+from hmmtrack.analysis import metrics
 from hmmtrack.random import SeedLike, as_generator
-from hmmtrack.receivers import ReceiverTracks
+from hmmtrack.tracking.config import TrackingConfig
+from hmmtrack.tracking.filter import ParticleFilter
+from hmmtrack.tracking.measurement import ranging
+from hmmtrack.tracking.measurement.range_rate import RangeRateMeasurement
+from hmmtrack.tracking.motion import BaselineMotion, HMMMotion, VelocityMotion, step_metres
+from hmmtrack.tracking.receivers import ReceiverTracks
 
 __all__ = [
     "MOTIONS",
@@ -104,7 +108,7 @@ VELOCITY_SIGMA_SPEED = 0.1
 VELOCITY_SIGMA_TURN_RATE = 0.02
 
 #: heading random walk (rad/√s) of the HMM motion model in its time-consistent variant
-#: (:class:`hmmtrack.motion.HMMMotion`). Speed and turn rate are held for the fitted step
+#: (:class:`hmmtrack.tracking.motion.HMMMotion`). Speed and turn rate are held for the fitted step
 #: (60 s for the bundled model), so without it the copies of a particle that resampling
 #: makes move identically until their next draw: the cloud collapses onto a few velocities
 #: and slides coherently (on the stationary tag: error 10-26 m while √λ₁ said 4 m). Mean
@@ -196,20 +200,21 @@ def motion_model(
     Parameters
     ----------
     name : {"baseline", "velocity", "hmm"}
-        ``baseline``: :class:`~hmmtrack.motion.BaselineMotion` with ``sigma`` =
-        :data:`BASELINE_SIGMA`; ``velocity``: :class:`~hmmtrack.motion.VelocityMotion` with
+        ``baseline``: :class:`~hmmtrack.tracking.motion.BaselineMotion` with ``sigma`` =
+        :data:`BASELINE_SIGMA`; ``velocity``: :class:`~hmmtrack.tracking.motion.VelocityMotion` with
         :data:`VELOCITY_SIGMA_SPEED` and :data:`VELOCITY_SIGMA_TURN_RATE`; ``hmm``:
-        :class:`~hmmtrack.motion.HMMMotion` of ``model``.
+        :class:`~hmmtrack.tracking.motion.HMMMotion` of ``model``.
     model : path, MovementHMM or None
         For ``hmm`` only: a saved model file, a fitted model, or ``None`` for the bundled
         white-shark model.
     variant : {"time_consistent", "paper"}
-        For ``hmm`` only, see :class:`~hmmtrack.motion.HMMMotion`. ``"time_consistent"``
+        For ``hmm`` only, see :class:`~hmmtrack.tracking.motion.HMMMotion`. ``"time_consistent"``
         (default) respects the time step the model was fitted at; ``"paper"`` is the
         paper's algorithm (new draws every prediction step).
     heading_diffusion : float, optional
         For ``hmm`` only: heading random walk (rad/√s) of
-        :class:`~hmmtrack.motion.HMMMotion`; by default :data:`HMM_HEADING_DIFFUSION` in the
+        :class:`~hmmtrack.tracking.motion.HMMMotion`; by default :data:`HMM_HEADING_DIFFUSION` in
+        the
         time-consistent variant and 0 in the paper's.
     resting : RestingState, None or "default"
         For ``hmm`` only: add a resting state to the model
@@ -222,7 +227,7 @@ def motion_model(
 
     Returns
     -------
-    A motion model for :class:`hmmtrack.filter.ParticleFilter`.
+    A motion model for :class:`hmmtrack.tracking.filter.ParticleFilter`.
     """
     if name not in MOTIONS:
         raise ValueError(f"motion must be one of {MOTIONS}, got {name!r}")
@@ -393,7 +398,8 @@ def expected_measurements(observations: pd.DataFrame, truth: pd.DataFrame) -> np
     """True (range, range-rate) at each observation, from a known tag track.
 
     For a calibration segment or a simulation: with
-    :func:`hmmtrack.ranging.estimate_measurement_covariance` it gives Σ_z from data, e.g.
+    :func:`hmmtrack.tracking.measurement.ranging.estimate_measurement_covariance` it gives Σ_z from
+    data, e.g.
     ``estimate_measurement_covariance(obs[["range", "range_rate"]], expected_measurements(
     obs, truth))`` over the rows whose range-rate is defined.
 

@@ -31,15 +31,15 @@ import numpy as np
 import pandas as pd
 from scipy.signal import lfilter
 
-from hmmtrack.clock import ReceiverClock, to_common_time
-from hmmtrack.config import TrackingConfig
-from hmmtrack.detection_probability import LogisticDetection
 from hmmtrack.random import SeedLike, as_generator
 from hmmtrack.scenarios.detection import GpsNoise, detections_from_pings
 from hmmtrack.scenarios.paper import shark_pursuit
 from hmmtrack.scenarios.scenario import Scenario, assemble_scenario
 from hmmtrack.scenarios.shark_motion import WHITE_SHARK_GROUND_TRUTH
 from hmmtrack.scenarios.trajectory import Trajectory
+from hmmtrack.tracking.config import TrackingConfig
+from hmmtrack.tracking.measurement.clock import ReceiverClock, to_common_time
+from hmmtrack.tracking.measurement.detection import LogisticDetection
 
 
 @dataclass(frozen=True)
@@ -51,7 +51,8 @@ class WanderingPeriodClock:
     changes over minutes; the 44-83 µs ping jitter seen on real tags leaves no room for
     large ping-to-ping period steps), scaled so that over the first
     ``reference_duration`` seconds the emission schedule's largest distance from its best
-    constant-period schedule (:func:`hmmtrack.clock.schedule_wander`) is exactly
+    constant-period schedule (:func:`hmmtrack.tracking.measurement.clock.schedule_wander`) is
+    exactly
     ``schedule_wander`` before jitter (runs shorter than that are the start of such a
     schedule); each emission then gets independent Gaussian jitter. Implements the
     emission-clock protocol of :mod:`hmmtrack.scenarios.detection`.
@@ -216,8 +217,8 @@ class ClockScenario:
         Parameters
         ----------
         settings : mapping, optional
-            Keys of :class:`hmmtrack.config.TrackingConfig` (e.g. a preset's,
-            :func:`hmmtrack.config.read_preset`); the case's own keys below win over them.
+            Keys of :class:`hmmtrack.tracking.config.TrackingConfig` (e.g. a preset's,
+            :func:`hmmtrack.tracking.config.read_preset`); the case's own keys below win over them.
         duration : float, optional
             Track the first ``duration`` seconds (s); default: the whole scenario.
 
@@ -703,11 +704,11 @@ class RotatingPlan:
     filter's error reached 10.1 m. On the realistic pursuit (:func:`realistic_shark_pursuit`,
     2 h, 9 seeds) the AUVs' speeds over ground are 2.1-2.5 m/s at the 99th percentile and
     at most 2.4-2.9 m/s (1 s steps), and the arrival-time filter with the
-    ``two-moving-receivers`` preset (:mod:`hmmtrack.config`) reaches a mean error after
+    ``two-moving-receivers`` preset (:mod:`hmmtrack.tracking.config`) reaches a mean error after
     convergence of 5.6 m (worst of 18 runs, 9 scenarios × 2 filter seeds, 6.6 m;
     reports/two_auv_plan.md). The
     stations are placed from the true shark track, as the paper's simulated hydrophone
-    paths are built from it; :func:`hmmtrack.closed_loop.fly_closed_loop` flies the plan
+    paths are built from it; :func:`hmmtrack.experiments.closed_loop.fly_closed_loop` flies the plan
     on the filter's online estimate instead (the preset without the detection curve:
     5.0 m mean, worst 5.4 m over the same 18 runs, against 5.7 and 6.8 m steered on the
     truth; reports/closed_loop.md).

@@ -6,11 +6,11 @@ Three models from the paper's section "Motion Models", each with the same two en
     The reference implementation: one prediction step of ``dt`` seconds for all particles at
     once, written with NumPy arrays and a ``numpy.random.Generator``.
 ``advance(particles, streams, n_steps, dt, weights, origin, threads=None)``
-    The fast path used by :class:`hmmtrack.filter.ParticleFilter`: ``n_steps`` prediction
+    The fast path used by :class:`hmmtrack.tracking.filter.ParticleFilter`: ``n_steps`` prediction
     steps fused into one compiled (numba) kernel, run over fixed chunks of particles on
     ``threads`` threads (numba's parallel loop, one serial kernel call per thread, the
     threads claiming chunks as they go), that draws from the per-particle random streams of
-    :mod:`hmmtrack.streams` and returns the weighted moments
+    :mod:`hmmtrack.tracking.compiled.streams` and returns the weighted moments
     of the particle positions after every step, so that per-second estimates need no second
     pass over the particles. The kernels implement the same equations as ``propagate``;
     ``tests/test_motion.py`` checks them against each other with the same random draws.
@@ -18,7 +18,7 @@ Three models from the paper's section "Motion Models", each with the same two en
     the compiler vectorises (draw the random numbers, move along the arcs with a polynomial
     arc, sum the moments), each followed by a scalar pass for the rare particles the fast
     path leaves (rejected draws, turns wider than :data:`WIDE_TURN`); the draws are exactly
-    those of the scalar samplers of :mod:`hmmtrack.streams`.
+    those of the scalar samplers of :mod:`hmmtrack.tracking.compiled.streams`.
 
 Models
 ------
@@ -59,8 +59,8 @@ from numba.core import cgutils
 from numba.extending import intrinsic
 from scipy.linalg import fractional_matrix_power
 
-from hmmtrack import streams as rs
-from hmmtrack.particles import Particles
+from hmmtrack.tracking.compiled import streams as rs
+from hmmtrack.tracking.particles import Particles
 
 __all__ = [
     "BaselineMotion",
@@ -595,7 +595,8 @@ class VelocityMotion:
         particles : Particles
             N particles, moved in place.
         streams : (N,) uint64
-            Per-particle random streams (:func:`hmmtrack.streams.new_streams`), advanced.
+            Per-particle random streams (:func:`hmmtrack.tracking.compiled.streams.new_streams`),
+            advanced.
         n_steps : int
         dt : float
             Prediction step, s.
@@ -923,7 +924,8 @@ class HMMMotion:
         turning angle by ``model.dt`` and redraws it every second, so the heading changes
         by ``model.dt`` independent small turns whose variance adds up to only
         ``1/model.dt`` of the fitted angle variance: headings are under-dispersed and
-        clouds of particles drift straight (see the measurements in :mod:`hmmtrack.tracking`).
+        clouds of particles drift straight (see the measurements in
+        :mod:`hmmtrack.tracking.pipeline`).
     heading_diffusion : float
         Standard deviation (rad per √s, ≥ 0) of a heading random walk added to the arcs:
         each sub-step of ``h`` s turns by ``omega h + heading_diffusion sqrt(h) Z`` with

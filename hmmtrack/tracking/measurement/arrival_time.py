@@ -3,7 +3,8 @@
 The paper turns detection times into ranges with a constant, exactly known period and a
 known initial range. Real tags drift (hundreds of ppm) and wild animals do not start
 beside a hydrophone, so this model keeps the raw arrival time and lets each particle
-carry the transmitter's emission clock (:class:`hmmtrack.clock.EmissionClockModel`): particle
+carry the transmitter's emission clock
+(:class:`hmmtrack.tracking.measurement.clock.EmissionClockModel`): particle
 ``i`` predicts that a ping reaches receiver ``j`` at
 
     emission_time_i + m·period_i (+ m(m−1)/2·period_rate_i) + range_ij / sound_speed
@@ -25,7 +26,7 @@ the receiver's position is taken at the arrival time. Ranges are 3-D when a dept
 known (particle field ``depth``, or a ``depth`` column of the detections from a depth
 sensor) and receivers may have a ``receiver_depth`` column; otherwise both are at the
 surface. Detection times must be on the common (true) time base: map receiver clocks
-first with :func:`hmmtrack.clock.to_common_time`.
+first with :func:`hmmtrack.tracking.measurement.clock.to_common_time`.
 
 This module only scores; it does not move particles, resample, or build observations.
 """
@@ -41,7 +42,7 @@ import pandas as pd
 from numba import njit
 from scipy.special import erfcx, log_ndtr
 
-from hmmtrack.hermite import hermite_basis, hermite_value
+from hmmtrack.tracking.compiled.hermite import hermite_basis, hermite_value
 
 #: speed of sound in sea water used by the paper (m/s); fresh water is about 1416-1450
 SOUND_SPEED = 1460.0
@@ -610,7 +611,8 @@ class ArrivalTimeMeasurement:
     -----
     Particles need fields ``x``, ``y``, ``cos_heading``, ``sin_heading``, ``speed``
     (velocity along the heading), ``emission_time`` and ``period`` (see
-    :class:`hmmtrack.clock.EmissionClockModel`), and optionally ``period_rate`` (s per
+    :class:`hmmtrack.tracking.measurement.clock.EmissionClockModel`), and optionally
+    ``period_rate`` (s per
     ping; 0 when absent) and ``depth`` (m, positive down). Observations are rows of a table with
     columns ``time`` (arrival time on the common time base, s), ``receiver``, ``receiver_x``,
     ``receiver_y`` (m, at the arrival time) and optionally ``depth`` (the tag's depth from

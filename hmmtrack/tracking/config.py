@@ -17,8 +17,8 @@ and command-line values, later ones winning; :func:`measurement_covariance_with`
 standard deviations of Σ_z (``hmmtrack track --sigma-range``). The arrival-time filter's
 detection curve is a key too, e.g. ``"detection_curve": {"range_50": 160, "width": 40}``.
 
-It is not for running anything: :mod:`hmmtrack.tracking` and
-:mod:`hmmtrack.clock_tracking` use it; :meth:`TrackingConfig.motion_model` and
+It is not for running anything: :mod:`hmmtrack.tracking.pipeline` and
+:mod:`hmmtrack.tracking.clock_filter` use it; :meth:`TrackingConfig.motion_model` and
 :meth:`TrackingConfig.arrival_time_options` turn its settings into their arguments.
 """
 
@@ -34,11 +34,11 @@ from pathlib import Path
 
 import pandas as pd
 
-from hmmtrack.arrival import ArrivalLikelihood, ArrivalTimeMeasurement
-from hmmtrack.detection_probability import LogisticDetection
-from hmmtrack.filter import RESAMPLE_WHEN
-from hmmtrack.ranging import SOUND_SPEED
-from hmmtrack.resampling import RESAMPLERS
+from hmmtrack.tracking.filter import RESAMPLE_WHEN
+from hmmtrack.tracking.measurement.arrival_time import ArrivalLikelihood, ArrivalTimeMeasurement
+from hmmtrack.tracking.measurement.detection import LogisticDetection
+from hmmtrack.tracking.measurement.ranging import SOUND_SPEED
+from hmmtrack.tracking.resampling import RESAMPLERS
 
 #: depth policies that are not a number (see :attr:`TrackingConfig.depth`)
 DEPTH_POLICIES = ("none", "sensor")
@@ -48,16 +48,16 @@ DEPTH_POLICIES = ("none", "sensor")
 DESCRIPTIVE_KEYS = ("name", "description", "files", "synthetic")
 
 #: measurement models: the paper's ranges and range-rates from the tag period and known
-#: initial ranges (:func:`hmmtrack.tracking.track`), or arrival times scored against the
+#: initial ranges (:func:`hmmtrack.tracking.pipeline.track`), or arrival times scored against the
 #: tag's emission clock carried by each particle
-#: (:func:`hmmtrack.clock_tracking.track_arrival_time`)
+#: (:func:`hmmtrack.tracking.clock_filter.track_arrival_time`)
 MEASUREMENTS = ("range-rate", "arrival-time")
 
 #: keys that describe one data set, which a preset may not hold
 DATA_KEYS = ("period", "r0", "transmitter", "bounds", "start", "end")
 
 #: folder of the bundled presets, one ``<name>.json`` each
-PRESET_DIR = Path(__file__).resolve().parent / "data" / "presets"
+PRESET_DIR = Path(__file__).resolve().parents[1] / "data" / "presets"
 
 
 def _number(name: str, value) -> float:
@@ -88,7 +88,7 @@ class TrackingConfig:
     r0 : mapping of str to float
         Known range (m, ≥ 0) between the tag and each receiver at that receiver's first
         detection, keyed by receiver name. The paper's (range, range-rate) tracking needs one
-        per detecting receiver; arrival-time tracking (:mod:`hmmtrack.clock_tracking`) needs
+        per detecting receiver; arrival-time tracking (:mod:`hmmtrack.tracking.clock_filter`) needs
         none (empty mapping, the default).
     sound_speed : float
         Speed of sound (m/s); 1460 as the paper.
@@ -100,20 +100,20 @@ class TrackingConfig:
         :func:`hmmtrack.io.read_receivers` chose for them (the UTM zone of their centre by
         default; ``hmmtrack track --bounds`` converts a lon/lat box into it). ``None``
         derives it: from the receivers' first positions and ``r0``
-        (:func:`hmmtrack.tracking.search_bounds`) for ``"range-rate"``, from
+        (:func:`hmmtrack.tracking.pipeline.search_bounds`) for ``"range-rate"``, from
         ``search_radius`` for ``"arrival-time"``.
     bounds_margin : float
         ``"range-rate"``: margin (m) added around derived bounds, and the slack of
-        :func:`hmmtrack.tracking.check_bounds` for given ones.
+        :func:`hmmtrack.tracking.pipeline.check_bounds` for given ones.
     velocity_window : float
         Width (s) of the window over which receiver velocities are averaged from their GPS
-        tracks (see :class:`hmmtrack.receivers.ReceiverTracks`); 0 takes the slope of the
+        tracks (see :class:`hmmtrack.tracking.receivers.ReceiverTracks`); 0 takes the slope of the
         GPS segment, as noisy as the fixes.
     measurement_covariance : 2×2 nested sequence
         Σ_z of (range m, range_rate m/s): ``[[var_r, cov], [cov, var_rdot]]``; symmetric
         positive definite. Estimate it with
-        :func:`hmmtrack.ranging.estimate_measurement_covariance` and
-        :func:`hmmtrack.tracking.expected_measurements`, then inflate it: the filter's
+        :func:`hmmtrack.tracking.measurement.ranging.estimate_measurement_covariance` and
+        :func:`hmmtrack.tracking.pipeline.expected_measurements`, then inflate it: the filter's
         likelihood must also absorb the particles' spread. The default (5 m, 0.5 m/s; the
         paper gives no value) is 3-5 times the error standard deviations measured on the
         synthetic scenarios (1.1-1.5 m, 0.10-0.18 m/s); Σ_z set to (2 m, 0.2 m/s) made the
@@ -127,16 +127,16 @@ class TrackingConfig:
         detections' ``depth`` column, a tag depth sensor) or an assumed constant depth (m).
     shallower : {"raise", "clip"}
         What a depth correction does with a range shorter than the depth (see
-        :func:`hmmtrack.ranging.depth_correction`).
+        :func:`hmmtrack.tracking.measurement.ranging.depth_correction`).
     start, end : float, str or None
         Time window of the run: UTC epoch seconds or ISO 8601 text with a UTC offset
         (stored as seconds); ``None`` uses the first and last detection.
     resampling : str
-        Resampling scheme, a name of :data:`hmmtrack.resampling.RESAMPLERS`. Default
+        Resampling scheme, a name of :data:`hmmtrack.tracking.resampling.RESAMPLERS`. Default
         ``"systematic"`` (less resampling noise than the paper's ``"multinomial"``; on 10
         trials per cell of the three synthetic scenarios it lowered the HMM model's mean
         error after convergence on the shark pursuit from 77 m to 24 m and was never
-        clearly worse, see :mod:`hmmtrack.tracking`); ``"multinomial"`` with
+        clearly worse, see :mod:`hmmtrack.tracking.pipeline`); ``"multinomial"`` with
         ``resample_when="always"`` is the paper's algorithm.
     resample_when : {"always", "ess"}
         Resample after every correction (``"always"``, the paper, and the default) or only
@@ -147,20 +147,23 @@ class TrackingConfig:
     measurement : {"range-rate", "arrival-time"}
         Measurement model (:data:`MEASUREMENTS`); the paper's ``"range-rate"`` by default.
     motion : {"baseline", "velocity", "hmm"}
-        Motion model of :meth:`motion_model` (:data:`hmmtrack.tracking.MOTIONS`); ``"hmm"``,
+        Motion model of :meth:`motion_model` (:data:`hmmtrack.tracking.pipeline.MOTIONS`);
+        ``"hmm"``,
         the bundled white-shark model, by default.
     sigma_speed, sigma_turn_rate : float or None
         ``motion="velocity"`` only: spreads of the speed (m/s per √s) and turn-rate (rad/s
-        per √s) increments of :class:`hmmtrack.motion.VelocityMotion`; ``None`` keeps
-        :data:`hmmtrack.tracking.VELOCITY_SIGMA_SPEED` and ``VELOCITY_SIGMA_TURN_RATE``.
+        per √s) increments of :class:`hmmtrack.tracking.motion.VelocityMotion`; ``None`` keeps
+        :data:`hmmtrack.tracking.pipeline.VELOCITY_SIGMA_SPEED` and ``VELOCITY_SIGMA_TURN_RATE``.
     arrival_sigma : float or None
         ``measurement="arrival-time"`` only: standard deviation (s) of a direct-path
-        arrival-time residual (:class:`hmmtrack.arrival.ArrivalLikelihood`'s ``sigma``);
+        arrival-time residual
+        (:class:`hmmtrack.tracking.measurement.arrival_time.ArrivalLikelihood`'s ``sigma``);
         ``None`` keeps that class's default.
     tempering_ess : float or None
         ``measurement="arrival-time"`` only: fraction in ``(0, 1]`` of the particles below
-        which a correction is tempered (see :class:`hmmtrack.clock_tracking.ClockAwareFilter`);
-        ``None`` keeps :func:`hmmtrack.clock_tracking.track_arrival_time`'s default.
+        which a correction is tempered (see
+        :class:`hmmtrack.tracking.clock_filter.ClockAwareFilter`);
+        ``None`` keeps :func:`hmmtrack.tracking.clock_filter.track_arrival_time`'s default.
     search_radius : float or None
         ``measurement="arrival-time"`` only, without ``bounds``: the search box is the
         receivers' positions at the start widened by this many metres (about their
@@ -168,7 +171,7 @@ class TrackingConfig:
     detection_curve : LogisticDetection, mapping or None
         ``measurement="arrival-time"`` only: the receivers' probability of hearing a ping
         against range, so that pings a particle says should have been heard but were not
-        count against it (:class:`hmmtrack.detection_probability.LogisticDetection`,
+        count against it (:class:`hmmtrack.tracking.measurement.detection.LogisticDetection`,
         ``max_probability`` 1; in a file ``{"range_50": m, "width": m}``). ``None``:
         missed pings carry no information.
     """
@@ -271,7 +274,7 @@ class TrackingConfig:
         self._check_models()
 
     def _check_models(self) -> None:
-        from hmmtrack.tracking import MOTIONS  # tracking imports this module
+        from hmmtrack.tracking.pipeline import MOTIONS  # tracking imports this module
 
         if self.measurement not in MEASUREMENTS:
             raise ValueError(f"measurement must be one of {MEASUREMENTS}, got {self.measurement!r}")
@@ -313,16 +316,16 @@ class TrackingConfig:
         Parameters
         ----------
         model, variant, resting
-            For ``motion="hmm"`` only, see :func:`hmmtrack.tracking.motion_model`
+            For ``motion="hmm"`` only, see :func:`hmmtrack.tracking.pipeline.motion_model`
             (``resting=None``: no resting state added to the movement HMM).
 
         Returns
         -------
         BaselineMotion, VelocityMotion or HMMMotion
-            :func:`hmmtrack.tracking.motion_model`'s, with :attr:`sigma_speed` and
+            :func:`hmmtrack.tracking.pipeline.motion_model`'s, with :attr:`sigma_speed` and
             :attr:`sigma_turn_rate` where given.
         """
-        from hmmtrack import tracking  # tracking imports this module
+        from hmmtrack.tracking import pipeline as tracking  # pipeline imports this module
 
         motion = tracking.motion_model(self.motion, model, variant=variant, resting=resting)
         noise = {
@@ -333,13 +336,14 @@ class TrackingConfig:
         return dataclasses.replace(motion, **noise) if noise else motion
 
     def arrival_time_options(self) -> dict:
-        """Keyword arguments of :func:`hmmtrack.clock_tracking.track_arrival_time` set here.
+        """Keyword arguments of :func:`hmmtrack.tracking.clock_filter.track_arrival_time` set here.
 
         Returns
         -------
         dict
             ``period``, ``bounds``, ``start``, ``end``, ``n_particles``, ``measurement``
-            (:class:`hmmtrack.arrival.ArrivalTimeMeasurement` at :attr:`sound_speed`, with
+            (:class:`hmmtrack.tracking.measurement.arrival_time.ArrivalTimeMeasurement` at
+            :attr:`sound_speed`, with
             :attr:`arrival_sigma` where given) and, where given, ``tempering_ess``,
             ``search_radius`` and ``detection`` (:attr:`detection_curve`). The motion model
             (:meth:`motion_model`), smoother lag and seed are the caller's.
@@ -536,7 +540,8 @@ def _detection_curve(value) -> LogisticDetection:
         if not isinstance(value, Mapping) or set(value) != set(keys):
             raise ValueError(
                 'detection_curve must be {"range_50": metres, "width": metres} (the logistic '
-                f"curve of hmmtrack.detection_probability.LogisticDetection), got {value!r}"
+                f"curve of hmmtrack.tracking.measurement.detection.LogisticDetection), got "
+                f"{value!r}"
             )
         curve = LogisticDetection(*(_number(f"detection_curve {k}", value[k]) for k in keys))
     curve.require_unit_maximum("detection_curve")

@@ -8,7 +8,8 @@ joint state
 
 * tag ``(x, y, vx, vy)`` (m, m/s) with a nearly-constant-velocity prior: white-noise
   acceleration of intensity ``q`` (m²/s³) on each axis;
-* emission clock ``(e, P[, R])`` of :class:`hmmtrack.clock.EmissionClockModel` (emission
+* emission clock ``(e, P[, R])`` of :class:`hmmtrack.tracking.measurement.clock.EmissionClockModel`
+(emission
   time, period, period rate) with that model's process noise per ping;
 
 observed through each detected ping's arrival time at receiver ``j``,
@@ -29,8 +30,8 @@ outliers and the clock's wrapping to the right ping are not in it (both can only
 estimation harder); the arrival-time information is that of the pings actually heard,
 the detection curve's is its expectation.
 
-Not for tracking (:mod:`hmmtrack.clock_tracking`) nor for simulating detections
-(:mod:`hmmtrack.clock_scenarios`); 2-D only (no depth).
+Not for tracking (:mod:`hmmtrack.tracking.clock_filter`) nor for simulating detections
+(:mod:`hmmtrack.scenarios.clocks`); 2-D only (no depth).
 """
 
 from __future__ import annotations
@@ -41,9 +42,9 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import minimize_scalar
 
-from hmmtrack.clock import EmissionClockModel
-from hmmtrack.detection_probability import LogisticDetection
-from hmmtrack.receivers import ReceiverTracks
+from hmmtrack.tracking.measurement.clock import EmissionClockModel
+from hmmtrack.tracking.measurement.detection import LogisticDetection
+from hmmtrack.tracking.receivers import ReceiverTracks
 
 #: indices of the tag's position (x, y) in the joint state
 POSITION = slice(0, 2)
@@ -130,7 +131,7 @@ def clock_transition(clock: EmissionClockModel):
     -------
     transition, noise : numpy.ndarray, each shape (d, d)
         ``d = clock_dimension(clock)``; the same model as
-        :meth:`hmmtrack.clock.EmissionClockModel.predict_covariance`.
+        :meth:`hmmtrack.tracking.measurement.clock.EmissionClockModel.predict_covariance`.
     """
     d = clock_dimension(clock)
     transition = np.eye(d) + np.eye(d, k=1)
@@ -322,7 +323,7 @@ def arrival_time_bound(
         to the emission times, which must lie inside its span.
     receivers : pandas.DataFrame
         True receiver positions (``receiver``, ``time``, ``x``, ``y``; ``time`` NaN for a
-        moored receiver), as :meth:`hmmtrack.receivers.ReceiverTracks.from_frame` takes.
+        moored receiver), as :meth:`hmmtrack.tracking.receivers.ReceiverTracks.from_frame` takes.
     heard : pandas.DataFrame
         One row per detection: ``ping`` (int index into ``emission_times``) and
         ``receiver`` (str). Which pings each receiver heard; the times are not used.
@@ -439,7 +440,8 @@ def emission_clock_from_schedule(
 ) -> EmissionClockModel:
     """The integrated-random-walk clock that best explains an emission schedule.
 
-    Fits ``rate_step_sd`` of an :class:`~hmmtrack.clock.EmissionClockModel` whose period
+    Fits ``rate_step_sd`` of an :class:`~hmmtrack.tracking.measurement.clock.EmissionClockModel`
+    whose period
     changes only through its rate (``period_step_sd = phase_step_sd = 0``) by maximum
     likelihood: a Kalman filter over the emission times observed with independent jitter
     ``jitter_sd``. This is how a bound gets a clock prior no looser than the truth's own

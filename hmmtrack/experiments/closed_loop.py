@@ -1,6 +1,6 @@
 """Closed-loop steering: two AUVs that fly a :class:`RotatingPlan` around the filter's estimate.
 
-:func:`hmmtrack.clock_scenarios.realistic_shark_pursuit` places the AUVs' stations from the
+:func:`hmmtrack.scenarios.clocks.realistic_shark_pursuit` places the AUVs' stations from the
 true shark track, as the paper's simulated hydrophone paths are. A robot only has the
 tracker's estimate. :func:`fly_closed_loop` re-flies the AUVs of such a scenario second by
 second with the tracker in the loop:
@@ -8,15 +8,15 @@ second with the tracker in the loop:
 1. the position steered on is the tracker's latest estimate (``steer_on="estimate"``) or,
    for checking, the true shark position (``steer_on="truth"``);
 2. the stations are the plan's (:meth:`RotatingPlan.bearings`,
-   :func:`hmmtrack.clock_scenarios.station`), led by the exponential average of the
+   :func:`hmmtrack.scenarios.clocks.station`), led by the exponential average of the
    steered-on position's 1 s displacements (the plan's ``lead_window``, as
-   :func:`hmmtrack.clock_scenarios.recent_velocity`), and each vehicle homes on its station
-   through the plan's low-pass (:func:`hmmtrack.clock_scenarios.homing_memory`), capped at
+   :func:`hmmtrack.scenarios.clocks.recent_velocity`), and each vehicle homes on its station
+   through the plan's low-pass (:func:`hmmtrack.scenarios.clocks.homing_memory`), capped at
    ``max_speed``;
 3. the tag's pings (the scenario's emissions) reach the AUVs where they now are; each is
    heard with the scenario's detection curve, logged with the scenario's receiver clocks
    and multipath delays, and its vehicle's position logged with the scenario's GPS errors;
-4. the tracker is stepped online (:meth:`hmmtrack.filter.ParticleFilter.step`) with what
+4. the tracker is stepped online (:meth:`hmmtrack.tracking.filter.ParticleFilter.step`) with what
    was heard, on the common time base.
 
 Timing. A detection at common time ``τ`` is corrected at the filter's whole second
@@ -52,8 +52,8 @@ with the right law, and where the geometry is unchanged it hears what the open l
 Measured in ``reports/closed_loop.md`` (``benchmarks/bench_closed_loop.py``).
 
 This module simulates and runs a tracker online. It does no filtering of its own
-(:func:`arrival_time_tracker` only assembles :mod:`hmmtrack.clock_tracking`'s filter as
-``track_arrival_time`` does) and scores nothing (:mod:`hmmtrack.metrics`).
+(:func:`arrival_time_tracker` only assembles :mod:`hmmtrack.tracking.clock_filter`'s filter as
+``track_arrival_time`` does) and scores nothing (:mod:`hmmtrack.analysis.metrics`).
 """
 
 from __future__ import annotations
@@ -63,15 +63,19 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from hmmtrack.clock import to_common_time
-from hmmtrack.clock_scenarios import ClockScenario, RotatingPlan, homing_memory, station
-from hmmtrack.clock_tracking import ClockAwareFilter, arrival_observations, default_clock_model
-from hmmtrack.config import TrackingConfig
-from hmmtrack.filter import ESTIMATE_COLUMNS
 from hmmtrack.random import SeedLike, as_generator
-from hmmtrack.receivers import ReceiverTracks
+from hmmtrack.scenarios.clocks import ClockScenario, RotatingPlan, homing_memory, station
 from hmmtrack.scenarios.detection import arrival_times, detections_from_pings
 from hmmtrack.scenarios.trajectory import Trajectory
+from hmmtrack.tracking.clock_filter import (
+    ClockAwareFilter,
+    arrival_observations,
+    default_clock_model,
+)
+from hmmtrack.tracking.config import TrackingConfig
+from hmmtrack.tracking.filter import ESTIMATE_COLUMNS
+from hmmtrack.tracking.measurement.clock import to_common_time
+from hmmtrack.tracking.receivers import ReceiverTracks
 
 #: what the stations are placed around: the tracker's estimate, or the true shark (a check)
 STEER_ON = ("estimate", "truth")
@@ -100,9 +104,9 @@ class ClosedLoopRun:
         The detection log (logged times): ``time``, ``receiver``, ``transmitter``.
     observations : pandas.DataFrame
         What the tracker was given, on the common time base
-        (:func:`hmmtrack.clock_tracking.arrival_observations`).
+        (:func:`hmmtrack.tracking.clock_filter.arrival_observations`).
     estimates : pandas.DataFrame
-        The tracker's estimate every second (:data:`hmmtrack.filter.ESTIMATE_COLUMNS`).
+        The tracker's estimate every second (:data:`hmmtrack.tracking.filter.ESTIMATE_COLUMNS`).
     steering : pandas.DataFrame
         Per second (:data:`STEERING_COLUMNS`): ``source`` (``"start"``, ``"estimate"`` or
         ``"truth"``), the shark position the stations were placed around (m) and the lead
@@ -210,7 +214,7 @@ def _per_receiver(table: pd.DataFrame, names) -> dict[str, np.ndarray]:
 class _Fleet:
     """The two AUVs flying ``plan`` from their start positions, one second at a time.
 
-    Homing works as :func:`hmmtrack.clock_scenarios.steered_auv`'s low-pass, in positions
+    Homing works as :func:`hmmtrack.scenarios.clocks.steered_auv`'s low-pass, in positions
     relative to the start (``offset``), with each 1 s step capped at ``max_speed`` metres.
     """
 
@@ -245,7 +249,7 @@ class _Fleet:
 class _Pilot:
     """Each second, the shark position the stations are placed around and the lead velocity.
 
-    The lead velocity is :func:`hmmtrack.clock_scenarios.recent_velocity`'s average of
+    The lead velocity is :func:`hmmtrack.scenarios.clocks.recent_velocity`'s average of
     the steered-on position's 1 s displacements, restarted at zero when the source of
     that position changes (start point to estimate).
     """
@@ -308,14 +312,14 @@ def fly_closed_loop(
     Parameters
     ----------
     case : ClockScenario
-        An open-loop :func:`hmmtrack.clock_scenarios.realistic_shark_pursuit` flown with
+        An open-loop :func:`hmmtrack.scenarios.clocks.realistic_shark_pursuit` flown with
         ``plan`` (``steering=plan`` or the named plan it is); without a diving tag.
     plan : RotatingPlan
         The plan (its start bearing is recovered by :func:`plan_phase`).
-    tracker : hmmtrack.filter.ParticleFilter
+    tracker : hmmtrack.tracking.filter.ParticleFilter
         Not yet started; stepped once a second with ``step(time, observations)`` on the
-        observations of :func:`hmmtrack.clock_tracking.arrival_observations` (e.g. a
-        :class:`hmmtrack.clock_tracking.ClockAwareFilter` whose search box is
+        observations of :func:`hmmtrack.tracking.clock_filter.arrival_observations` (e.g. a
+        :class:`hmmtrack.tracking.clock_filter.ClockAwareFilter` whose search box is
         ``case.search_bounds``). It must not use future detections (no silence model).
     steer_on : {"estimate", "truth"}
         Place the stations around the tracker's estimate, or around the true shark, which
@@ -477,7 +481,7 @@ def _split(frames: list, limit: float, origin: float | None = None) -> tuple[lis
 def _observations(known: pd.DataFrame, fleet: _Fleet, gps_error, time, k: int) -> pd.DataFrame:
     """The tracker's input rows for detections ``known`` (common time at or before second
     ``k``): the AUVs' logged positions at their times, interpolated as
-    :func:`hmmtrack.clock_tracking.arrival_observations` does offline."""
+    :func:`hmmtrack.tracking.clock_filter.arrival_observations` does offline."""
     lo = max(int(np.floor(known["time"].min() - time[0])) - 1, 0)
     positions = pd.concat(
         [
@@ -497,7 +501,7 @@ def _observations(known: pd.DataFrame, fleet: _Fleet, gps_error, time, k: int) -
 
 
 def arrival_time_tracker(config: TrackingConfig, seed: SeedLike = None) -> ClockAwareFilter:
-    """The arrival-time filter that :func:`hmmtrack.clock_tracking.track_arrival_time`
+    """The arrival-time filter that :func:`hmmtrack.tracking.clock_filter.track_arrival_time`
     builds for ``config``, not yet started, without silence model or smoother.
 
     Parameters

@@ -7,7 +7,8 @@ rate were last drawn (used by the time-consistent HMM motion model). ``cos_headi
 with one sine/cosine pair per step instead of recomputing three trigonometric functions.
 
 This module only stores, creates, copies and selects particles; motion models
-(:mod:`hmmtrack.motion`) move them and measurement models (:mod:`hmmtrack.measurement`)
+(:mod:`hmmtrack.tracking.motion`) move them and measurement models
+(:mod:`hmmtrack.tracking.measurement.range_rate`)
 weigh them.
 """
 

@@ -3,8 +3,9 @@
 A measurement model has one method, ``loglik(particles, obs, time=None) -> (N,)``: the log
 density of the observations made at one filter step, for every particle at once, with
 simultaneous observations treated as independent (their log densities add). The filter
-(:mod:`hmmtrack.filter`) only ever calls that method, so any model with the same method
-plugs in (for instance :class:`hmmtrack.arrival.ArrivalTimeMeasurement`, which scores raw
+(:mod:`hmmtrack.tracking.filter`) only ever calls that method, so any model with the same method
+plugs in (for instance :class:`hmmtrack.tracking.measurement.arrival_time.ArrivalTimeMeasurement`,
+which scores raw
 arrival times against a per-particle transmitter clock).
 
 :class:`RangeRateMeasurement` is the paper's model (section "Correction Step"): each
@@ -23,7 +24,7 @@ A model may also offer ``as_matrix(obs) -> (M, k)`` and ``loglik_matrix(particle
 the filter then converts a whole run's observations once and scores row slices.
 
 This module does not resample or move particles, and does not compute ranges from
-detection times (that is :mod:`hmmtrack.ranging`).
+detection times (that is :mod:`hmmtrack.tracking.measurement.ranging`).
 """
 
 from __future__ import annotations
@@ -36,7 +37,7 @@ import numpy as np
 import pandas as pd
 from numba import njit
 
-from hmmtrack.particles import Particles
+from hmmtrack.tracking.particles import Particles
 
 __all__ = ["RANGE_RATE_COLUMNS", "RangeRateMeasurement", "predicted_range_and_rate"]
 

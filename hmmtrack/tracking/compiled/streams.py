@@ -1,6 +1,6 @@
 """Per-particle random streams and the samplers that compiled motion kernels draw from.
 
-The compiled motion kernels (:mod:`hmmtrack.motion`) run over particles on several threads.
+The compiled motion kernels (:mod:`hmmtrack.tracking.motion`) run over particles on several threads.
 To give the same answer for the same seed whatever the number of threads, each particle
 *slot* ``i`` owns its own random stream: a 64-bit SplitMix64 state ``streams[i]`` seeded once
 from the filter's ``numpy.random.Generator``. A kernel reads the state into a register,

@@ -2,12 +2,12 @@
 
 :class:`ParticleFilter` runs the paper's Algorithms 1 and 2 with pluggable parts:
 
-* a motion model (:mod:`hmmtrack.motion`) moves the particles every ``dt`` (1 s) seconds;
-* a measurement model (:mod:`hmmtrack.measurement`, or any object with
+* a motion model (:mod:`hmmtrack.tracking.motion`) moves the particles every ``dt`` (1 s) seconds;
+* a measurement model (:mod:`hmmtrack.tracking.measurement.range_rate`, or any object with
   ``loglik(particles, obs, time) -> (N,)``) weighs them when observations arrive; the
   log weights are normalised by their log-sum-exp (no underflow: only weights that are all
   ``-inf``, every particle impossible, are degenerate -- they are recovered, never NaN);
-* a resampling scheme (:mod:`hmmtrack.resampling`) runs after every correction
+* a resampling scheme (:mod:`hmmtrack.tracking.resampling`) runs after every correction
   (``resample_when="always"``, the paper) or when the effective sample size falls below
   ``ess_threshold * N`` (``"ess"``).
 
@@ -32,14 +32,15 @@ threads are often slower. A correction is a handful of compiled or vectorised pa
 (log-likelihood, normalisation with the moments and ESS, the resampling's inverse CDF);
 :meth:`ParticleFilter.iterate` converts all observations once to the measurement model's
 matrix form when the model offers one (``as_matrix`` / ``loglik_matrix``, as
-:class:`hmmtrack.measurement.RangeRateMeasurement` does) instead of slicing a table at every
+:class:`hmmtrack.tracking.measurement.range_rate.RangeRateMeasurement` does) instead of slicing a
+table at every
 correction. After each resampling :attr:`ParticleFilter.last_ancestors` holds the ancestor
 indices (for smoothers).
 
 Observations are assigned to the nearest prediction time (``start + k dt``); with
 ``dt = 1 s`` the particles are at most 0.5 s away from the observation's time.
 
-This module does not read files or build observations (:mod:`hmmtrack.tracking` does).
+This module does not read files or build observations (:mod:`hmmtrack.tracking.pipeline` does).
 """
 
 from __future__ import annotations
@@ -56,11 +57,11 @@ import numpy as np
 import pandas as pd
 from numba import njit
 
-from hmmtrack import streams as rs
-from hmmtrack.metrics import sqrt_largest_eigenvalue
-from hmmtrack.particles import Particles, as_bounds
+from hmmtrack.analysis.metrics import sqrt_largest_eigenvalue
 from hmmtrack.random import SeedLike, as_generator
-from hmmtrack.resampling import get_resampler, log_normalise
+from hmmtrack.tracking.compiled import streams as rs
+from hmmtrack.tracking.particles import Particles, as_bounds
+from hmmtrack.tracking.resampling import get_resampler, log_normalise
 
 __all__ = [
     "ESTIMATE_COLUMNS",
@@ -190,7 +191,7 @@ def _weight_summary(x, y, log_weight, top=None, k=None):
     Returns ``(weights, log_total, mean_x, mean_y, var_x, var_y, cov_xy, n_eff)`` with
     ``log_total`` the log-sum-exp of ``log_weight`` (all ``-inf`` count as equal); the same
     numbers as ``np.average`` / ``np.cov(..., aweights=w, bias=True)`` and
-    :func:`hmmtrack.resampling.effective_sample_size` (tested).
+    :func:`hmmtrack.tracking.resampling.effective_sample_size` (tested).
     """
     if top is None:
         k = int(np.argmax(log_weight))
@@ -210,7 +211,7 @@ def _weigh(log_weight, loglik, x, y):
     Returns ``(status, log_weight, weights, mean_x, mean_y, var_x, var_y, cov_xy, n_eff)``
     where ``status`` is 0 (done), 1 (``loglik`` has NaN or ``+inf``) or 2 (every particle
     impossible); the rest is meaningful only when ``status == 0``. Equal to
-    :func:`hmmtrack.resampling.log_normalise` and :func:`_weight_summary` (tested).
+    :func:`hmmtrack.tracking.resampling.log_normalise` and :func:`_weight_summary` (tested).
     """
     updated = np.empty(log_weight.size)
     if _add_log_weights(log_weight, loglik, updated):
@@ -344,7 +345,7 @@ class ParticleFilter:
     motion
         Motion model with ``initialise(rng, particles)``, ``propagate(rng, particles, dt)``
         and, for the compiled path, ``compiled`` and ``advance(...)``
-        (:mod:`hmmtrack.motion`).
+        (:mod:`hmmtrack.tracking.motion`).
     measurement
         Object with ``loglik(particles, obs, time) -> (N,)``; an optional attribute
         ``columns`` lists the observation columns it needs (checked up front).
@@ -353,7 +354,7 @@ class ParticleFilter:
     bounds : (xmin, xmax, ymin, ymax)
         Search box for the uniform initialisation (m).
     resampling : str
-        Scheme name from :data:`hmmtrack.resampling.RESAMPLERS` (default multinomial, the
+        Scheme name from :data:`hmmtrack.tracking.resampling.RESAMPLERS` (default multinomial, the
         paper's).
     resample_when : {"always", "ess"}
         Resample after every correction (the paper), or only when the effective sample
@@ -413,7 +414,7 @@ class ParticleFilter:
         self.compiled = compiled and backend != "numpy"
         self.threads = threads
         # numba's thread count of this thread (``numba.set_num_threads``: 1 in the worker
-        # processes of hmmtrack.executors, which run one trial per core)
+        # processes of hmmtrack.experiments.executors, which run one trial per core)
         self._thread_choice = ThreadChoice(numba.get_num_threads())
         self.particles: Particles | None = None
         self.time: float | None = None

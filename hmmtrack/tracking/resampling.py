@@ -10,7 +10,7 @@ indices into ``weights`` so that index ``i`` is expected to appear ``n * weights
 * :func:`systematic` -- one uniform shared by all strata; every count is within one of
   ``n w_i`` (floor or ceil), the least noisy of the four.
 
-:data:`RESAMPLERS` maps the names used by :class:`hmmtrack.filter.ParticleFilter` to the
+:data:`RESAMPLERS` maps the names used by :class:`hmmtrack.tracking.filter.ParticleFilter` to the
 functions. Multinomial, stratified and systematic draw sorted points in ``[0, 1)`` with
 NumPy and invert the cumulative weights in linear compiled passes (:func:`inverse_cdf`).
 :func:`effective_sample_size` measures weight degeneracy from log weights.

@@ -14,7 +14,7 @@ noise, segment slopes scatter by about 1.4 m/s, comparable to a boat's speed. A 
 last longer than the window; for a constant-velocity path every window gives the exact
 velocity. A moored receiver (one row, no time) is fixed, with zero velocity.
 
-Not for: reading files (:mod:`hmmtrack.io`), ranging (:mod:`hmmtrack.ranging`).
+Not for: reading files (:mod:`hmmtrack.io`), ranging (:mod:`hmmtrack.tracking.measurement.ranging`).
 """
 
 from __future__ import annotations

@@ -15,8 +15,9 @@ of ppm. This module holds the three small models the arrival-time filter needs:
 * :func:`local_period_ppm` and :func:`schedule_wander` - the two summaries by which a
   simulated or estimated emission schedule is compared with real tags.
 
-It is not for scoring detections (:mod:`hmmtrack.arrival`) nor for simulating them
-(:mod:`hmmtrack.clock_scenarios`).
+It is not for scoring detections (:mod:`hmmtrack.tracking.measurement.arrival_time`) nor for
+simulating them
+(:mod:`hmmtrack.scenarios.clocks`).
 """
 
 from __future__ import annotations

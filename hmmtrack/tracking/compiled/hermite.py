@@ -3,8 +3,9 @@
 A tabulated function of one variable is stored as rows of ``(value, step * slope)`` pairs
 at equally spaced nodes; between nodes ``k`` and ``k + 1``, at fraction ``t`` of the step,
 the interpolant is ``f_k h00 + f_{k+1} h01 + d_k h10 + d_{k+1} h11`` with the cubic Hermite
-basis ``h``. Used by the tabulated multipath mixture of :mod:`hmmtrack.arrival` and the
-softplus table of :mod:`hmmtrack.detection_probability`. Not for: building the tables
+basis ``h``. Used by the tabulated multipath mixture of
+:mod:`hmmtrack.tracking.measurement.arrival_time` and the
+softplus table of :mod:`hmmtrack.tracking.measurement.detection`. Not for: building the tables
 (their owners do, with closed-form slopes) or choosing the grid.
 """
 

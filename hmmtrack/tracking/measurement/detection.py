@@ -3,7 +3,7 @@
 A receiver hears a ping with a probability that falls with range. Modelled as a logistic
 curve ``p(r) = max_probability / (1 + exp((r − range_50) / width))`` it does two jobs:
 
-* scenarios draw which pings are heard (:mod:`hmmtrack.clock_scenarios`,
+* scenarios draw which pings are heard (:mod:`hmmtrack.scenarios.clocks`,
   :mod:`hmmtrack.scenarios`);
 * the arrival-time filter counts a ping that a receiver should have heard but did not
   against particles close to that receiver (:func:`silence_loglik`): each particle
@@ -14,7 +14,7 @@ curve ``p(r) = max_probability / (1 + exp((r − range_50) / width))`` it does t
 ``(range, heard)`` pairs - from a range test, a simulation, or a first tracking pass
 (:func:`expected_pings` lists the pings an estimated track and emission schedule imply).
 
-This module does not score arrival times (:mod:`hmmtrack.arrival`).
+This module does not score arrival times (:mod:`hmmtrack.tracking.measurement.arrival_time`).
 """
 
 from __future__ import annotations
@@ -28,8 +28,8 @@ from numba import njit
 from scipy.optimize import minimize
 from scipy.special import expit, log_expit
 
-from hmmtrack.hermite import hermite_basis, hermite_value
-from hmmtrack.receivers import ReceiverTracks
+from hmmtrack.tracking.compiled.hermite import hermite_basis, hermite_value
+from hmmtrack.tracking.receivers import ReceiverTracks
 
 
 @dataclass(frozen=True)
@@ -438,7 +438,7 @@ def emission_schedule(clock: pd.DataFrame, end: float) -> np.ndarray:
     ----------
     clock : pandas.DataFrame
         Columns ``emission_time`` and ``period`` (s), one row per correction in time order,
-        as the clock table of :class:`hmmtrack.clock_tracking.ClockFilterResult`.
+        as the clock table of :class:`hmmtrack.tracking.clock_filter.ClockFilterResult`.
     end : float
         Last time to fill to (s).
 

@@ -1,13 +1,14 @@
 """Clock-aware tracking: the particle filter with the transmitter's emission clock in its state.
 
-:class:`ClockAwareFilter` is :class:`hmmtrack.filter.ParticleFilter` with four additions,
+:class:`ClockAwareFilter` is :class:`hmmtrack.tracking.filter.ParticleFilter` with four additions,
 each through the parent's own steps (predict, correct, resample):
 
 * every particle carries the emission clock as a Kalman filter conditioned on its path
   (a Rao-Blackwellised clock): extra particle fields ``emission_time`` (mean time of
   the particle's reference emission, s), ``period`` (mean period, s) and ``period_rate``
   (s per ping, 0 unless the clock model has a rate), with one ``(3, 3)`` covariance
-  shared by all particles (:class:`hmmtrack.clock.EmissionClockModel`). A detection is
+  shared by all particles (:class:`hmmtrack.tracking.measurement.clock.EmissionClockModel`). A
+  detection is
   scored on its marginal likelihood - the clock integrated out - so particles are not
   lost for lack of the exact clock, and each detection then updates every particle's
   clock (one compiled pass per detection over all particles);
@@ -26,15 +27,15 @@ each through the parent's own steps (predict, correct, resample):
   multipath) the clock is re-acquired from the latest one and the event recorded.
 
 Optionally it also records every step for the fixed-lag smoother
-(:mod:`hmmtrack.smoothing`) and counts silences against particles near a receiver
-(:mod:`hmmtrack.detection_probability`).
+(:mod:`hmmtrack.tracking.smoothing`) and counts silences against particles near a receiver
+(:mod:`hmmtrack.tracking.measurement.detection`).
 
 :func:`arrival_observations` builds the filter's input from detections and receiver
 positions, and :func:`track_arrival_time` runs the whole thing (the entry point for
 ``hmmtrack track --measurement arrival-time``).
 
 This module does not read files and does not score detections itself
-(:mod:`hmmtrack.arrival`).
+(:mod:`hmmtrack.tracking.measurement.arrival_time`).
 """
 
 from __future__ import annotations
@@ -46,7 +47,8 @@ import numpy as np
 import pandas as pd
 from numba import njit
 
-from hmmtrack.arrival import (
+from hmmtrack.tracking.filter import FilterResult, ParticleFilter
+from hmmtrack.tracking.measurement.arrival_time import (
     ArrivalTimeMeasurement,
     check_arrival_observations,
     emission_distance,
@@ -56,16 +58,15 @@ from hmmtrack.arrival import (
     vertical_parts,
     wrap_arrival,
 )
-from hmmtrack.clock import EmissionClockModel
-from hmmtrack.detection_probability import (
+from hmmtrack.tracking.measurement.clock import EmissionClockModel
+from hmmtrack.tracking.measurement.detection import (
     HeardTimes,
     LogisticDetection,
     silence_loglik_recent_pings,
     softplus,
 )
-from hmmtrack.filter import FilterResult, ParticleFilter
-from hmmtrack.receivers import ReceiverTracks
-from hmmtrack.smoothing import FixedLagSmoother, smoothed_table
+from hmmtrack.tracking.receivers import ReceiverTracks
+from hmmtrack.tracking.smoothing import FixedLagSmoother, smoothed_table
 
 #: columns of :attr:`ClockFilterResult.ambiguity`
 AMBIGUITY_COLUMNS = ("time", "separation", "minor_weight", "ambiguous")
@@ -85,7 +86,8 @@ def _clock_row_kernel(
     """Score one detection against every particle's clock and update the clocks in place.
 
     Adds to ``loglik`` the marginal log density of each residual (innovation standard
-    deviation ``sigma``; :func:`hmmtrack.arrival.mixture_log_densities`, into the scratch
+    deviation ``sigma``; :func:`hmmtrack.tracking.measurement.arrival_time.mixture_log_densities`,
+    into the scratch
     arrays ``total`` and ``direct``, shape (N,)) and, when ``range_50`` is not NaN, the
     logistic ``log p(distance)`` of being heard; moves each clock
     ``(emission_time, period, rate)`` to the matched ping and applies the Kalman gain (3,)
@@ -119,7 +121,7 @@ def _clock_row_kernel(
 
 @njit(cache=True)
 def predict_clock_covariance(covariance, n_pings, noise):
-    """Compiled :meth:`hmmtrack.clock.EmissionClockModel.predict_covariance`.
+    """Compiled :meth:`hmmtrack.tracking.measurement.clock.EmissionClockModel.predict_covariance`.
 
     Parameters
     ----------
@@ -159,7 +161,8 @@ def _correction_kernel(
     """Score detections one after the other and update every particle's clock in place.
 
     For each row: match every particle's clock to the ping that fits
-    (:func:`hmmtrack.arrival.match_particle`), move the shared covariance to the median
+    (:func:`hmmtrack.tracking.measurement.arrival_time.match_particle`), move the shared covariance
+    to the median
     matched ping, score and update (:func:`_clock_row_kernel`).
 
     Returns
@@ -350,7 +353,8 @@ def _clock_summary(emission_time, period, weights, var_emission, var_period):
 
     Particles' reference emissions need not be the same ping, so two nearly equal clocks
     can differ by whole periods: emission times are taken relative to the heaviest
-    particle's clock, wrapped to its nearest ping (:func:`hmmtrack.arrival.wrap_to_ping`).
+    particle's clock, wrapped to its nearest ping
+    (:func:`hmmtrack.tracking.measurement.arrival_time.wrap_to_ping`).
 
     Parameters
     ----------
@@ -535,12 +539,12 @@ def _ambiguity_kernel(x, y, w, min_separation, n_bins):
 
 @dataclass
 class ClockFilterResult(FilterResult):
-    """:class:`hmmtrack.filter.FilterResult` plus what the clock-aware filter adds.
+    """:class:`hmmtrack.tracking.filter.FilterResult` plus what the clock-aware filter adds.
 
     Attributes
     ----------
     smoothed : pandas.DataFrame or None
-        Fixed-lag smoothed estimates (:data:`hmmtrack.smoothing.SMOOTHED_COLUMNS`), when a
+        Fixed-lag smoothed estimates (:data:`hmmtrack.tracking.smoothing.SMOOTHED_COLUMNS`), when a
         lag was given.
     ambiguity : pandas.DataFrame
         One row per correction (:data:`AMBIGUITY_COLUMNS`).
@@ -631,7 +635,7 @@ class ClockAwareFilter(ParticleFilter):
     Parameters
     ----------
     motion
-        Motion model (:mod:`hmmtrack.motion`).
+        Motion model (:mod:`hmmtrack.tracking.motion`).
     measurement : ArrivalTimeMeasurement
     clock : EmissionClockModel
     n_particles : int
@@ -652,7 +656,7 @@ class ClockAwareFilter(ParticleFilter):
         After this many corrections in a row with a detection that fits no particle (more
         than multipath can explain), the clock is re-acquired from the latest one.
     **kwargs
-        Passed to :class:`hmmtrack.filter.ParticleFilter` (``resampling``, ``rng``, ...).
+        Passed to :class:`hmmtrack.tracking.filter.ParticleFilter` (``resampling``, ``rng``, ...).
     """
 
     def __init__(
@@ -848,7 +852,7 @@ class ClockAwareFilter(ParticleFilter):
 
     def _rows(self, obs: pd.DataFrame):
         """The rows of ``obs`` as arrays (M,): arrival time, receiver x and y, and depth
-        offset (:func:`hmmtrack.arrival.vertical_parts`).
+        offset (:func:`hmmtrack.tracking.measurement.arrival_time.vertical_parts`).
 
         During :meth:`run`, ``obs`` is a slice of the run's table (its index labels are
         row positions), whose columns were converted once.
@@ -1012,7 +1016,8 @@ def arrival_observations(detections: pd.DataFrame, receivers: ReceiverTracks) ->
     Parameters
     ----------
     detections : pandas.DataFrame
-        ``time`` (common time base, s; see :func:`hmmtrack.clock.to_common_time`),
+        ``time`` (common time base, s; see
+        :func:`hmmtrack.tracking.measurement.clock.to_common_time`),
         ``receiver``; ``depth`` (m) is kept for depth-sensor tags.
     receivers : ReceiverTracks
 
@@ -1091,7 +1096,7 @@ def track_arrival_time(
     receivers : pandas.DataFrame
         Receiver positions table (docs/interfaces.md).
     motion
-        Motion model (:mod:`hmmtrack.motion`).
+        Motion model (:mod:`hmmtrack.tracking.motion`).
     period : float
         Nominal tag period (s).
     bounds : (xmin, xmax, ymin, ymax), optional

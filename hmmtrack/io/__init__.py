@@ -33,7 +33,8 @@ track by hours. Formats that define their zone (VUE ``Date and Time (UTC)``, Fat
 ``Device Time (UTC)``, Movebank ``timestamp``) are read as UTC. Numeric time columns are taken
 as UTC seconds since the epoch.
 
-Not for: track maths (:mod:`hmmtrack.tracks`), ranging (:mod:`hmmtrack.ranging`).
+Not for: track maths (:mod:`hmmtrack.tracks`), ranging
+(:mod:`hmmtrack.tracking.measurement.ranging`).
 """
 
 from __future__ import annotations
