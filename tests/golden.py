@@ -1,0 +1,353 @@
+"""Golden runs: fixed-seed tracking runs whose outputs a refactor must leave bit-identical.
+
+Each case is one function below that builds its inputs from a synthetic scenario with a
+fixed seed, runs the public tracking API and returns ``{table name: DataFrame}``. The
+stored outputs are ``tests/data/golden/<case>/<table>.csv`` (written by
+``tests/make_golden.py``); ``tests/test_golden.py`` recomputes every case and requires the
+same columns, the same shape and exactly the same values (NaN equal to NaN).
+
+Inputs go scenario → detections table + receiver positions table → public call, so that
+a refactor of the trackers changes only the tracking calls of this file (their imports
+and signatures), never what goes into them. The inputs themselves are two cases too
+(:func:`inputs_range_rate`, :func:`inputs_arrival_time`): when a tracking case differs,
+they tell whether the scenario or the tracker changed.
+
+The cases:
+
+* range-rate tracking (:func:`hmmtrack.tracking.track`) of the first 20 minutes of the
+  shark pursuit (:func:`hmmtrack.scenarios.shark_pursuit`, two moving AUVs), 1,000
+  particles, with each motion model: baseline, velocity, the bundled white-shark HMM
+  (time-consistent, with its default resting state) and the HMM in the paper's variant
+  with the paper's resampling (multinomial, after every correction);
+* arrival-time tracking (:func:`hmmtrack.clock_tracking.track_arrival_time`) of 20 minutes
+  of the moored array (:func:`hmmtrack.clock_scenarios.moored_array`, three moorings,
+  wandering tag clock, multipath), 1,000 particles: plain (bundled HMM), with a fixed-lag
+  smoother (velocity motion), with a detection curve counting silences (velocity motion).
+
+Nothing here depends on the number of threads: the compiled filter gives one answer
+whatever it is (:class:`hmmtrack.filter.ParticleFilter`; at 1,000 particles its kernels
+run one chunk, on one thread, anyway), so the calls are the default public ones. Checked
+by hand: the same tables with ``NUMBA_NUM_THREADS=1`` and with every compiled call forced
+onto two threads.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from hmmtrack import scenarios, tracking
+from hmmtrack.clock_scenarios import moored_array
+from hmmtrack.clock_tracking import track_arrival_time
+from hmmtrack.config import TrackingConfig
+from hmmtrack.detection_probability import LogisticDetection
+from hmmtrack.motion import VelocityMotion
+
+#: folder of the stored outputs: one sub-folder per case, one CSV per table
+GOLDEN_DIR = Path(__file__).parent / "data" / "golden"
+
+#: particles of every run
+N_PARTICLES = 1000
+#: seconds tracked from each scenario's start
+SPAN = 1200.0
+#: seed of the range-rate scenario (the shark pursuit; on seed 5 the velocity and HMM runs
+#: end within 10 m of the truth, the baseline and the paper's variant do not)
+PURSUIT_SEED = 5
+#: seed of the arrival-time scenario (the moored array)
+MOORED_SEED = 5
+#: seed of every tracking run
+TRACK_SEED = 3
+#: seconds after the start at which range-rate runs keep a snapshot of their particles
+SNAPSHOT_AFTER = 600.0
+#: receiver positions kept after the last detection of the range-rate inputs (s)
+RECEIVER_MARGIN = 60.0
+#: steps of the fixed-lag smoother of :func:`arrival_time_smoothed`
+SMOOTHING_LAG = 30
+#: detection curve of :func:`arrival_time_silence`: the moored array's own (1.75 and 0.25
+#: array radii, the radius 400 m for :data:`MOORED_SEED`), written out
+DETECTION = LogisticDetection(range_50=700.0, width=100.0)
+
+
+# ---------------------------------------------------------------------------- inputs
+
+
+def range_rate_inputs() -> tuple[pd.DataFrame, pd.DataFrame, TrackingConfig]:
+    """Detections, receiver positions and configuration of the range-rate cases.
+
+    The shark pursuit of :data:`PURSUIT_SEED` cut to its first :data:`SPAN` seconds:
+    detections up to ``start + SPAN``, AUV positions up to :data:`RECEIVER_MARGIN` later.
+
+    Returns
+    -------
+    detections : pandas.DataFrame
+        ``time`` (s), ``receiver``, ``transmitter``.
+    receivers : pandas.DataFrame
+        ``receiver``, ``time`` (s), ``x``, ``y`` (m).
+    config : TrackingConfig
+        The scenario's period, true ``r0``, sound speed, transmitter and window; search
+        bounds from ``r0`` (``bounds=None``), :data:`N_PARTICLES`, other settings default.
+    """
+    sc = scenarios.shark_pursuit(PURSUIT_SEED)
+    end = sc.start + SPAN
+    detections = sc.detections[sc.detections["time"] <= end].reset_index(drop=True)
+    receivers = sc.receivers[sc.receivers["time"] <= end + RECEIVER_MARGIN].reset_index(drop=True)
+    config = TrackingConfig(
+        period=sc.period,
+        r0=dict(sc.r0),
+        sound_speed=sc.sound_speed,
+        transmitter=sc.transmitter,
+        start=sc.start,
+        end=end,
+        n_particles=N_PARTICLES,
+    )
+    return detections, receivers, config
+
+
+def arrival_time_inputs() -> tuple[pd.DataFrame, pd.DataFrame, dict]:
+    """Detections, receiver positions and window of the arrival-time cases.
+
+    The moored array of :data:`MOORED_SEED`, :data:`SPAN` seconds long, its detections on
+    the common time base (the calibrated receiver clocks applied).
+
+    Returns
+    -------
+    detections : pandas.DataFrame
+        ``time`` (s, common time base), ``receiver``, ``transmitter``.
+    receivers : pandas.DataFrame
+        ``receiver``, ``time`` (NaN: moored), ``x``, ``y`` (m).
+    options : dict
+        ``period`` (the scenario's mean period, s), ``start`` and ``end`` (s).
+    """
+    case = moored_array(MOORED_SEED, duration=SPAN)
+    sc = case.scenario
+    options = {"period": sc.period, "start": sc.start, "end": sc.end}
+    return case.corrected_detections(), sc.receivers, options
+
+
+def inputs_range_rate() -> dict[str, pd.DataFrame]:
+    """The inputs of the range-rate cases (:func:`range_rate_inputs`)."""
+    detections, receivers, _ = range_rate_inputs()
+    return {"detections": detections, "receivers": receivers}
+
+
+def inputs_arrival_time() -> dict[str, pd.DataFrame]:
+    """The inputs of the arrival-time cases (:func:`arrival_time_inputs`)."""
+    detections, receivers, _ = arrival_time_inputs()
+    return {"detections": detections, "receivers": receivers}
+
+
+# ---------------------------------------------------------------------------- range-rate
+
+
+def _range_rate_tables(result) -> dict[str, pd.DataFrame]:
+    """Every table of a :class:`hmmtrack.tracking.TrackingResult`."""
+    (snapshot,) = result.snapshots.values()
+    return {
+        "estimates": result.estimates,
+        "events": result.events,
+        "observations": result.observations,
+        "snapshot": snapshot,
+        "bounds": pd.DataFrame([result.bounds], columns=["xmin", "xmax", "ymin", "ymax"]),
+    }
+
+
+def _track_range_rate(motion, **changes) -> dict[str, pd.DataFrame]:
+    detections, receivers, config = range_rate_inputs()
+    config = config.override(**changes) if changes else config
+    result = tracking.track(
+        detections,
+        receivers,
+        config,
+        motion,
+        seed=TRACK_SEED,
+        snapshot_times=(config.start + SNAPSHOT_AFTER,),
+    )
+    return _range_rate_tables(result)
+
+
+def range_rate_baseline() -> dict[str, pd.DataFrame]:
+    """Range-rate tracking, baseline motion (random walk)."""
+    return _track_range_rate("baseline")
+
+
+def range_rate_velocity() -> dict[str, pd.DataFrame]:
+    """Range-rate tracking, velocity motion."""
+    return _track_range_rate("velocity")
+
+
+def range_rate_hmm() -> dict[str, pd.DataFrame]:
+    """Range-rate tracking, the bundled HMM (time-consistent, default resting state)."""
+    return _track_range_rate("hmm")
+
+
+def range_rate_hmm_paper() -> dict[str, pd.DataFrame]:
+    """Range-rate tracking, the bundled HMM in the paper's variant (no resting state) with
+    the paper's resampling: multinomial, after every correction."""
+    return _track_range_rate(
+        tracking.motion_model("hmm", variant="paper"),
+        resampling="multinomial",
+        resample_when="always",
+    )
+
+
+# ---------------------------------------------------------------------------- arrival-time
+
+
+def _arrival_time_tables(result) -> dict[str, pd.DataFrame]:
+    """Every table of a :class:`hmmtrack.clock_tracking.ClockFilterResult` (``smoothed``
+    when there is one; no snapshots are asked for)."""
+    tables = {
+        "estimates": result.estimates,
+        "events": result.events,
+        "ambiguity": result.ambiguity,
+        "clock": result.clock,
+    }
+    if result.smoothed is not None:
+        tables["smoothed"] = result.smoothed
+    return tables
+
+
+def _track_arrival_time(motion, **options) -> dict[str, pd.DataFrame]:
+    detections, receivers, window = arrival_time_inputs()
+    result = track_arrival_time(
+        detections,
+        receivers,
+        motion=motion,
+        n_particles=N_PARTICLES,
+        seed=TRACK_SEED,
+        **window,
+        **options,
+    )
+    return _arrival_time_tables(result)
+
+
+def arrival_time_plain() -> dict[str, pd.DataFrame]:
+    """Arrival-time tracking, the bundled HMM (time-consistent, default resting state)."""
+    return _track_arrival_time(tracking.motion_model("hmm"))
+
+
+def arrival_time_smoothed() -> dict[str, pd.DataFrame]:
+    """Arrival-time tracking, velocity motion, fixed-lag smoother of :data:`SMOOTHING_LAG`."""
+    return _track_arrival_time(
+        VelocityMotion(sigma_speed=0.05, sigma_turn_rate=0.02), smoothing_lag=SMOOTHING_LAG
+    )
+
+
+def arrival_time_silence() -> dict[str, pd.DataFrame]:
+    """Arrival-time tracking, velocity motion, unheard pings scored with :data:`DETECTION`."""
+    return _track_arrival_time(
+        VelocityMotion(sigma_speed=0.05, sigma_turn_rate=0.02), detection=DETECTION
+    )
+
+
+#: every golden case by name (the name of its folder in :data:`GOLDEN_DIR`)
+CASES: dict[str, Callable[[], dict[str, pd.DataFrame]]] = {
+    f.__name__: f
+    for f in (
+        inputs_range_rate,
+        inputs_arrival_time,
+        range_rate_baseline,
+        range_rate_velocity,
+        range_rate_hmm,
+        range_rate_hmm_paper,
+        arrival_time_plain,
+        arrival_time_smoothed,
+        arrival_time_silence,
+    )
+}
+
+
+# ---------------------------------------------------------------------------- storage
+
+
+def write_table(table: pd.DataFrame, path: Path) -> None:
+    """Write ``table`` without its index; floats as their shortest round-trip text."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    table.to_csv(path, index=False, lineterminator="\n")
+
+
+def read_table(path: Path) -> pd.DataFrame:
+    """Read a table of :func:`write_table` back, floats parsed exactly.
+
+    pandas infers the columns' types; float columns are then parsed again from their text
+    by Python's ``float`` (correctly rounded, so exact for shortest round-trip text on any
+    pandas version), an empty field as NaN.
+    """
+    table = pd.read_csv(path)
+    text = pd.read_csv(path, dtype=str, keep_default_na=False)
+    for column in table.columns:
+        if table[column].dtype.kind == "f":
+            table[column] = np.array([float(v) if v else np.nan for v in text[column]])
+    return table
+
+
+def read_case(case: str, folder: Path = GOLDEN_DIR) -> dict[str, pd.DataFrame]:
+    """The stored tables of ``case``, by name."""
+    return {path.stem: read_table(path) for path in sorted((folder / case).glob("*.csv"))}
+
+
+def _kind(column: pd.Series) -> str:
+    """``"bool"``, ``"int"``, ``"float"`` or ``"text"``."""
+    return {"b": "bool", "i": "int", "u": "int", "f": "float"}.get(column.dtype.kind, "text")
+
+
+def _text(column: pd.Series) -> list[str]:
+    """Values as strings, a missing value (None, NaN) as the empty string (as CSV has it)."""
+    return ["" if pd.isna(v) else str(v) for v in column.tolist()]
+
+
+def differences(expected: pd.DataFrame, actual: pd.DataFrame, name: str) -> list[str]:
+    """What differs between a stored table and a recomputed one (empty when nothing).
+
+    Columns must be the same, in the same order, and the shapes equal. Numeric columns
+    (bool, int, float) must hold exactly the same numbers (``np.array_equal`` with
+    ``equal_nan=True``) and the same kind of number; other columns the same text.
+
+    Parameters
+    ----------
+    expected, actual : pandas.DataFrame
+        Stored and recomputed table.
+    name : str
+        Named in the messages.
+
+    Returns
+    -------
+    list of str
+        One message per difference found.
+    """
+    if list(expected.columns) != list(actual.columns):
+        return [f"{name}: columns {list(actual.columns)}, stored {list(expected.columns)}"]
+    if expected.shape != actual.shape:
+        return [f"{name}: shape {actual.shape}, stored {expected.shape}"]
+    found = []
+    for column in expected.columns:
+        e, a = expected[column], actual[column]
+        kinds = _kind(e), _kind(a)
+        if len(e) and kinds[0] != kinds[1]:
+            found.append(f"{name}.{column}: {kinds[1]} values, stored {kinds[0]}")
+        elif "text" not in kinds:
+            e_values, a_values = e.to_numpy(dtype=float), a.to_numpy(dtype=float)
+            if not np.array_equal(e_values, a_values, equal_nan=True):
+                same = (e_values == a_values) | (np.isnan(e_values) & np.isnan(a_values))
+                rows = np.flatnonzero(~same)
+                first = rows[0]
+                gaps = np.abs(a_values[rows] - e_values[rows])
+                gaps = gaps[np.isfinite(gaps)]
+                largest = float(gaps.max()) if gaps.size else float("nan")
+                found.append(
+                    f"{name}.{column}: {rows.size} of {len(e)} values differ, first at row "
+                    f"{first} ({float(a_values[first])!r}, stored {float(e_values[first])!r}), "
+                    f"largest finite difference {largest!r}"
+                )
+        else:
+            e_text, a_text = _text(e), _text(a)
+            if e_text != a_text:
+                row = next(k for k, (u, v) in enumerate(zip(e_text, a_text, strict=True)) if u != v)
+                found.append(
+                    f"{name}.{column}: text differs, first at row {row} "
+                    f"({a_text[row]!r}, stored {e_text[row]!r})"
+                )
+    return found
