@@ -14,18 +14,18 @@ they tell whether the scenario or the tracker changed.
 
 The cases:
 
-* range-rate tracking (:func:`hmmtrack.tracking.track`) of the first 20 minutes of the
+* range-rate tracking (:func:`hmmtrack.tracking.pipeline.track`) of the first 20 minutes of the
   shark pursuit (:func:`hmmtrack.scenarios.shark_pursuit`, two moving AUVs), 1,000
   particles, with each motion model: baseline, velocity, the bundled white-shark HMM
   (time-consistent, with its default resting state) and the HMM in the paper's variant
   with the paper's resampling (multinomial, after every correction);
-* arrival-time tracking (:func:`hmmtrack.clock_tracking.track_arrival_time`) of 20 minutes
-  of the moored array (:func:`hmmtrack.clock_scenarios.moored_array`, three moorings,
+* arrival-time tracking (:func:`hmmtrack.tracking.clock_filter.track_arrival_time`) of 20 minutes
+  of the moored array (:func:`hmmtrack.scenarios.clocks.moored_array`, three moorings,
   wandering tag clock, multipath), 1,000 particles: plain (bundled HMM), with a fixed-lag
   smoother (velocity motion), with a detection curve counting silences (velocity motion).
 
 Nothing here depends on the number of threads: the compiled filter gives one answer
-whatever it is (:class:`hmmtrack.filter.ParticleFilter`; at 1,000 particles its kernels
+whatever it is (:class:`hmmtrack.tracking.filter.ParticleFilter`; at 1,000 particles its kernels
 run one chunk, on one thread, anyway), so the calls are the default public ones. Checked
 by hand: the same tables with ``NUMBA_NUM_THREADS=1`` and with every compiled call forced
 onto two threads.
@@ -39,12 +39,13 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from hmmtrack import scenarios, tracking
-from hmmtrack.clock_scenarios import moored_array
-from hmmtrack.clock_tracking import track_arrival_time
-from hmmtrack.config import TrackingConfig
-from hmmtrack.detection_probability import LogisticDetection
-from hmmtrack.motion import VelocityMotion
+from hmmtrack import scenarios
+from hmmtrack.scenarios.clocks import moored_array
+from hmmtrack.tracking import pipeline as tracking
+from hmmtrack.tracking.clock_filter import track_arrival_time
+from hmmtrack.tracking.config import TrackingConfig
+from hmmtrack.tracking.measurement.detection import LogisticDetection
+from hmmtrack.tracking.motion import VelocityMotion
 
 #: folder of the stored outputs: one sub-folder per case, one CSV per table
 GOLDEN_DIR = Path(__file__).parent / "data" / "golden"
@@ -143,7 +144,7 @@ def inputs_arrival_time() -> dict[str, pd.DataFrame]:
 
 
 def _range_rate_tables(result) -> dict[str, pd.DataFrame]:
-    """Every table of a :class:`hmmtrack.tracking.TrackingResult`."""
+    """Every table of a :class:`hmmtrack.tracking.pipeline.TrackingResult`."""
     (snapshot,) = result.snapshots.values()
     return {
         "estimates": result.estimates,
@@ -197,7 +198,7 @@ def range_rate_hmm_paper() -> dict[str, pd.DataFrame]:
 
 
 def _arrival_time_tables(result) -> dict[str, pd.DataFrame]:
-    """Every table of a :class:`hmmtrack.clock_tracking.ClockFilterResult` (``smoothed``
+    """Every table of a :class:`hmmtrack.tracking.clock_filter.ClockFilterResult` (``smoothed``
     when there is one; no snapshots are asked for)."""
     tables = {
         "estimates": result.estimates,
