@@ -17,7 +17,7 @@ Settings come, in increasing precedence, from ``--preset`` (a bundled set of set
 for one kind of deployment, e.g. ``two-moving-receivers``), ``--config`` (a JSON file, see
 :mod:`hmmtrack.tracking.config`) and the command-line options; every setting a run usually needs
 has an option: search box (``--bounds``, in the receivers file's frame: metres, or degrees
-for lon/lat receivers, converted with their projection by :func:`bounds_in_metres`),
+for lon/lat receivers, converted with their projection by :func:`hmmtrack.io.bounds_in_metres`),
 measurement noise (``--sigma-range``, ``--sigma-range-rate``; ``--arrival-sigma``), the
 detection curve that makes missed pings count (``--detection-curve``), the search radius,
 tempering and velocity-motion noise. An option that the run's measurement or motion model
@@ -31,7 +31,6 @@ import dataclasses
 import inspect
 import math
 import sys
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -92,46 +91,6 @@ def _non_negative(text: str) -> float:
     if value < 0:
         raise argparse.ArgumentTypeError(f"expected a number >= 0, got {text!r}")
     return value
-
-
-def bounds_in_metres(
-    bounds: tuple[float, float, float, float], projection: io.Projection
-) -> tuple[float, float, float, float]:
-    """The smallest x/y box (m) that holds a lon/lat box, in the receivers' projection.
-
-    Parameters
-    ----------
-    bounds : (lon_min, lon_max, lat_min, lat_max)
-        Degrees (WGS 84), ``lon_min < lon_max`` (a box across the antimeridian is not
-        supported), latitudes in [-90, 90].
-    projection : hmmtrack.io.Projection
-        The projection the receivers were converted with.
-
-    Returns
-    -------
-    (xmin, xmax, ymin, ymax) : tuple of float
-        Metres: the box's edges, each projected at 201 points, bounded (a projected
-        lon/lat box is not a rectangle: the x/y box is slightly larger).
-    """
-    lon_min, lon_max, lat_min, lat_max = bounds
-    if not (-180.0 <= lon_min < lon_max <= 180.0 and -90.0 <= lat_min < lat_max <= 90.0):
-        raise UserInputError(
-            "--bounds are LON_MIN LON_MAX LAT_MIN LAT_MAX in degrees when the receivers file "
-            "gives lon/lat: longitudes in [-180, 180], latitudes in [-90, 90], min < max; "
-            f"got {tuple(bounds)} (metres of a projection are not accepted)"
-        )
-    t = np.linspace(0.0, 1.0, 201)
-    lon = lon_min + (lon_max - lon_min) * t
-    lat = lat_min + (lat_max - lat_min) * t
-    edge_lon = np.concatenate([lon, lon, np.full_like(lat, lon_min), np.full_like(lat, lon_max)])
-    edge_lat = np.concatenate([np.full_like(lon, lat_min), np.full_like(lon, lat_max), lat, lat])
-    x, y = projection.to_xy(edge_lon, edge_lat)
-    if not (np.isfinite(x).all() and np.isfinite(y).all()):
-        raise UserInputError(
-            f"--bounds {tuple(bounds)} (lon/lat degrees) reach outside the receivers' "
-            "projection: give a box near the receivers"
-        )
-    return float(x.min()), float(x.max()), float(y.min()), float(y.max())
 
 
 def register(subparsers) -> None:
@@ -373,7 +332,7 @@ def build_config(args: argparse.Namespace) -> TrackingConfig:
     any), overridden by the options.
 
     ``--bounds`` are taken as metres here; :func:`run` converts them with
-    :func:`bounds_in_metres` when the receivers are lon/lat.
+    :func:`hmmtrack.io.bounds_in_metres` when the receivers are lon/lat.
     """
     if args.bounds is not None:
         xmin, xmax, ymin, ymax = args.bounds
@@ -443,33 +402,6 @@ def build_config(args: argparse.Namespace) -> TrackingConfig:
     return TrackingConfig.from_dict(settings, source=", ".join([*sources, "command line"]))
 
 
-def read_truth(path: str | Path, projection: io.Projection | None) -> pd.DataFrame:
-    """Truth table from a CSV of ``time`` and ``x``, ``y`` (m) or ``lon``, ``lat`` (degrees).
-
-    A single row (``time`` empty or absent) is a fixed tag.
-    """
-    table = pd.read_csv(path)
-    table.attrs["source"] = str(path)
-    if "time" not in table.columns:
-        if len(table) != 1:
-            raise ValueError(f"{path}: truth needs a 'time' column; found {list(table.columns)}")
-        table["time"] = np.nan  # one row without time: a fixed tag
-    if {"x", "y"} <= set(table.columns):
-        x, y = table["x"].to_numpy(dtype=float), table["y"].to_numpy(dtype=float)
-    elif {"lon", "lat"} <= set(table.columns):
-        if projection is None:
-            raise ValueError(f"{path}: truth in lon/lat needs receivers in lon/lat too")
-        x, y = projection.to_xy(table["lon"], table["lat"])
-    else:
-        raise ValueError(
-            f"{path}: truth needs x, y or lon, lat columns; found {list(table.columns)}"
-        )
-    time = io.parse_times(table, "time", tz=None)
-    if len(table) > 1 and not np.isfinite(time).all():
-        raise ValueError(f"{path}: empty time in a truth with several rows")
-    return pd.DataFrame({"time": time, "x": x, "y": y})
-
-
 def _within_truth(estimates: pd.DataFrame, truth: pd.DataFrame) -> pd.DataFrame:
     if len(truth) == 1:
         return estimates
@@ -527,7 +459,7 @@ def run(args: argparse.Namespace) -> int:
     receivers = io.read_receivers(args.receivers)
     projection = io.Projection.from_frame(receivers)
     if args.bounds is not None and projection is not None:
-        config = config.override(bounds=bounds_in_metres(args.bounds, projection))
+        config = config.override(bounds=io.bounds_in_metres(args.bounds, projection))
     resting = None if args.no_resting else "default"
     motion = config.motion_model(args.model, variant=args.hmm_variant, resting=resting)
     snapshots, observations = {}, None
@@ -552,7 +484,7 @@ def run(args: argparse.Namespace) -> int:
             print(f"event at {event.time}: {event.kind}: {event.detail}", file=sys.stderr)
     truth = errors = convergence = None
     if args.truth:
-        truth = read_truth(args.truth, projection)
+        truth = io.read_truth(args.truth, projection)
         scored = _within_truth(estimates, truth)
         summary = metrics.tracking_metrics(scored, truth)
         converged = "" if summary.converged else " (never converged; 0 by the paper's rule)"

@@ -1,0 +1,82 @@
+"""The tracker's files: writing its estimates, and reading a truth track to score them.
+
+Estimates get ISO 8601 UTC times and, with a projection, lon/lat beside the metres; a truth
+is read in the same frame as the receivers it is compared with.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from hmmtrack.io.geo import Projection
+from hmmtrack.io.times import format_times, parse_times
+
+
+def write_estimates(
+    estimates: pd.DataFrame, path: str | Path, projection: Projection | None = None
+) -> None:
+    """Write estimates as CSV: ``time`` as ISO 8601 UTC with milliseconds, then ``x``, ``y``
+    (m), ``lon``, ``lat`` (degrees, when ``projection`` is given) and the other columns.
+
+    Parameters
+    ----------
+    estimates : DataFrame
+        Estimates table (``time`` in UTC epoch s, ``x``, ``y`` in m, others as they are).
+    path : str or Path
+        Output CSV.
+    projection : Projection, optional
+        Projection of ``x``/``y``; adds ``lon``/``lat`` columns.
+    """
+    for col in ("time", "x", "y"):
+        if col not in estimates.columns:
+            raise ValueError(f"estimates: missing column {col!r}; found {list(estimates.columns)}")
+    out = estimates.copy()
+    out["time"] = format_times(out["time"].to_numpy(dtype=float))
+    front = ["time", "x", "y"]
+    if projection is not None:
+        out["lon"], out["lat"] = projection.to_lonlat(out["x"], out["y"])
+        front += ["lon", "lat"]
+    out = out[front + [c for c in out.columns if c not in front]]
+    out.to_csv(path, index=False, float_format="%.12g")
+
+
+def read_truth(path: str | Path, projection: Projection | None) -> pd.DataFrame:
+    """Read a truth track (the tag's true positions) to score estimates against.
+
+    Parameters
+    ----------
+    path : str or Path
+        CSV of ``time`` (ISO 8601 with a UTC offset, or UTC epoch seconds) and ``x``, ``y``
+        (m) or ``lon``, ``lat`` (degrees). A single row with ``time`` empty or absent is a
+        fixed tag.
+    projection : Projection or None
+        The receivers' projection; needed (and used) for lon/lat truth.
+
+    Returns
+    -------
+    DataFrame
+        ``time`` (s, NaN for a fixed tag), ``x``, ``y`` (m).
+    """
+    table = pd.read_csv(path)
+    table.attrs["source"] = str(path)
+    if "time" not in table.columns:
+        if len(table) != 1:
+            raise ValueError(f"{path}: truth needs a 'time' column; found {list(table.columns)}")
+        table["time"] = np.nan  # one row without time: a fixed tag
+    if {"x", "y"} <= set(table.columns):
+        x, y = table["x"].to_numpy(dtype=float), table["y"].to_numpy(dtype=float)
+    elif {"lon", "lat"} <= set(table.columns):
+        if projection is None:
+            raise ValueError(f"{path}: truth in lon/lat needs receivers in lon/lat too")
+        x, y = projection.to_xy(table["lon"], table["lat"])
+    else:
+        raise ValueError(
+            f"{path}: truth needs x, y or lon, lat columns; found {list(table.columns)}"
+        )
+    time = parse_times(table, "time", tz=None)
+    if len(table) > 1 and not np.isfinite(time).all():
+        raise ValueError(f"{path}: empty time in a truth with several rows")
+    return pd.DataFrame({"time": time, "x": x, "y": y})
