@@ -9,6 +9,8 @@ from hypothesis import strategies as st
 from scipy import integrate, optimize, stats
 
 from hmmtrack.hmm import distributions as D
+from hmmtrack.hmm.distributions.angles import _AngleFamily
+from hmmtrack.hmm.distributions.steps import _StepFamily
 
 STEP_EXAMPLES = [
     D.Gamma(mean=[0.4, 3.0], sd=[0.3, 1.5]),
@@ -288,7 +290,7 @@ def test_parameter_recovery_from_weighted_mixture(dist):
     fit = start.fit_weighted(x, w)
     for name in dist._parameters:
         truth, got = getattr(dist, name), getattr(fit, name)
-        if name == "mean" and isinstance(dist, D._AngleFamily):
+        if name == "mean" and isinstance(dist, _AngleFamily):
             defined = dist.concentration > 0.1  # the mean of a (near) uniform is not identified
             np.testing.assert_allclose(D.wrap_angle(got - truth)[defined], 0, atol=0.06)
         elif name == "location":
@@ -351,7 +353,7 @@ def test_samples_follow_the_density(dist):
     rng = np.random.default_rng(7)
     for k in range(2):
         x = dist.sample(rng, np.full(4000, k))
-        if isinstance(dist, D._StepFamily):
+        if isinstance(dist, _StepFamily):
             cdf = scipy_step(dist, k).cdf
         else:
             assert np.all((x > -np.pi) & (x <= np.pi))
@@ -407,11 +409,11 @@ def test_working_round_trip(dist):
     for name in dist._parameters:
         got, expected = getattr(back, name), getattr(dist, name)
         if (
-            isinstance(dist, D._AngleFamily) and name == "mean"
+            isinstance(dist, _AngleFamily) and name == "mean"
         ):  # a uniform angle distribution (concentration 0) has no mean
             got, expected = got[dist.concentration > 0], expected[dist.concentration > 0]
         np.testing.assert_allclose(got, expected, rtol=1e-9, atol=1e-12)
-    if isinstance(dist, D._StepFamily) and dist.zero_inflated:
+    if isinstance(dist, _StepFamily) and dist.zero_inflated:
         np.testing.assert_allclose(back.zero_mass, dist.zero_mass, rtol=1e-9)
     # and the other direction: any finite working vector maps to a valid distribution
     rng = np.random.default_rng(10)

@@ -1,0 +1,514 @@
+"""Step-length families: Gamma, Weibull, LogNormal, Exponential, with zero inflation.
+
+Each family implements the density of strictly positive steps, its weighted maximum
+likelihood and its working scale; ``_StepFamily`` adds what they share: missing values and
+the optional point mass ``zero_mass`` (K,) at a step of exactly 0, which scales the density
+for ``x > 0`` by ``1 - zero_mass`` (moveHMM's zero inflation). Steps are in the units of the
+data (m, or km for the elk example), >= 0, NaN when missing.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+from scipy import special
+
+from hmmtrack.hmm.distributions.base import (
+    _LOG_2PI,
+    _MIN_STATE_WEIGHT,
+    _NEWTON_MAX_ITER,
+    _NEWTON_TOL,
+    _TINY,
+    D,
+    PreparedSteps,
+    _by_state,
+    _check_states,
+    _check_weights,
+    _column_sums,
+    _dot,
+    _Family,
+    _logit,
+    _rows,
+    _rows_where,
+    _split_working,
+    _weighted_means,
+    _weighted_sums,
+    prepare_steps,
+)
+
+
+class _StepFamily(_Family):
+    """Base of step-length families (x >= 0, units of the data, e.g. m or km).
+
+    Subclasses implement the density of strictly positive steps (``_state_logpdf``),
+    its weighted MLE (``_fit_positive``), sampling and mean; this class adds missing
+    values and the optional point mass ``zero_mass`` at exactly 0.
+    """
+
+    zero_mass: np.ndarray | None
+
+    def _array_fields(self) -> tuple[str, ...]:
+        return (*self._parameters, "zero_mass")
+
+    def _validate(self) -> None:
+        self._validate_positive_part()
+        if self.zero_mass is not None:
+            self._require("zero_mass", (self.zero_mass >= 0) & (self.zero_mass < 1), "in [0, 1)")
+
+    def _validate_positive_part(self) -> None:
+        for field in self._parameters:
+            self._require(field, getattr(self, field) > 0, "> 0")
+
+    # --- to be provided by each family ---------------------------------------------------
+    def _state_logpdf(self, k: int, x: np.ndarray, log_x: np.ndarray) -> np.ndarray:
+        """Log-density (T,) of positive steps ``x`` in state ``k``."""
+        raise NotImplementedError
+
+    def _fit_positive(self, x: np.ndarray, log_x: np.ndarray, w: np.ndarray) -> dict:
+        raise NotImplementedError
+
+    def _cdf_positive(self, x: np.ndarray, log_x: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    def _sample_positive(self, rng: np.random.Generator, states: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    def _expected_positive(self) -> np.ndarray:
+        raise NotImplementedError
+
+    @classmethod
+    def from_moments(cls: type[D], mean: Any, sd: Any, zero_mass: Any = None) -> D:
+        """Family member whose positive part has the given mean and sd (K,) (same units)."""
+        raise NotImplementedError
+
+    # --- shared -------------------------------------------------------------------------
+    @property
+    def zero_inflated(self) -> bool:
+        """True when the distribution has a point mass at step 0."""
+        return self.zero_mass is not None
+
+    def prepare(self, x: np.ndarray) -> PreparedSteps:
+        """:func:`prepare_steps` (the same object for every step family)."""
+        return prepare_steps(x)
+
+    def _prepared(self, x: np.ndarray | PreparedSteps) -> PreparedSteps:
+        data = prepare_steps(x)
+        if self.zero_mass is None and data.zero.any():
+            raise ValueError(
+                f"{type(self).__name__}: steps of exactly 0 at rows {_rows(data.zero)} need "
+                "zero-inflation; construct the distribution with zero_mass=... (K,) to switch "
+                "it on"
+            )
+        return data
+
+    def logpdf(self, x: np.ndarray | PreparedSteps) -> np.ndarray:
+        """Log-density of steps ``x`` (T,) in every state -> (T, K); NaN -> 0.0 row.
+
+        With ``zero_mass`` z: ``log z`` at x == 0 and ``log(1 - z) + log f(x)`` for x > 0.
+        ``x`` may be the output of :meth:`prepare` (faster when called repeatedly).
+        """
+        data = self._prepared(x)
+        safe, log_safe = data.safe, data.log_safe
+        if self.zero_mass is None:
+            out = _by_state(
+                data.n_obs, self.n_states, lambda k: self._state_logpdf(k, safe, log_safe)
+            )
+        else:
+            positive_share = np.log1p(-self.zero_mass)
+            out = _by_state(
+                data.n_obs,
+                self.n_states,
+                lambda k: self._state_logpdf(k, safe, log_safe) + positive_share[k],
+            )
+            with np.errstate(divide="ignore"):
+                out[data.zero] = np.log(self.zero_mass)
+        out[data.missing] = 0.0
+        return out
+
+    def cdf(self, x: np.ndarray | PreparedSteps) -> np.ndarray:
+        """P(step <= x) in every state -> (T, K), including the zero mass; NaN -> NaN row."""
+        data = self._prepared(x)
+        out = self._cdf_positive(data.safe, data.log_safe)
+        if self.zero_mass is not None:
+            out = self.zero_mass + (1.0 - self.zero_mass) * out
+            out[data.zero] = self.zero_mass
+        out[data.missing] = np.nan
+        return out
+
+    def fit_weighted(self: D, x: np.ndarray | PreparedSteps, w: np.ndarray) -> D:
+        """Weighted MLE per state: ``w[t, k]`` is the weight of row t for state k.
+
+        NaN rows are ignored. ``zero_mass`` (if present) becomes the weighted share of
+        exact zeros. A state with (almost) no weight on positive steps keeps its current
+        parameters for the positive part. ``x`` may be the output of :meth:`prepare`.
+        """
+        data = self._prepared(x)
+        w = _check_weights(w, data.n_obs, self.n_states, type(self).__name__)
+        changes: dict[str, Any] = {}
+        if self.zero_mass is not None:
+            total = _weighted_sums((~data.missing).astype(float), w)
+            zeros = _weighted_sums(data.zero.astype(float), w)
+            share = zeros / np.maximum(total, np.finfo(float).tiny)
+            changes["zero_mass"] = np.where(total > _MIN_STATE_WEIGHT, share, self.zero_mass)
+        wp = w if data.positive_x is data.safe else _rows_where(data.positive, w)
+        changes.update(
+            self._fit_states(self._fit_positive, wp, data.positive_x, data.positive_log_x)
+        )
+        return self._replace(**changes)
+
+    def sample(self, rng: np.random.Generator, states: np.ndarray) -> np.ndarray:
+        """Draw one step per entry of ``states`` (n,) ints in [0, K) -> (n,)."""
+        states = _check_states(states, self.n_states, type(self).__name__)
+        out = self._sample_positive(rng, states)
+        if self.zero_mass is not None:
+            out[rng.random(states.size) < self.zero_mass[states]] = 0.0
+        return out
+
+    def expected_value(self) -> np.ndarray:
+        """Expected step per state (K,), including the zero mass."""
+        m = self._expected_positive()
+        return m if self.zero_mass is None else (1.0 - self.zero_mass) * m
+
+    def _structure(self) -> dict[str, Any]:
+        return {"zero_inflated": self.zero_mass is not None}
+
+    def to_working(self) -> np.ndarray:
+        """Working vector: log of each positive parameter, then logit(zero_mass) if present.
+
+        Laid out parameter-major: ``[p1_state1..p1_stateK, p2_state1.., (logit z)..]``.
+        ``zero_mass`` is clipped to [1e-12, 1 - 1e-12] before the logit.
+        """
+        blocks = [self._positive_to_working()]
+        if self.zero_mass is not None:
+            blocks.append(_logit(self.zero_mass))
+        return np.concatenate(blocks)
+
+    def _positive_to_working(self) -> np.ndarray:
+        return np.log(np.concatenate([getattr(self, f) for f in self._parameters]))
+
+    def working_score(self, x: np.ndarray | PreparedSteps, w: np.ndarray) -> np.ndarray:
+        """Gradient of ``sum(w * logpdf(x))`` w.r.t. :meth:`to_working`, shape (n_working,).
+
+        ``x`` (T,) steps or :meth:`prepare` output, ``w`` (T, K) weights (posterior state
+        probabilities). Closed form: per-state weighted sums of the positive steps' features
+        for the positive part; for ``logit(zero_mass)`` ``(1 - z) W_zero - z W_positive``.
+        """
+        data = self._prepared(x)
+        w = _check_weights(w, data.n_obs, self.n_states, type(self).__name__)
+        wp = w if data.positive_x is data.safe else _rows_where(data.positive, w)
+        blocks = [self._positive_score(data.positive_x, data.positive_log_x, wp)]
+        if self.zero_mass is not None:
+            zeros = _weighted_sums(data.zero.astype(float), w)
+            blocks.append((1.0 - self.zero_mass) * zeros - self.zero_mass * _column_sums(wp))
+        return np.concatenate(blocks)
+
+    def _positive_score(self, x: np.ndarray, log_x: np.ndarray, w: np.ndarray) -> np.ndarray:
+        """Working-scale gradient (n_parameters * K,) of ``sum(w * log f(x))``, x > 0."""
+        raise NotImplementedError
+
+    @classmethod
+    def from_working(
+        cls: type[D], theta: np.ndarray, n_states: int, zero_inflated: bool = False
+    ) -> D:
+        """Inverse of :meth:`to_working` for ``n_states`` states."""
+        n_blocks = len(cls._parameters) + int(zero_inflated)  # type: ignore[attr-defined]
+        blocks = _split_working(theta, n_states, n_blocks, cls.__name__)
+        params = cls._positive_from_working(blocks[: len(cls._parameters)])  # type: ignore[attr-defined]
+        zero_mass = special.expit(blocks[-1]) if zero_inflated else None
+        return cls(**params, zero_mass=zero_mass)
+
+    @classmethod
+    def _positive_from_working(cls, blocks: np.ndarray) -> dict:
+        return {f: np.exp(b) for f, b in zip(cls._parameters, blocks, strict=True)}  # type: ignore[attr-defined]
+
+
+def _gamma_shape_mle(s: np.ndarray) -> np.ndarray:
+    """Solve ``log k - digamma(k) = s`` for the gamma shape k, (K,), by Newton from Minka's start.
+
+    ``s = log(weighted mean of x) - weighted mean of log x`` (> 0 by Jensen; floored at 1e-12
+    for degenerate data, which gives a very large but finite shape).
+    """
+    s = np.maximum(s, _TINY)
+    k = (3.0 - s + np.sqrt((s - 3.0) ** 2 + 24.0 * s)) / (12.0 * s)
+    for _ in range(_NEWTON_MAX_ITER):
+        f = np.log(k) - special.digamma(k) - s
+        fprime = 1.0 / k - special.polygamma(1, k)
+        k_new = k - f / fprime
+        k_new = np.where(k_new > 0, k_new, k / 2.0)
+        done = np.all(np.abs(k_new - k) <= _NEWTON_TOL * k_new)
+        k = k_new
+        if done:
+            break
+    return k
+
+
+@dataclass(frozen=True, eq=False)
+class Gamma(_StepFamily):
+    """Gamma step lengths in moveHMM's mean/sd parametrisation.
+
+    Parameters
+    ----------
+    mean, sd : (K,) float > 0
+        Mean and standard deviation of the positive part, in the units of the steps.
+        Shape ``(mean / sd)**2``, scale ``sd**2 / mean``.
+    zero_mass : (K,) float in [0, 1) or None
+        Probability of a step of exactly 0 (zero-inflation); None switches it off.
+    """
+
+    mean: np.ndarray
+    sd: np.ndarray
+    zero_mass: np.ndarray | None = None
+
+    name: ClassVar[str] = "gamma"
+    _parameters: ClassVar[tuple[str, ...]] = ("mean", "sd")
+
+    @property
+    def shape(self) -> np.ndarray:
+        """Gamma shape k = (mean / sd)**2, (K,)."""
+        return (self.mean / self.sd) ** 2
+
+    @property
+    def scale(self) -> np.ndarray:
+        """Gamma scale theta = sd**2 / mean, (K,), units of the steps."""
+        return self.sd**2 / self.mean
+
+    @classmethod
+    def from_moments(cls, mean: Any, sd: Any, zero_mass: Any = None) -> Gamma:
+        """Gamma with the given mean and sd (K,) of its positive part."""
+        return cls(mean=mean, sd=sd, zero_mass=zero_mass)
+
+    def _state_logpdf(self, k: int, x: np.ndarray, log_x: np.ndarray) -> np.ndarray:
+        shape = self.shape[k]
+        rate = self.mean[k] / self.sd[k] ** 2
+        return (shape - 1.0) * log_x - rate * x + (shape * np.log(rate) - special.gammaln(shape))
+
+    def _fit_positive(self, x: np.ndarray, log_x: np.ndarray, w: np.ndarray) -> dict:
+        total = _column_sums(w)
+        mean = _weighted_means(x, w, total)
+        mean_log = _weighted_means(log_x, w, total)
+        k = _gamma_shape_mle(np.log(mean) - mean_log)
+        return {"mean": mean, "sd": mean / np.sqrt(k)}
+
+    def _positive_score(self, x: np.ndarray, log_x: np.ndarray, w: np.ndarray) -> np.ndarray:
+        # log f = (a - 1) log x - b x + a log b - gammaln(a), shape a = exp(2u - 2v), rate
+        # b = exp(u - 2v) with u = log mean, v = log sd: da/du = 2a, db/du = b, d./dv = -2 d./du
+        # for a and b alike; d log f / da = log x + log b - digamma(a), d log f / db = a/b - x
+        a, b = self.shape, self.mean / self.sd**2
+        total = _column_sums(w)
+        by_shape = 2.0 * a * (_weighted_sums(log_x, w) + total * (np.log(b) - special.digamma(a)))
+        by_rate = a * total - b * _weighted_sums(x, w)
+        return np.concatenate([by_shape + by_rate, -by_shape - 2.0 * by_rate])
+
+    def _cdf_positive(self, x: np.ndarray, log_x: np.ndarray) -> np.ndarray:
+        return special.gammainc(self.shape, np.divide.outer(x, self.scale))
+
+    def _sample_positive(self, rng: np.random.Generator, states: np.ndarray) -> np.ndarray:
+        return rng.gamma(self.shape[states], self.scale[states])
+
+    def _expected_positive(self) -> np.ndarray:
+        return self.mean.copy()
+
+
+def _weibull_state_mle(y: np.ndarray, w: np.ndarray) -> tuple[float, float]:
+    """Weighted Weibull MLE of one state from ``y = log x - c`` (T,): (shape, log scale - c).
+
+    Newton on the profile equation ``1/k + mean_w(y) - sum(w y e^{ky}) / sum(w e^{ky}) = 0``
+    (decreasing in k), started from the log-Weibull variance ``pi^2 / (6 k^2)``; then
+    ``log scale = log(sum(w e^{ky}) / sum(w)) / k``.
+    """
+    total = w.sum()
+    mean_y = _dot(y, w) / total
+    var_y = max(_dot(y**2, w) / total - mean_y**2, _TINY)
+    k = np.pi / np.sqrt(6.0 * var_y)
+    y2 = y**2
+    for _ in range(_NEWTON_MAX_ITER):
+        e = np.exp(k * y) * w
+        b = e.sum()
+        a, c = _dot(y, e) / b, _dot(y2, e) / b
+        k_new = k - (1.0 / k + mean_y - a) / (-1.0 / k**2 - (c - a**2))
+        k_new = k_new if k_new > 0 else k / 2.0
+        done = abs(k_new - k) <= _NEWTON_TOL * k_new
+        k = k_new
+        if done:
+            break
+    return float(k), float(np.log(_dot(np.exp(k * y), w) / total) / k)
+
+
+@dataclass(frozen=True, eq=False)
+class Weibull(_StepFamily):
+    """Weibull step lengths, density ``(k/l) (x/l)**(k-1) exp(-(x/l)**k)``.
+
+    Parameters
+    ----------
+    shape : (K,) float > 0
+        Shape k (dimensionless).
+    scale : (K,) float > 0
+        Scale l, in the units of the steps.
+    zero_mass : (K,) float in [0, 1) or None
+        Probability of a step of exactly 0; None switches zero-inflation off.
+    """
+
+    shape: np.ndarray
+    scale: np.ndarray
+    zero_mass: np.ndarray | None = None
+
+    name: ClassVar[str] = "weibull"
+    _parameters: ClassVar[tuple[str, ...]] = ("shape", "scale")
+
+    @classmethod
+    def from_moments(cls, mean: Any, sd: Any, zero_mass: Any = None) -> Weibull:
+        """Weibull with approximately the given mean and sd (K,) (Justus' shape formula).
+
+        Shape ``k = (sd / mean) ** -1.086`` clipped to [0.1, 50], then scale
+        ``mean / Gamma(1 + 1/k)`` so the mean is exact; meant for starting values.
+        """
+        mean, sd = np.asarray(mean, dtype=float), np.asarray(sd, dtype=float)
+        shape = np.clip((sd / mean) ** -1.086, 0.1, 50.0)
+        return cls(shape=shape, scale=mean / special.gamma(1.0 + 1.0 / shape), zero_mass=zero_mass)
+
+    def _state_logpdf(self, k: int, x: np.ndarray, log_x: np.ndarray) -> np.ndarray:
+        shape = self.shape[k]
+        z = shape * (log_x - np.log(self.scale[k]))  # log (x / l)^k
+        return z - np.exp(z) - log_x + np.log(shape)
+
+    def _fit_positive(self, x: np.ndarray, log_x: np.ndarray, w: np.ndarray) -> dict:
+        shift = log_x.max()
+        y = log_x - shift  # <= 0: scale invariance keeps exp(k y) from overflowing
+        fits = [_weibull_state_mle(y, np.ascontiguousarray(w[:, k])) for k in range(w.shape[1])]
+        shape, log_scale = np.array(fits).T
+        return {"shape": shape, "scale": np.exp(shift + log_scale)}
+
+    def _positive_score(self, x: np.ndarray, log_x: np.ndarray, w: np.ndarray) -> np.ndarray:
+        # log f = z - exp(z) - log x + log k with z = k (log x - log l):
+        # d/d log k = 1 + z (1 - e^z), d/d log l = k (e^z - 1)
+        n_states = self.n_states
+        by_shape, by_scale = np.empty(n_states), np.empty(n_states)
+        for k in range(n_states):
+            z = self.shape[k] * (log_x - np.log(self.scale[k]))
+            excess = np.expm1(z)  # e^z - 1
+            by_shape[k] = w[:, k].sum() - _dot(z * excess, w[:, k])
+            by_scale[k] = self.shape[k] * _dot(excess, w[:, k])
+        return np.concatenate([by_shape, by_scale])
+
+    def _cdf_positive(self, x: np.ndarray, log_x: np.ndarray) -> np.ndarray:
+        z = np.multiply.outer(log_x, self.shape) - self.shape * np.log(self.scale)
+        return -np.expm1(-np.exp(z))
+
+    def _sample_positive(self, rng: np.random.Generator, states: np.ndarray) -> np.ndarray:
+        return self.scale[states] * rng.weibull(self.shape[states])
+
+    def _expected_positive(self) -> np.ndarray:
+        return self.scale * special.gamma(1.0 + 1.0 / self.shape)
+
+
+@dataclass(frozen=True, eq=False)
+class LogNormal(_StepFamily):
+    """Log-normal step lengths: ``log x ~ Normal(location, scale**2)``.
+
+    Parameters
+    ----------
+    location : (K,) float
+        Mean of log step (log of the units of the steps).
+    scale : (K,) float > 0
+        Standard deviation of log step.
+    zero_mass : (K,) float in [0, 1) or None
+        Probability of a step of exactly 0; None switches zero-inflation off.
+    """
+
+    location: np.ndarray
+    scale: np.ndarray
+    zero_mass: np.ndarray | None = None
+
+    name: ClassVar[str] = "lognormal"
+    _parameters: ClassVar[tuple[str, ...]] = ("location", "scale")
+
+    def _validate_positive_part(self) -> None:
+        self._require("scale", self.scale > 0, "> 0")
+
+    def _positive_to_working(self) -> np.ndarray:
+        return np.concatenate([self.location, np.log(self.scale)])
+
+    @classmethod
+    def _positive_from_working(cls, blocks: np.ndarray) -> dict:
+        return {"location": blocks[0].copy(), "scale": np.exp(blocks[1])}
+
+    @classmethod
+    def from_moments(cls, mean: Any, sd: Any, zero_mass: Any = None) -> LogNormal:
+        """Log-normal with exactly the given mean and sd (K,) of the steps."""
+        mean, sd = np.asarray(mean, dtype=float), np.asarray(sd, dtype=float)
+        var_log = np.log1p((sd / mean) ** 2)
+        return cls(location=np.log(mean) - var_log / 2, scale=np.sqrt(var_log), zero_mass=zero_mass)
+
+    def _state_logpdf(self, k: int, x: np.ndarray, log_x: np.ndarray) -> np.ndarray:
+        z = (log_x - self.location[k]) / self.scale[k]
+        return -0.5 * z**2 - log_x - (np.log(self.scale[k]) + 0.5 * _LOG_2PI)
+
+    def _fit_positive(self, x: np.ndarray, log_x: np.ndarray, w: np.ndarray) -> dict:
+        total = _column_sums(w)
+        location = _weighted_means(log_x, w, total)
+        var = _weighted_means(log_x**2, w, total) - location**2
+        return {"location": location, "scale": np.sqrt(np.maximum(var, _TINY))}
+
+    def _positive_score(self, x: np.ndarray, log_x: np.ndarray, w: np.ndarray) -> np.ndarray:
+        # z = (log x - location) / scale: d/d location = z / scale, d/d log scale = z^2 - 1
+        total, sum_log = _column_sums(w), _weighted_sums(log_x, w)
+        first = sum_log - self.location * total  # sum w (log x - location)
+        second = (  # sum w (log x - location)^2
+            _weighted_sums(log_x**2, w) - 2.0 * self.location * sum_log + self.location**2 * total
+        )
+        variance = self.scale**2
+        return np.concatenate([first / variance, second / variance - total])
+
+    def _cdf_positive(self, x: np.ndarray, log_x: np.ndarray) -> np.ndarray:
+        return special.ndtr(np.subtract.outer(log_x, self.location) / self.scale)
+
+    def _sample_positive(self, rng: np.random.Generator, states: np.ndarray) -> np.ndarray:
+        return rng.lognormal(self.location[states], self.scale[states])
+
+    def _expected_positive(self) -> np.ndarray:
+        return np.exp(self.location + self.scale**2 / 2)
+
+
+@dataclass(frozen=True, eq=False)
+class Exponential(_StepFamily):
+    """Exponential step lengths, density ``rate * exp(-rate * x)``.
+
+    Parameters
+    ----------
+    rate : (K,) float > 0
+        Rate, in 1 / (units of the steps).
+    zero_mass : (K,) float in [0, 1) or None
+        Probability of a step of exactly 0; None switches zero-inflation off.
+    """
+
+    rate: np.ndarray
+    zero_mass: np.ndarray | None = None
+
+    name: ClassVar[str] = "exponential"
+    _parameters: ClassVar[tuple[str, ...]] = ("rate",)
+
+    @classmethod
+    def from_moments(cls, mean: Any, sd: Any = None, zero_mass: Any = None) -> Exponential:
+        """Exponential with the given mean (K,); ``sd`` is ignored (it equals the mean)."""
+        return cls(rate=1.0 / np.asarray(mean, dtype=float), zero_mass=zero_mass)
+
+    def _state_logpdf(self, k: int, x: np.ndarray, log_x: np.ndarray) -> np.ndarray:
+        return np.log(self.rate[k]) - self.rate[k] * x
+
+    def _fit_positive(self, x: np.ndarray, log_x: np.ndarray, w: np.ndarray) -> dict:
+        return {"rate": 1.0 / _weighted_means(x, w, _column_sums(w))}
+
+    def _positive_score(self, x: np.ndarray, log_x: np.ndarray, w: np.ndarray) -> np.ndarray:
+        # d/d log rate of (log rate - rate x) = 1 - rate x
+        return _column_sums(w) - self.rate * _weighted_sums(x, w)
+
+    def _cdf_positive(self, x: np.ndarray, log_x: np.ndarray) -> np.ndarray:
+        return -np.expm1(np.multiply.outer(x, -self.rate))
+
+    def _sample_positive(self, rng: np.random.Generator, states: np.ndarray) -> np.ndarray:
+        return rng.exponential(1.0 / self.rate[states])
+
+    def _expected_positive(self) -> np.ndarray:
+        return 1.0 / self.rate
