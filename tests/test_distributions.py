@@ -11,6 +11,7 @@ from scipy import integrate, optimize, stats
 from hmmtrack.hmm import distributions as D
 from hmmtrack.hmm.distributions.angles import _AngleFamily
 from hmmtrack.hmm.distributions.steps import _StepFamily
+from hmmtrack.tracks import wrap_angle
 
 STEP_EXAMPLES = [
     D.Gamma(mean=[0.4, 3.0], sd=[0.3, 1.5]),
@@ -292,7 +293,7 @@ def test_parameter_recovery_from_weighted_mixture(dist):
         truth, got = getattr(dist, name), getattr(fit, name)
         if name == "mean" and isinstance(dist, _AngleFamily):
             defined = dist.concentration > 0.1  # the mean of a (near) uniform is not identified
-            np.testing.assert_allclose(D.wrap_angle(got - truth)[defined], 0, atol=0.06)
+            np.testing.assert_allclose(wrap_angle(got - truth)[defined], 0, atol=0.06)
         elif name == "location":
             np.testing.assert_allclose(got, truth, atol=0.02)
         elif name == "concentration":
@@ -455,7 +456,7 @@ def test_working_score_is_the_gradient_of_the_weighted_log_likelihood(dist):
 def test_angle_working_round_trip_property(mean, conc, family):
     dist = D.ANGLE_FAMILIES[family]([mean], [conc])
     back = dist.with_working(dist.to_working())
-    assert D.wrap_angle(back.mean[0] - mean) == pytest.approx(0, abs=1e-9)
+    assert wrap_angle(back.mean[0] - mean) == pytest.approx(0, abs=1e-9)
     assert back.concentration[0] == pytest.approx(conc, rel=1e-8)
 
 

@@ -28,7 +28,6 @@ from hmmtrack.hmm.distributions.base import (
     StateDistribution,
     prepare_angles,
     prepare_steps,
-    wrap_angle,
 )
 from hmmtrack.hmm.distributions.families import (
     ANGLE_FAMILIES,
@@ -54,5 +53,4 @@ __all__ = [
     "initial_guess",
     "prepare_angles",
     "prepare_steps",
-    "wrap_angle",
 ]

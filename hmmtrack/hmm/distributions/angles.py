@@ -32,8 +32,8 @@ from hmmtrack.hmm.distributions.base import (
     _weighted_means,
     _weighted_sums,
     prepare_angles,
-    wrap_angle,
 )
+from hmmtrack.tracks import wrap_angle
 
 _MAX_CONCENTRATION = 1e8
 _MAX_WRAPPED_CAUCHY_RHO = 1.0 - 1e-9

@@ -19,6 +19,8 @@ from typing import Any, ClassVar, Protocol, TypeVar
 
 import numpy as np
 
+from hmmtrack.tracks import wrap_angle
+
 _LOG_2PI = float(np.log(2.0 * np.pi))
 _MIN_STATE_WEIGHT = 1e-10  # a state with less total weight keeps its current parameters
 _TINY = 1e-12  # floor for quantities whose log is taken (degenerate fits, working scale)
@@ -86,11 +88,6 @@ class StateDistribution(Protocol):
 # ----------------------------------------------------------------------------------------
 # Small helpers
 # ----------------------------------------------------------------------------------------
-
-
-def wrap_angle(x: np.ndarray) -> np.ndarray:
-    """Wrap angles (rad) to the interval (-pi, pi]."""
-    return np.pi - np.mod(np.pi - np.asarray(x, dtype=float), 2.0 * np.pi)
 
 
 def _rows(mask: np.ndarray, limit: int = 10) -> str:
