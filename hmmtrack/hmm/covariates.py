@@ -14,8 +14,7 @@ This module is for design matrices, logit transition matrices and the weighted M
 coefficients from expected transition counts. It is not for reading covariates from files
 (see :mod:`hmmtrack.io`) nor for the forward-backward recursions (see
 :mod:`hmmtrack.hmm.inference`). Products over the ``T`` rows are written with ``np.einsum``,
-not ``@``: OpenBLAS runs those on several threads, which was measured to make them randomly
-10-1000x slower when several processes share the machine.
+not ``@``, to stay on one thread (why: reports/decisions.md, HMM fitting).
 """
 
 from __future__ import annotations
@@ -114,8 +113,8 @@ def log_transition_matrices(coefficients: np.ndarray, design: np.ndarray) -> np.
     rows, cols = off_diagonal_index(n_states)
     eta = np.zeros((design.shape[0], n_states, n_states))
     eta[:, rows, cols] = np.einsum("td,rd->tr", design, coefficients)
-    # log-sum-exp over the destination axis one column at a time (K is small, T long): about
-    # ten times faster than scipy's logsumexp on the (T, K, K) array
+    # log-sum-exp over the destination axis one column at a time (K is small, T long): faster
+    # than scipy's logsumexp on the (T, K, K) array
     columns = [eta[:, :, j] for j in range(n_states)]
     top = np.maximum.reduce(columns)
     log_norm = top + np.log(sum(np.exp(column - top) for column in columns))

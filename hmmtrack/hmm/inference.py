@@ -279,7 +279,7 @@ def _forward(log_initial, log_transition, log_lik, lengths):
     )
     lik, shift, bad = _shift_kernel(log_lik)
     _check_rows(bad)
-    np.exp(lik, out=lik)  # numpy's vectorised exp: several times faster than a numba loop
+    np.exp(lik, out=lik)  # numpy's vectorised exp: faster than a numba loop
     transition = np.exp(log_transition)
     filtered, predicted, scale = _forward_kernel(
         np.exp(log_initial), transition, time_varying, lik, starts, ends
@@ -417,8 +417,8 @@ def viterbi(
 def load_kernels() -> None:
     """Load the compiled forward-backward kernels into this process now.
 
-    The first call of a numba function in a process costs about 0.25 s of numba set-up even
-    when the machine code comes from the on-disk cache. A process about to fork workers
+    The first call of a numba function in a process pays numba's set-up even when the machine
+    code comes from the on-disk cache. A process about to fork workers
     calls this first, so that the workers inherit loaded kernels instead of each paying it.
     """
     forward_backward(np.zeros(1), np.zeros((1, 1)), np.zeros((2, 1)))

@@ -125,8 +125,8 @@ def _check_weights(w: np.ndarray, n_obs: int, n_states: int, who: str) -> np.nda
 def _by_state(n_obs: int, n_states: int, column) -> np.ndarray:
     """(T, K) array whose column k is ``column(k)`` (T,).
 
-    A loop over the few states with long vectorised operations inside: several times faster
-    than broadcasting (T, 1) against (K,), whose inner loops are only K long.
+    A loop over the few states with long vectorised operations inside, because broadcasting
+    (T, 1) against (K,) runs inner loops only K long (timing in reports/decisions.md).
     """
     out = np.empty((n_obs, n_states))
     for k in range(n_states):
@@ -135,13 +135,12 @@ def _by_state(n_obs: int, n_states: int, column) -> np.ndarray:
 
 
 def _rows_where(mask: np.ndarray, a: np.ndarray) -> np.ndarray:
-    """``a[mask]`` for a (T, K) array; ``np.compress`` is ~5x faster than boolean indexing."""
+    """``a[mask]`` for a (T, K) array (``np.compress``: faster than boolean indexing)."""
     return np.compress(mask, a, axis=0)
 
 
-# Long dot products go through einsum rather than ``@``: OpenBLAS runs them on several
-# threads, and on a machine shared with other work the threads' wake-ups and spinning were
-# measured to make an M-step 10-1000x slower at random; einsum stays on one thread.
+# Long dot products go through einsum rather than ``@``, which stays on one thread: OpenBLAS's
+# threads made M-steps randomly slow on a shared machine (reports/decisions.md, HMM fitting).
 
 
 def _dot(a: np.ndarray, b: np.ndarray) -> float:
@@ -155,8 +154,8 @@ def _weighted_sums(values: np.ndarray, w: np.ndarray) -> np.ndarray:
 
 
 def _column_sums(w: np.ndarray) -> np.ndarray:
-    """Sums over the rows of a (T, K) array -> (K,) (column by column: numpy's axis-0
-    reduction of a narrow (T, 2) array is an order of magnitude slower)."""
+    """Sums over the rows of a (T, K) array -> (K,), column by column (numpy's axis-0
+    reduction of a narrow (T, 2) array is slow)."""
     return np.array([w[:, k].sum() for k in range(w.shape[1])])
 
 
@@ -224,7 +223,7 @@ class PreparedSteps:
         """
         rows = np.flatnonzero(self.positive)
         values = self.safe[rows]
-        order = np.argsort(values)  # numpy's SIMD quicksort, ~10x faster than a stable sort
+        order = np.argsort(values)  # numpy's SIMD quicksort: much faster than a stable sort
         ordered = values[order]
         if np.any(ordered[1:] == ordered[:-1]):  # only ties make the result sort-dependent
             order = np.argsort(values, kind="stable")
