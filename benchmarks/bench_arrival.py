@@ -1,6 +1,6 @@
 """The paper's range-rate filter against the arrival-time filter on realistic clocks.
 
-For each realistic-clock scenario (:mod:`hmmtrack.scenarios.clocks`: the shark pursuit by
+For each realistic-clock scenario (:mod:`hmmtrack.scenarios.realistic`: the shark pursuit by
 two AUVs steered to make the tag observable - one trails, one circles the shark - the same
 pursuit with the paper's fixed formation and with both AUVs circling the shark at a right
 angle, and a moored array of three receivers) and seed, both methods track the same
@@ -47,15 +47,10 @@ import numpy as np
 import pandas as pd
 
 from hmmtrack.analysis.metrics import position_error, time_to_convergence
-from hmmtrack.scenarios.clocks import (
-    Multipath,
-    WanderingPeriodClock,
-    build_clock_scenario,
-    moored_array,
-    realistic_shark_pursuit,
-    steered_auv,
-)
+from hmmtrack.scenarios.clocks import Multipath, WanderingPeriodClock, build_clock_scenario
 from hmmtrack.scenarios.detection import GpsNoise
+from hmmtrack.scenarios.realistic import moored_array, realistic_shark_pursuit
+from hmmtrack.scenarios.steering import steered_auv
 from hmmtrack.scenarios.trajectory import Trajectory
 from hmmtrack.tracking.clock_filter import (
     ClockAwareFilter,

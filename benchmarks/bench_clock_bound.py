@@ -28,7 +28,7 @@ over the same window (run here as ``bench_arrival.py`` runs it: 3,000 particles,
 motion, 60 s smoother lag; ``--no-filter`` skips it) and its mean errors read from
 ``reports/clock_aware.md``, a sensitivity table (q, clock noise ×3 and ÷3, σ of the
 filter's 3 ms), and a planning sweep of two AUVs circling the shark together
-(:func:`hmmtrack.scenarios.clocks.rotating_pair`: radius, lap time, angle between them)
+(:func:`hmmtrack.scenarios.steering.rotating_pair`: radius, lap time, angle between them)
 with their speeds, and runs the particle filter on three of those plans (``FILTER_PLANS``)
 to see how close it comes. With ``--report`` it writes the tables and a figure (bound over
 time).
@@ -56,15 +56,10 @@ from hmmtrack.analysis.bounds import (
     emission_clock_from_schedule,
 )
 from hmmtrack.analysis.metrics import position_error
-from hmmtrack.scenarios.clocks import (
-    Multipath,
-    WanderingPeriodClock,
-    build_clock_scenario,
-    moored_array,
-    realistic_shark_pursuit,
-    rotating_pair,
-)
+from hmmtrack.scenarios.clocks import Multipath, WanderingPeriodClock, build_clock_scenario
 from hmmtrack.scenarios.detection import GpsNoise
+from hmmtrack.scenarios.realistic import moored_array, realistic_shark_pursuit
+from hmmtrack.scenarios.steering import rotating_pair
 from hmmtrack.scenarios.trajectory import Trajectory
 from hmmtrack.tracking.clock_filter import track_arrival_time
 from hmmtrack.tracking.measurement.clock import EmissionClockModel

@@ -1,10 +1,10 @@
 """Two AUVs steered on the filter's estimate against the same plan steered on the truth.
 
 ``bench_two_auv_plan.py`` measures the ``two-moving-receivers`` preset on the observable
-plan (:class:`hmmtrack.scenarios.clocks.RotatingPlan`: stations 27 m from the shark, 135°
+plan (:class:`hmmtrack.scenarios.steering.RotatingPlan`: stations 27 m from the shark, 135°
 apart, one lap per 150 s, led by the shark's recent velocity), whose stations are placed
 from the true shark track. Here :func:`hmmtrack.experiments.closed_loop.fly_closed_loop` flies the
-same plan twice on each scenario of :func:`hmmtrack.scenarios.clocks.realistic_shark_pursuit`
+same plan twice on each scenario of :func:`hmmtrack.scenarios.realistic.realistic_shark_pursuit`
 (``steering="observable"``), with the preset's filter stepped online:
 
 * open loop: stations around the true shark (``steer_on="truth"``), the scenario's own
@@ -44,7 +44,9 @@ from bench_clock_bound import bound_inputs, bound_table, rms_after_skip
 
 from hmmtrack.analysis.metrics import position_error
 from hmmtrack.experiments.closed_loop import arrival_time_tracker, fly_closed_loop
-from hmmtrack.scenarios.clocks import RotatingPlan, realistic_shark_pursuit
+from hmmtrack.experiments.configs import arrival_config
+from hmmtrack.scenarios.realistic import realistic_shark_pursuit
+from hmmtrack.scenarios.steering import RotatingPlan
 from hmmtrack.tracking.clock_filter import track_arrival_time
 from hmmtrack.tracking.config import TrackingConfig, read_preset
 from hmmtrack.tracking.measurement.clock import to_common_time
@@ -66,7 +68,7 @@ def preset_config(case, n_particles: int | None = None) -> TrackingConfig:
     """The preset on ``case`` over the first ``DURATION`` seconds (with ``n_particles``
     instead of the preset's when given)."""
     particles = {} if n_particles is None else {"n_particles": n_particles}
-    return case.arrival_config(read_preset(PRESET) | particles, DURATION)
+    return arrival_config(case, read_preset(PRESET) | particles, DURATION)
 
 
 def geometry(run, truth: pd.DataFrame) -> dict:

@@ -67,6 +67,7 @@ from hmmtrack.experiments import (  # noqa: E402
     experiment_seed,
     paper_scenarios,
 )
+from hmmtrack.experiments.configs import tracking_config  # noqa: E402
 from hmmtrack.report.markdown import markdown_table  # noqa: E402
 from hmmtrack.tracking import pipeline as tracking  # noqa: E402
 from hmmtrack.tracking.config import TrackingConfig  # noqa: E402
@@ -127,7 +128,7 @@ def settings() -> dict[str, tuple[int, object]]:
 
 def scenario_config(scenario, n_particles: int) -> TrackingConfig:
     """The tracking configuration of the experiments (``hmmtrack.experiments``)."""
-    return scenario.tracking_config(n_particles=n_particles)
+    return tracking_config(scenario, n_particles=n_particles)
 
 
 def geometry_angle(scenario) -> float:
@@ -250,7 +251,7 @@ def moving_tags(n_trials: int, seed: int = 0) -> pd.DataFrame:
     rows = []
     for name, scenario in paper_scenarios(seed, MOVING_SCENARIOS).items():
         cell = child_seed(root, 0, PAPER_SCENARIOS.index(name), MOTIONS.index("hmm"))
-        config = scenario.tracking_config(n_particles=MOVING_PARTICLES, shallower="clip")
+        config = tracking_config(scenario, n_particles=MOVING_PARTICLES, shallower="clip")
         for k in range(n_trials):
             for label, motion in compared.items():
                 run = tracking.track(

@@ -16,13 +16,13 @@ fitted clock and detection curve, as in ``bench_clock_bound.py``) and the AUVs' 
 percentiles (1 s steps); then the filters' throughput (particle-steps per second without
 the smoother, best of two runs) with the machine's load. Not a test: it measures.
 
-The plans are steerings of :func:`hmmtrack.scenarios.clocks.realistic_shark_pursuit` (the
+The plans are steerings of :func:`hmmtrack.scenarios.realistic.realistic_shark_pursuit` (the
 tag clock wanders 0.8 s from a constant 8 s schedule, 65 µs jitter, multipath, correlated
 GPS error): ``steering="observable"`` (stations 27 m from the shark, 135° apart, one lap
 per 150 s, led ahead of the shark by its recent velocity so that the vehicles hold that
 geometry behind a travelling shark) and, for comparison, the plan as it was before the
 lead (30 m, stations on the shark's position; a
-:class:`hmmtrack.scenarios.clocks.RotatingPlan`). The stations are placed from the true
+:class:`hmmtrack.scenarios.steering.RotatingPlan`). The stations are placed from the true
 shark track (as the paper's simulated hydrophone paths are): the steering assumes the
 AUVs know where the shark is to within the filter's error. The tuned settings run with
 two filter seeds per scenario (:data:`TUNED_FILTER_SEEDS`); the summary gives the worst
@@ -44,7 +44,8 @@ from bench_arrival import inputs, make_motion, markdown, summarise
 from bench_clock_bound import DURATION, SKIP, bound_inputs, bound_table, rms_after_skip
 
 from hmmtrack.analysis.metrics import position_error
-from hmmtrack.scenarios.clocks import ROTATING_PLANS, RotatingPlan, realistic_shark_pursuit
+from hmmtrack.scenarios.realistic import realistic_shark_pursuit
+from hmmtrack.scenarios.steering import ROTATING_PLANS, RotatingPlan
 from hmmtrack.tracking.clock_filter import track_arrival_time
 from hmmtrack.tracking.config import TrackingConfig, read_preset
 from hmmtrack.tracking.pipeline import track

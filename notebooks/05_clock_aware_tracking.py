@@ -19,7 +19,7 @@
 # constant-period schedule within two hours, and nobody knows the range when the first ping
 # is heard. Here two AUVs circle a tagged shark (stations 27 m from it and led ahead of it by
 # its recent velocity, 135° apart, one lap per 150 s: the `observable` steering of
-# `hmmtrack.scenarios.clocks.realistic_shark_pursuit`),
+# `hmmtrack.scenarios.realistic.realistic_shark_pursuit`),
 # the tag's period wanders, the AUVs' clocks are calibrated to GPS time only to 0.1 ms and a
 # few per cent of the detections come by multipath. We track that shark twice from the same
 # detections:
@@ -49,7 +49,7 @@ from hmmtrack.analysis.metrics import (
     position_error,
     time_to_convergence,
 )
-from hmmtrack.scenarios.clocks import realistic_shark_pursuit
+from hmmtrack.scenarios.realistic import realistic_shark_pursuit
 from hmmtrack.tracking.clock_filter import track_arrival_time
 from hmmtrack.tracking.config import TrackingConfig, read_preset
 from hmmtrack.tracking.measurement.clock import local_period_ppm, schedule_wander

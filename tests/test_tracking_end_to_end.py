@@ -17,6 +17,7 @@ import pytest
 
 from hmmtrack import scenarios
 from hmmtrack.analysis import metrics
+from hmmtrack.experiments.configs import tracking_config
 from hmmtrack.tracking import pipeline as tracking
 from hmmtrack.tracking.config import TrackingConfig
 from hmmtrack.tracking.measurement import ranging
@@ -42,7 +43,7 @@ def stationary():
 
 def scenario_config(scenario, **changes) -> TrackingConfig:
     # bounds from r0 (TrackingConfig's rule), not the scenario's box
-    return scenario.tracking_config(**({"n_particles": N_PARTICLES, "bounds": None} | changes))
+    return tracking_config(scenario, **({"n_particles": N_PARTICLES, "bounds": None} | changes))
 
 
 def diving_tag_detections(depth_of_time):
