@@ -3,11 +3,11 @@
 For each realistic-clock scenario the particle filters of ``bench_arrival.py`` run on (the
 shark pursuit by two AUVs with "circling", right-angle "formation" and "paper" steering,
 the same pursuit with three AUVs, the moored array of three receivers) and seed, it
-computes :func:`hmmtrack.analysis.bounds.arrival_time_bound` over the first 2 h (as the filters
+computes :func:`hmmtrack.analysis.crb.arrival_time_bound` over the first 2 h (as the filters
 run) with the realised detections, four ways:
 
 * clock unknown, the clock prior an integrated random walk fitted to the scenario's true
-  emission times (:func:`hmmtrack.analysis.bounds.emission_clock_from_schedule`, jitter 65 µs),
+  emission times (:func:`hmmtrack.analysis.crb.emission_clock_from_schedule`, jitter 65 µs),
   the prior of this model family closest to the truth's own clock (whose period rate is
   mean-reverting, so the fitted walk is a little looser over long horizons); from the
   arrival times only, and with the
@@ -18,7 +18,7 @@ run) with the realised detections, four ways:
 * clock known (the emission times given), with the detection curve.
 
 The tag's prior is nearly-constant-velocity with ``q`` fitted to the true path
-(:func:`hmmtrack.analysis.bounds.acceleration_psd_from_path` with 8 s windows, the tag's period),
+(:func:`hmmtrack.analysis.crb.acceleration_psd_from_path` with 8 s windows, the tag's period),
 and each arrival time has noise ``σ = sqrt(jitter² + calibration² + (GPS / c)²)``:
 65 µs jitter, 0.1 ms receiver-clock calibration, GPS 1.5 m on the AUVs and 0.5 m on the
 moorings (both treated as white noise, which only makes the bound smaller). It prints
@@ -50,7 +50,7 @@ import pandas as pd
 from bench_arrival import inputs as filter_inputs
 from bench_arrival import markdown, summarise, three_auv_pursuit
 
-from hmmtrack.analysis.bounds import (
+from hmmtrack.analysis.crb import (
     acceleration_psd_from_path,
     arrival_time_bound,
     emission_clock_from_schedule,

@@ -11,8 +11,8 @@ so the geometry changes from trial to trial) and relates each trial's error to
   position across that line is poorly observed);
 * the information limit: the Cramér–Rao bound on a fixed tag's position from that trial's
   scored (range, range-rate) observations with the filter's Σ_z
-  (:func:`hmmtrack.analysis.metrics.static_tag_crb`; ``sqrt(trace)``, m); the error of the best
-  fixed-tag fit to the same observations (:func:`hmmtrack.analysis.metrics.static_tag_fit` started
+  (:func:`hmmtrack.analysis.crb.static_tag_crb`; ``sqrt(trace)``, m); the error of the best
+  fixed-tag fit to the same observations (:func:`hmmtrack.analysis.crb.static_tag_fit` started
   at
   the truth): how far the data themselves, hydrophone GPS errors included, place the tag;
   and the mirror ambiguity: the fit started at the other intersection of the two range
@@ -59,7 +59,7 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
 from hmmtrack import scenarios  # noqa: E402
-from hmmtrack.analysis import metrics
+from hmmtrack.analysis import crb, metrics
 from hmmtrack.experiments import (  # noqa: E402
     MOTIONS,
     PAPER_SCENARIOS,
@@ -162,19 +162,19 @@ def geometry_row(scenario, config: TrackingConfig, late_after: float = 300.0) ->
     late = scored[scored["time"] > scenario.start + late_after]
     tag = scenario.truth[["x", "y"]].to_numpy(dtype=float)[0]
     sigma_z = config.measurement_covariance
-    crb = metrics.static_tag_crb(scored, *tag, sigma_z)
+    bound = crb.static_tag_crb(scored, *tag, sigma_z)
     fixed = pd.DataFrame({"time": [np.nan], "x": [tag[0]], "y": [tag[1]]})  # the moored tag
     residual = scored[["range", "range_rate"]].to_numpy() - tracking.expected_measurements(
         scored, fixed
     )
-    crb_measured = metrics.static_tag_crb(scored, *tag, np.cov(residual.T))
-    fit, chi2 = metrics.static_tag_fit(scored, tag, sigma_z)
-    mirror, chi2_mirror = metrics.static_tag_fit(scored, mirror_start(scenario, tag), sigma_z)
-    _, chi2_late = metrics.static_tag_fit(late, tag, sigma_z)
-    _, chi2_late_mirror = metrics.static_tag_fit(late, mirror_start(scenario, tag), sigma_z)
+    crb_measured = crb.static_tag_crb(scored, *tag, np.cov(residual.T))
+    fit, chi2 = crb.static_tag_fit(scored, tag, sigma_z)
+    mirror, chi2_mirror = crb.static_tag_fit(scored, mirror_start(scenario, tag), sigma_z)
+    _, chi2_late = crb.static_tag_fit(late, tag, sigma_z)
+    _, chi2_late_mirror = crb.static_tag_fit(late, mirror_start(scenario, tag), sigma_z)
     return {
         "angle_deg": geometry_angle(scenario),
-        "crb_m": float(np.sqrt(np.trace(crb))),
+        "crb_m": float(np.sqrt(np.trace(bound))),
         "crb_measured_noise_m": float(np.sqrt(np.trace(crb_measured))),
         "static_fit_error_m": float(np.hypot(*(fit - tag))),
         "mirror_m": float(np.hypot(*(mirror - tag))),

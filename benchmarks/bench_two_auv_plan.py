@@ -11,7 +11,7 @@ and the paper's range-rate method once (true initial ranges, best constant perio
 velocity motion), and prints per seed the filtered and 60 s-smoothed mean error after
 convergence (the paper's metric), the time to convergence, the filtered RMS error from
 10 min on beside the posterior Cramér–Rao bound
-(:func:`hmmtrack.analysis.bounds.arrival_time_bound`,
+(:func:`hmmtrack.analysis.crb.arrival_time_bound`,
 fitted clock and detection curve, as in ``bench_clock_bound.py``) and the AUVs' speed
 percentiles (1 s steps); then the filters' throughput (particle-steps per second without
 the smoother, best of two runs) with the machine's load. Not a test: it measures.

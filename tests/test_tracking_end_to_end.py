@@ -17,6 +17,7 @@ import pytest
 
 from hmmtrack import scenarios
 from hmmtrack.analysis import metrics
+from hmmtrack.analysis.crb import static_tag_fit
 from hmmtrack.experiments.configs import tracking_config
 from hmmtrack.tracking import pipeline as tracking
 from hmmtrack.tracking.config import TrackingConfig
@@ -31,7 +32,7 @@ N_PARTICLES = 2000
 #: issue 3's acceptance runs on every stationary-tag scenario seed of this range ...
 ACCEPTANCE_SEEDS = range(24)
 #: ... whose own observations place the tag within this distance (m) of the truth (best
-#: fixed-tag fit, :func:`hmmtrack.analysis.metrics.static_tag_fit`): no filter can be asked to beat
+#: fixed-tag fit, :func:`hmmtrack.analysis.crb.static_tag_fit`): no filter can be asked to beat
 #: its data by much
 DATA_ERROR_LIMIT = 5.0
 
@@ -192,7 +193,7 @@ def data_error(scenario) -> float:
     config = scenario_config(scenario)
     observations = tracking.build_observations(scenario.detections, scenario.receivers, config)
     scored = observations[observations["range_rate"].notna()]
-    position, _ = metrics.static_tag_fit(scored, [0.0, 0.0], config.measurement_covariance)
+    position, _ = static_tag_fit(scored, [0.0, 0.0], config.measurement_covariance)
     return float(np.hypot(*position))
 
 
