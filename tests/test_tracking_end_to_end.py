@@ -4,7 +4,7 @@ The acceptance case of issue 3 is the stationary-tag scenario (a moored tag, an 
 boat hydrophone and an AUV hydrophone driving away in 50 m steps): every motion model must
 converge and keep its mean error after convergence under 10 m. It is checked on every
 scenario seed of a stated range (new geometry each), not on one seed; see
-``reports/stationary_tag.md`` (``benchmarks/bench_stationary.py``) for 100 seeds.
+``reports/stationary_tag.md`` (``hmmtrack study stationary``) for 100 seeds.
 """
 
 from __future__ import annotations

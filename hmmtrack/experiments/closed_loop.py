@@ -49,7 +49,8 @@ receiver) heard in the open loop with probability ``p`` is heard in the closed l
 and on ``(p, 1)`` if not: ``u`` is then uniform on ``(0, 1)``, so the closed loop hears
 with the right law, and where the geometry is unchanged it hears what the open loop did.
 
-Measured in ``reports/closed_loop.md`` (``benchmarks/bench_closed_loop.py``).
+Measured in ``reports/closed_loop.md`` (``hmmtrack study closed-loop``,
+:mod:`hmmtrack.experiments.closed_loop_study`).
 
 This module simulates and runs a tracker online. It does no filtering of its own
 (:func:`arrival_time_tracker` only assembles :mod:`hmmtrack.tracking.clock_filter`'s filter as

@@ -4,7 +4,9 @@
   wandering tag period; the AUVs are steered by name (one trails while one circles the
   shark, the paper's fixed formation, or the pair circling the shark together, see
   :data:`STEERINGS`) or by a :class:`RotatingPlan` (:mod:`hmmtrack.scenarios.steering`);
-* :func:`moored_array` — a resident shark inside a triangle of three moored receivers.
+* :func:`moored_array` — a resident shark inside a triangle of three moored receivers;
+* :func:`three_auv_pursuit` (the same shark followed by three AUVs, a diagnostic) and
+  :func:`rotating_pair_pursuit` (two AUVs on any rotating plan, for planning sweeps).
 
 Each returns a :class:`~hmmtrack.scenarios.clocks.ClockScenario`. It does not track or
 score anything.
@@ -27,7 +29,13 @@ from hmmtrack.scenarios.clocks import (
 from hmmtrack.scenarios.detection import GpsNoise
 from hmmtrack.scenarios.paper import shark_pursuit
 from hmmtrack.scenarios.shark_motion import WHITE_SHARK_GROUND_TRUTH
-from hmmtrack.scenarios.steering import ROTATING_PLANS, RotatingPlan, circling_pair
+from hmmtrack.scenarios.steering import (
+    ROTATING_PLANS,
+    RotatingPlan,
+    circling_pair,
+    rotating_pair,
+    steered_auv,
+)
 from hmmtrack.scenarios.trajectory import Trajectory
 from hmmtrack.tracking.measurement.detection import LogisticDetection
 
@@ -209,4 +217,84 @@ def realistic_shark_pursuit(
         gps=GpsNoise(sd=1.5, correlation_time=60.0),
         start=base.start,
         end=base.end,
+    )
+
+
+def three_auv_pursuit(seed: int) -> ClockScenario:
+    """A diagnostic case: :func:`realistic_shark_pursuit`'s shark followed by three AUVs.
+
+    Each AUV trails the shark 100 m away on a fixed bearing, 120° apart; clocks, multipath,
+    GPS and detection are as in the two-AUV pursuit. With a third range the clock's common
+    mode is observable at every ping, so this case separates what a tracker can do from
+    what two receivers leave undetermined.
+
+    Parameters
+    ----------
+    seed : int
+        The shark is that of ``realistic_shark_pursuit(seed)``; the rest is drawn from
+        ``default_rng([seed, 3])``.
+    """
+    truth = realistic_shark_pursuit(seed).scenario.truth
+    tag = Trajectory(truth["time"].to_numpy(), truth["x"].to_numpy(), truth["y"].to_numpy())
+    rng = np.random.default_rng([seed, 3])
+    phi = rng.uniform(-np.pi, np.pi)
+    receivers = {
+        f"auv-{k + 1}": steered_auv(tag, 100.0, np.full(tag.time.size, phi + 2 * np.pi * k / 3))
+        for k in range(3)
+    }
+    return build_clock_scenario(
+        rng,
+        name="shark-pursuit-three-auvs",
+        description="Diagnostic: the realistic-clock pursuit with a third AUV.",
+        tag=tag,
+        receivers=receivers,
+        clock=WanderingPeriodClock(8.0, 0.8, phase=float(rng.uniform(0, 8.0))),
+        detection=LogisticDetection(range_50=160.0, width=40.0),
+        multipath=Multipath(),
+        gps=GpsNoise(sd=1.5, correlation_time=60.0),
+        start=float(tag.time[0]),
+        end=float(tag.time[-1]),
+    )
+
+
+def rotating_pair_pursuit(
+    seed: int, radius: float, lap_time: float, separation: float
+) -> ClockScenario:
+    """A planning case: :func:`realistic_shark_pursuit`'s shark, two AUVs on :func:`rotating_pair`.
+
+    The pair circles the shark together (no lead, 20 s homing) at ``radius`` m,
+    ``separation`` rad apart, one turn per ``lap_time`` s; the tag clock wanders 0.8 s from
+    a constant 8 s schedule; detection, multipath and GPS as in the two-AUV pursuit. Used to
+    sweep plans before anyone goes to sea.
+
+    Parameters
+    ----------
+    seed : int
+        The shark is that of ``realistic_shark_pursuit(seed)``; the rest is drawn from
+        ``default_rng([seed, 17])``.
+    radius, lap_time, separation : float
+        m, s, rad (see :func:`rotating_pair`).
+    """
+    truth = realistic_shark_pursuit(seed).scenario.truth
+    tag = Trajectory(truth["time"].to_numpy(), truth["x"].to_numpy(), truth["y"].to_numpy())
+    rng = np.random.default_rng([seed, 17])
+    receivers = rotating_pair(
+        tag,
+        float(rng.uniform(-np.pi, np.pi)),
+        radius=radius,
+        lap_time=lap_time,
+        separation=separation,
+    )
+    return build_clock_scenario(
+        rng,
+        name="shark-pursuit-planning",
+        description="Planning sweep: two AUVs circling the shark together.",
+        tag=tag,
+        receivers=receivers,
+        clock=WanderingPeriodClock(8.0, 0.8, phase=float(rng.uniform(0, 8.0))),
+        detection=LogisticDetection(range_50=160.0, width=40.0),
+        multipath=Multipath(),
+        gps=GpsNoise(sd=1.5, correlation_time=60.0),
+        start=float(tag.time[0]),
+        end=float(tag.time[-1]),
     )
