@@ -234,26 +234,19 @@ def three_auv_pursuit(seed: int) -> ClockScenario:
         The shark is that of ``realistic_shark_pursuit(seed)``; the rest is drawn from
         ``default_rng([seed, 3])``.
     """
-    truth = realistic_shark_pursuit(seed).scenario.truth
-    tag = Trajectory(truth["time"].to_numpy(), truth["x"].to_numpy(), truth["y"].to_numpy())
+    tag = _pursuit_tag(seed)
     rng = np.random.default_rng([seed, 3])
     phi = rng.uniform(-np.pi, np.pi)
     receivers = {
         f"auv-{k + 1}": steered_auv(tag, 100.0, np.full(tag.time.size, phi + 2 * np.pi * k / 3))
         for k in range(3)
     }
-    return build_clock_scenario(
+    return _pursuit_case(
         rng,
+        tag,
+        receivers,
         name="shark-pursuit-three-auvs",
         description="Diagnostic: the realistic-clock pursuit with a third AUV.",
-        tag=tag,
-        receivers=receivers,
-        clock=WanderingPeriodClock(8.0, 0.8, phase=float(rng.uniform(0, 8.0))),
-        detection=LogisticDetection(range_50=160.0, width=40.0),
-        multipath=Multipath(),
-        gps=GpsNoise(sd=1.5, correlation_time=60.0),
-        start=float(tag.time[0]),
-        end=float(tag.time[-1]),
     )
 
 
@@ -275,8 +268,7 @@ def rotating_pair_pursuit(
     radius, lap_time, separation : float
         m, s, rad (see :func:`rotating_pair`).
     """
-    truth = realistic_shark_pursuit(seed).scenario.truth
-    tag = Trajectory(truth["time"].to_numpy(), truth["x"].to_numpy(), truth["y"].to_numpy())
+    tag = _pursuit_tag(seed)
     rng = np.random.default_rng([seed, 17])
     receivers = rotating_pair(
         tag,
@@ -285,10 +277,28 @@ def rotating_pair_pursuit(
         lap_time=lap_time,
         separation=separation,
     )
-    return build_clock_scenario(
+    return _pursuit_case(
         rng,
+        tag,
+        receivers,
         name="shark-pursuit-planning",
         description="Planning sweep: two AUVs circling the shark together.",
+    )
+
+
+def _pursuit_tag(seed: int) -> Trajectory:
+    """The shark of ``realistic_shark_pursuit(seed)`` as a 1 Hz path (no depth)."""
+    truth = realistic_shark_pursuit(seed).scenario.truth
+    return Trajectory(truth["time"].to_numpy(), truth["x"].to_numpy(), truth["y"].to_numpy())
+
+
+def _pursuit_case(rng, tag: Trajectory, receivers: dict, *, name: str, description: str):
+    """The pursuit's clocks, detection, multipath and GPS for other receivers; ``rng`` draws
+    the tag clock's phase first, then :func:`build_clock_scenario`'s draws."""
+    return build_clock_scenario(
+        rng,
+        name=name,
+        description=description,
         tag=tag,
         receivers=receivers,
         clock=WanderingPeriodClock(8.0, 0.8, phase=float(rng.uniform(0, 8.0))),
