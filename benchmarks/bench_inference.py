@@ -3,7 +3,8 @@ over 100,000 observations, hmmtrack's numba kernels vs hmmlearn's compiled C++ r
 (log space and scaled) on the same log-likelihood matrix, in the same run.
 
 Run: ``python benchmarks/bench_inference.py [--n-obs 100000] [--repeats 20]``.
-Prints milliseconds per pass (best of ``repeats``) and the ratio hmmlearn / hmmtrack.
+Prints milliseconds per pass (best of ``repeats``), the ratio hmmlearn / hmmtrack, and the
+machine (CPU, cores, load) at the start and the end.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ import time
 
 import numpy as np
 from hmmlearn import _hmmc
+from machine import describe
 
 from hmmtrack.hmm.inference import forward_backward, viterbi
 
@@ -61,6 +63,7 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=1)
     args = parser.parse_args()
     rng = np.random.default_rng(args.seed)
+    print(describe("start"), flush=True)
 
     start = time.perf_counter()
     forward_backward(np.log([0.5, 0.5]), np.log([[0.9, 0.1], [0.1, 0.9]]), np.zeros((3, 2)))
@@ -91,6 +94,7 @@ def main() -> None:
             f"{n_states:>2} {ms_ours:>9.2f} ms {ms_viterbi:>6.2f} ms {ms_log:>10.2f} ms "
             f"{ms_scaled:>6.2f} ms {ms_log / ms_ours:>9.1f}x {ms_scaled / ms_ours:>12.1f}x"
         )
+    print(describe("end"))
 
 
 if __name__ == "__main__":

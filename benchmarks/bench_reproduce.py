@@ -7,7 +7,8 @@ the loss sweep and the diving shark), scales each part by its trial count to the
 in this process (the baseline; the ratio is the parallel speed-up).
 
 ``--full`` runs the real thing (``hmmtrack.report.reproduce`` into a temporary folder) and
-prints its wall time instead of an extrapolation.
+prints its wall time instead of an extrapolation. The machine (CPU, cores, load) is printed
+at the start and the end.
 
 Usage::
 
@@ -23,6 +24,8 @@ import time
 import matplotlib
 
 matplotlib.use("Agg")
+
+from machine import describe  # noqa: E402
 
 from hmmtrack import experiments  # noqa: E402
 from hmmtrack.experiments.executors import default_workers, get_executor  # noqa: E402
@@ -114,6 +117,7 @@ def main() -> None:
     parser.add_argument("--full", action="store_true", help="time the real paper-scale run")
     parser.add_argument("--quick", action="store_true", help="time the real --quick run")
     args = parser.parse_args()
+    print(describe("start"), flush=True)
     if args.full or args.quick:
         size = "quick" if args.quick else "paper-scale"
         with tempfile.TemporaryDirectory() as out:
@@ -128,6 +132,7 @@ def main() -> None:
         print(f"{size} run: {seconds:.0f} s = {seconds / 60:.1f} min")
     else:
         scaled(args.trials, args.particles, args.workers)
+    print(describe("end"))
 
 
 if __name__ == "__main__":

@@ -19,7 +19,7 @@
 # constant-period schedule within two hours, and nobody knows the range when the first ping
 # is heard. Here two AUVs circle a tagged shark (stations 27 m from it and led ahead of it by
 # its recent velocity, 135° apart, one lap per 150 s: the `observable` steering of
-# `hmmtrack.scenarios.clocks.realistic_shark_pursuit`),
+# `hmmtrack.scenarios.realistic.realistic_shark_pursuit`),
 # the tag's period wanders, the AUVs' clocks are calibrated to GPS time only to 0.1 ms and a
 # few per cent of the detections come by multipath. We track that shark twice from the same
 # detections:
@@ -49,14 +49,14 @@ from hmmtrack.analysis.metrics import (
     position_error,
     time_to_convergence,
 )
-from hmmtrack.scenarios.clocks import realistic_shark_pursuit
+from hmmtrack.scenarios.realistic import realistic_shark_pursuit
 from hmmtrack.tracking.clock_filter import track_arrival_time
 from hmmtrack.tracking.config import TrackingConfig, read_preset
 from hmmtrack.tracking.measurement.clock import local_period_ppm, schedule_wander
 from hmmtrack.tracking.pipeline import track
 
 PRESET = "two-moving-receivers"
-SMOOTHING_LAG = 60  # s of the fixed-lag smoother (as benchmarks/bench_two_auv_plan.py)
+SMOOTHING_LAG = 60  # s of the fixed-lag smoother (as `hmmtrack study two-auv-plan`)
 MAP_WINDOW = 300.0  # s of track drawn on the map
 RANGE_RATE = "range-rate (paper, true r0)"
 FILTERED = "arrival-time (no r0)"
@@ -102,7 +102,7 @@ if out is not None:
 #
 # Both methods get the same detections, mapped from each AUV's clock to GPS time with the
 # calibration the scenario provides. The range-rate run uses velocity motion (speed and
-# turn rate wandering 0.05 m/s and 0.02 rad/s per √s, as `benchmarks/bench_arrival.py`);
+# turn rate wandering 0.05 m/s and 0.02 rad/s per √s, as `hmmtrack study arrival`);
 # the arrival-time run takes everything from the preset (its likelihood, tempering, motion
 # model and number of particles) and searches a box around the AUVs at the start as wide
 # as their detection reach. The paper's method is also given the truth it needs: the range
@@ -244,7 +244,7 @@ if out is not None:
 # * The preset was tuned on this steering; for nine scenario seeds with two filter seeds
 #   each, the same plan without its lead, and the posterior Cramér–Rao bound beside each
 #   run, see `reports/two_auv_plan.md`
-#   (`benchmarks/bench_two_auv_plan.py`). On your own detections:
+#   (`hmmtrack study two-auv-plan`). On your own detections:
 #   `hmmtrack track --preset two-moving-receivers --smooth 60 ...` (see `hmmtrack track
 #   --help`; a `bounds` key in a `--config` file gives a search box other than 240 m
 #   around the receivers at the start).

@@ -20,7 +20,7 @@ The cases:
   (time-consistent, with its default resting state) and the HMM in the paper's variant
   with the paper's resampling (multinomial, after every correction);
 * arrival-time tracking (:func:`hmmtrack.tracking.clock_filter.track_arrival_time`) of 20 minutes
-  of the moored array (:func:`hmmtrack.scenarios.clocks.moored_array`, three moorings,
+  of the moored array (:func:`hmmtrack.scenarios.realistic.moored_array`, three moorings,
   wandering tag clock, multipath), 1,000 particles: plain (bundled HMM), with a fixed-lag
   smoother (velocity motion), with a detection curve counting silences (velocity motion).
 
@@ -40,7 +40,7 @@ import numpy as np
 import pandas as pd
 
 from hmmtrack import scenarios
-from hmmtrack.scenarios.clocks import moored_array
+from hmmtrack.scenarios.realistic import moored_array
 from hmmtrack.tracking import pipeline as tracking
 from hmmtrack.tracking.clock_filter import track_arrival_time
 from hmmtrack.tracking.config import TrackingConfig

@@ -22,8 +22,8 @@ from hmmtrack.analysis import metrics
 from hmmtrack.cli import build_parser, main
 from hmmtrack.cli.track import build_config
 from hmmtrack.scenarios import stationary_tag
-from hmmtrack.scenarios.clocks import moored_array, realistic_shark_pursuit
 from hmmtrack.scenarios.export import write_scenario
+from hmmtrack.scenarios.realistic import moored_array, realistic_shark_pursuit
 from hmmtrack.tracking import pipeline as tracking
 from hmmtrack.tracking.clock_filter import track_arrival_time
 from hmmtrack.tracking.config import TrackingConfig

@@ -6,16 +6,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from hmmtrack.scenarios.clocks import (
+from hmmtrack.scenarios.clocks import Multipath, WanderingPeriodClock
+from hmmtrack.scenarios.realistic import STEERINGS, moored_array, realistic_shark_pursuit
+from hmmtrack.scenarios.steering import (
     ROTATING_PLANS,
-    STEERINGS,
-    Multipath,
     RotatingPlan,
-    WanderingPeriodClock,
     homing_memory,
-    moored_array,
     pair_bearings,
-    realistic_shark_pursuit,
     recent_velocity,
     rotating_pair,
     station,

@@ -10,7 +10,7 @@ import pytest
 
 import hmmtrack.tracking.clock_filter as ct
 from hmmtrack.analysis.metrics import position_error
-from hmmtrack.scenarios.clocks import moored_array
+from hmmtrack.scenarios.realistic import moored_array
 from hmmtrack.tracking.clock_filter import (
     TEMPER_ESS_TOLERANCE,
     ClockAwareFilter,

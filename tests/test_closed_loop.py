@@ -16,7 +16,9 @@ from hmmtrack.experiments.closed_loop import (
     fly_closed_loop,
     plan_phase,
 )
-from hmmtrack.scenarios.clocks import RotatingPlan, realistic_shark_pursuit
+from hmmtrack.experiments.configs import arrival_config
+from hmmtrack.scenarios.realistic import realistic_shark_pursuit
+from hmmtrack.scenarios.steering import RotatingPlan
 from hmmtrack.tracking.clock_filter import track_arrival_time
 from hmmtrack.tracking.config import TrackingConfig, read_preset
 
@@ -30,8 +32,8 @@ def observable_case(seed: int):
 
 def preset_config(case, duration: float, n_particles: int) -> TrackingConfig:
     """The ``two-moving-receivers`` preset on ``case``'s first ``duration`` s, ``n_particles``."""
-    return case.arrival_config(
-        read_preset("two-moving-receivers") | {"n_particles": n_particles}, duration
+    return arrival_config(
+        case, read_preset("two-moving-receivers") | {"n_particles": n_particles}, duration
     )
 
 

@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from hmmtrack.scenarios.clocks import moored_array
+from hmmtrack.scenarios.realistic import moored_array
 from hmmtrack.tracking.measurement.detection import (
     SOFTPLUS_END,
     SOFTPLUS_STEP,

@@ -9,6 +9,7 @@ import pytest
 from scipy import stats
 
 from hmmtrack.experiments import paper_scenarios
+from hmmtrack.experiments.configs import tracking_config
 from hmmtrack.hmm import Gamma, MovementHMM, VonMises, Weibull, WrappedCauchy
 from hmmtrack.tracking import pipeline as tracking
 from hmmtrack.tracking.compiled import streams as rs
@@ -264,7 +265,7 @@ def test_filter_posterior_rests_on_a_fixed_tag_and_swims_on_a_moving_one(name, b
     """Posterior weight of the resting state at the end of a run with tracking's default
     HMM (measured: 0.97 on the moored tag, 0.0015 on the swimmer; 0.20 under the prior)."""
     scenario = paper_scenarios(0, [name])[name]
-    config = scenario.tracking_config(n_particles=2000, shallower="clip")
+    config = tracking_config(scenario, n_particles=2000, shallower="clip")
     run = tracking.track(
         scenario.detections, scenario.receivers, config, "hmm", seed=1,
         snapshot_times=[scenario.end],

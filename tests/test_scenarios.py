@@ -622,21 +622,3 @@ def test_bundled_model_is_our_fitter_on_the_shipped_tracks():
         for key, value in theirs.items():
             if isinstance(value, list):
                 np.testing.assert_allclose(mine[key], value, rtol=1e-3, atol=1e-3)
-
-
-def test_tracking_config_carries_the_scenario_settings_and_the_changes():
-    s = stationary_tag(2)
-    config = s.tracking_config(n_particles=321, depth="sensor")
-    assert (config.period, config.sound_speed, config.transmitter) == (
-        s.period,
-        s.sound_speed,
-        s.transmitter,
-    )
-    assert dict(config.r0) == s.r0 and tuple(config.bounds) == s.bounds
-    assert (config.start, config.end, config.n_particles, config.depth) == (
-        s.start,
-        s.end,
-        321,
-        "sensor",
-    )
-    assert s.tracking_config(bounds=None).bounds is None

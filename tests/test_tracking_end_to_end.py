@@ -4,7 +4,7 @@ The acceptance case of issue 3 is the stationary-tag scenario (a moored tag, an 
 boat hydrophone and an AUV hydrophone driving away in 50 m steps): every motion model must
 converge and keep its mean error after convergence under 10 m. It is checked on every
 scenario seed of a stated range (new geometry each), not on one seed; see
-``reports/stationary_tag.md`` (``benchmarks/bench_stationary.py``) for 100 seeds.
+``reports/stationary_tag.md`` (``hmmtrack study stationary``) for 100 seeds.
 """
 
 from __future__ import annotations
@@ -17,6 +17,8 @@ import pytest
 
 from hmmtrack import scenarios
 from hmmtrack.analysis import metrics
+from hmmtrack.analysis.crb import static_tag_fit
+from hmmtrack.experiments.configs import tracking_config
 from hmmtrack.tracking import pipeline as tracking
 from hmmtrack.tracking.config import TrackingConfig
 from hmmtrack.tracking.measurement import ranging
@@ -30,7 +32,7 @@ N_PARTICLES = 2000
 #: issue 3's acceptance runs on every stationary-tag scenario seed of this range ...
 ACCEPTANCE_SEEDS = range(24)
 #: ... whose own observations place the tag within this distance (m) of the truth (best
-#: fixed-tag fit, :func:`hmmtrack.analysis.metrics.static_tag_fit`): no filter can be asked to beat
+#: fixed-tag fit, :func:`hmmtrack.analysis.crb.static_tag_fit`): no filter can be asked to beat
 #: its data by much
 DATA_ERROR_LIMIT = 5.0
 
@@ -42,7 +44,7 @@ def stationary():
 
 def scenario_config(scenario, **changes) -> TrackingConfig:
     # bounds from r0 (TrackingConfig's rule), not the scenario's box
-    return scenario.tracking_config(**({"n_particles": N_PARTICLES, "bounds": None} | changes))
+    return tracking_config(scenario, **({"n_particles": N_PARTICLES, "bounds": None} | changes))
 
 
 def diving_tag_detections(depth_of_time):
@@ -191,7 +193,7 @@ def data_error(scenario) -> float:
     config = scenario_config(scenario)
     observations = tracking.build_observations(scenario.detections, scenario.receivers, config)
     scored = observations[observations["range_rate"].notna()]
-    position, _ = metrics.static_tag_fit(scored, [0.0, 0.0], config.measurement_covariance)
+    position, _ = static_tag_fit(scored, [0.0, 0.0], config.measurement_covariance)
     return float(np.hypot(*position))
 
 

@@ -13,13 +13,9 @@
   against its own x-y covariance (:func:`normalised_estimation_error`, χ² with 2 degrees of
   freedom for a consistent filter) and the share of estimates whose 95 % ellipse covers the
   truth (:func:`ellipse_coverage`);
-* the information limit of a fixed tag: the Cramér–Rao bound on its position from the
-  (range, range-rate) observations with covariance Σ_z (:func:`static_tag_crb`), and the
-  best fixed-tag fit to those observations (:func:`static_tag_fit`), which shows how far the
-  data themselves (hydrophone GPS errors included) place the tag from the truth.
 
-It is not for running filters or Monte Carlo trials (``hmmtrack.experiments`` does that)
-nor for plotting.
+It is not for running filters or Monte Carlo trials (``hmmtrack.experiments`` does that),
+for information limits (:mod:`hmmtrack.analysis.crb`) nor for plotting.
 """
 
 from __future__ import annotations
@@ -28,7 +24,6 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 import pandas as pd
-from scipy.optimize import least_squares
 
 #: the paper's convergence threshold on √λ₁ (m)
 CONVERGENCE_THRESHOLD = 10.0
@@ -91,7 +86,12 @@ def sqrt_largest_eigenvalue(var_x, var_y, cov_xy) -> np.ndarray | float:
     return (half_sum + (half_diff * half_diff + cov_xy * cov_xy) ** 0.5) ** 0.5
 
 
-def _columns(table: pd.DataFrame, name: str, columns: tuple[str, ...]) -> list[np.ndarray]:
+def finite_columns(table: pd.DataFrame, name: str, columns: tuple[str, ...]) -> list[np.ndarray]:
+    """The ``columns`` of ``table`` as float arrays, each of shape (n,).
+
+    Raises a ``ValueError`` naming the ``name`` table when a column is missing or holds a
+    non-finite value, so that a bad input fails here and not as a NaN error later.
+    """
     missing = [c for c in columns if c not in table.columns]
     if missing:
         raise ValueError(f"{name} table lacks column(s) {missing}; expected {list(columns)}")
@@ -121,11 +121,11 @@ def truth_at(truth: pd.DataFrame, times) -> tuple[np.ndarray, np.ndarray]:
     x, y : numpy.ndarray, shape (n,)
         Interpolated positions (m).
     """
-    x_true, y_true = _columns(truth, "truth", ("x", "y"))
+    x_true, y_true = finite_columns(truth, "truth", ("x", "y"))
     times = np.asarray(times, dtype=float)
     if x_true.size == 1:
         return np.full(times.shape, x_true[0]), np.full(times.shape, y_true[0])
-    (t_true,) = _columns(truth, "truth", ("time",))
+    (t_true,) = finite_columns(truth, "truth", ("time",))
     order = np.argsort(t_true, kind="stable")
     t_true, x_true, y_true = t_true[order], x_true[order], y_true[order]
     outside = np.flatnonzero((times < t_true[0]) | (times > t_true[-1]))
@@ -152,7 +152,7 @@ def position_error(estimates: pd.DataFrame, truth: pd.DataFrame) -> np.ndarray:
     numpy.ndarray, shape (n_estimates,)
         ``sqrt((x_t − x̂_t)² + (y_t − ŷ_t)²)`` (m).
     """
-    times, x_hat, y_hat = _columns(estimates, "estimates", ("time", "x", "y"))
+    times, x_hat, y_hat = finite_columns(estimates, "estimates", ("time", "x", "y"))
     x, y = truth_at(truth, times)
     return np.hypot(x - x_hat, y - y_hat)
 
@@ -258,7 +258,7 @@ def tracking_metrics(
     TrackingMetrics
     """
     errors = position_error(estimates, truth)
-    (times, spread) = _columns(estimates, "estimates", ("time", "sqrt_lambda1"))
+    (times, spread) = finite_columns(estimates, "estimates", ("time", "sqrt_lambda1"))
     convergence = time_to_convergence(times, spread, threshold)
     return TrackingMetrics(
         time_to_convergence=convergence.time_to_convergence,
@@ -310,7 +310,7 @@ def normalised_estimation_error(estimates: pd.DataFrame, truth: pd.DataFrame) ->
     ValueError
         When a covariance is not positive definite (rows named).
     """
-    times, x_hat, y_hat, var_x, var_y, cov = _columns(
+    times, x_hat, y_hat, var_x, var_y, cov = finite_columns(
         estimates, "estimates", ("time", "x", "y", "var_x", "var_y", "cov_xy")
     )
     det = var_x * var_y - cov**2
@@ -345,119 +345,3 @@ def ellipse_coverage(nees, level: float = 0.95) -> float:
     if nees.ndim != 1 or nees.size == 0 or np.isnan(nees).any():
         raise ValueError(f"nees must be a non-empty 1-D array without NaN, got shape {nees.shape}")
     return float(np.mean(nees <= ellipse_scale(level)))
-
-
-def static_tag_fisher_information(
-    observations: pd.DataFrame, x: float, y: float, covariance
-) -> np.ndarray:
-    """Fisher information on a fixed tag's position from (range, range-rate) observations.
-
-    Each observation is ``z = (r, ṙ)`` with ``r = |p_h − p|`` and
-    ``ṙ = u·v_h`` (``u = (p_h − p)/r``, ``v_h`` the hydrophone's velocity; the tag does not
-    move), observed with Gaussian noise of covariance Σ_z, independent between
-    observations. With the Jacobian ``H = ∂z/∂p = −[uᵀ; (v_h − ṙ u)ᵀ / r]`` the information
-    is ``Σ_k H_kᵀ Σ_z⁻¹ H_k``.
-
-    Parameters
-    ----------
-    observations : pandas.DataFrame
-        ``receiver_x``, ``receiver_y`` (m), ``receiver_vx``, ``receiver_vy`` (m/s) of each
-        scored observation (rows without a range-rate, the anchors, should be left out).
-    x, y : float
-        The tag's position (m).
-    covariance : array_like, shape (2, 2)
-        Σ_z of (range m, range-rate m/s).
-
-    Returns
-    -------
-    numpy.ndarray, shape (2, 2)
-        Information matrix (m⁻²); its inverse is the Cramér–Rao bound
-        (:func:`static_tag_crb`).
-    """
-    hx, hy, vx, vy = _columns(
-        observations, "observations", ("receiver_x", "receiver_y", "receiver_vx", "receiver_vy")
-    )
-    precision = np.linalg.inv(np.asarray(covariance, dtype=float))
-    dx, dy = hx - x, hy - y
-    r = np.hypot(dx, dy)
-    if np.any(r <= 0):
-        raise ValueError("the tag position coincides with a receiver; the bound is undefined")
-    ux, uy = dx / r, dy / r
-    rate = ux * vx + uy * vy
-    jacobian = np.empty((r.size, 2, 2))  # (k, measurement, coordinate)
-    jacobian[:, 0, 0], jacobian[:, 0, 1] = -ux, -uy
-    jacobian[:, 1, 0] = -(vx - rate * ux) / r
-    jacobian[:, 1, 1] = -(vy - rate * uy) / r
-    return np.einsum("kmi,mn,knj->ij", jacobian, precision, jacobian)
-
-
-def static_tag_crb(observations: pd.DataFrame, x: float, y: float, covariance) -> np.ndarray:
-    """Cramér–Rao bound on a fixed tag's position: the inverse Fisher information.
-
-    Parameters
-    ----------
-    observations, x, y, covariance
-        See :func:`static_tag_fisher_information`.
-
-    Returns
-    -------
-    numpy.ndarray, shape (2, 2)
-        Lower bound (m²) on the covariance of any unbiased estimate of ``(x, y)`` from these
-        observations; ``sqrt(trace)`` bounds the RMS position error. ``inf`` entries when the
-        geometry leaves a direction unobserved (singular information).
-    """
-    information = static_tag_fisher_information(observations, x, y, covariance)
-    eigenvalues = np.linalg.eigvalsh(information)
-    if eigenvalues[0] <= 1e-12 * max(eigenvalues[-1], 1e-300):
-        return np.full((2, 2), np.inf)
-    return np.linalg.inv(information)
-
-
-def _static_measurements(receivers, x: float, y: float) -> np.ndarray:
-    """(range, range-rate) of a fixed tag at (x, y) from receivers ``(x, y, vx, vy)``."""
-    hx, hy, vx, vy = receivers
-    dx, dy = hx - x, hy - y
-    r = np.hypot(dx, dy)
-    rate = np.divide(dx * vx + dy * vy, r, out=np.zeros_like(r), where=r > 0)
-    return np.column_stack([r, rate])
-
-
-def static_tag_fit(observations: pd.DataFrame, start, covariance) -> tuple[np.ndarray, float]:
-    """Weighted least-squares position of a fixed tag from (range, range-rate) observations.
-
-    Minimises ``Σ_k (z_k − h_k(p))ᵀ Σ_z⁻¹ (z_k − h_k(p))`` over the position ``p`` (the
-    measurement model of :func:`static_tag_fisher_information`) with Levenberg–Marquardt
-    from ``start``; with two range circles the cost can have a second local minimum near
-    their other intersection, so the start chooses which minimum is found.
-
-    Parameters
-    ----------
-    observations : pandas.DataFrame
-        ``range`` (m), ``range_rate`` (m/s), ``receiver_x``, ``receiver_y`` (m),
-        ``receiver_vx``, ``receiver_vy`` (m/s) of the scored observations.
-    start : array_like, shape (2,)
-        Starting position (m).
-    covariance : array_like, shape (2, 2)
-        Σ_z of (range m, range-rate m/s).
-
-    Returns
-    -------
-    position : numpy.ndarray, shape (2,)
-        The fitted ``(x, y)`` (m).
-    chi2 : float
-        The minimised cost (dimensionless).
-    """
-    (measured_range, measured_rate) = _columns(
-        observations, "observations", ("range", "range_rate")
-    )
-    measured = np.column_stack([measured_range, measured_rate])
-    receivers = _columns(
-        observations, "observations", ("receiver_x", "receiver_y", "receiver_vx", "receiver_vy")
-    )
-    whitener = np.linalg.cholesky(np.linalg.inv(np.asarray(covariance, dtype=float)))
-
-    def residuals(p):
-        return ((_static_measurements(receivers, *p) - measured) @ whitener).ravel()
-
-    fit = least_squares(residuals, np.asarray(start, dtype=float), method="lm")
-    return fit.x, float(2.0 * fit.cost)

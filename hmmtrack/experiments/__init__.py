@@ -18,8 +18,13 @@ for more trials only appends rows.
 
 Submodules: :mod:`~hmmtrack.experiments.trials` (one trial, its seed and score),
 :mod:`~hmmtrack.experiments.dispatch` (many trials on an executor),
-:mod:`~hmmtrack.experiments.tables` (trial tables, loss bands) and
-:mod:`~hmmtrack.experiments.studies` (the paper's datasets and studies).
+:mod:`~hmmtrack.experiments.tables` (trial tables, loss bands),
+:mod:`~hmmtrack.experiments.studies` (the paper's datasets and studies) and
+:mod:`~hmmtrack.experiments.configs` (a scenario's settings as the tracker's configuration).
+The studies behind ``hmmtrack study`` (not imported here): :mod:`~hmmtrack.experiments.stationary`,
+:mod:`~hmmtrack.experiments.arrival`, :mod:`~hmmtrack.experiments.clock_bound`,
+:mod:`~hmmtrack.experiments.two_auv_plan` and :mod:`~hmmtrack.experiments.closed_loop_study`,
+with the clock studies' shared runs in :mod:`~hmmtrack.experiments.clock_runs`.
 
 Trials are dispatched through :mod:`hmmtrack.experiments.executors` (serial, local processes or a
 Dask

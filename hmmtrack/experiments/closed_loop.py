@@ -1,6 +1,6 @@
 """Closed-loop steering: two AUVs that fly a :class:`RotatingPlan` around the filter's estimate.
 
-:func:`hmmtrack.scenarios.clocks.realistic_shark_pursuit` places the AUVs' stations from the
+:func:`hmmtrack.scenarios.realistic.realistic_shark_pursuit` places the AUVs' stations from the
 true shark track, as the paper's simulated hydrophone paths are. A robot only has the
 tracker's estimate. :func:`fly_closed_loop` re-flies the AUVs of such a scenario second by
 second with the tracker in the loop:
@@ -8,10 +8,10 @@ second with the tracker in the loop:
 1. the position steered on is the tracker's latest estimate (``steer_on="estimate"``) or,
    for checking, the true shark position (``steer_on="truth"``);
 2. the stations are the plan's (:meth:`RotatingPlan.bearings`,
-   :func:`hmmtrack.scenarios.clocks.station`), led by the exponential average of the
+   :func:`hmmtrack.scenarios.steering.station`), led by the exponential average of the
    steered-on position's 1 s displacements (the plan's ``lead_window``, as
-   :func:`hmmtrack.scenarios.clocks.recent_velocity`), and each vehicle homes on its station
-   through the plan's low-pass (:func:`hmmtrack.scenarios.clocks.homing_memory`), capped at
+   :func:`hmmtrack.scenarios.steering.recent_velocity`), and each vehicle homes on its station
+   through the plan's low-pass (:func:`hmmtrack.scenarios.steering.homing_memory`), capped at
    ``max_speed``;
 3. the tag's pings (the scenario's emissions) reach the AUVs where they now are; each is
    heard with the scenario's detection curve, logged with the scenario's receiver clocks
@@ -49,7 +49,8 @@ receiver) heard in the open loop with probability ``p`` is heard in the closed l
 and on ``(p, 1)`` if not: ``u`` is then uniform on ``(0, 1)``, so the closed loop hears
 with the right law, and where the geometry is unchanged it hears what the open loop did.
 
-Measured in ``reports/closed_loop.md`` (``benchmarks/bench_closed_loop.py``).
+Measured in ``reports/closed_loop.md`` (``hmmtrack study closed-loop``,
+:mod:`hmmtrack.experiments.closed_loop_study`).
 
 This module simulates and runs a tracker online. It does no filtering of its own
 (:func:`arrival_time_tracker` only assembles :mod:`hmmtrack.tracking.clock_filter`'s filter as
@@ -64,8 +65,9 @@ import numpy as np
 import pandas as pd
 
 from hmmtrack.random import SeedLike, as_generator
-from hmmtrack.scenarios.clocks import ClockScenario, RotatingPlan, homing_memory, station
+from hmmtrack.scenarios.clocks import ClockScenario
 from hmmtrack.scenarios.detection import arrival_times, detections_from_pings
+from hmmtrack.scenarios.steering import RotatingPlan, homing_memory, station
 from hmmtrack.scenarios.trajectory import Trajectory
 from hmmtrack.tracking.clock_filter import (
     ClockAwareFilter,
@@ -214,7 +216,7 @@ def _per_receiver(table: pd.DataFrame, names) -> dict[str, np.ndarray]:
 class _Fleet:
     """The two AUVs flying ``plan`` from their start positions, one second at a time.
 
-    Homing works as :func:`hmmtrack.scenarios.clocks.steered_auv`'s low-pass, in positions
+    Homing works as :func:`hmmtrack.scenarios.steering.steered_auv`'s low-pass, in positions
     relative to the start (``offset``), with each 1 s step capped at ``max_speed`` metres.
     """
 
@@ -249,7 +251,7 @@ class _Fleet:
 class _Pilot:
     """Each second, the shark position the stations are placed around and the lead velocity.
 
-    The lead velocity is :func:`hmmtrack.scenarios.clocks.recent_velocity`'s average of
+    The lead velocity is :func:`hmmtrack.scenarios.steering.recent_velocity`'s average of
     the steered-on position's 1 s displacements, restarted at zero when the source of
     that position changes (start point to estimate).
     """
@@ -312,7 +314,7 @@ def fly_closed_loop(
     Parameters
     ----------
     case : ClockScenario
-        An open-loop :func:`hmmtrack.scenarios.clocks.realistic_shark_pursuit` flown with
+        An open-loop :func:`hmmtrack.scenarios.realistic.realistic_shark_pursuit` flown with
         ``plan`` (``steering=plan`` or the named plan it is); without a diving tag.
     plan : RotatingPlan
         The plan (its start bearing is recovered by :func:`plan_phase`).

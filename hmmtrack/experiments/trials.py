@@ -23,6 +23,7 @@ import pandas as pd
 
 from hmmtrack import scenarios
 from hmmtrack.analysis import metrics
+from hmmtrack.experiments.configs import tracking_config
 from hmmtrack.random import SeedLike, as_generator
 from hmmtrack.scenarios import Scenario
 from hmmtrack.tracking import pipeline as tracking
@@ -184,7 +185,8 @@ def track_scenario(
     detections = scenario.detections
     if loss_fraction > 0:
         detections = scenarios.thin_evenly(detections, loss_fraction)
-    config = scenario.tracking_config(
+    config = tracking_config(
+        scenario,
         n_particles=n_particles,
         depth="sensor" if depth_correction else "none",
         shallower="clip",

@@ -23,7 +23,6 @@ from hmmtrack.scenarios.detection import (
     simulate_pings,
 )
 from hmmtrack.scenarios.trajectory import Trajectory
-from hmmtrack.tracking.config import TrackingConfig
 
 #: margin (m) added around the discs of radius r0 to make the initialisation box
 BOUNDS_MARGIN = 100.0
@@ -105,31 +104,6 @@ class Scenario:
             "r0": dict(self.r0),
             "bounds": list(self.bounds),
         }
-
-    def tracking_config(self, **changes) -> TrackingConfig:
-        """The :class:`~hmmtrack.tracking.config.TrackingConfig` that tracks this scenario.
-
-        Parameters
-        ----------
-        **changes
-            Settings that differ from the scenario's (e.g. ``n_particles``, ``depth``).
-
-        Returns
-        -------
-        TrackingConfig
-            ``period``, ``r0``, ``sound_speed``, ``transmitter``, ``bounds``, ``start`` and
-            ``end`` from the scenario, the rest from ``changes`` or the defaults.
-        """
-        settings = {
-            "period": self.period,
-            "r0": dict(self.r0),
-            "sound_speed": self.sound_speed,
-            "transmitter": self.transmitter,
-            "bounds": self.bounds,
-            "start": self.start,
-            "end": self.end,
-        }
-        return TrackingConfig(**(settings | changes))
 
 
 def assemble_scenario(

@@ -1,5 +1,5 @@
-"""Tests of hmmtrack.analysis.bounds: closed forms, a brute-force batch information matrix,
-invariants."""
+"""Tests of hmmtrack.analysis.crb: closed forms, a brute-force batch information matrix,
+finite-difference Jacobians, invariants; the fixed-tag fit against a grid search."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from hmmtrack.analysis.bounds import (
+from hmmtrack.analysis.crb import (
     BoundPrior,
     acceleration_psd_from_path,
     arrival_jacobians,
@@ -20,6 +20,9 @@ from hmmtrack.analysis.bounds import (
     joint_transitions,
     kalman_covariances,
     rts_covariances,
+    static_tag_crb,
+    static_tag_fisher_information,
+    static_tag_fit,
 )
 from hmmtrack.tracking.measurement.clock import EmissionClockModel
 from hmmtrack.tracking.measurement.detection import LogisticDetection
@@ -395,3 +398,115 @@ def test_bad_input_names_rows_and_columns():
         arrival_time_bound(
             truth, receivers, pd.DataFrame({"ping": [0], "receiver": "z"}), emissions, **kwargs
         )
+
+
+# --------------------------------------------------------------------------- information limit
+
+
+def receivers_table(x, y, vx, vy):
+    return pd.DataFrame(
+        {"receiver_x": x, "receiver_y": y, "receiver_vx": vx, "receiver_vy": vy}, dtype=float
+    )
+
+
+def test_crb_of_two_moored_receivers_at_right_angles():
+    """n detections each from (d, 0) and (0, d): J = n / σ_r² I, the CRB σ_r² / n I."""
+    n, d, sigma_r = 25, 80.0, 3.0
+    obs = receivers_table([d] * n + [0.0] * n, [0.0] * n + [d] * n, 0.0, 0.0)
+    crb = static_tag_crb(obs, 0.0, 0.0, [[sigma_r**2, 0.0], [0.0, 0.04]])
+    np.testing.assert_allclose(crb, sigma_r**2 / n * np.eye(2), rtol=1e-12, atol=1e-15)
+
+
+def test_crb_of_a_receiver_passing_the_tag():
+    """A receiver at (d, 0) moving (0, w): range fixes x, range-rate fixes y through
+    ∂ṙ/∂y = −w/d, so the CRB is diag(σ_r², d² σ_ṙ² / w²)."""
+    d, w, sigma_r, sigma_rate = 50.0, 1.5, 4.0, 0.3
+    obs = receivers_table([d], [0.0], [0.0], [w])
+    crb = static_tag_crb(obs, 0.0, 0.0, [[sigma_r**2, 0.0], [0.0, sigma_rate**2]])
+    np.testing.assert_allclose(crb, np.diag([sigma_r**2, (d * sigma_rate / w) ** 2]), rtol=1e-12)
+
+
+def test_fisher_information_matches_a_numerical_jacobian():
+    """J = Σ Hᵀ Σ_z⁻¹ H with H from finite differences of tracking.expected_measurements."""
+    from hmmtrack.tracking import pipeline as tracking
+
+    rng = np.random.default_rng(5)
+    obs = receivers_table(*rng.uniform(-200, 200, (2, 12)), *rng.normal(0, 1.5, (2, 12)))
+    obs["time"] = np.arange(12.0)
+    tag = np.array([12.0, -7.0])
+    covariance = np.array([[16.0, 0.3], [0.3, 0.09]])
+
+    def measured(p):
+        return tracking.expected_measurements(
+            obs, pd.DataFrame({"time": [np.nan], "x": [p[0]], "y": [p[1]]})
+        )
+
+    h = 1e-5
+    jacobian = np.stack(
+        [(measured(tag + h * e) - measured(tag - h * e)) / (2 * h) for e in np.eye(2)], axis=-1
+    )  # (k, measurement, coordinate)
+    expected = np.einsum("kmi,mn,knj->ij", jacobian, np.linalg.inv(covariance), jacobian)
+    got = static_tag_fisher_information(obs, *tag, covariance)
+    np.testing.assert_allclose(got, expected, rtol=1e-6)
+
+
+def test_crb_is_infinite_when_a_direction_is_unobserved():
+    """One moored receiver fixes the range only: no information across it."""
+    obs = receivers_table([30.0] * 10, [40.0] * 10, 0.0, 0.0)
+    assert np.isinf(static_tag_crb(obs, 0.0, 0.0, np.diag([4.0, 0.1]))).all()
+
+
+def fixed_tag_measurements(obs, tag):
+    """(range, range-rate) of a fixed tag: tracking.expected_measurements as the oracle."""
+    from hmmtrack.tracking import pipeline as tracking
+
+    truth = pd.DataFrame({"time": [np.nan], "x": [tag[0]], "y": [tag[1]]})
+    return tracking.expected_measurements(obs, truth)
+
+
+def two_receiver_observations(rng, tag, noise):
+    """A moored receiver and one driving past, every 8 s, measured around a fixed tag."""
+    t = np.arange(0.0, 400.0, 8.0)
+    obs = receivers_table(
+        np.r_[np.full(t.size, 30.0), -150.0 + 1.5 * t],
+        np.r_[np.full(t.size, 20.0), np.full(t.size, -60.0)],
+        np.r_[np.zeros(t.size), np.full(t.size, 1.5)],
+        0.0,
+    )
+    obs["time"] = np.r_[t, t]
+    exact = fixed_tag_measurements(obs, tag)
+    obs["range"] = exact[:, 0] + noise[0] * rng.standard_normal(exact.shape[0])
+    obs["range_rate"] = exact[:, 1] + noise[1] * rng.standard_normal(exact.shape[0])
+    return obs
+
+
+def test_static_fit_recovers_an_exact_tag():
+    rng = np.random.default_rng(2)
+    tag = np.array([5.0, -3.0])
+    obs = two_receiver_observations(rng, tag, (0.0, 0.0))
+    position, chi2 = static_tag_fit(obs, tag + [4.0, 3.0], np.diag([25.0, 0.25]))
+    np.testing.assert_allclose(position, tag, atol=1e-6)
+    assert chi2 == pytest.approx(0.0, abs=1e-9)
+
+
+def test_static_fit_is_the_grid_minimum_of_the_weighted_cost():
+    rng = np.random.default_rng(3)
+    tag = np.array([5.0, -3.0])
+    covariance = np.diag([4.0, 0.04])
+    obs = two_receiver_observations(rng, tag, (2.0, 0.2))
+    position, chi2 = static_tag_fit(obs, tag, covariance)
+    measured = obs[["range", "range_rate"]].to_numpy()
+    grid = np.linspace(-1.5, 1.5, 61)
+    costs = np.array(
+        [
+            [
+                (((fixed_tag_measurements(obs, tag + [a, b]) - measured) ** 2)
+                 / np.diag(covariance)).sum()
+                for b in grid
+            ]
+            for a in grid
+        ]
+    )  # fmt: skip
+    i, j = np.unravel_index(costs.argmin(), costs.shape)
+    assert chi2 <= costs.min() + 1e-9  # no grid point beats the fit
+    np.testing.assert_allclose(position, tag + [grid[i], grid[j]], atol=0.05 + 1e-9)

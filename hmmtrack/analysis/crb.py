@@ -1,36 +1,44 @@
-"""Posterior Cramér–Rao bounds for tracking a tag from arrival times: how well could any tracker do?
+"""Cramér–Rao bounds: how well could any tracker place the tag from these observations?
 
-The bound answers a planning question ("with these receivers, moving like this, and a tag
+A bound answers a planning question ("with these receivers, moving like this, and a tag
 clock that wanders like this, what position error can no estimator beat?") and a
-diagnostic one (is a tracker's error the method's fault or the geometry's?). It is the
-posterior (Bayesian) Cramér–Rao bound of Tichavský, Muravchik & Nehorai (1998) for the
-joint state
+diagnostic one (is a tracker's error the method's fault or the geometry's?). Two bounds:
 
-* tag ``(x, y, vx, vy)`` (m, m/s) with a nearly-constant-velocity prior: white-noise
-  acceleration of intensity ``q`` (m²/s³) on each axis;
-* emission clock ``(e, P[, R])`` of :class:`hmmtrack.tracking.measurement.clock.EmissionClockModel`
-(emission
-  time, period, period rate) with that model's process noise per ping;
+* **a fixed tag from (range, range-rate) observations** (the paper's measurement):
+  :func:`static_tag_fisher_information` and its inverse :func:`static_tag_crb`, with the
+  observations' covariance Σ_z; :func:`static_tag_fit`, the best fixed-tag weighted
+  least-squares fit to the same observations, shows how far the data themselves
+  (hydrophone GPS errors included) place the tag from the truth;
+* **a moving tag from arrival times, with its emission clock unknown**
+  (:func:`arrival_time_bound`): the posterior (Bayesian) Cramér–Rao bound of Tichavský,
+  Muravchik & Nehorai (1998) for the joint state
 
-observed through each detected ping's arrival time at receiver ``j``,
-``t = e + |tag(e) − receiver_j(t)| / c + noise`` with Gaussian noise of standard deviation
-``sigma`` (s), and optionally through whether each receiver heard each ping: a
-detection curve ``p(range)`` adds the expected Fisher information of that yes/no outcome
-about the range, ``p′(r)² / (p(1 − p))``, for every ping and listening receiver. For
-additive Gaussian noise and linear dynamics the bound's recursion is the covariance
-recursion of a Kalman filter whose measurement Jacobian (``u_jᵀ / c`` for the tag
-position, ``u_j`` the unit vector from the receiver to the tag; 1 for ``e``) is evaluated
-at the true states, so the filtering bound is that covariance and the smoothing bound
-(the best any offline method could do) is its Rauch–Tung–Striebel smoothed covariance.
-With ``clock=None`` the emission times are known and the clock states are dropped.
+  * tag ``(x, y, vx, vy)`` (m, m/s) with a nearly-constant-velocity prior: white-noise
+    acceleration of intensity ``q`` (m²/s³) on each axis;
+  * emission clock ``(e, P[, R])`` of
+    :class:`hmmtrack.tracking.measurement.clock.EmissionClockModel` (emission time, period,
+    period rate) with that model's process noise per ping;
 
-The bound holds only under its own priors: a smaller ``q`` or clock noise than the truth
+  observed through each detected ping's arrival time at receiver ``j``,
+  ``t = e + |tag(e) − receiver_j(t)| / c + noise`` with Gaussian noise of standard deviation
+  ``sigma`` (s), and optionally through whether each receiver heard each ping: a
+  detection curve ``p(range)`` adds the expected Fisher information of that yes/no outcome
+  about the range, ``p′(r)² / (p(1 − p))``, for every ping and listening receiver. For
+  additive Gaussian noise and linear dynamics the bound's recursion is the covariance
+  recursion of a Kalman filter whose measurement Jacobian (``u_jᵀ / c`` for the tag
+  position, ``u_j`` the unit vector from the receiver to the tag; 1 for ``e``) is evaluated
+  at the true states, so the filtering bound is that covariance and the smoothing bound
+  (the best any offline method could do) is its Rauch–Tung–Striebel smoothed covariance.
+  With ``clock=None`` the emission times are known and the clock states are dropped.
+
+A bound holds only under its own priors: a smaller ``q`` or clock noise than the truth
 really has gives a number that is *not* a bound for the truth. Heavy-tailed multipath
 outliers and the clock's wrapping to the right ping are not in it (both can only make
 estimation harder); the arrival-time information is that of the pings actually heard,
 the detection curve's is its expectation.
 
-Not for tracking (:mod:`hmmtrack.tracking.clock_filter`) nor for simulating detections
+Not for tracking (:mod:`hmmtrack.tracking`), for error measures
+(:mod:`hmmtrack.analysis.metrics`) nor for simulating detections
 (:mod:`hmmtrack.scenarios.clocks`); 2-D only (no depth).
 """
 
@@ -40,8 +48,9 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
-from scipy.optimize import minimize_scalar
+from scipy.optimize import least_squares, minimize_scalar
 
+from hmmtrack.analysis.metrics import finite_columns
 from hmmtrack.tracking.measurement.clock import EmissionClockModel
 from hmmtrack.tracking.measurement.detection import LogisticDetection
 from hmmtrack.tracking.receivers import ReceiverTracks
@@ -600,3 +609,119 @@ def _receiver_positions(tracks, names, tag_xy, emitted, sound_speed) -> np.ndarr
             flight = np.hypot(tag_xy[rows, 0] - x, tag_xy[rows, 1] - y) / sound_speed
         out[rows] = np.column_stack([x, y])
     return out
+
+
+def static_tag_fisher_information(
+    observations: pd.DataFrame, x: float, y: float, covariance
+) -> np.ndarray:
+    """Fisher information on a fixed tag's position from (range, range-rate) observations.
+
+    Each observation is ``z = (r, ṙ)`` with ``r = |p_h − p|`` and
+    ``ṙ = u·v_h`` (``u = (p_h − p)/r``, ``v_h`` the hydrophone's velocity; the tag does not
+    move), observed with Gaussian noise of covariance Σ_z, independent between
+    observations. With the Jacobian ``H = ∂z/∂p = −[uᵀ; (v_h − ṙ u)ᵀ / r]`` the information
+    is ``Σ_k H_kᵀ Σ_z⁻¹ H_k``.
+
+    Parameters
+    ----------
+    observations : pandas.DataFrame
+        ``receiver_x``, ``receiver_y`` (m), ``receiver_vx``, ``receiver_vy`` (m/s) of each
+        scored observation (rows without a range-rate, the anchors, should be left out).
+    x, y : float
+        The tag's position (m).
+    covariance : array_like, shape (2, 2)
+        Σ_z of (range m, range-rate m/s).
+
+    Returns
+    -------
+    numpy.ndarray, shape (2, 2)
+        Information matrix (m⁻²); its inverse is the Cramér–Rao bound
+        (:func:`static_tag_crb`).
+    """
+    hx, hy, vx, vy = finite_columns(
+        observations, "observations", ("receiver_x", "receiver_y", "receiver_vx", "receiver_vy")
+    )
+    precision = np.linalg.inv(np.asarray(covariance, dtype=float))
+    dx, dy = hx - x, hy - y
+    r = np.hypot(dx, dy)
+    if np.any(r <= 0):
+        raise ValueError("the tag position coincides with a receiver; the bound is undefined")
+    ux, uy = dx / r, dy / r
+    rate = ux * vx + uy * vy
+    jacobian = np.empty((r.size, 2, 2))  # (k, measurement, coordinate)
+    jacobian[:, 0, 0], jacobian[:, 0, 1] = -ux, -uy
+    jacobian[:, 1, 0] = -(vx - rate * ux) / r
+    jacobian[:, 1, 1] = -(vy - rate * uy) / r
+    return np.einsum("kmi,mn,knj->ij", jacobian, precision, jacobian)
+
+
+def static_tag_crb(observations: pd.DataFrame, x: float, y: float, covariance) -> np.ndarray:
+    """Cramér–Rao bound on a fixed tag's position: the inverse Fisher information.
+
+    Parameters
+    ----------
+    observations, x, y, covariance
+        See :func:`static_tag_fisher_information`.
+
+    Returns
+    -------
+    numpy.ndarray, shape (2, 2)
+        Lower bound (m²) on the covariance of any unbiased estimate of ``(x, y)`` from these
+        observations; ``sqrt(trace)`` bounds the RMS position error. ``inf`` entries when the
+        geometry leaves a direction unobserved (singular information).
+    """
+    information = static_tag_fisher_information(observations, x, y, covariance)
+    eigenvalues = np.linalg.eigvalsh(information)
+    if eigenvalues[0] <= 1e-12 * max(eigenvalues[-1], 1e-300):
+        return np.full((2, 2), np.inf)
+    return np.linalg.inv(information)
+
+
+def _static_measurements(receivers, x: float, y: float) -> np.ndarray:
+    """(range, range-rate) of a fixed tag at (x, y) from receivers ``(x, y, vx, vy)``."""
+    hx, hy, vx, vy = receivers
+    dx, dy = hx - x, hy - y
+    r = np.hypot(dx, dy)
+    rate = np.divide(dx * vx + dy * vy, r, out=np.zeros_like(r), where=r > 0)
+    return np.column_stack([r, rate])
+
+
+def static_tag_fit(observations: pd.DataFrame, start, covariance) -> tuple[np.ndarray, float]:
+    """Weighted least-squares position of a fixed tag from (range, range-rate) observations.
+
+    Minimises ``Σ_k (z_k − h_k(p))ᵀ Σ_z⁻¹ (z_k − h_k(p))`` over the position ``p`` (the
+    measurement model of :func:`static_tag_fisher_information`) with Levenberg–Marquardt
+    from ``start``; with two range circles the cost can have a second local minimum near
+    their other intersection, so the start chooses which minimum is found.
+
+    Parameters
+    ----------
+    observations : pandas.DataFrame
+        ``range`` (m), ``range_rate`` (m/s), ``receiver_x``, ``receiver_y`` (m),
+        ``receiver_vx``, ``receiver_vy`` (m/s) of the scored observations.
+    start : array_like, shape (2,)
+        Starting position (m).
+    covariance : array_like, shape (2, 2)
+        Σ_z of (range m, range-rate m/s).
+
+    Returns
+    -------
+    position : numpy.ndarray, shape (2,)
+        The fitted ``(x, y)`` (m).
+    chi2 : float
+        The minimised cost (dimensionless).
+    """
+    (measured_range, measured_rate) = finite_columns(
+        observations, "observations", ("range", "range_rate")
+    )
+    measured = np.column_stack([measured_range, measured_rate])
+    receivers = finite_columns(
+        observations, "observations", ("receiver_x", "receiver_y", "receiver_vx", "receiver_vy")
+    )
+    whitener = np.linalg.cholesky(np.linalg.inv(np.asarray(covariance, dtype=float)))
+
+    def residuals(p):
+        return ((_static_measurements(receivers, *p) - measured) @ whitener).ravel()
+
+    fit = least_squares(residuals, np.asarray(start, dtype=float), method="lm")
+    return fit.x, float(2.0 * fit.cost)

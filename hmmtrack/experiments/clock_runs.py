@@ -1,0 +1,268 @@
+"""Filter runs on realistic-clock cases, shared by the clock studies, and how they are scored.
+
+The clock studies (:mod:`~hmmtrack.experiments.arrival`,
+:mod:`~hmmtrack.experiments.clock_bound`, :mod:`~hmmtrack.experiments.two_auv_plan`,
+:mod:`~hmmtrack.experiments.closed_loop_study`) track a
+:class:`~hmmtrack.scenarios.clocks.ClockScenario` two ways on the same detections, mapped
+to the common time base with the calibration the case provides:
+
+* the paper's range-rate method (:func:`hmmtrack.tracking.pipeline.track`), given the best
+  constant period and the true initial ranges (:func:`clock_inputs`' configuration);
+* the arrival-time method, given neither: :func:`track_arrival` is the one place that runs
+  it, with keyword options built by :func:`clock_inputs` or, from a
+  :class:`~hmmtrack.tracking.config.TrackingConfig`, by :func:`config_options`;
+  :func:`known_clock_run` is its diagnostic twin told the tag's emission schedule.
+
+:func:`score_run` scores a run the way every clock study reports it. This module runs and
+scores; it writes nothing (:mod:`hmmtrack.report`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from hmmtrack.analysis.metrics import position_error, time_to_convergence
+from hmmtrack.scenarios.clocks import ClockScenario
+from hmmtrack.tracking.clock_filter import (
+    ClockAwareFilter,
+    ClockFilterResult,
+    SilenceModel,
+    arrival_observations,
+    track_arrival_time,
+)
+from hmmtrack.tracking.config import TrackingConfig
+from hmmtrack.tracking.measurement.arrival_time import ArrivalTimeMeasurement
+from hmmtrack.tracking.measurement.clock import EmissionClockModel
+from hmmtrack.tracking.motion import VelocityMotion
+from hmmtrack.tracking.pipeline import motion_model
+from hmmtrack.tracking.receivers import ReceiverTracks
+
+#: length of a clock study's runs (s): the 2 h of issue 5
+DURATION = 7200.0
+#: RMS errors and bounds are taken from this many seconds on (s), past the start-up
+SKIP = 600.0
+#: window of the "first / last 30 minutes after convergence" errors (s)
+HALF_HOUR = 1800
+
+
+def make_motion(name: str):
+    """The motion model a clock study runs by ``name``.
+
+    ``velocity``: slow random walks of speed and turn rate (0.05 m/s, 0.02 rad/s per √s,
+    suited to a cruising shark); ``hmm`` / ``hmm-tc``: the bundled white-shark HMM, the
+    paper's variant or the time-consistent one.
+    """
+    if name == "velocity":
+        return VelocityMotion(sigma_speed=0.05, sigma_turn_rate=0.02)
+    return motion_model("hmm", variant="time_consistent" if name == "hmm-tc" else "paper")
+
+
+def score_run(
+    estimates: pd.DataFrame, truth: pd.DataFrame, smoothed: pd.DataFrame | None = None
+) -> dict:
+    """The errors a clock study reports for one run (m, s).
+
+    Parameters
+    ----------
+    estimates : pandas.DataFrame
+        The filter's estimate every second (``time``, ``x``, ``y``, ``sqrt_lambda1``).
+    truth : pandas.DataFrame
+        The true path (``time``, ``x``, ``y``).
+    smoothed : pandas.DataFrame, optional
+        The fixed-lag smoother's estimates at the same times.
+
+    Returns
+    -------
+    dict
+        ``error_after_10_min_m`` (mean from the 600th estimate on, defined whether or not
+        the run converged), ``converged``, ``time_to_convergence_s``,
+        ``error_after_convergence_m`` (the paper's "RMSE", a mean; NaN when the run never
+        converged) and that error over the first 5 and 30 and the last 30 minutes after
+        convergence (``first_5_min_m``, ``first_30_min_m``, ``last_30_min_m``); with
+        ``smoothed`` also ``smoothed_after_10_min_m`` and ``smoothed_after_convergence_m``.
+    """
+    errors = position_error(estimates, truth)
+    convergence = time_to_convergence(
+        estimates["time"].to_numpy(), estimates["sqrt_lambda1"].to_numpy()
+    )
+    after = errors[convergence.index :] if convergence.converged else errors[:0]
+    row = {
+        "error_after_10_min_m": float(errors[600:].mean()),
+        "converged": convergence.converged,
+        "time_to_convergence_s": convergence.time_to_convergence,
+        "error_after_convergence_m": float(after.mean()) if after.size else np.nan,
+        "first_5_min_m": float(after[:300].mean()) if after.size else np.nan,
+        "first_30_min_m": float(after[:HALF_HOUR].mean()) if after.size else np.nan,
+        "last_30_min_m": float(after[-HALF_HOUR:].mean()) if after.size else np.nan,
+    }
+    if smoothed is not None:
+        smooth_errors = position_error(smoothed, truth)
+        row["smoothed_after_10_min_m"] = float(smooth_errors[600:].mean())
+        after = smooth_errors[convergence.index :] if convergence.converged else after
+        row["smoothed_after_convergence_m"] = float(after.mean()) if after.size else np.nan
+    return row
+
+
+def rms_error_from(estimates: pd.DataFrame, truth: pd.DataFrame, start: float) -> float:
+    """Root-mean-square position error (m) of the estimates from ``start`` (s) on."""
+    late = estimates[estimates["time"] >= start]
+    return float(np.sqrt(np.mean(position_error(late, truth) ** 2)))
+
+
+def clock_inputs(case: ClockScenario, seed, n_particles: int, motion: str, duration: float):
+    """What both methods get for a run of the first ``duration`` seconds of ``case``.
+
+    Parameters
+    ----------
+    case : ClockScenario
+    seed : int
+        The filters' seed.
+    n_particles : int
+    motion : str
+        A name of :func:`make_motion`.
+    duration : float
+        s; runs shorter than the scenario stop there.
+
+    Returns
+    -------
+    detections : pandas.DataFrame
+        Clock-corrected detections before the end of the run.
+    config : TrackingConfig
+        The range-rate method's: mean period, true ``r0``, the run's window.
+    options : dict
+        Keyword options of :func:`track_arrival`: motion, mean period, the case's search
+        box and detection curve, particles, window and seed.
+    """
+    sc = case.scenario
+    start, end = sc.start, min(sc.end, sc.start + duration)
+    detections = case.corrected_detections()
+    detections = detections[detections["time"] < end].reset_index(drop=True)
+    config = TrackingConfig(
+        period=sc.period,
+        r0=sc.r0,
+        sound_speed=sc.sound_speed,
+        n_particles=n_particles,
+        start=start,
+        end=end,
+    )
+    options = {
+        "motion": make_motion(motion),
+        "period": sc.period,
+        "bounds": case.search_bounds,
+        "n_particles": n_particles,
+        "detection": case.detection_probability,
+        "start": start,
+        "end": end,
+        "seed": seed,
+    }
+    return detections, config, options
+
+
+def config_options(config: TrackingConfig) -> dict:
+    """Keyword options of :func:`track_arrival` set by an arrival-time ``config``.
+
+    Its period, box, window, particles, likelihood, tempering and search radius
+    (:meth:`~hmmtrack.tracking.config.TrackingConfig.arrival_time_options`) and its motion
+    model; detection curve, smoother lag and seed are the caller's.
+    """
+    return config.arrival_time_options() | {"motion": config.motion_model()}
+
+
+def track_arrival(
+    detections: pd.DataFrame, receivers: pd.DataFrame, options: dict
+) -> ClockFilterResult:
+    """Run the arrival-time filter with ``options`` (:func:`clock_inputs`, :func:`config_options`).
+
+    Parameters
+    ----------
+    detections : pandas.DataFrame
+        ``time`` on the common time base (s), ``receiver``.
+    receivers : pandas.DataFrame
+        Logged receiver positions.
+    options : dict
+        Keyword options of :func:`hmmtrack.tracking.clock_filter.track_arrival_time`.
+
+    Returns
+    -------
+    ClockFilterResult
+    """
+    return track_arrival_time(detections, receivers, **options)
+
+
+class KnownClockFilter(ClockAwareFilter):
+    """Diagnostic: the arrival-time filter told the tag's emission schedule.
+
+    The schedule is a constant-period line (the detections are moved onto it); the clock
+    starts on the true pings and is kept rigid, so what remains is what the receivers'
+    geometry and the motion model allow.
+    """
+
+    def __init__(self, *args, first_emission: float, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self.first_emission = first_emission
+
+    def _start_clock(self, obs, reacquire: bool = False) -> None:
+        super()._start_clock(obs, reacquire)
+        p = self.particles
+        period = self.clock.nominal_period
+        ping = np.rint((p.emission_time - self.first_emission) / period)
+        p.extra["emission_time"] = self.first_emission + ping * period
+        p.extra["period"] = np.full(p.n, period)
+        self._clock_covariance = np.diag([1e-12, 1e-16, 0.0])
+
+
+def known_clock_run(
+    case: ClockScenario, seed, n_particles: int, motion: str, duration: float
+) -> ClockFilterResult:
+    """Track ``case`` with the true emission schedule given (:class:`KnownClockFilter`).
+
+    Each heard ping's logged time is mapped to true time by the case's calibration and moved
+    by its emission's distance from the best constant-period line through the true emissions;
+    the filter runs on the first ``duration`` seconds with the case's detection curve.
+    """
+    sc = case.scenario
+    start, end = sc.start, min(sc.end, sc.start + duration)
+    emissions = case.emission_times
+    k = np.arange(emissions.size)
+    period, intercept = np.polyfit(k, emissions, 1)
+    heard = sc.pings[sc.pings["detected"]]
+    times = heard["logged_time"].to_numpy(dtype=float).copy()
+    for receiver, clock in case.clock_calibration.items():
+        rows = (heard["receiver"] == receiver).to_numpy()
+        times[rows] = clock.to_true(times[rows])
+    ping = heard["ping"].to_numpy()
+    times -= emissions[ping] - (intercept + period * ping)
+    detections = pd.DataFrame({"time": times, "receiver": heard["receiver"].astype(str)})
+    detections = detections[detections["time"] < end].sort_values("time")
+    tracks = ReceiverTracks.from_frame(sc.receivers, outside="clamp")
+    obs = arrival_observations(detections, tracks)
+    pf = KnownClockFilter(
+        make_motion(motion),
+        ArrivalTimeMeasurement(sound_speed=sc.sound_speed),
+        EmissionClockModel(period, 0.0, 0.0, 1e-8),
+        n_particles,
+        case.search_bounds,
+        silence=SilenceModel.from_observations(obs, tracks, case.detection_probability),
+        rng=seed,
+        first_emission=intercept,
+    )
+    return pf.run(obs, start, end)
+
+
+def auv_speeds(case: ClockScenario, duration: float = DURATION) -> np.ndarray:
+    """Every receiver's speed over ground (m/s) over its 1 s steps in the first ``duration`` s.
+
+    Returns
+    -------
+    numpy.ndarray, shape (n,)
+        The receivers' speeds, one receiver after the other (true paths, no GPS error).
+    """
+    sc = case.scenario
+    paths = sc.receivers_truth[sc.receivers_truth["time"] < sc.start + duration]
+    return np.concatenate(
+        [
+            np.hypot(np.diff(path["x"]), np.diff(path["y"])) / np.diff(path["time"])
+            for _, path in paths.groupby("receiver")
+        ]
+    )
