@@ -11,7 +11,8 @@ scenario provides):
   period there is - and the true range at each receiver's first detection (``r0``),
   :func:`hmmtrack.tracking.pipeline.track`;
 * arrival-time: no initial range, the clock in the state, detection probability as
-  information, fixed-lag smoothing, :func:`hmmtrack.tracking.clock_filter.track_arrival_time`.
+  information, fixed-lag smoothing, :func:`hmmtrack.tracking.pipeline.track` with
+  ``measurement="arrival-time"``.
 
 Diagnostics beside them: the same pursuit with a third AUV, and the circling and
 right-angle pursuits with the true emission schedule given (the clock known: what the
@@ -37,6 +38,7 @@ run). With ``--report`` it also writes the table as Markdown.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import time
 import warnings
@@ -57,12 +59,6 @@ from hmmtrack.scenarios.clocks import (
 )
 from hmmtrack.scenarios.detection import GpsNoise
 from hmmtrack.scenarios.trajectory import Trajectory
-from hmmtrack.tracking.clock_filter import (
-    ClockAwareFilter,
-    SilenceModel,
-    arrival_observations,
-    track_arrival_time,
-)
 from hmmtrack.tracking.config import TrackingConfig, read_preset
 from hmmtrack.tracking.measurement.arrival_time import ArrivalTimeMeasurement
 from hmmtrack.tracking.measurement.clock import (
@@ -70,9 +66,10 @@ from hmmtrack.tracking.measurement.clock import (
     local_period_ppm,
     schedule_wander,
 )
-from hmmtrack.tracking.measurement.detection import LogisticDetection
+from hmmtrack.tracking.measurement.clocked import ClockedArrivalTime, ClockState
+from hmmtrack.tracking.measurement.detection import LogisticDetection, SilenceModel
 from hmmtrack.tracking.motion import VelocityMotion
-from hmmtrack.tracking.pipeline import motion_model, track
+from hmmtrack.tracking.pipeline import motion_model, particle_filter, track
 from hmmtrack.tracking.receivers import ReceiverTracks
 
 HALF_HOUR = 1800
@@ -193,7 +190,7 @@ def summary_table(table: pd.DataFrame) -> pd.DataFrame:
 def inputs(case, seed, n_particles, motion, duration):
     """What both methods get for a run of ``duration`` seconds: the clock-corrected
     detections, the range-rate method's configuration and the arrival-time method's
-    keyword arguments (:func:`track_arrival_time`)."""
+    run (:func:`arrival_run`'s ``common``: configuration, motion model and seed)."""
     sc = case.scenario
     start, end = sc.start, min(sc.end, sc.start + duration)
     detections = case.corrected_detections()
@@ -206,17 +203,38 @@ def inputs(case, seed, n_particles, motion, duration):
         start=start,
         end=end,
     )
-    common = {
-        "motion": make_motion(motion),
-        "period": sc.period,
-        "bounds": case.search_bounds,
-        "n_particles": n_particles,
-        "detection": case.detection_probability,
-        "start": start,
-        "end": end,
-        "seed": seed,
-    }
-    return detections, config, common
+    arrival = TrackingConfig(
+        period=sc.period,
+        measurement="arrival-time",
+        bounds=case.search_bounds,
+        n_particles=n_particles,
+        detection_curve=case.detection_probability,
+        start=start,
+        end=end,
+    )
+    return detections, config, {"config": arrival, "motion": make_motion(motion), "seed": seed}
+
+
+def arrival_run(detections, receivers, common, smoothing_lag=None, clock=None, silences=True):
+    """The arrival-time run of :func:`inputs`' ``common`` (optionally with another clock
+    model, or without the silences)."""
+    config = common["config"]
+    if not silences:
+        config = dataclasses.replace(config, detection_curve=None)
+    measurement = None
+    if clock is not None:
+        observations = ClockedArrivalTime.observations(detections, receivers)
+        built = ClockedArrivalTime.from_config(config, observations, receivers)
+        measurement = dataclasses.replace(built, clock=clock)
+    return track(
+        detections,
+        receivers,
+        config,
+        common["motion"],
+        seed=common["seed"],
+        smoothing_lag=smoothing_lag,
+        measurement=measurement,
+    )
 
 
 def run_case(name, case, seed, n_particles, motion, lag, duration) -> list[dict]:
@@ -239,9 +257,9 @@ def run_case(name, case, seed, n_particles, motion, lag, duration) -> list[dict]
     )
 
     tic = time.perf_counter()
-    plain = track_arrival_time(detections, sc.receivers, **common)
+    plain = arrival_run(detections, sc.receivers, common)
     wall = time.perf_counter() - tic
-    smoothed = track_arrival_time(detections, sc.receivers, smoothing_lag=lag, **common)
+    smoothed = arrival_run(detections, sc.receivers, common, smoothing_lag=lag)
     rows.append(
         {
             "scenario": name,
@@ -258,28 +276,26 @@ def run_case(name, case, seed, n_particles, motion, lag, duration) -> list[dict]
     return rows
 
 
-class KnownClockFilter(ClockAwareFilter):
-    """Diagnostic: the filter told the tag's emission schedule (a constant-period line,
-    after the detections are moved onto it); its clock starts on the true pings and is
-    kept rigid, so what remains is what the receivers' geometry and the motion model
+@dataclasses.dataclass(frozen=True)
+class KnownClock(ClockedArrivalTime):
+    """Diagnostic: the measurement told the tag's emission schedule (a constant-period
+    line, after the detections are moved onto it); its clock starts on the true pings and
+    is kept rigid, so what remains is what the receivers' geometry and the motion model
     allow."""
 
-    def __init__(self, *args, first_emission: float, **kwargs) -> None:
-        super().__init__(*args, **kwargs)
-        self.first_emission = first_emission
+    first_emission: float = 0.0
 
-    def _start_clock(self, obs, reacquire: bool = False) -> None:
-        super()._start_clock(obs, reacquire)
-        p = self.particles
+    def _start_clock(self, p, rows, time, state: ClockState, reacquire: bool = False) -> None:
+        super()._start_clock(p, rows, time, state, reacquire)
         period = self.clock.nominal_period
         ping = np.rint((p.emission_time - self.first_emission) / period)
         p.extra["emission_time"] = self.first_emission + ping * period
         p.extra["period"] = np.full(p.n, period)
-        self._clock_covariance = np.diag([1e-12, 1e-16, 0.0])
+        state.covariance = np.diag([1e-12, 1e-16, 0.0])
 
 
 def known_clock_run(name, case, seed, n_particles, motion, duration) -> dict:
-    """Track the pursuit with the true emission schedule given (see KnownClockFilter)."""
+    """Track the pursuit with the true emission schedule given (see KnownClock)."""
     sc = case.scenario
     start, end = sc.start, min(sc.end, sc.start + duration)
     emissions = case.emission_times
@@ -296,24 +312,22 @@ def known_clock_run(name, case, seed, n_particles, motion, duration) -> dict:
     detections = pd.DataFrame({"time": times, "receiver": heard["receiver"].astype(str)})
     detections = detections[detections["time"] < end].sort_values("time")
     tracks = ReceiverTracks.from_frame(sc.receivers, outside="clamp")
-    obs = arrival_observations(detections, tracks)
-    pf = KnownClockFilter(
-        make_motion(motion),
-        ArrivalTimeMeasurement(sound_speed=sc.sound_speed),
+    obs = KnownClock.observations(detections, tracks)
+    measurement = KnownClock(
         EmissionClockModel(period, 0.0, 0.0, 1e-8),
-        n_particles,
-        case.search_bounds,
-        silence=SilenceModel.from_observations(obs, tracks, case.detection_probability),
-        rng=seed,
+        ArrivalTimeMeasurement(sound_speed=sc.sound_speed),
+        SilenceModel.from_observations(obs, tracks, case.detection_probability),
         first_emission=intercept,
     )
+    config = TrackingConfig(period=period, measurement="arrival-time", n_particles=n_particles)
+    pf = particle_filter(config, measurement, case.search_bounds, make_motion(motion), seed=seed)
     result = pf.run(obs, start, end)
     return {
         "scenario": f"diagnostic: {name}, true emission schedule given",
         "seed": seed,
         "method": "arrival-time, clock known",
         **summarise(result.estimates, sc.truth),
-        "ambiguous_share": float(result.ambiguity["ambiguous"].mean()),
+        "ambiguous_share": float(result.collected["ambiguity"]["ambiguous"].mean()),
     }
 
 
@@ -338,11 +352,11 @@ def robustness_rows(seeds, n_particles, motion, duration) -> list[dict]:
                 ("period random walk (default)", None),
                 ("integrated random walk (temperature_drift)", "drift"),
             ):
-                result = track_arrival_time(
+                result = arrival_run(
                     detections,
                     sc.receivers,
+                    common,
                     clock=EmissionClockModel.temperature_drift(sc.period) if clock else None,
-                    **common,
                 )
                 summary = summarise(result.estimates, sc.truth)
                 rows.append(
@@ -365,19 +379,18 @@ def preset_inputs(case, seed, duration, preset=PRESET):
     """:func:`inputs` with the bundled ``preset``'s settings
     (:func:`hmmtrack.tracking.config.read_preset`):
     the detections, the range-rate configuration at the preset's number of particles, and
-    :func:`track_arrival_time`'s keyword arguments (the preset's likelihood, tempering and
-    motion; the case's window, search box and detection curve)."""
+    the arrival-time run (the preset's likelihood, tempering and motion; the case's window,
+    search box and detection curve)."""
     settings = read_preset(preset)
     detections, config, common = inputs(case, seed, settings["n_particles"], "velocity", duration)
-    window = {key: common[key] for key in ("period", "bounds", "start", "end")}
+    arrival = common["config"]
+    window = {key: getattr(arrival, key) for key in ("period", "bounds", "start", "end")}
     chosen = TrackingConfig.from_dict(
-        settings | window | {"sound_speed": case.scenario.sound_speed}
+        settings
+        | window
+        | {"sound_speed": case.scenario.sound_speed, "detection_curve": arrival.detection_curve}
     )
-    return (
-        detections,
-        config,
-        common | chosen.arrival_time_options() | {"motion": chosen.motion_model()},
-    )
+    return detections, config, common | {"config": chosen, "motion": chosen.motion_model()}
 
 
 def timing_rows(n_particles, motion, lag, duration, repeats=3) -> list[dict]:
@@ -403,17 +416,16 @@ def timing_rows(n_particles, motion, lag, duration, repeats=3) -> list[dict]:
     rows = []
     for name, case, (detections, config, common), smoothing_lag in cases:
         sc = case.scenario
-        core = {**common, "detection": None}
         runs = {
             "range-rate": partial(
                 track, detections, sc.receivers, config, common["motion"], seed=0
             ),
-            "arrival-time": partial(track_arrival_time, detections, sc.receivers, **core),
-            "+ silences": partial(track_arrival_time, detections, sc.receivers, **common),
+            "arrival-time": partial(arrival_run, detections, sc.receivers, common, silences=False),
+            "+ silences": partial(arrival_run, detections, sc.receivers, common),
         }
         if smoothing_lag is not None:
             runs["+ smoother"] = partial(
-                track_arrival_time, detections, sc.receivers, smoothing_lag=lag, **common
+                arrival_run, detections, sc.receivers, common, smoothing_lag=lag
             )
         wall = dict.fromkeys(runs, np.inf)
         cpu = dict.fromkeys(runs, np.inf)

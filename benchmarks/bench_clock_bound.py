@@ -47,8 +47,8 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from bench_arrival import arrival_run, markdown, summarise, three_auv_pursuit
 from bench_arrival import inputs as filter_inputs
-from bench_arrival import markdown, summarise, three_auv_pursuit
 
 from hmmtrack.analysis.bounds import (
     acceleration_psd_from_path,
@@ -66,7 +66,6 @@ from hmmtrack.scenarios.clocks import (
 )
 from hmmtrack.scenarios.detection import GpsNoise
 from hmmtrack.scenarios.trajectory import Trajectory
-from hmmtrack.tracking.clock_filter import track_arrival_time
 from hmmtrack.tracking.measurement.clock import EmissionClockModel
 from hmmtrack.tracking.measurement.detection import LogisticDetection
 
@@ -163,7 +162,7 @@ def filter_errors_here(case, seed: int) -> dict:
     convergence (m) with the time to convergence (s)."""
     sc = case.scenario
     detections, _, common = filter_inputs(case, seed, 3000, "velocity", DURATION)
-    result = track_arrival_time(detections, sc.receivers, smoothing_lag=60, **common)
+    result = arrival_run(detections, sc.receivers, common, smoothing_lag=60)
     paper_metric = summarise(result.estimates, sc.truth, result.smoothed)
     out = {
         "pf_after_convergence_m": paper_metric["error_after_convergence_m"],

@@ -45,9 +45,9 @@ from bench_clock_bound import bound_inputs, bound_table, rms_after_skip
 from hmmtrack.analysis.metrics import position_error
 from hmmtrack.experiments.closed_loop import arrival_time_tracker, fly_closed_loop
 from hmmtrack.scenarios.clocks import RotatingPlan, realistic_shark_pursuit
-from hmmtrack.tracking.clock_filter import track_arrival_time
 from hmmtrack.tracking.config import TrackingConfig, read_preset
 from hmmtrack.tracking.measurement.clock import to_common_time
+from hmmtrack.tracking.pipeline import track
 
 #: the plan flown (``steering="observable"``)
 PLAN = RotatingPlan()
@@ -116,19 +116,12 @@ def smoothed(case, run, config: TrackingConfig, filter_seed: int):
     end = sc.start + DURATION
     detections = to_common_time(run.detections, case.clock_calibration)
     detections = detections[detections["time"] < end].reset_index(drop=True)
-    options = config.arrival_time_options()
-    return track_arrival_time(
+    return track(
         detections,
         run.receivers,
-        motion=config.motion_model(),
-        period=sc.period,
-        bounds=case.search_bounds,
-        n_particles=config.n_particles,
-        measurement=options["measurement"],
-        tempering_ess=options["tempering_ess"],
+        config,
+        config.motion_model(),
         smoothing_lag=SMOOTHING_LAG,
-        start=sc.start,
-        end=end,
         seed=filter_seed,
     )
 

@@ -60,6 +60,7 @@ import pandas as pd  # noqa: E402
 
 from hmmtrack import scenarios  # noqa: E402
 from hmmtrack.analysis import metrics
+from hmmtrack.analysis.calibration import expected_measurements  # noqa: E402
 from hmmtrack.experiments import (  # noqa: E402
     MOTIONS,
     PAPER_SCENARIOS,
@@ -163,9 +164,7 @@ def geometry_row(scenario, config: TrackingConfig, late_after: float = 300.0) ->
     sigma_z = config.measurement_covariance
     crb = metrics.static_tag_crb(scored, *tag, sigma_z)
     fixed = pd.DataFrame({"time": [np.nan], "x": [tag[0]], "y": [tag[1]]})  # the moored tag
-    residual = scored[["range", "range_rate"]].to_numpy() - tracking.expected_measurements(
-        scored, fixed
-    )
+    residual = scored[["range", "range_rate"]].to_numpy() - expected_measurements(scored, fixed)
     crb_measured = metrics.static_tag_crb(scored, *tag, np.cov(residual.T))
     fit, chi2 = metrics.static_tag_fit(scored, tag, sigma_z)
     mirror, chi2_mirror = metrics.static_tag_fit(scored, mirror_start(scenario, tag), sigma_z)

@@ -45,7 +45,6 @@ from bench_clock_bound import DURATION, SKIP, bound_inputs, bound_table, rms_aft
 
 from hmmtrack.analysis.metrics import position_error
 from hmmtrack.scenarios.clocks import ROTATING_PLANS, RotatingPlan, realistic_shark_pursuit
-from hmmtrack.tracking.clock_filter import track_arrival_time
 from hmmtrack.tracking.config import TrackingConfig, read_preset
 from hmmtrack.tracking.pipeline import track
 
@@ -62,7 +61,7 @@ PRESET = "two-moving-receivers"
 #: name of the preset's runs without the detection curve
 NO_SILENCES = "tuned, no detection curve"
 
-#: ``track_arrival_time``'s defaults with ``bench_arrival.py``'s velocity motion
+#: the arrival-time measurement's defaults with ``bench_arrival.py``'s velocity motion
 #: (:func:`bench_arrival.make_motion`), as settings of
 #: :class:`hmmtrack.tracking.config.TrackingConfig`
 DEFAULT = {
@@ -94,21 +93,26 @@ def plan_label(plan) -> str:
 
 
 def arrival_run(case, settings: dict, smoothing_lag, seed, silences: bool = True):
-    """:func:`hmmtrack.tracking.clock_filter.track_arrival_time` with ``settings`` (keys of
+    """:func:`hmmtrack.tracking.pipeline.track` with ``settings`` (keys of
     :class:`hmmtrack.tracking.config.TrackingConfig`) on ``case``'s clock-corrected detections
     (default clock model; the scenario's detection curve, so that missed pings count,
     unless ``silences`` is False, as ``hmmtrack track`` runs without ``--detection-curve``)."""
     sc = case.scenario
     detections, _, common = inputs(case, seed, settings["n_particles"], "velocity", DURATION)
-    window = {key: common[key] for key in ("period", "bounds", "start", "end")}
-    config = TrackingConfig.from_dict(settings | window | {"sound_speed": sc.sound_speed})
-    chosen = config.arrival_time_options() | {
-        "motion": config.motion_model(),
-        "smoothing_lag": smoothing_lag,
-    }
-    if not silences:
-        chosen["detection"] = None
-    return track_arrival_time(detections, sc.receivers, **(common | chosen))
+    arrival = common["config"]
+    window = {key: getattr(arrival, key) for key in ("period", "bounds", "start", "end")}
+    curve = arrival.detection_curve if silences else None
+    config = TrackingConfig.from_dict(
+        settings | window | {"sound_speed": sc.sound_speed, "detection_curve": curve}
+    )
+    return track(
+        detections,
+        sc.receivers,
+        config,
+        config.motion_model(),
+        seed=common["seed"],
+        smoothing_lag=smoothing_lag,
+    )
 
 
 def errors(case, settings: dict, seed: int, silences: bool = True) -> dict:

@@ -10,6 +10,8 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from hmmtrack.analysis import metrics
+from hmmtrack.analysis.calibration import expected_measurements
+from hmmtrack.tracking.filter import sqrt_largest_eigenvalue
 
 
 def estimates_table(times, x, y, spread):
@@ -94,7 +96,7 @@ def test_mean_error_never_exceeds_rmse(errors, index):
 def test_sqrt_largest_eigenvalue_matches_eigvalsh(var_x, var_y, correlation):
     cov = correlation * np.sqrt(var_x * var_y)
     expected = np.sqrt(np.linalg.eigvalsh([[var_x, cov], [cov, var_y]])[-1].clip(0))
-    got = metrics.sqrt_largest_eigenvalue(var_x, var_y, cov)
+    got = sqrt_largest_eigenvalue(var_x, var_y, cov)
     assert got == pytest.approx(expected, rel=1e-7, abs=1e-6)
 
 
@@ -188,9 +190,7 @@ def test_crb_of_a_receiver_passing_the_tag():
 
 
 def test_fisher_information_matches_a_numerical_jacobian():
-    """J = Σ Hᵀ Σ_z⁻¹ H with H from finite differences of tracking.expected_measurements."""
-    from hmmtrack.tracking import pipeline as tracking
-
+    """J = Σ Hᵀ Σ_z⁻¹ H with H from finite differences of expected_measurements."""
     rng = np.random.default_rng(5)
     obs = receivers_table(*rng.uniform(-200, 200, (2, 12)), *rng.normal(0, 1.5, (2, 12)))
     obs["time"] = np.arange(12.0)
@@ -198,7 +198,7 @@ def test_fisher_information_matches_a_numerical_jacobian():
     covariance = np.array([[16.0, 0.3], [0.3, 0.09]])
 
     def measured(p):
-        return tracking.expected_measurements(
+        return expected_measurements(
             obs, pd.DataFrame({"time": [np.nan], "x": [p[0]], "y": [p[1]]})
         )
 
@@ -218,11 +218,9 @@ def test_crb_is_infinite_when_a_direction_is_unobserved():
 
 
 def fixed_tag_measurements(obs, tag):
-    """(range, range-rate) of a fixed tag: tracking.expected_measurements as the oracle."""
-    from hmmtrack.tracking import pipeline as tracking
-
+    """(range, range-rate) of a fixed tag: expected_measurements as the oracle."""
     truth = pd.DataFrame({"time": [np.nan], "x": [tag[0]], "y": [tag[1]]})
-    return tracking.expected_measurements(obs, truth)
+    return expected_measurements(obs, truth)
 
 
 def two_receiver_observations(rng, tag, noise):

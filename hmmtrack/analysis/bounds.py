@@ -30,7 +30,7 @@ outliers and the clock's wrapping to the right ping are not in it (both can only
 estimation harder); the arrival-time information is that of the pings actually heard,
 the detection curve's is its expectation.
 
-Not for tracking (:mod:`hmmtrack.tracking.clock_filter`) nor for simulating detections
+Not for tracking (:mod:`hmmtrack.tracking.measurement.clocked`) nor for simulating detections
 (:mod:`hmmtrack.scenarios.clocks`); 2-D only (no depth).
 """
 
