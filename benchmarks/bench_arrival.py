@@ -26,7 +26,12 @@ import numpy as np
 import pandas as pd
 from machine import describe
 
-from hmmtrack.experiments.clock_runs import clock_inputs, config_options, track_arrival
+from hmmtrack.experiments.clock_runs import (
+    clock_inputs,
+    config_options,
+    track_arrival,
+    without_silences,
+)
 from hmmtrack.experiments.configs import arrival_config
 from hmmtrack.scenarios.realistic import moored_array, realistic_shark_pursuit
 from hmmtrack.tracking.config import read_preset
@@ -66,7 +71,7 @@ def timing_rows(n_particles, motion, lag, duration, repeats) -> list[dict]:
         runs = {
             "range-rate": partial(track, detections, receivers, config, options["motion"], seed=0),
             "arrival-time": partial(
-                track_arrival, detections, receivers, options | {"detection": None}
+                track_arrival, detections, receivers, without_silences(options)
             ),
             "+ silences": partial(track_arrival, detections, receivers, options),
         }

@@ -27,8 +27,9 @@
 # * with the paper's range-rate method, given what it needs and more than the field gives:
 #   the true range at each AUV's first detection and the best constant period there is
 #   (the mean of the true emission intervals);
-# * with the arrival-time filter (`hmmtrack.tracking.clock_filter.track_arrival_time`), which
-#   carries the tag's clock in each particle and needs no initial range, with the bundled
+# * with the arrival-time measurement (`hmmtrack.tracking.pipeline.track` with
+#   `measurement="arrival-time"`), which carries the tag's clock in each particle and needs
+#   no initial range, with the bundled
 #   `two-moving-receivers` preset, and its fixed-lag smoother.
 
 # %% tags=["parameters"]
@@ -50,7 +51,6 @@ from hmmtrack.analysis.metrics import (
     time_to_convergence,
 )
 from hmmtrack.scenarios.realistic import realistic_shark_pursuit
-from hmmtrack.tracking.clock_filter import track_arrival_time
 from hmmtrack.tracking.config import TrackingConfig, read_preset
 from hmmtrack.tracking.measurement.clock import local_period_ppm, schedule_wander
 from hmmtrack.tracking.pipeline import track
@@ -130,15 +130,16 @@ range_rate = track(
 )
 
 arrival_config = TrackingConfig.from_dict(
-    preset | window | {"bounds": case.search_bounds}, source=f"preset {PRESET}"
+    preset | window | {"bounds": case.search_bounds, "detection_curve": case.detection_probability},
+    source=f"preset {PRESET}",
 )
-arrival = track_arrival_time(
+arrival = track(
     detections,
     sc.receivers,
-    motion=arrival_config.motion_model(),
+    arrival_config,
+    arrival_config.motion_model(),
     smoothing_lag=SMOOTHING_LAG,
     seed=seed,
-    **(arrival_config.arrival_time_options() | {"detection": case.detection_probability}),
 )
 runs = {RANGE_RATE: range_rate.estimates, FILTERED: arrival.estimates, SMOOTHED: arrival.smoothed}
 for name, estimates in runs.items():

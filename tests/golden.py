@@ -19,7 +19,8 @@ The cases:
   particles, with each motion model: baseline, velocity, the bundled white-shark HMM
   (time-consistent, with its default resting state) and the HMM in the paper's variant
   with the paper's resampling (multinomial, after every correction);
-* arrival-time tracking (:func:`hmmtrack.tracking.clock_filter.track_arrival_time`) of 20 minutes
+* arrival-time tracking (:func:`hmmtrack.tracking.pipeline.track` with
+  ``measurement="arrival-time"``) of 20 minutes
   of the moored array (:func:`hmmtrack.scenarios.realistic.moored_array`, three moorings,
   wandering tag clock, multipath), 1,000 particles: plain (bundled HMM), with a fixed-lag
   smoother (velocity motion), with a detection curve counting silences (velocity motion).
@@ -42,7 +43,6 @@ import pandas as pd
 from hmmtrack import scenarios
 from hmmtrack.scenarios.realistic import moored_array
 from hmmtrack.tracking import pipeline as tracking
-from hmmtrack.tracking.clock_filter import track_arrival_time
 from hmmtrack.tracking.config import TrackingConfig
 from hmmtrack.tracking.measurement.detection import LogisticDetection
 from hmmtrack.tracking.motion import VelocityMotion
@@ -198,8 +198,8 @@ def range_rate_hmm_paper() -> dict[str, pd.DataFrame]:
 
 
 def _arrival_time_tables(result) -> dict[str, pd.DataFrame]:
-    """Every table of a :class:`hmmtrack.tracking.clock_filter.ClockFilterResult` (``smoothed``
-    when there is one; no snapshots are asked for)."""
+    """Every arrival-time table of a :class:`hmmtrack.tracking.pipeline.TrackingResult`
+    (``smoothed`` when there is one; no snapshots are asked for)."""
     tables = {
         "estimates": result.estimates,
         "events": result.events,
@@ -211,16 +211,13 @@ def _arrival_time_tables(result) -> dict[str, pd.DataFrame]:
     return tables
 
 
-def _track_arrival_time(motion, **options) -> dict[str, pd.DataFrame]:
+def _track_arrival_time(motion, smoothing_lag=None, **settings) -> dict[str, pd.DataFrame]:
     detections, receivers, window = arrival_time_inputs()
-    result = track_arrival_time(
-        detections,
-        receivers,
-        motion=motion,
-        n_particles=N_PARTICLES,
-        seed=TRACK_SEED,
-        **window,
-        **options,
+    config = TrackingConfig(
+        measurement="arrival-time", n_particles=N_PARTICLES, **window, **settings
+    )
+    result = tracking.track(
+        detections, receivers, config, motion, seed=TRACK_SEED, smoothing_lag=smoothing_lag
     )
     return _arrival_time_tables(result)
 
@@ -240,7 +237,7 @@ def arrival_time_smoothed() -> dict[str, pd.DataFrame]:
 def arrival_time_silence() -> dict[str, pd.DataFrame]:
     """Arrival-time tracking, velocity motion, unheard pings scored with :data:`DETECTION`."""
     return _track_arrival_time(
-        VelocityMotion(sigma_speed=0.05, sigma_turn_rate=0.02), detection=DETECTION
+        VelocityMotion(sigma_speed=0.05, sigma_turn_rate=0.02), detection_curve=DETECTION
     )
 
 

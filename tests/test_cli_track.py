@@ -25,10 +25,9 @@ from hmmtrack.scenarios import stationary_tag
 from hmmtrack.scenarios.export import write_scenario
 from hmmtrack.scenarios.realistic import moored_array, realistic_shark_pursuit
 from hmmtrack.tracking import pipeline as tracking
-from hmmtrack.tracking.clock_filter import track_arrival_time
 from hmmtrack.tracking.config import TrackingConfig
-from hmmtrack.tracking.measurement.arrival_time import ArrivalLikelihood, ArrivalTimeMeasurement
 from hmmtrack.tracking.measurement.detection import LogisticDetection
+from hmmtrack.tracking.measurement.range_rate import search_bounds
 from hmmtrack.tracking.motion import VelocityMotion
 
 ESTIMATE_COLUMNS = ["time", "x", "y", "var_x", "var_y", "cov_xy", "sqrt_lambda1"]
@@ -260,11 +259,32 @@ def arrival_files(tmp_path_factory):
     return scenario, write_scenario(scenario, tmp_path_factory.mktemp("arrival"))
 
 
+def arrival_time_run(paths, scenario, motion, n_particles, seed, smoothing_lag=None, **settings):
+    """The library's arrival-time run (:func:`hmmtrack.tracking.pipeline.track`) on the
+    files ``paths`` with these settings, over the scenario's span."""
+    config = TrackingConfig(
+        period=scenario.period,
+        measurement="arrival-time",
+        n_particles=n_particles,
+        start=scenario.start,
+        end=scenario.end,
+        **settings,
+    )
+    return tracking.track(
+        io.read_detections(paths["detections"]),
+        io.read_receivers(paths["receivers"]),
+        config,
+        motion,
+        seed=seed,
+        smoothing_lag=smoothing_lag,
+    )
+
+
 def test_arrival_time_measurement_without_r0_runs_the_clock_aware_tracker(
     arrival_files, tmp_path, capsys
 ):
     """``--measurement arrival-time`` needs no --r0 and writes what
-    :func:`hmmtrack.tracking.clock_filter.track_arrival_time` estimates from the same files;
+    :func:`hmmtrack.tracking.pipeline.track` estimates from the same files;
     ``--smooth`` writes the fixed-lag smoothed track instead."""
     scenario, paths = arrival_files
     common = arrival_args(scenario, paths, 500, 4)
@@ -274,13 +294,7 @@ def test_arrival_time_measurement_without_r0_runs_the_clock_aware_tracker(
     assert main([*common, "--smooth", "20", "-o", str(smoothed), *truth]) == 0
     printed = capsys.readouterr().out
     assert "mean error after convergence" in printed
-    detections = io.read_detections(paths["detections"])
-    receivers = io.read_receivers(paths["receivers"])
-    direct = track_arrival_time(
-        detections, receivers, motion=tracking.motion_model("velocity"),
-        period=scenario.period, n_particles=500, smoothing_lag=20,
-        start=scenario.start, end=scenario.end, seed=4,
-    )  # fmt: skip
+    direct = arrival_time_run(paths, scenario, "velocity", 500, 4, smoothing_lag=20)
     for path, expected in ((filtered, direct.estimates), (smoothed, direct.smoothed)):
         table = pd.read_csv(path)
         assert len(table) == int(scenario.end - scenario.start) + 1
@@ -460,7 +474,7 @@ def observable_files(tmp_path_factory):
 
 def test_preset_runs_the_arrival_time_filter_with_its_settings(observable_files, tmp_path):
     """``--preset two-moving-receivers`` needs only the period: it writes what
-    ``track_arrival_time`` estimates with the preset's motion, likelihood and tempering
+    ``track`` estimates with the preset's motion, likelihood and tempering
     (the particle count overridden by --particles), unlike the arrival-time defaults."""
     scenario, paths = observable_files
     start, end = scenario.start, scenario.end
@@ -472,12 +486,9 @@ def test_preset_runs_the_arrival_time_filter_with_its_settings(observable_files,
     ]  # fmt: skip
     preset, plain = tmp_path / "preset.csv", tmp_path / "plain.csv"
     assert main([*common, "--preset", "two-moving-receivers", "-o", str(preset)]) == 0
-    direct = track_arrival_time(
-        io.read_detections(paths["detections"]), io.read_receivers(paths["receivers"]),
-        motion=VelocityMotion(0.1, 0.003),
-        measurement=ArrivalTimeMeasurement(ArrivalLikelihood(sigma=1.2e-3)),
-        tempering_ess=0.3, search_radius=240.0, period=scenario.period, n_particles=600,
-        start=start, end=end, seed=8,
+    direct = arrival_time_run(
+        paths, scenario, VelocityMotion(0.1, 0.003), 600, 8,
+        arrival_sigma=1.2e-3, tempering_ess=0.3, search_radius=240.0,
     )  # fmt: skip
     written = pd.read_csv(preset)
     assert len(written) == 301
@@ -567,7 +578,7 @@ def test_bounds_option_is_the_starting_particles_box(scenario_files, tmp_path, s
         scenario.detections, scenario.receivers, TrackingConfig(scenario.period, scenario.r0)
     )
     for run, margin in ((tight, 0.0), (wide, 50.0)):
-        expected = tracking.search_bounds(observations, scenario.r0, margin)
+        expected = search_bounds(observations, scenario.r0, margin)
         assert inside(run, expected).all()
         assert run[:, 0].min() < expected[0] + 5 and run[:, 0].max() > expected[1] - 5
     assert np.ptp(wide[:, 0]) > np.ptp(tight[:, 0]) + 80
@@ -675,26 +686,23 @@ def test_sigma_options_reach_the_range_rate_likelihood(scenario_files, tmp_path)
 
 
 def test_detection_curve_reaches_the_arrival_time_filter(arrival_files, tmp_path):
-    """--detection-curve RANGE_50 WIDTH: the run equals track_arrival_time with that
+    """--detection-curve RANGE_50 WIDTH: the run equals the library's with that
     LogisticDetection (the scenario's own curve) and differs from the run without it."""
     scenario, paths = arrival_files
     common = arrival_args(scenario, paths, 400, 6)
     curve, plain = tmp_path / "curve.csv", tmp_path / "plain.csv"
     assert main([*common, "--detection-curve", "700", "100", "-o", str(curve)]) == 0
     assert main([*common, "-o", str(plain)]) == 0
-    direct = track_arrival_time(
-        io.read_detections(paths["detections"]), io.read_receivers(paths["receivers"]),
-        motion=tracking.motion_model("velocity"), period=scenario.period, n_particles=400,
-        detection=LogisticDetection(700.0, 100.0), start=scenario.start, end=scenario.end,
-        seed=6,
-    )  # fmt: skip
+    direct = arrival_time_run(
+        paths, scenario, "velocity", 400, 6, detection_curve=LogisticDetection(700.0, 100.0)
+    )
     assert_written_is(curve, direct.estimates, plain)
 
 
 def test_arrival_time_settings_by_options_and_bounds_outside_the_array(
     arrival_files, tmp_path, starting_particles
 ):
-    """--arrival-sigma and --bounds reach track_arrival_time: a box around the tag's start
+    """--arrival-sigma and --bounds reach the arrival-time run: a box around the tag's start
     that holds no mooring is where the particles start."""
     scenario, paths = arrival_files
     box = (-60.0, 60.0, -50.0, 70.0)
@@ -705,12 +713,7 @@ def test_arrival_time_settings_by_options_and_bounds_outside_the_array(
         *map(str, box), "-o", str(tmp_path / "e.csv"),
     ]  # fmt: skip
     assert inside(starting_particles(args), box).all()
-    direct = track_arrival_time(
-        io.read_detections(paths["detections"]), io.read_receivers(paths["receivers"]),
-        motion=tracking.motion_model("velocity"), period=scenario.period, n_particles=400,
-        measurement=ArrivalTimeMeasurement(ArrivalLikelihood(sigma=0.002)), bounds=box,
-        start=scenario.start, end=scenario.end, seed=6,
-    )  # fmt: skip
+    direct = arrival_time_run(paths, scenario, "velocity", 400, 6, arrival_sigma=0.002, bounds=box)
     written = pd.read_csv(tmp_path / "e.csv")
     np.testing.assert_allclose(written[["x", "y"]], direct.estimates[["x", "y"]], rtol=1e-9)
 
@@ -744,7 +747,6 @@ def test_new_settings_keep_preset_then_config_then_options(tmp_path):
     filed = config_of(*preset, "--config", str(arrival))
     assert (filed.bounds, filed.arrival_sigma) == ((0.0, 10.0, 0.0, 10.0), 0.003)
     assert filed.detection_curve == LogisticDetection(300.0, 30.0)
-    assert filed.arrival_time_options()["detection"] == LogisticDetection(300.0, 30.0)
     options = ["--bounds", "-5", "5", "-6", "6", "--arrival-sigma", "0.001"]
     flagged = config_of(
         *preset, "--config", str(arrival), *options, "--detection-curve", "200", "20"
@@ -763,7 +765,7 @@ def test_new_settings_keep_preset_then_config_then_options(tmp_path):
 
 def test_search_and_motion_settings_by_options(arrival_files, tmp_path, starting_particles):
     """--search-radius, --tempering-ess, --sigma-speed and --sigma-turn-rate reach
-    track_arrival_time: the particles start within the receivers ± the radius, and the run
+    the arrival-time run: the particles start within the receivers ± the radius, and the run
     equals the library's with those settings."""
     scenario, paths = arrival_files
     args = [
@@ -777,11 +779,9 @@ def test_search_and_motion_settings_by_options(arrival_files, tmp_path, starting
     box = (x.min() - 150, x.max() + 150, y.min() - 150, y.max() + 150)
     assert inside(particles, box).all()
     assert particles[:, 0].min() < box[0] + 20 and particles[:, 0].max() > box[1] - 20
-    direct = track_arrival_time(
-        io.read_detections(paths["detections"]), io.read_receivers(paths["receivers"]),
-        motion=VelocityMotion(0.08, 0.004), period=scenario.period, n_particles=400,
-        search_radius=150.0, tempering_ess=0.6, start=scenario.start, end=scenario.end,
-        seed=5,
+    direct = arrival_time_run(
+        paths, scenario, VelocityMotion(0.08, 0.004), 400, 5,
+        search_radius=150.0, tempering_ess=0.6,
     )  # fmt: skip
     written = pd.read_csv(tmp_path / "e.csv")
     np.testing.assert_allclose(written[["x", "y"]], direct.estimates[["x", "y"]], rtol=1e-9)

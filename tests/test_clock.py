@@ -9,11 +9,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import stats
 
-from hmmtrack.tracking.clock_filter import predict_clock_covariance
 from hmmtrack.tracking.measurement.clock import (
     EmissionClockModel,
     ReceiverClock,
     local_period_ppm,
+    predict_clock_covariance,
     schedule_wander,
     to_common_time,
 )

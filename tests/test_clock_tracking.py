@@ -1,4 +1,5 @@
-"""Tests of the clock-aware particle filter (arrival times, unknown start, smoothing)."""
+"""Tests of arrival-time tracking: the particle filter with the clocked arrival-time
+measurement, tempered corrections, ambiguity and clock diagnostics, smoothing."""
 
 from __future__ import annotations
 
@@ -8,33 +9,39 @@ import numpy as np
 import pandas as pd
 import pytest
 
-import hmmtrack.tracking.clock_filter as ct
 from hmmtrack.analysis.metrics import position_error
 from hmmtrack.scenarios.realistic import moored_array
-from hmmtrack.tracking.clock_filter import (
-    TEMPER_ESS_TOLERANCE,
-    ClockAwareFilter,
-    SilenceModel,
-    _clock_summary,
-    _median_ping,
-    _regularisation_move,
-    _temper,
-    _tempered,
-    _tempered_ess,
-    ambiguity,
-    arrival_observations,
-    track_arrival_time,
-)
+from hmmtrack.tracking import diagnostics, smoothing, tempering
+from hmmtrack.tracking.config import TrackingConfig
+from hmmtrack.tracking.diagnostics import ambiguity, clock_summary
+from hmmtrack.tracking.filter import ParticleFilter
+from hmmtrack.tracking.measurement import clocked
 from hmmtrack.tracking.measurement.arrival_time import (
     ArrivalLikelihood,
     ArrivalTimeMeasurement,
     emission_range,
 )
 from hmmtrack.tracking.measurement.clock import EmissionClockModel
-from hmmtrack.tracking.measurement.detection import LogisticDetection
+from hmmtrack.tracking.measurement.clocked import (
+    ClockedArrivalTime,
+    ClockState,
+    _median_ping,
+    arrival_observations,
+)
+from hmmtrack.tracking.measurement.detection import LogisticDetection, SilenceModel
 from hmmtrack.tracking.motion import BaselineMotion, VelocityMotion
+from hmmtrack.tracking.pipeline import track
 from hmmtrack.tracking.receivers import ReceiverTracks
 from hmmtrack.tracking.resampling import effective_sample_size, log_normalise
+from hmmtrack.tracking.smoothing import Smoothed
+from hmmtrack.tracking.tempering import (
+    TEMPER_ESS_TOLERANCE,
+    Tempered,
+    regularisation_move,
+    temper,
+    tempered,
+    tempered_ess,
+)
 
 C = 1460.0
 
@@ -59,14 +66,27 @@ def fixed_tag_observations(period=8.003, first=100.37, n_pings=60, jump=None, ra
     return obs.sort_values("time").reset_index(drop=True), pings
 
 
-def clock_filter(seed=0, n=500, **kwargs):
-    return ClockAwareFilter(
-        BaselineMotion(0.01),
-        ArrivalTimeMeasurement(ArrivalLikelihood(sigma=1e-3), sound_speed=C),
-        EmissionClockModel(8.0, period_step_sd=1e-5, phase_step_sd=1e-5, initial_period_sd=8e-3),
+CLOCK = EmissionClockModel(8.0, period_step_sd=1e-5, phase_step_sd=1e-5, initial_period_sd=8e-3)
+
+
+def clock_filter(seed=0, n=500, smoothing_lag=None, clock=CLOCK, motion=None, **kwargs):
+    """The arrival-time filter from its parts: clocked measurement, tempered corrections,
+    ambiguity and clock collectors (and a smoother with a lag)."""
+    measurement = ClockedArrivalTime(
+        clock, ArrivalTimeMeasurement(ArrivalLikelihood(sigma=1e-3), sound_speed=C)
+    )
+    collect = [*measurement.collectors()]
+    if smoothing_lag is not None:
+        collect.append(Smoothed(smoothing_lag))
+    kwargs.setdefault("resampling", "systematic")
+    return ParticleFilter(
+        motion or BaselineMotion(0.01),
+        measurement,
         n,
         (0.0, 300.0, 0.0, 400.0),
         rng=seed,
+        correction=Tempered(0.3),
+        collect=collect,
         **kwargs,
     )
 
@@ -76,7 +96,7 @@ def test_clock_and_position_are_recovered_without_initial_range():
     result = clock_filter().run(obs, 100.0, 600.0)
     last = result.estimates.iloc[-1]
     assert np.hypot(last.x - 100.0, last.y - 200.0) < 3.0
-    clock = result.clock.iloc[-1]
+    clock = result.collected["clock"].iloc[-1]
     assert clock.period == pytest.approx(8.003, abs=2e-5)
     k = np.searchsorted(pings, clock.time + 0.5) - 1
     assert clock.emission_time == pytest.approx(pings[k], abs=1e-3)
@@ -86,21 +106,20 @@ def test_clock_and_position_are_recovered_without_initial_range():
 def test_one_cache_of_weights_serves_correction_resampling_prediction_and_smoothing(
     monkeypatch,
 ):
-    """The clock-aware filter keeps its normalised weights only in ParticleFilter's cache:
-    the weights handed to the clock correction, the resampler, the compiled prediction and
-    the diagnostics are that cache's array, of the current log weights (the very array the
-    smoother gets), equal to the log weights normalised afresh, with the cached ESS equal
-    to theirs - through tempered steps (resampling and regularisation between them),
-    corrections, ESS-triggered resampling and prediction."""
+    """The arrival-time filter keeps its normalised weights only in the filter's cache
+    (``weights()``): the weights handed to the clock correction, the resampler, the compiled
+    prediction and the diagnostics are that cache's array, of the current log weights (the
+    very array the smoother gets), equal to the log weights normalised afresh, with the
+    cached ESS equal to theirs - through tempered steps (resampling and regularisation
+    between them), corrections, ESS-triggered resampling and prediction."""
     obs, _ = fixed_tag_observations(n_pings=8)
     pf = clock_filter(smoothing_lag=3, resample_when="ess", ess_threshold=0.5)
     seen = dict.fromkeys(("correction", "resampling", "prediction", "diagnostics", "smoother"), 0)
     powers = []
 
     def check(kind, weights):
-        cached_log_weight, cached, n_eff, _ = pf._weighed
-        assert cached_log_weight is pf.particles.log_weight, kind
-        assert weights is cached, kind
+        cached, n_eff, _ = pf.weights()
+        assert weights is cached, kind  # (a stale cache would be recomputed: a new array)
         log_weight = pf.particles.log_weight
         fresh = np.exp(log_normalise(log_weight))
         np.testing.assert_allclose(cached, fresh, rtol=1e-12, atol=1e-300, err_msg=kind)
@@ -119,19 +138,20 @@ def test_one_cache_of_weights_serves_correction_resampling_prediction_and_smooth
         powers.append(beta)
         return beta, *rest
 
-    compiled_temper = ct._temper
+    compiled_temper = tempering.temper
 
     def push(smoother, time, x, y, log_weight, parent=None):
-        assert log_weight is pf._weighed[0] and log_weight is pf.particles.log_weight
+        assert log_weight is pf.particles.log_weight
+        assert pf.weights()[0] is pf.weights()[0]  # cached for these log weights
         seen["smoother"] += 1
         return smoother_push(smoother, time, x, y, log_weight, parent)
 
-    smoother_push = ct.FixedLagSmoother.push
-
-    monkeypatch.setattr(ct, "_correction_kernel", spy("correction", ct._correction_kernel, 6))
-    monkeypatch.setattr(ct, "ambiguity", spy("diagnostics", ct.ambiguity, 2))
-    monkeypatch.setattr(ct, "_temper", temper)
-    monkeypatch.setattr(ct.FixedLagSmoother, "push", push)
+    smoother_push = smoothing.FixedLagSmoother.push
+    kernel = clocked._correction_kernel
+    monkeypatch.setattr(clocked, "_correction_kernel", spy("correction", kernel, 6))
+    monkeypatch.setattr(diagnostics, "ambiguity", spy("diagnostics", diagnostics.ambiguity, 2))
+    monkeypatch.setattr(tempering, "temper", temper)
+    monkeypatch.setattr(smoothing.FixedLagSmoother, "push", push)
     monkeypatch.setattr(pf, "_resample", spy("resampling", pf._resample, 1))
     motion = type(pf.motion)
     monkeypatch.setattr(motion, "advance", spy("prediction", motion.advance, 5))
@@ -151,7 +171,7 @@ def test_weights_follow_log_weights_replaced_from_outside():
         pass
     p = pf.particles
     p.log_weight = np.random.default_rng(1).normal(0.0, 2.0, p.n)
-    weights, n_eff, origin = pf._weights()
+    weights, n_eff, origin = pf.weights()
     fresh = np.exp(log_normalise(p.log_weight))
     np.testing.assert_allclose(weights, fresh, rtol=1e-12, atol=1e-300)
     assert n_eff == pytest.approx(effective_sample_size(p.log_weight), rel=1e-12)
@@ -165,18 +185,11 @@ def test_a_drifting_period_is_followed_by_the_integrated_random_walk():
     tracks it and finds the tag; the period estimate is the current one, not the mean."""
     rate = 2e-5
     obs, pings = fixed_tag_observations(n_pings=90, rate=rate)
-    pf = ClockAwareFilter(
-        BaselineMotion(0.01),
-        ArrivalTimeMeasurement(ArrivalLikelihood(sigma=1e-3), sound_speed=C),
-        EmissionClockModel.temperature_drift(8.0),
-        500,
-        (0.0, 300.0, 0.0, 400.0),
-        rng=1,
-    )
+    pf = clock_filter(seed=1, clock=EmissionClockModel.temperature_drift(8.0))
     result = pf.run(obs, 100.0, 830.0)
     last = result.estimates.iloc[-1]
     assert np.hypot(last.x - 100.0, last.y - 200.0) < 3.0
-    clock = result.clock.iloc[-1]
+    clock = result.collected["clock"].iloc[-1]
     k = np.searchsorted(pings, clock.time + 0.5) - 1
     assert clock.period == pytest.approx(8.003 + rate * k, abs=1e-4)  # next ping − this one
     assert abs(clock.period - np.diff(pings).mean()) > 5e-4  # not the mean period
@@ -220,13 +233,12 @@ def reference_clock_update(p, obs, time, clock, likelihood, covariance, detectio
 
 
 def test_compiled_correction_equals_the_numpy_reference():
+    """The measurement's score (with a silence model whose window is empty, so only the
+    detections' log p(range) counts) and its commit against the NumPy oracle."""
     rng = np.random.default_rng(8)
-    pf = ClockAwareFilter(
-        VelocityMotion(0.05, 0.02),
-        ArrivalTimeMeasurement(ArrivalLikelihood(sigma=2e-3), sound_speed=C),
+    measurement = ClockedArrivalTime(
         EmissionClockModel(8.0, 2e-4, 5e-5, 8e-3, rate_step_sd=3e-6, initial_rate_sd=3e-5),
-        400,
-        (0.0, 300.0, 0.0, 400.0),
+        ArrivalTimeMeasurement(ArrivalLikelihood(sigma=2e-3), sound_speed=C),
         silence=SilenceModel(
             ReceiverTracks.from_frame(
                 pd.DataFrame(
@@ -236,7 +248,9 @@ def test_compiled_correction_equals_the_numpy_reference():
             LogisticDetection(range_50=250.0, width=50.0),
             {"r0": np.array([]), "r1": np.array([])},
         ),
-        rng=1,
+    )
+    pf = ParticleFilter(
+        VelocityMotion(0.05, 0.02), measurement, 400, (0.0, 300.0, 0.0, 400.0), rng=1
     )
     pf.initialise(1000.0)
     p = pf.particles
@@ -249,8 +263,9 @@ def test_compiled_correction_equals_the_numpy_reference():
         period=8.0 + rng.normal(0, 2e-3, n),
         period_rate=rng.normal(0, 3e-5, n),
     )
-    pf.time = 1021.0
-    pf._clock_covariance = np.array([[4e-4, 1e-6, 0.0], [1e-6, 4e-6, 1e-8], [0.0, 1e-8, 1e-9]])
+    time = 1021.0
+    start = np.array([[4e-4, 1e-6, 0.0], [1e-6, 4e-6, 1e-8], [0.0, 1e-8, 1e-9]])
+    state = ClockState(dt=1.0, covariance=start.copy(), started=True, silence_from=time)
     # two receivers hear the ping two periods on (some particles match another ping)
     obs = pd.DataFrame(
         {
@@ -260,11 +275,19 @@ def test_compiled_correction_equals_the_numpy_reference():
             "receiver_y": [0.0, 0.0, 0.0],
         }
     )
-    loglik, clocks, covariance, _ = pf._clock_update(obs)
     want = reference_clock_update(
-        p, obs, pf.time, pf.clock, pf.measurement.likelihood, pf._clock_covariance,
-        pf.silence.detection,
+        p, obs, time, measurement.clock, measurement.arrival.likelihood, start,
+        measurement.silence.detection,
     )  # fmt: skip
+    score = measurement.score(p, measurement.as_matrix(obs), time, state, p.normalised_weights())
+    assert score.events == ()
+    np.testing.assert_array_equal(state.covariance, start)  # nothing committed yet
+    score.commit(p)
+    loglik, clocks, covariance = (
+        score.loglik,
+        (p.emission_time, p.period, p.period_rate),
+        state.covariance,
+    )
     # the compiled mixture is interpolated to within 1e-6 per detection (3 here), in the
     # log density and in the direct share, which moves a clock by at most
     # 1e-6 x gain x residual (0.1 us for residuals within the table, |eps| < 0.25 s here)
@@ -280,20 +303,20 @@ def test_tempered_weights_equal_the_resampling_helpers():
     log_weight, loglik = rng.normal(0, 3, 500), rng.normal(-50, 40, 500)
     for beta in (0.0, 0.01, 0.3, 1.0):
         want = log_normalise(log_weight + beta * loglik)
-        got, weights, ess = _tempered(log_weight, loglik, beta)
+        got, weights, ess = tempered(log_weight, loglik, beta)
         np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-9)
         np.testing.assert_allclose(weights, np.exp(want), rtol=1e-12, atol=1e-300)
-        assert _tempered_ess(log_weight, loglik, beta)[0] == pytest.approx(
+        assert tempered_ess(log_weight, loglik, beta)[0] == pytest.approx(
             effective_sample_size(want), rel=1e-12
         )
-        assert ess == _tempered_ess(log_weight, loglik, beta)[0]  # the very same number
+        assert ess == tempered_ess(log_weight, loglik, beta)[0]  # the very same number
         # the slope of log ESS against a central difference
         h = 1e-6
         numeric = (
-            np.log(_tempered_ess(log_weight, loglik, beta + h)[0])
-            - np.log(_tempered_ess(log_weight, loglik, beta - h)[0])
+            np.log(tempered_ess(log_weight, loglik, beta + h)[0])
+            - np.log(tempered_ess(log_weight, loglik, beta - h)[0])
         ) / (2 * h)
-        assert _tempered_ess(log_weight, loglik, beta)[1] == pytest.approx(numeric, rel=1e-5)
+        assert tempered_ess(log_weight, loglik, beta)[1] == pytest.approx(numeric, rel=1e-5)
 
 
 def test_tempering_power_keeps_the_ess_target_and_is_the_largest_that_does():
@@ -309,24 +332,24 @@ def test_tempering_power_keeps_the_ess_target_and_is_the_largest_that_does():
         log_weight = log_normalise(rng.normal(0, 1, n))
         loglik = -0.5 * (rng.normal(0, 1, n) / spread) ** 2
         for remaining in (1.0, 0.37):
-            beta, out, weights = _temper(log_weight, loglik, remaining, target)
-            if _tempered_ess(log_weight, loglik, remaining)[0] >= target:
+            beta, out, weights = temper(log_weight, loglik, remaining, target)
+            if tempered_ess(log_weight, loglik, remaining)[0] >= target:
                 assert beta == remaining
                 continue
             exact = brentq(
-                lambda b, lw=log_weight, ll=loglik: _tempered_ess(lw, ll, b)[0] - target,
+                lambda b, lw=log_weight, ll=loglik: tempered_ess(lw, ll, b)[0] - target,
                 0.0,
                 remaining,
             )
             assert beta <= exact + 1e-12
-            ess = _tempered_ess(log_weight, loglik, beta)[0]
+            ess = tempered_ess(log_weight, loglik, beta)[0]
             assert target <= ess <= (1 + TEMPER_ESS_TOLERANCE) * target
             assert effective_sample_size(out) == pytest.approx(ess, rel=1e-12)
-            want, want_weights, _ = _tempered(log_weight, loglik, beta)
+            want, want_weights, _ = tempered(log_weight, loglik, beta)
             np.testing.assert_array_equal(out, want)
             np.testing.assert_array_equal(weights, want_weights)
     # a flat likelihood keeps every particle: the whole power at once
-    beta, out, _ = _temper(log_weight, np.full(n, -3.0), 0.6, 0.3 * n)
+    beta, out, _ = temper(log_weight, np.full(n, -3.0), 0.6, 0.3 * n)
     assert beta == 0.6
     np.testing.assert_allclose(out, log_weight, atol=1e-12)
 
@@ -338,7 +361,7 @@ def test_regularisation_move_equals_the_numpy_covariance_and_cholesky():
     normals = rng.standard_normal((2, 500))
     covariance = np.cov(np.vstack([x, y])) + 1e-4 * np.eye(2)
     move = 0.3 * (np.linalg.cholesky(covariance) @ normals)
-    got_x, got_y = _regularisation_move(x, y, normals, 0.3)
+    got_x, got_y = regularisation_move(x, y, normals, 0.3)
     np.testing.assert_allclose(got_x, x + move[0], rtol=1e-12, atol=1e-9)
     np.testing.assert_allclose(got_y, y + move[1], rtol=1e-12, atol=1e-9)
 
@@ -358,7 +381,7 @@ def test_clock_summary_equals_the_weighted_moments_of_wrapped_clocks():
     # clocks of one tag, some particles referring to a ping a few periods away
     emission = 100.0 + rng.normal(0, 0.01, n) + period * rng.integers(-3, 4, n)
     periods = period + rng.normal(0, 1e-3, n)
-    got = _clock_summary(emission, periods, weights, 1e-6, 4e-8)
+    got = clock_summary(emission, periods, weights, 1e-6, 4e-8)
     best = np.argmax(weights)
     offset = emission - emission[best]
     offset -= np.rint(offset / periods[best]) * periods[best]
@@ -379,7 +402,7 @@ def test_same_seed_same_answer():
     a = clock_filter(seed=3).run(obs, 100.0, 260.0)
     b = clock_filter(seed=3).run(obs, 100.0, 260.0)
     pd.testing.assert_frame_equal(a.estimates, b.estimates)
-    pd.testing.assert_frame_equal(a.clock, b.clock)
+    pd.testing.assert_frame_equal(a.collected["clock"], b.collected["clock"])
 
 
 def test_a_clock_jump_is_reacquired_and_recorded():
@@ -403,12 +426,12 @@ def test_two_fixed_receivers_leave_the_fixed_tag_uncertain_and_say_so():
 def test_smoothed_track_uses_the_filter_steps():
     obs, _ = fixed_tag_observations(n_pings=20)
     result = clock_filter(smoothing_lag=10).run(obs, 100.0, 260.0)
-    smoothed = result.smoothed
+    smoothed = result.collected["smoothed"]
     np.testing.assert_array_equal(smoothed["time"], result.estimates["time"])
     assert (smoothed["n_ancestors"] <= 500).all() and (smoothed["n_ancestors"] >= 1).all()
     # lag 0 reproduces the filter's own estimates
     plain = clock_filter(smoothing_lag=0).run(obs, 100.0, 260.0)
-    np.testing.assert_allclose(plain.smoothed["x"], plain.estimates["x"], atol=1e-9)
+    np.testing.assert_allclose(plain.collected["smoothed"]["x"], plain.estimates["x"], atol=1e-9)
 
 
 def test_moored_array_without_initial_range_under_10_m_and_smoothing_helps():
@@ -417,16 +440,20 @@ def test_moored_array_without_initial_range_under_10_m_and_smoothing_helps():
     fixed-lag smoothed track's at most 70 % of the filter's (measured: 3.0 m vs 1.0 m)."""
     case = moored_array(5, duration=900.0)
     sc = case.scenario
-    result = track_arrival_time(
-        case.corrected_detections(),
-        sc.receivers,
-        motion=VelocityMotion(0.05, 0.02),
+    config = TrackingConfig(
         period=sc.period,
+        measurement="arrival-time",
         n_particles=2000,
-        detection=case.detection_probability,
-        smoothing_lag=30,
+        detection_curve=case.detection_probability,
         start=sc.start,
         end=sc.end,
+    )
+    result = track(
+        case.corrected_detections(),
+        sc.receivers,
+        config,
+        VelocityMotion(0.05, 0.02),
+        smoothing_lag=30,
         seed=1,
     )
     error = position_error(result.estimates, sc.truth)
@@ -510,20 +537,16 @@ def test_arrival_observations_refuse_missing_depths():
 
 
 @pytest.mark.filterwarnings("ignore:.*clock_reacquired")  # 300 particles: a re-acquisition
-def test_track_arrival_time_passes_tempering_ess_to_the_filter():
+def test_track_passes_tempering_ess_to_the_filter():
     case = moored_array(5, duration=300.0)
     sc = case.scenario
     detections = case.corrected_detections()
-    kwargs = dict(
-        motion=VelocityMotion(0.05, 0.02),
-        period=sc.period,
-        n_particles=300,
-        start=sc.start,
-        end=sc.end,
-        seed=1,
+    config = TrackingConfig(
+        period=sc.period, measurement="arrival-time", n_particles=300, start=sc.start, end=sc.end
     )
+    motion = VelocityMotion(0.05, 0.02)
     with pytest.raises(ValueError, match="tempering_ess"):
-        track_arrival_time(detections, sc.receivers, tempering_ess=1.5, **kwargs)
-    loose = track_arrival_time(detections, sc.receivers, **kwargs)
-    strict = track_arrival_time(detections, sc.receivers, tempering_ess=0.9, **kwargs)
+        config.override(tempering_ess=1.5)
+    loose = track(detections, sc.receivers, config, motion, seed=1)
+    strict = track(detections, sc.receivers, config.override(tempering_ess=0.9), motion, seed=1)
     assert not np.array_equal(loose.estimates["x"], strict.estimates["x"])

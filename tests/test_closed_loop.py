@@ -19,8 +19,8 @@ from hmmtrack.experiments.closed_loop import (
 from hmmtrack.experiments.configs import arrival_config
 from hmmtrack.scenarios.realistic import realistic_shark_pursuit
 from hmmtrack.scenarios.steering import RotatingPlan
-from hmmtrack.tracking.clock_filter import track_arrival_time
 from hmmtrack.tracking.config import TrackingConfig, read_preset
+from hmmtrack.tracking.pipeline import track
 
 PLAN = RotatingPlan()  # the "observable" plan
 
@@ -56,7 +56,7 @@ def test_steered_on_the_truth_the_loop_flies_the_open_loop_plan_and_runs_its_fil
     """The oracle that ties the closed loop to the open-loop plan: with the true shark
     substituted for the estimate, the AUVs fly exactly the scenario's paths, hear exactly
     its pings at the same logged times and log the same GPS positions, and the tracker
-    stepped online gives the estimates of the offline ``track_arrival_time`` run on the
+    stepped online gives the estimates of the offline ``track`` run on the
     scenario's own detections with the same seed."""
     case, duration = observable_case(0), 400
     sc = case.scenario
@@ -74,20 +74,8 @@ def test_steered_on_the_truth_the_loop_flies_the_open_loop_plan_and_runs_its_fil
     detections = case.corrected_detections()
     detections = detections[detections["time"] < end].reset_index(drop=True)
     config = preset_config(case, duration, 300)
-    options = config.arrival_time_options()
-    offline = track_arrival_time(
-        detections,
-        sc.receivers,
-        motion=config.motion_model(),
-        period=sc.period,
-        bounds=case.search_bounds,
-        n_particles=300,
-        measurement=options["measurement"],
-        tempering_ess=options["tempering_ess"],
-        start=sc.start,
-        end=end,
-        seed=5,
-    )
+    assert config.bounds == case.search_bounds and config.end == end
+    offline = track(detections, sc.receivers, config, seed=5)
     pd.testing.assert_series_equal(
         run.observations["time"], offline_times(detections), check_names=False
     )

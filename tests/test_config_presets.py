@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from hmmtrack.tracking import config as config_module
@@ -18,8 +19,15 @@ from hmmtrack.tracking.config import (
     read_preset,
 )
 from hmmtrack.tracking.measurement.arrival_time import ArrivalLikelihood, ArrivalTimeMeasurement
+from hmmtrack.tracking.measurement.clocked import (
+    SEARCH_RADIUS,
+    TEMPERING_ESS,
+    ClockedArrivalTime,
+    default_clock_model,
+)
 from hmmtrack.tracking.measurement.detection import LogisticDetection
 from hmmtrack.tracking.motion import HMMMotion, VelocityMotion
+from hmmtrack.tracking.tempering import Tempered
 
 PRESET = "two-moving-receivers"
 
@@ -34,14 +42,14 @@ def test_two_receiver_preset_holds_the_settings_tuned_on_the_observable_plan():
     config = TrackingConfig.from_dict(read_preset(PRESET) | {"period": 8.0})
     assert (config.measurement, config.motion) == ("arrival-time", "velocity")
     assert config.motion_model() == VelocityMotion(sigma_speed=0.1, sigma_turn_rate=0.003)
-    options = config.arrival_time_options()
-    assert options["measurement"] == ArrivalTimeMeasurement(
+    measurement = arrival_measurement(config)
+    assert measurement.arrival == ArrivalTimeMeasurement(
         ArrivalLikelihood(sigma=1.2e-3), sound_speed=config.sound_speed
     )
-    assert options["tempering_ess"] == 0.3
-    assert options["search_radius"] == 240.0
-    assert options["n_particles"] == 4000 == config.n_particles
-    assert options["period"] == 8.0
+    assert config.tempering_ess == 0.3
+    assert measurement.search_radius == 240.0
+    assert config.n_particles == 4000
+    assert measurement.clock == default_clock_model(8.0)
 
 
 def test_every_bundled_preset_is_settings_only_and_valid():
@@ -98,11 +106,10 @@ def test_default_models_are_those_of_the_trackers():
     assert TrackingConfig(period=8.0, motion="velocity", sigma_turn_rate=0.01).motion_model() == (
         VelocityMotion(tracking.VELOCITY_SIGMA_SPEED, 0.01)
     )
-    arrival = TrackingConfig(period=8.0, measurement="arrival-time").arrival_time_options()
-    assert not {"tempering_ess", "search_radius"} & set(arrival)
-    assert arrival["measurement"] == ArrivalTimeMeasurement(sound_speed=plain.sound_speed)
-    with pytest.raises(ValueError, match="arrival-time options of a configuration"):
-        plain.arrival_time_options()
+    arrival = arrival_measurement(TrackingConfig(period=8.0, measurement="arrival-time"))
+    assert arrival.search_radius == SEARCH_RADIUS
+    assert arrival.default_correction == Tempered(TEMPERING_ESS)
+    assert arrival.arrival == ArrivalTimeMeasurement(sound_speed=plain.sound_speed)
     with pytest.raises(ValueError, match="motion 'hmm' only"):
         velocity.motion_model(model="shark.json")
     with pytest.raises(ValueError, match="motion 'hmm' only"):
@@ -140,14 +147,22 @@ def test_a_preset_with_the_other_measurement_is_a_clear_error():
         )
 
 
-def test_detection_curve_setting_round_trips_and_reaches_the_arrival_time_options():
-    """A mapping or a LogisticDetection; JSON round trip; the curve becomes
-    ``track_arrival_time``'s ``detection``; absent, no ``detection`` is passed."""
+def arrival_measurement(config):
+    """The arrival-time measurement ``config`` builds, for one detection at a receiver."""
+    receivers = pd.DataFrame({"receiver": ["a"], "time": [np.nan], "x": [0.0], "y": [0.0]})
+    detections = pd.DataFrame({"time": [5.0], "receiver": ["a"]})
+    observations = ClockedArrivalTime.observations(detections, receivers)
+    return ClockedArrivalTime.from_config(config, observations, receivers)
+
+
+def test_detection_curve_setting_round_trips_and_reaches_the_arrival_time_measurement():
+    """A mapping or a LogisticDetection; JSON round trip; the curve becomes the arrival-time
+    measurement's silence model's; absent, it has no silence model."""
     config = TrackingConfig(
         period=8.0, measurement="arrival-time", detection_curve={"range_50": 160, "width": "40"}
     )
     assert config.detection_curve == LogisticDetection(range_50=160.0, width=40.0)
-    assert config.arrival_time_options()["detection"] is config.detection_curve
+    assert arrival_measurement(config).silence.detection is config.detection_curve
     data = json.loads(json.dumps(config.to_dict()))
     assert data["detection_curve"] == {"range_50": 160.0, "width": 40.0}
     assert TrackingConfig.from_dict(data) == config
@@ -156,7 +171,7 @@ def test_detection_curve_setting_round_trips_and_reaches_the_arrival_time_option
     )
     assert same == config
     plain = TrackingConfig(period=8.0, measurement="arrival-time")
-    assert "detection" not in plain.arrival_time_options()
+    assert arrival_measurement(plain).silence is None
     assert TrackingConfig.from_dict(json.loads(json.dumps(plain.to_dict()))) == plain
 
 
@@ -190,7 +205,7 @@ def test_a_preset_may_carry_a_detection_curve(tmp_path, monkeypatch):
     settings = {"measurement": "arrival-time", "detection_curve": {"range_50": 90, "width": 15}}
     (tmp_path / "reef.json").write_text(json.dumps(settings))
     config = TrackingConfig.from_dict(read_preset("reef") | {"period": 30.0})
-    assert config.arrival_time_options()["detection"] == LogisticDetection(90.0, 15.0)
+    assert arrival_measurement(config).silence.detection == LogisticDetection(90.0, 15.0)
 
 
 def test_measurement_covariance_with_new_standard_deviations():

@@ -9,6 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from hmmtrack.analysis.calibration import expected_measurements
 from hmmtrack.analysis.crb import (
     BoundPrior,
     acceleration_psd_from_path,
@@ -427,8 +428,7 @@ def test_crb_of_a_receiver_passing_the_tag():
 
 
 def test_fisher_information_matches_a_numerical_jacobian():
-    """J = Σ Hᵀ Σ_z⁻¹ H with H from finite differences of tracking.expected_measurements."""
-    from hmmtrack.tracking import pipeline as tracking
+    """J = Σ Hᵀ Σ_z⁻¹ H with H from finite differences of expected_measurements."""
 
     rng = np.random.default_rng(5)
     obs = receivers_table(*rng.uniform(-200, 200, (2, 12)), *rng.normal(0, 1.5, (2, 12)))
@@ -437,7 +437,7 @@ def test_fisher_information_matches_a_numerical_jacobian():
     covariance = np.array([[16.0, 0.3], [0.3, 0.09]])
 
     def measured(p):
-        return tracking.expected_measurements(
+        return expected_measurements(
             obs, pd.DataFrame({"time": [np.nan], "x": [p[0]], "y": [p[1]]})
         )
 
@@ -457,11 +457,10 @@ def test_crb_is_infinite_when_a_direction_is_unobserved():
 
 
 def fixed_tag_measurements(obs, tag):
-    """(range, range-rate) of a fixed tag: tracking.expected_measurements as the oracle."""
-    from hmmtrack.tracking import pipeline as tracking
+    """(range, range-rate) of a fixed tag: expected_measurements as the oracle."""
 
     truth = pd.DataFrame({"time": [np.nan], "x": [tag[0]], "y": [tag[1]]})
-    return tracking.expected_measurements(obs, truth)
+    return expected_measurements(obs, truth)
 
 
 def two_receiver_observations(rng, tag, noise):

@@ -205,25 +205,24 @@ def test_curve_fitted_from_a_tracking_run_is_close_to_the_truth():
     of the simulated one."""
     import warnings
 
-    from hmmtrack.tracking.clock_filter import track_arrival_time
+    from hmmtrack.tracking.config import TrackingConfig
     from hmmtrack.tracking.measurement.detection import fit_detection_probability_from_track
     from hmmtrack.tracking.motion import VelocityMotion
+    from hmmtrack.tracking.pipeline import track
 
     case = moored_array(2, duration=1800.0)
     sc = case.scenario
     detections = case.corrected_detections()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        result = track_arrival_time(
-            detections,
-            sc.receivers,
-            motion=VelocityMotion(0.05, 0.02),
+        config = TrackingConfig(
             period=sc.period,
+            measurement="arrival-time",
             n_particles=1500,
             start=sc.start,
             end=sc.end,
-            seed=0,
         )
+        result = track(detections, sc.receivers, config, VelocityMotion(0.05, 0.02), seed=0)
     fitted = fit_detection_probability_from_track(
         result.estimates,
         result.clock,

@@ -156,24 +156,21 @@ def test_sqrt_largest_eigenvalue_oracle():
         assert sqrt_largest_eigenvalue(cov[0, 0], cov[1, 1], cov[0, 1]) == pytest.approx(expected)
 
 
-class GatedRangeRate:
-    """The paper's Gaussian, but impossible beyond a 50 m range gate (a hard constraint)."""
-
-    columns = MEASUREMENT.columns
-    covariance = MEASUREMENT.covariance
+class GatedRangeRate(RangeRateMeasurement):
+    """The paper's Gaussian, but impossible beyond a 50 m range gate (a hard constraint);
+    recovers as the range-rate measurement does (its ``recover`` hook)."""
 
     def __init__(self, impossible_at=()):
-        self.impossible_at = set(impossible_at)
+        super().__init__(MEASUREMENT.covariance)
+        object.__setattr__(self, "impossible_at", set(impossible_at))
 
     def loglik(self, particles, obs, time=None):
         if time in self.impossible_at:
             return np.full(particles.n, -np.inf)
-        ll = MEASUREMENT.loglik(particles, obs)
-        r = np.hypot(
-            np.asarray(obs["receiver_x"])[None, :] - particles.x[:, None],
-            np.asarray(obs["receiver_y"])[None, :] - particles.y[:, None],
-        )
-        outside = (np.abs(r - np.asarray(obs["range"])[None, :]) > 50).any(axis=1)
+        z = self.as_matrix(obs)  # range, range_rate, receiver_x, receiver_y, ...
+        ll = MEASUREMENT.loglik(particles, z)
+        r = np.hypot(z[None, :, 2] - particles.x[:, None], z[None, :, 3] - particles.y[:, None])
+        outside = (np.abs(r - z[None, :, 0]) > 50).any(axis=1)
         return np.where(outside, -np.inf, ll)
 
 
@@ -362,16 +359,19 @@ def test_weigh_matches_log_normalise_and_the_weight_summary():
 
 
 def test_matrix_fast_path_equals_the_generic_correction():
-    """iterate() scores with the measurement's matrix form; a subclass that only routes
-    correct() through the parent (so the fast path is off) must give the same run."""
+    """iterate() scores with the measurement's matrix form; a measurement without one
+    (scored on table slices) must give the same run."""
 
-    class GenericFilter(ParticleFilter):
-        def correct(self, obs):
-            return super().correct(obs)
+    class TableOnly:
+        columns = MEASUREMENT.columns
+
+        def loglik(self, particles, obs, time=None):
+            assert isinstance(obs, pd.DataFrame)
+            return MEASUREMENT.loglik(particles, obs, time)
 
     obs = circling_observations(duration=200.0)
     fast = make_filter("velocity", seed=8).run(obs).estimates
-    generic = GenericFilter(MOTIONS["velocity"], MEASUREMENT, 2000, BOUNDS, rng=8)
+    generic = ParticleFilter(MOTIONS["velocity"], TableOnly(), 2000, BOUNDS, rng=8)
     pd.testing.assert_frame_equal(fast, generic.run(obs).estimates, rtol=1e-12)
 
 

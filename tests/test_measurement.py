@@ -116,8 +116,8 @@ def test_compiled_loglik_equals_the_numpy_prediction():
 
 
 def test_matrix_form_scores_row_slices_like_the_table():
-    """as_matrix reorders the model's columns (any table order, extra columns ignored) and
-    loglik_matrix on a row slice equals loglik on the same rows."""
+    """as_matrix reorders the model's columns (any table order, extra columns ignored), takes
+    a matrix as converted, and loglik of a matrix row slice equals loglik of the same rows."""
     model = RangeRateMeasurement(COVARIANCE)
     p, obs = some_particles(), observations()
     shuffled = obs[list(reversed(obs.columns))]
@@ -126,5 +126,6 @@ def test_matrix_form_scores_row_slices_like_the_table():
     np.testing.assert_array_equal(z[:, 0], obs["range"])
     np.testing.assert_array_equal(z[:, 5], obs["receiver_vy"])
     np.testing.assert_array_equal(model.as_matrix({c: obs[c].to_numpy() for c in obs}), z)
-    np.testing.assert_allclose(model.loglik_matrix(p, z[1:2]), model.loglik(p, obs.iloc[1:2]))
-    np.testing.assert_allclose(model.loglik_matrix(p, z), model.loglik(p, obs))
+    assert model.as_matrix(z) is z
+    np.testing.assert_allclose(model.loglik(p, z[1:2]), model.loglik(p, obs.iloc[1:2]))
+    np.testing.assert_allclose(model.loglik(p, z), model.loglik(p, obs))

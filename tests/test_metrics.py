@@ -10,6 +10,7 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from hmmtrack.analysis import metrics
+from hmmtrack.tracking.filter import sqrt_largest_eigenvalue
 
 
 def estimates_table(times, x, y, spread):
@@ -94,7 +95,7 @@ def test_mean_error_never_exceeds_rmse(errors, index):
 def test_sqrt_largest_eigenvalue_matches_eigvalsh(var_x, var_y, correlation):
     cov = correlation * np.sqrt(var_x * var_y)
     expected = np.sqrt(np.linalg.eigvalsh([[var_x, cov], [cov, var_y]])[-1].clip(0))
-    got = metrics.sqrt_largest_eigenvalue(var_x, var_y, cov)
+    got = sqrt_largest_eigenvalue(var_x, var_y, cov)
     assert got == pytest.approx(expected, rel=1e-7, abs=1e-6)
 
 

@@ -17,11 +17,13 @@ import pytest
 
 from hmmtrack import scenarios
 from hmmtrack.analysis import metrics
+from hmmtrack.analysis.calibration import expected_measurements
 from hmmtrack.analysis.crb import static_tag_fit
 from hmmtrack.experiments.configs import tracking_config
 from hmmtrack.tracking import pipeline as tracking
 from hmmtrack.tracking.config import TrackingConfig
 from hmmtrack.tracking.measurement import ranging
+from hmmtrack.tracking.measurement.range_rate import OBSERVATION_COLUMNS, search_bounds
 from hmmtrack.tracking.motion import VelocityMotion
 from hmmtrack.tracking.receivers import ReceiverTracks
 
@@ -63,7 +65,7 @@ def diving_tag_detections(depth_of_time):
 def test_observations_hold_true_ranges_and_receiver_states(stationary):
     config = scenario_config(stationary)
     observations = tracking.build_observations(stationary.detections, stationary.receivers, config)
-    assert list(observations.columns) == list(tracking.OBSERVATION_COLUMNS)
+    assert list(observations.columns) == list(OBSERVATION_COLUMNS)
     assert len(observations) == len(stationary.detections)  # nothing dropped
     heard = stationary.pings[stationary.pings["detected"]]
     joined = observations.merge(
@@ -146,7 +148,7 @@ def test_pipeline_errors_name_what_is_missing(stationary):
 def test_search_bounds_hold_the_tag(stationary):
     config = scenario_config(stationary)
     observations = tracking.build_observations(stationary.detections, stationary.receivers, config)
-    xmin, xmax, ymin, ymax = tracking.search_bounds(observations, config.r0, margin=0.0)
+    xmin, xmax, ymin, ymax = search_bounds(observations, config.r0, margin=0.0)
     start = stationary.truth.iloc[0]
     assert xmin <= start["x"] <= xmax and ymin <= start["y"] <= ymax
     # no bigger than the receivers' reach: the widest is 2 (r0 + GPS error) across
@@ -335,12 +337,12 @@ def test_expected_measurements_hand_values():
     fixed = pd.DataFrame({"time": [np.nan], "x": [3.0], "y": [4.0]})
     # r = 5; r_dot = ((0 - 3)(1 - 0) + (0 - 4)(0 - 0)) / 5 = -0.6
     np.testing.assert_allclose(
-        tracking.expected_measurements(observations, fixed), [[5.0, -0.6], [5.0, 0.0]]
+        expected_measurements(observations, fixed), [[5.0, -0.6], [5.0, 0.0]]
     )
     # a tag moving at (0, 0.5) m/s from (3, 4): at 10 s it is at (3, 9), moving away
     moving = pd.DataFrame({"time": [0.0, 20.0], "x": [3.0, 3.0], "y": [4.0, 14.0]})
     expected = [[5.0, (-3 * 1 + -4 * -0.5) / 5], [np.hypot(3, 9), (-9 * -0.5) / np.hypot(3, 9)]]
-    np.testing.assert_allclose(tracking.expected_measurements(observations, moving), expected)
+    np.testing.assert_allclose(expected_measurements(observations, moving), expected)
 
 
 def test_measurement_covariance_from_a_simulation(stationary):
@@ -350,7 +352,7 @@ def test_measurement_covariance_from_a_simulation(stationary):
     )
     rated = observations[observations["range_rate"].notna()]
     sigma = ranging.estimate_measurement_covariance(
-        rated[["range", "range_rate"]], tracking.expected_measurements(rated, stationary.truth)
+        rated[["range", "range_rate"]], expected_measurements(rated, stationary.truth)
     )
     # the hydrophones' logged positions carry 1.5 m GPS noise and the tag 0.1 ms jitter, so
     # range errors of a few metres and range-rate errors of a few tenths of a m/s; the

@@ -6,12 +6,11 @@ the tracker and writes one estimate per second as CSV (``time`` ISO 8601 UTC, ``
 ``sqrt_lambda1`` and ``n_eff``). With ``--truth`` it prints the paper's metrics; with
 ``--plot`` it draws the error over time and particle snapshots.
 
-Two measurement models (``--measurement``): ``range-rate``, the paper's ranges and
-range-rates from the tag period and known initial ranges ``--r0``
-(:func:`hmmtrack.tracking.pipeline.track`); ``arrival-time``, the tag's emission clock carried in
-the particle state, no initial range needed, optionally smoothed with a fixed lag
-(:func:`hmmtrack.tracking.clock_filter.track_arrival_time`; its detection times must be on one
-common time base).
+Two measurement models (``--measurement``), both run by
+:func:`hmmtrack.tracking.pipeline.track`: ``range-rate``, the paper's ranges and range-rates
+from the tag period and known initial ranges ``--r0``; ``arrival-time``, the tag's emission
+clock carried in the particle state, no initial range needed, optionally smoothed with a fixed
+lag (its detection times must be on one common time base).
 
 Settings come, in increasing precedence, from ``--preset`` (a bundled set of settings
 for one kind of deployment, e.g. ``two-moving-receivers``), ``--config`` (a JSON file, see
@@ -28,7 +27,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import inspect
 import math
 import sys
 
@@ -39,9 +37,7 @@ from hmmtrack import io
 from hmmtrack.analysis import metrics
 from hmmtrack.cli import UserInputError
 from hmmtrack.tracking import pipeline as tracking
-from hmmtrack.tracking.clock_filter import track_arrival_time
 from hmmtrack.tracking.config import (
-    MEASUREMENTS,
     TrackingConfig,
     measurement_covariance_with,
     merge_settings,
@@ -50,12 +46,13 @@ from hmmtrack.tracking.config import (
     read_settings,
 )
 from hmmtrack.tracking.filter import RESAMPLE_WHEN
+from hmmtrack.tracking.measurement import MEASUREMENTS
 from hmmtrack.tracking.measurement.arrival_time import ArrivalLikelihood
+from hmmtrack.tracking.measurement.clocked import SEARCH_RADIUS, TEMPERING_ESS
 from hmmtrack.tracking.motion import HMM_VARIANTS
 from hmmtrack.tracking.resampling import RESAMPLERS
 
-#: defaults of the arrival-time filter and of the configuration (help texts, build_config)
-_ARRIVAL_DEFAULTS = inspect.signature(track_arrival_time).parameters
+#: defaults of the configuration (help texts, build_config)
 _CONFIG_DEFAULTS = {f.name: f.default for f in dataclasses.fields(TrackingConfig)}
 
 
@@ -156,7 +153,7 @@ def register(subparsers) -> None:
     )
     parser.add_argument(
         "--measurement",
-        choices=MEASUREMENTS,
+        choices=tuple(MEASUREMENTS),
         help=(
             "range-rate (default unless the preset says otherwise): the paper's ranges and "
             "range-rates (needs --r0); "
@@ -250,7 +247,7 @@ def register(subparsers) -> None:
         help=(
             "arrival-time only, without --bounds: the search box is the receivers' positions "
             "at the start widened by this (about their detection range; default "
-            f"{_ARRIVAL_DEFAULTS['search_radius'].default:g})"
+            f"{SEARCH_RADIUS:g})"
         ),
     )
     parser.add_argument(
@@ -260,7 +257,7 @@ def register(subparsers) -> None:
         help=(
             "arrival-time only: temper a correction that would leave fewer than this "
             f"fraction of the particles, in (0, 1] (default "
-            f"{_ARRIVAL_DEFAULTS['tempering_ess'].default:g})"
+            f"{TEMPERING_ESS:g})"
         ),
     )
     parser.add_argument(
@@ -417,26 +414,16 @@ def _within_truth(estimates: pd.DataFrame, truth: pd.DataFrame) -> pd.DataFrame:
     return estimates.loc[inside].reset_index(drop=True)
 
 
-def _track_arrival_time(args, config, detections, receivers, motion, seed):
-    """Estimates and events of an arrival-time run (:mod:`hmmtrack.tracking.clock_filter`)."""
-    result = track_arrival_time(
-        tracking.select_transmitter(detections, config.transmitter),
-        receivers,
-        motion=motion,
-        smoothing_lag=args.smooth,
-        seed=seed,
-        **config.arrival_time_options(),
-    )
-    ambiguous = result.ambiguity[result.ambiguity["ambiguous"].astype(bool)]
+def _warn_ambiguous(ambiguity: pd.DataFrame) -> None:
+    """Warn (stderr) when corrections left two separate clusters of particles."""
+    ambiguous = ambiguity[ambiguity["ambiguous"].astype(bool)]
     if not ambiguous.empty:
         print(
-            f"warning: {len(ambiguous)} of {len(result.ambiguity)} corrections left two "
+            f"warning: {len(ambiguous)} of {len(ambiguity)} corrections left two "
             f"separate clusters of particles (mirror ambiguity), first at "
             f"{ambiguous['time'].iloc[0]}",
             file=sys.stderr,
         )
-    estimates = result.smoothed if args.smooth is not None else result.estimates
-    return estimates, result.events
 
 
 def run(args: argparse.Namespace) -> int:
@@ -462,21 +449,25 @@ def run(args: argparse.Namespace) -> int:
         config = config.override(bounds=io.bounds_in_metres(args.bounds, projection))
     resting = None if args.no_resting else "default"
     motion = config.motion_model(args.model, variant=args.hmm_variant, resting=resting)
-    snapshots, observations = {}, None
-    if config.measurement == "arrival-time":
-        estimates, events = _track_arrival_time(args, config, detections, receivers, motion, seed)
-    else:
-        snapshot_times = ()
-        if args.plot:
-            from hmmtrack.plots.tracking import snapshot_times as choose_snapshots
+    snapshot_times = ()
+    if args.plot:
+        from hmmtrack.plots.tracking import snapshot_times as choose_snapshots
 
-            tracked = tracking.select_transmitter(detections, config.transmitter)
-            snapshot_times = choose_snapshots(*tracking.time_window(tracked["time"], config))
-        result = tracking.track(
-            detections, receivers, config, motion, seed=seed, snapshot_times=snapshot_times
-        )
-        estimates, events = result.estimates, result.events
-        snapshots, observations = result.snapshots, result.observations
+        tracked = tracking.select_transmitter(detections, config.transmitter)
+        snapshot_times = choose_snapshots(*tracking.time_window(tracked["time"], config))
+    result = tracking.track(
+        detections,
+        receivers,
+        config,
+        motion,
+        seed=seed,
+        snapshot_times=snapshot_times,
+        smoothing_lag=args.smooth,
+    )
+    if result.ambiguity is not None:
+        _warn_ambiguous(result.ambiguity)
+    estimates = result.estimates if result.smoothed is None else result.smoothed
+    events, snapshots, observations = result.events, result.snapshots, result.observations
     io.write_estimates(estimates, args.output, projection=projection)
     print(f"wrote {len(estimates)} estimates to {args.output}")
     for event in events.itertuples(index=False):

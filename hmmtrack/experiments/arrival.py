@@ -140,7 +140,7 @@ def known_clock_row(name, case, seed, n_particles, motion, duration) -> dict:
         "seed": seed,
         "method": "arrival-time, clock known",
         **score_run(result.estimates, case.scenario.truth),
-        "ambiguous_share": float(result.ambiguity["ambiguous"].mean()),
+        "ambiguous_share": float(result.collected["ambiguity"]["ambiguous"].mean()),
     }
 
 

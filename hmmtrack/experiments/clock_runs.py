@@ -11,7 +11,8 @@ to the common time base with the calibration the case provides:
 * the arrival-time method, given neither: :func:`track_arrival` is the one place that runs
   it, with keyword options built by :func:`clock_inputs` or, from a
   :class:`~hmmtrack.tracking.config.TrackingConfig`, by :func:`config_options`;
-  :func:`known_clock_run` is its diagnostic twin told the tag's emission schedule.
+  :func:`known_clock_run` is its diagnostic twin told the tag's emission schedule
+  (:class:`KnownClock`).
 
 :func:`score_run` scores a run the way every clock study reports it. This module runs and
 scores; it writes nothing (:mod:`hmmtrack.report`).
@@ -19,23 +20,21 @@ scores; it writes nothing (:mod:`hmmtrack.report`).
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pandas as pd
 
 from hmmtrack.analysis.metrics import position_error, time_to_convergence
 from hmmtrack.scenarios.clocks import ClockScenario
-from hmmtrack.tracking.clock_filter import (
-    ClockAwareFilter,
-    ClockFilterResult,
-    SilenceModel,
-    arrival_observations,
-    track_arrival_time,
-)
 from hmmtrack.tracking.config import TrackingConfig
+from hmmtrack.tracking.filter import FilterResult
 from hmmtrack.tracking.measurement.arrival_time import ArrivalTimeMeasurement
 from hmmtrack.tracking.measurement.clock import EmissionClockModel
+from hmmtrack.tracking.measurement.clocked import ClockedArrivalTime, ClockState
+from hmmtrack.tracking.measurement.detection import SilenceModel
 from hmmtrack.tracking.motion import VelocityMotion
-from hmmtrack.tracking.pipeline import motion_model
+from hmmtrack.tracking.pipeline import TrackingResult, motion_model, particle_filter, track
 from hmmtrack.tracking.receivers import ReceiverTracks
 
 #: length of a clock study's runs (s): the 2 h of issue 5
@@ -131,8 +130,8 @@ def clock_inputs(case: ClockScenario, seed, n_particles: int, motion: str, durat
     config : TrackingConfig
         The range-rate method's: mean period, true ``r0``, the run's window.
     options : dict
-        Keyword options of :func:`track_arrival`: motion, mean period, the case's search
-        box and detection curve, particles, window and seed.
+        The arrival-time run of :func:`track_arrival`: ``config`` (mean period, the case's
+        search box and detection curve, particles, window), ``motion`` and ``seed``.
     """
     sc = case.scenario
     start, end = sc.start, min(sc.end, sc.start + duration)
@@ -146,32 +145,33 @@ def clock_inputs(case: ClockScenario, seed, n_particles: int, motion: str, durat
         start=start,
         end=end,
     )
-    options = {
-        "motion": make_motion(motion),
-        "period": sc.period,
-        "bounds": case.search_bounds,
-        "n_particles": n_particles,
-        "detection": case.detection_probability,
-        "start": start,
-        "end": end,
-        "seed": seed,
-    }
-    return detections, config, options
+    arrival = TrackingConfig(
+        period=sc.period,
+        measurement="arrival-time",
+        bounds=case.search_bounds,
+        n_particles=n_particles,
+        detection_curve=case.detection_probability,
+        start=start,
+        end=end,
+    )
+    return detections, config, {"config": arrival, "motion": make_motion(motion), "seed": seed}
 
 
 def config_options(config: TrackingConfig) -> dict:
-    """Keyword options of :func:`track_arrival` set by an arrival-time ``config``.
+    """The :func:`track_arrival` options an arrival-time ``config`` sets: the configuration
+    and its motion model (seed and smoother lag are the caller's)."""
+    return {"config": config, "motion": config.motion_model()}
 
-    Its period, box, window, particles, likelihood, tempering and search radius
-    (:meth:`~hmmtrack.tracking.config.TrackingConfig.arrival_time_options`) and its motion
-    model; detection curve, smoother lag and seed are the caller's.
-    """
-    return config.arrival_time_options() | {"motion": config.motion_model()}
+
+def without_silences(options: dict) -> dict:
+    """``options`` with no detection curve: unheard pings tell nothing (as ``hmmtrack track``
+    runs without ``--detection-curve``)."""
+    return options | {"config": dataclasses.replace(options["config"], detection_curve=None)}
 
 
 def track_arrival(
     detections: pd.DataFrame, receivers: pd.DataFrame, options: dict
-) -> ClockFilterResult:
+) -> TrackingResult:
     """Run the arrival-time filter with ``options`` (:func:`clock_inputs`, :func:`config_options`).
 
     Parameters
@@ -181,45 +181,67 @@ def track_arrival(
     receivers : pandas.DataFrame
         Logged receiver positions.
     options : dict
-        Keyword options of :func:`hmmtrack.tracking.clock_filter.track_arrival_time`.
+        ``config`` (arrival-time :class:`~hmmtrack.tracking.config.TrackingConfig`),
+        ``motion``, ``seed``; optional ``smoothing_lag`` (s) and ``clock`` (an
+        :class:`~hmmtrack.tracking.measurement.clock.EmissionClockModel` replacing the
+        configuration's default clock model).
 
     Returns
     -------
-    ClockFilterResult
+    TrackingResult
     """
-    return track_arrival_time(detections, receivers, **options)
+    config = options["config"]
+    measurement = None
+    if options.get("clock") is not None:
+        tracks = ReceiverTracks.from_frame(receivers, outside="clamp")
+        observations = ClockedArrivalTime.observations(detections, tracks)
+        built = ClockedArrivalTime.from_config(config, observations, tracks)
+        measurement = dataclasses.replace(built, clock=options["clock"])
+    return track(
+        detections,
+        receivers,
+        config,
+        options["motion"],
+        seed=options["seed"],
+        smoothing_lag=options.get("smoothing_lag"),
+        measurement=measurement,
+    )
 
 
-class KnownClockFilter(ClockAwareFilter):
-    """Diagnostic: the arrival-time filter told the tag's emission schedule.
+@dataclasses.dataclass(frozen=True)
+class KnownClock(ClockedArrivalTime):
+    """Diagnostic: the arrival-time measurement told the tag's emission schedule.
 
     The schedule is a constant-period line (the detections are moved onto it); the clock
     starts on the true pings and is kept rigid, so what remains is what the receivers'
     geometry and the motion model allow.
+
+    Parameters
+    ----------
+    first_emission : float
+        Emission time (s) of ping 0 of the schedule.
     """
 
-    def __init__(self, *args, first_emission: float, **kwargs) -> None:
-        super().__init__(*args, **kwargs)
-        self.first_emission = first_emission
+    first_emission: float = 0.0
 
-    def _start_clock(self, obs, reacquire: bool = False) -> None:
-        super()._start_clock(obs, reacquire)
-        p = self.particles
+    def _start_clock(self, p, rows, time, state: ClockState, reacquire: bool = False) -> None:
+        super()._start_clock(p, rows, time, state, reacquire)
         period = self.clock.nominal_period
         ping = np.rint((p.emission_time - self.first_emission) / period)
         p.extra["emission_time"] = self.first_emission + ping * period
         p.extra["period"] = np.full(p.n, period)
-        self._clock_covariance = np.diag([1e-12, 1e-16, 0.0])
+        state.covariance = np.diag([1e-12, 1e-16, 0.0])
 
 
 def known_clock_run(
     case: ClockScenario, seed, n_particles: int, motion: str, duration: float
-) -> ClockFilterResult:
-    """Track ``case`` with the true emission schedule given (:class:`KnownClockFilter`).
+) -> FilterResult:
+    """Track ``case`` with the true emission schedule given (:class:`KnownClock`).
 
     Each heard ping's logged time is mapped to true time by the case's calibration and moved
     by its emission's distance from the best constant-period line through the true emissions;
-    the filter runs on the first ``duration`` seconds with the case's detection curve.
+    the filter runs on the first ``duration`` seconds with the case's detection curve. The
+    ambiguity table is ``result.collected["ambiguity"]``.
     """
     sc = case.scenario
     start, end = sc.start, min(sc.end, sc.start + duration)
@@ -236,17 +258,15 @@ def known_clock_run(
     detections = pd.DataFrame({"time": times, "receiver": heard["receiver"].astype(str)})
     detections = detections[detections["time"] < end].sort_values("time")
     tracks = ReceiverTracks.from_frame(sc.receivers, outside="clamp")
-    obs = arrival_observations(detections, tracks)
-    pf = KnownClockFilter(
-        make_motion(motion),
-        ArrivalTimeMeasurement(sound_speed=sc.sound_speed),
+    obs = KnownClock.observations(detections, tracks)
+    measurement = KnownClock(
         EmissionClockModel(period, 0.0, 0.0, 1e-8),
-        n_particles,
-        case.search_bounds,
-        silence=SilenceModel.from_observations(obs, tracks, case.detection_probability),
-        rng=seed,
+        ArrivalTimeMeasurement(sound_speed=sc.sound_speed),
+        SilenceModel.from_observations(obs, tracks, case.detection_probability),
         first_emission=intercept,
     )
+    config = TrackingConfig(period=period, measurement="arrival-time", n_particles=n_particles)
+    pf = particle_filter(config, measurement, case.search_bounds, make_motion(motion), seed=seed)
     return pf.run(obs, start, end)
 
 

@@ -53,8 +53,9 @@ Measured in ``reports/closed_loop.md`` (``hmmtrack study closed-loop``,
 :mod:`hmmtrack.experiments.closed_loop_study`).
 
 This module simulates and runs a tracker online. It does no filtering of its own
-(:func:`arrival_time_tracker` only assembles :mod:`hmmtrack.tracking.clock_filter`'s filter as
-``track_arrival_time`` does) and scores nothing (:mod:`hmmtrack.analysis.metrics`).
+(:func:`arrival_time_tracker` only assembles the filter that
+:func:`hmmtrack.tracking.pipeline.track` runs) and scores nothing
+(:mod:`hmmtrack.analysis.metrics`).
 """
 
 from __future__ import annotations
@@ -69,14 +70,11 @@ from hmmtrack.scenarios.clocks import ClockScenario
 from hmmtrack.scenarios.detection import arrival_times, detections_from_pings
 from hmmtrack.scenarios.steering import RotatingPlan, homing_memory, station
 from hmmtrack.scenarios.trajectory import Trajectory
-from hmmtrack.tracking.clock_filter import (
-    ClockAwareFilter,
-    arrival_observations,
-    default_clock_model,
-)
 from hmmtrack.tracking.config import TrackingConfig
-from hmmtrack.tracking.filter import ESTIMATE_COLUMNS
+from hmmtrack.tracking.filter import ESTIMATE_COLUMNS, ParticleFilter
 from hmmtrack.tracking.measurement.clock import to_common_time
+from hmmtrack.tracking.measurement.clocked import ClockedArrivalTime, arrival_observations
+from hmmtrack.tracking.pipeline import particle_filter
 from hmmtrack.tracking.receivers import ReceiverTracks
 
 #: what the stations are placed around: the tracker's estimate, or the true shark (a check)
@@ -106,7 +104,7 @@ class ClosedLoopRun:
         The detection log (logged times): ``time``, ``receiver``, ``transmitter``.
     observations : pandas.DataFrame
         What the tracker was given, on the common time base
-        (:func:`hmmtrack.tracking.clock_filter.arrival_observations`).
+        (:func:`hmmtrack.tracking.measurement.clocked.arrival_observations`).
     estimates : pandas.DataFrame
         The tracker's estimate every second (:data:`hmmtrack.tracking.filter.ESTIMATE_COLUMNS`).
     steering : pandas.DataFrame
@@ -320,8 +318,8 @@ def fly_closed_loop(
         The plan (its start bearing is recovered by :func:`plan_phase`).
     tracker : hmmtrack.tracking.filter.ParticleFilter
         Not yet started; stepped once a second with ``step(time, observations)`` on the
-        observations of :func:`hmmtrack.tracking.clock_filter.arrival_observations` (e.g. a
-        :class:`hmmtrack.tracking.clock_filter.ClockAwareFilter` whose search box is
+        observations of :func:`hmmtrack.tracking.measurement.clocked.arrival_observations` (e.g. a
+        filter of :func:`arrival_time_tracker` whose search box is
         ``case.search_bounds``). It must not use future detections (no silence model).
     steer_on : {"estimate", "truth"}
         Place the stations around the tracker's estimate, or around the true shark, which
@@ -483,7 +481,7 @@ def _split(frames: list, limit: float, origin: float | None = None) -> tuple[lis
 def _observations(known: pd.DataFrame, fleet: _Fleet, gps_error, time, k: int) -> pd.DataFrame:
     """The tracker's input rows for detections ``known`` (common time at or before second
     ``k``): the AUVs' logged positions at their times, interpolated as
-    :func:`hmmtrack.tracking.clock_filter.arrival_observations` does offline."""
+    :func:`hmmtrack.tracking.measurement.clocked.arrival_observations` does offline."""
     lo = max(int(np.floor(known["time"].min() - time[0])) - 1, 0)
     positions = pd.concat(
         [
@@ -502,9 +500,9 @@ def _observations(known: pd.DataFrame, fleet: _Fleet, gps_error, time, k: int) -
     return arrival_observations(known, ReceiverTracks.from_frame(positions, outside="clamp"))
 
 
-def arrival_time_tracker(config: TrackingConfig, seed: SeedLike = None) -> ClockAwareFilter:
-    """The arrival-time filter that :func:`hmmtrack.tracking.clock_filter.track_arrival_time`
-    builds for ``config``, not yet started, without silence model or smoother.
+def arrival_time_tracker(config: TrackingConfig, seed: SeedLike = None) -> ParticleFilter:
+    """The arrival-time filter that :func:`hmmtrack.tracking.pipeline.track` runs for
+    ``config``, not yet started, without silence model or smoother.
 
     Parameters
     ----------
@@ -515,26 +513,20 @@ def arrival_time_tracker(config: TrackingConfig, seed: SeedLike = None) -> Clock
 
     Returns
     -------
-    ClockAwareFilter
-        With ``track_arrival_time``'s default clock model (a period random walk of 0.3 ms
-        per ping, phase steps of 0.1 ms, the period known to 0.1 %).
+    ParticleFilter
+        With :class:`hmmtrack.tracking.measurement.clocked.ClockedArrivalTime` of the
+        configuration (its default clock model: a period random walk of 0.3 ms per ping,
+        phase steps of 0.1 ms, the period known to 0.1 %).
     """
-    options = config.arrival_time_options()
-    if options["period"] is None or options["bounds"] is None:
-        raise ValueError("arrival_time_tracker: the configuration needs a period and bounds")
-    if "detection" in options:
+    if config.measurement != "arrival-time" or config.bounds is None:
+        raise ValueError(
+            "arrival_time_tracker: the configuration needs measurement 'arrival-time' and bounds"
+        )
+    if config.detection_curve is not None:
         raise ValueError(
             "arrival_time_tracker: the closed loop runs without a detection curve (the "
             "silence model is built from the whole detection table, future pings included); "
             "remove detection_curve from the configuration"
         )
-    tempering = {"tempering_ess": options["tempering_ess"]} if "tempering_ess" in options else {}
-    return ClockAwareFilter(
-        config.motion_model(),
-        options["measurement"],
-        default_clock_model(options["period"]),
-        options["n_particles"],
-        options["bounds"],
-        rng=seed,
-        **tempering,
-    )
+    measurement = ClockedArrivalTime.from_config(config, observations=None, receivers=None)
+    return particle_filter(config, measurement, config.bounds, config.motion_model(), seed=seed)

@@ -44,6 +44,7 @@ import pandas as pd
 
 from hmmtrack import scenarios
 from hmmtrack.analysis import crb, metrics
+from hmmtrack.analysis.calibration import expected_measurements
 from hmmtrack.experiments.configs import tracking_config
 from hmmtrack.experiments.studies import PAPER_SCENARIOS, paper_scenarios
 from hmmtrack.experiments.trials import MOTIONS, child_seed, experiment_seed
@@ -159,9 +160,7 @@ def geometry_row(scenario, config: TrackingConfig, late_after: float = 300.0) ->
     sigma_z = config.measurement_covariance
     bound = crb.static_tag_crb(scored, *tag, sigma_z)
     fixed = pd.DataFrame({"time": [np.nan], "x": [tag[0]], "y": [tag[1]]})  # the moored tag
-    residual = scored[["range", "range_rate"]].to_numpy() - tracking.expected_measurements(
-        scored, fixed
-    )
+    residual = scored[["range", "range_rate"]].to_numpy() - expected_measurements(scored, fixed)
     crb_measured = crb.static_tag_crb(scored, *tag, np.cov(residual.T))
     fit, chi2 = crb.static_tag_fit(scored, tag, sigma_z)
     mirror, chi2_mirror = crb.static_tag_fit(scored, mirror_start(scenario, tag), sigma_z)

@@ -28,7 +28,7 @@ from hmmtrack.random import SeedLike, as_generator
 from hmmtrack.scenarios import Scenario
 from hmmtrack.tracking import pipeline as tracking
 from hmmtrack.tracking.filter import ParticleFilter
-from hmmtrack.tracking.measurement.range_rate import RangeRateMeasurement
+from hmmtrack.tracking.measurement.range_rate import OBSERVATION_COLUMNS, RangeRateMeasurement
 
 #: the paper's three motion models, in its order
 MOTIONS = ("baseline", "velocity", "hmm")
@@ -199,7 +199,7 @@ def track_scenario(
             bounds=scenario.bounds,
             rng=as_generator(seed),
         )
-        no_data = pd.DataFrame(columns=list(tracking.OBSERVATION_COLUMNS), dtype=float)
+        no_data = pd.DataFrame(columns=list(OBSERVATION_COLUMNS), dtype=float)
         return pf.run(no_data, scenario.start, scenario.end, snapshot_times)
     return tracking.track(
         detections,

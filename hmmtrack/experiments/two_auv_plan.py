@@ -43,13 +43,13 @@ from hmmtrack.experiments.clock_runs import (
     rms_error_from,
     score_run,
     track_arrival,
+    without_silences,
 )
 from hmmtrack.experiments.configs import arrival_config
 from hmmtrack.scenarios.realistic import realistic_shark_pursuit
 from hmmtrack.scenarios.steering import ROTATING_PLANS, RotatingPlan
-from hmmtrack.tracking.clock_filter import ClockFilterResult
 from hmmtrack.tracking.config import read_preset
-from hmmtrack.tracking.pipeline import track
+from hmmtrack.tracking.pipeline import TrackingResult, track
 
 #: steerings of ``realistic_shark_pursuit``: the recommended plan first, then the observable
 #: plan as it was without the lead (stations 30 m from the shark's position), whose
@@ -94,7 +94,7 @@ def arrival_run(
     seed: int,
     silences: bool = True,
     duration: float = DURATION,
-) -> ClockFilterResult:
+) -> TrackingResult:
     """The arrival-time filter with ``settings`` (configuration keys) on ``case``'s
     clock-corrected detections over the first ``duration`` s: default clock model; the
     case's detection curve, so that missed pings count, unless ``silences`` is False (as
@@ -104,7 +104,7 @@ def arrival_run(
     options |= config_options(arrival_config(case, settings, duration))
     options["smoothing_lag"] = smoothing_lag
     if not silences:
-        options["detection"] = None
+        options = without_silences(options)
     return track_arrival(detections, sc.receivers, options)
 
 

@@ -37,9 +37,7 @@ import pandas as pd
 from scipy.optimize import brentq
 
 from hmmtrack.scenarios.trajectory import Trajectory
-
-#: speed of sound in sea water used by the paper (m/s)
-SOUND_SPEED = 1460.0
+from hmmtrack.tracking.measurement.ranging import SOUND_SPEED
 
 #: columns of the pings table returned by :func:`simulate_pings`
 PING_COLUMNS = (

@@ -16,13 +16,13 @@ import numpy as np
 import pandas as pd
 
 from hmmtrack.scenarios.detection import (
-    SOUND_SPEED,
     GpsNoise,
     detections_from_pings,
     receiver_positions,
     simulate_pings,
 )
 from hmmtrack.scenarios.trajectory import Trajectory
+from hmmtrack.tracking.measurement.ranging import SOUND_SPEED
 
 #: margin (m) added around the discs of radius r0 to make the initialisation box
 BOUNDS_MARGIN = 100.0

@@ -17,9 +17,9 @@ and command-line values, later ones winning; :func:`measurement_covariance_with`
 standard deviations of Σ_z (``hmmtrack track --sigma-range``). The arrival-time filter's
 detection curve is a key too, e.g. ``"detection_curve": {"range_50": 160, "width": 40}``.
 
-It is not for running anything: :mod:`hmmtrack.tracking.pipeline` and
-:mod:`hmmtrack.tracking.clock_filter` use it; :meth:`TrackingConfig.motion_model` and
-:meth:`TrackingConfig.arrival_time_options` turn its settings into their arguments.
+It is not for running anything: :func:`hmmtrack.tracking.pipeline.track` uses it, the
+measurements build themselves from it (their ``from_config``), and
+:meth:`TrackingConfig.motion_model` turns its motion settings into a motion model.
 """
 
 from __future__ import annotations
@@ -35,7 +35,7 @@ from pathlib import Path
 import pandas as pd
 
 from hmmtrack.tracking.filter import RESAMPLE_WHEN
-from hmmtrack.tracking.measurement.arrival_time import ArrivalLikelihood, ArrivalTimeMeasurement
+from hmmtrack.tracking.measurement import MEASUREMENTS
 from hmmtrack.tracking.measurement.detection import LogisticDetection
 from hmmtrack.tracking.measurement.ranging import SOUND_SPEED
 from hmmtrack.tracking.resampling import RESAMPLERS
@@ -46,12 +46,6 @@ DEPTH_POLICIES = ("none", "sensor")
 #: free-text keys a configuration file may carry and that tracking ignores (the
 #: ``scenario.json`` written by ``hmmtrack simulate`` has them)
 DESCRIPTIVE_KEYS = ("name", "description", "files", "synthetic")
-
-#: measurement models: the paper's ranges and range-rates from the tag period and known
-#: initial ranges (:func:`hmmtrack.tracking.pipeline.track`), or arrival times scored against the
-#: tag's emission clock carried by each particle
-#: (:func:`hmmtrack.tracking.clock_filter.track_arrival_time`)
-MEASUREMENTS = ("range-rate", "arrival-time")
 
 #: keys that describe one data set, which a preset may not hold
 DATA_KEYS = ("period", "r0", "transmitter", "bounds", "start", "end")
@@ -88,8 +82,8 @@ class TrackingConfig:
     r0 : mapping of str to float
         Known range (m, ≥ 0) between the tag and each receiver at that receiver's first
         detection, keyed by receiver name. The paper's (range, range-rate) tracking needs one
-        per detecting receiver; arrival-time tracking (:mod:`hmmtrack.tracking.clock_filter`) needs
-        none (empty mapping, the default).
+        per detecting receiver; arrival-time tracking (:mod:`hmmtrack.tracking.measurement.clocked`)
+        needs none (empty mapping, the default).
     sound_speed : float
         Speed of sound (m/s); 1460 as the paper.
     transmitter : str or None
@@ -100,11 +94,11 @@ class TrackingConfig:
         :func:`hmmtrack.io.read_receivers` chose for them (the UTM zone of their centre by
         default; ``hmmtrack track --bounds`` converts a lon/lat box into it). ``None``
         derives it: from the receivers' first positions and ``r0``
-        (:func:`hmmtrack.tracking.pipeline.search_bounds`) for ``"range-rate"``, from
+        (:func:`hmmtrack.tracking.measurement.range_rate.search_bounds`) for ``"range-rate"``, from
         ``search_radius`` for ``"arrival-time"``.
     bounds_margin : float
         ``"range-rate"``: margin (m) added around derived bounds, and the slack of
-        :func:`hmmtrack.tracking.pipeline.check_bounds` for given ones.
+        :func:`hmmtrack.tracking.measurement.range_rate.check_bounds` for given ones.
     velocity_window : float
         Width (s) of the window over which receiver velocities are averaged from their GPS
         tracks (see :class:`hmmtrack.tracking.receivers.ReceiverTracks`); 0 takes the slope of the
@@ -113,7 +107,7 @@ class TrackingConfig:
         Σ_z of (range m, range_rate m/s): ``[[var_r, cov], [cov, var_rdot]]``; symmetric
         positive definite. Estimate it with
         :func:`hmmtrack.tracking.measurement.ranging.estimate_measurement_covariance` and
-        :func:`hmmtrack.tracking.pipeline.expected_measurements`, then inflate it: the filter's
+        :func:`hmmtrack.analysis.calibration.expected_measurements`, then inflate it: the filter's
         likelihood must also absorb the particles' spread. The default (5 m, 0.5 m/s; the
         paper gives no value) is 3-5 times the error standard deviations measured on the
         synthetic scenarios (1.1-1.5 m, 0.10-0.18 m/s); Σ_z set to (2 m, 0.2 m/s) made the
@@ -145,7 +139,10 @@ class TrackingConfig:
     ess_threshold : float
         Fraction in ``(0, 1]`` for ``resample_when="ess"``.
     measurement : {"range-rate", "arrival-time"}
-        Measurement model (:data:`MEASUREMENTS`); the paper's ``"range-rate"`` by default.
+        Measurement model, a name of :data:`hmmtrack.tracking.measurement.MEASUREMENTS`: the
+        paper's ranges and range-rates from the tag period and known initial ranges
+        (``"range-rate"``, the default), or arrival times scored against the tag's emission
+        clock carried by each particle (``"arrival-time"``).
     motion : {"baseline", "velocity", "hmm"}
         Motion model of :meth:`motion_model` (:data:`hmmtrack.tracking.pipeline.MOTIONS`);
         ``"hmm"``,
@@ -160,14 +157,15 @@ class TrackingConfig:
         (:class:`hmmtrack.tracking.measurement.arrival_time.ArrivalLikelihood`'s ``sigma``);
         ``None`` keeps that class's default.
     tempering_ess : float or None
-        ``measurement="arrival-time"`` only: fraction in ``(0, 1]`` of the particles below
-        which a correction is tempered (see
-        :class:`hmmtrack.tracking.clock_filter.ClockAwareFilter`);
-        ``None`` keeps :func:`hmmtrack.tracking.clock_filter.track_arrival_time`'s default.
+        ``measurement="arrival-time"`` only: fraction in ``(0, 1)`` of the particles below
+        which a correction is tempered (:class:`hmmtrack.tracking.tempering.Tempered`);
+        ``None`` keeps the measurement's default
+        (:data:`hmmtrack.tracking.measurement.clocked.TEMPERING_ESS`).
     search_radius : float or None
         ``measurement="arrival-time"`` only, without ``bounds``: the search box is the
         receivers' positions at the start widened by this many metres (about their
-        detection range); ``None`` keeps ``track_arrival_time``'s default.
+        detection range); ``None`` keeps
+        :data:`hmmtrack.tracking.measurement.clocked.SEARCH_RADIUS`.
     detection_curve : LogisticDetection, mapping or None
         ``measurement="arrival-time"`` only: the receivers' probability of hearing a ping
         against range, so that pings a particle says should have been heard but were not
@@ -277,7 +275,9 @@ class TrackingConfig:
         from hmmtrack.tracking.pipeline import MOTIONS  # tracking imports this module
 
         if self.measurement not in MEASUREMENTS:
-            raise ValueError(f"measurement must be one of {MEASUREMENTS}, got {self.measurement!r}")
+            raise ValueError(
+                f"measurement must be one of {tuple(MEASUREMENTS)}, got {self.measurement!r}"
+            )
         if self.motion not in MOTIONS:
             raise ValueError(f"motion must be one of {MOTIONS}, got {self.motion!r}")
         set_ = object.__setattr__
@@ -334,41 +334,6 @@ class TrackingConfig:
             if getattr(self, name) is not None
         }
         return dataclasses.replace(motion, **noise) if noise else motion
-
-    def arrival_time_options(self) -> dict:
-        """Keyword arguments of :func:`hmmtrack.tracking.clock_filter.track_arrival_time` set here.
-
-        Returns
-        -------
-        dict
-            ``period``, ``bounds``, ``start``, ``end``, ``n_particles``, ``measurement``
-            (:class:`hmmtrack.tracking.measurement.arrival_time.ArrivalTimeMeasurement` at
-            :attr:`sound_speed`, with
-            :attr:`arrival_sigma` where given) and, where given, ``tempering_ess``,
-            ``search_radius`` and ``detection`` (:attr:`detection_curve`). The motion model
-            (:meth:`motion_model`), smoother lag and seed are the caller's.
-        """
-        if self.measurement != "arrival-time":
-            raise ValueError(
-                f"arrival-time options of a configuration with measurement {self.measurement!r}"
-            )
-        likelihood = ArrivalLikelihood()
-        if self.arrival_sigma is not None:
-            likelihood = dataclasses.replace(likelihood, sigma=self.arrival_sigma)
-        options = {
-            "period": self.period,
-            "bounds": self.bounds,
-            "start": self.start,
-            "end": self.end,
-            "n_particles": self.n_particles,
-            "measurement": ArrivalTimeMeasurement(likelihood, sound_speed=self.sound_speed),
-        }
-        for name in ("tempering_ess", "search_radius"):
-            if getattr(self, name) is not None:
-                options[name] = getattr(self, name)
-        if self.detection_curve is not None:
-            options["detection"] = self.detection_curve
-        return options
 
     def override(self, **changes) -> TrackingConfig:
         """A validated copy with ``changes`` applied; ``None`` values mean "not given"."""

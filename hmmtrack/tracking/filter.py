@@ -3,10 +3,17 @@
 :class:`ParticleFilter` runs the paper's Algorithms 1 and 2 with pluggable parts:
 
 * a motion model (:mod:`hmmtrack.tracking.motion`) moves the particles every ``dt`` (1 s) seconds;
-* a measurement model (:mod:`hmmtrack.tracking.measurement.range_rate`, or any object with
-  ``loglik(particles, obs, time) -> (N,)``) weighs them when observations arrive; the
-  log weights are normalised by their log-sum-exp (no underflow: only weights that are all
-  ``-inf``, every particle impossible, are degenerate -- they are recovered, never NaN);
+* a measurement model (:class:`hmmtrack.tracking.measurement.base.Measurement`, or any object
+  with ``loglik(particles, obs, time) -> (N,)``) weighs them when observations arrive,
+  through its optional hooks when it has them: fields of its own on the particles and a
+  per-run state (``start``), a matrix form of the observations (``as_matrix``), a
+  correction with steps of its own (``score``), a recovery from degenerate weights
+  (``recover``);
+* a correction policy (:mod:`hmmtrack.tracking.tempering`) applies the log-likelihood:
+  :class:`~hmmtrack.tracking.tempering.Plain` by default, whose log weights are normalised by
+  their log-sum-exp (no underflow: only weights that are all ``-inf``, every particle
+  impossible, are degenerate -- they are recovered, never NaN), or
+  :class:`~hmmtrack.tracking.tempering.Tempered`;
 * a resampling scheme (:mod:`hmmtrack.tracking.resampling`) runs after every correction
   (``resample_when="always"``, the paper) or when the effective sample size falls below
   ``ess_threshold * N`` (``"ess"``).
@@ -18,8 +25,10 @@ convergence measure) and the effective sample size.
 Online use: ``pf.step(t, observations)`` advances to time ``t`` and returns the estimate
 there. Offline use: ``pf.iterate(observations, start, end)`` yields one estimate per second
 and ``pf.run(...)`` collects them into a :class:`FilterResult` with optional particle
-snapshots and the list of events (degenerate weights and how they were recovered,
-observations outside the time window).
+snapshots, the list of events (degenerate weights and how they were recovered,
+observations outside the time window) and the tables of the collectors (``collect=``:
+:mod:`hmmtrack.tracking.diagnostics`, :class:`hmmtrack.tracking.smoothing.Smoothed`), which
+the filter calls at fixed points of a run.
 
 Speed: between observations nothing but prediction happens, so the seconds up to the next
 observation are predicted in one compiled call (``motion.advance``) that also returns the
@@ -31,9 +40,7 @@ by timing one thread against all (:class:`ThreadChoice`), because on a shared ma
 threads are often slower. A correction is a handful of compiled or vectorised passes
 (log-likelihood, normalisation with the moments and ESS, the resampling's inverse CDF);
 :meth:`ParticleFilter.iterate` converts all observations once to the measurement model's
-matrix form when the model offers one (``as_matrix`` / ``loglik_matrix``, as
-:class:`hmmtrack.tracking.measurement.range_rate.RangeRateMeasurement` does) instead of slicing a
-table at every
+matrix form when the model offers one (``as_matrix``) instead of slicing a table at every
 correction. After each resampling :attr:`ParticleFilter.last_ancestors` holds the ancestor
 indices (for smoothers).
 
@@ -57,11 +64,12 @@ import numpy as np
 import pandas as pd
 from numba import njit
 
-from hmmtrack.analysis.metrics import sqrt_largest_eigenvalue
 from hmmtrack.random import SeedLike, as_generator
 from hmmtrack.tracking.compiled import streams as rs
+from hmmtrack.tracking.measurement.base import Score
 from hmmtrack.tracking.particles import Particles, as_bounds
-from hmmtrack.tracking.resampling import get_resampler, log_normalise
+from hmmtrack.tracking.resampling import get_resampler
+from hmmtrack.tracking.tempering import Plain
 
 __all__ = [
     "ESTIMATE_COLUMNS",
@@ -81,6 +89,28 @@ ESTIMATE_COLUMNS = ("time", "x", "y", "var_x", "var_y", "cov_xy", "sqrt_lambda1"
 PARALLEL_MIN_WORK = 20_000
 BACKENDS = ("auto", "numba", "numpy")
 RESAMPLE_WHEN = ("always", "ess")
+
+
+def sqrt_largest_eigenvalue(var_x, var_y, cov_xy) -> np.ndarray | float:
+    """√λ₁ of 2×2 covariances, the paper's closed form (its convergence measure).
+
+    Parameters
+    ----------
+    var_x, var_y, cov_xy : array_like, shape (n,), or float
+        Entries of the x-y covariance (m²).
+
+    Returns
+    -------
+    numpy.ndarray, shape (n,), or float for float inputs
+        ``sqrt((var_x + var_y)/2 + sqrt(((var_x − var_y)/2)² + cov_xy²))`` (m).
+    """
+    if not all(isinstance(a, float) for a in (var_x, var_y, cov_xy)):
+        var_x, var_y, cov_xy = (np.asarray(a, dtype=float) for a in (var_x, var_y, cov_xy))
+    # written with operators only, so that plain floats (the filter's estimate every second)
+    # take no NumPy call: about 0.3 against 3 us
+    half_sum = 0.5 * (var_x + var_y)
+    half_diff = 0.5 * (var_x - var_y)
+    return (half_sum + (half_diff * half_diff + cov_xy * cov_xy) ** 0.5) ** 0.5
 
 
 class Estimate(NamedTuple):
@@ -327,7 +357,9 @@ class FilterResult:
         taken after the correction and before resampling.
     events : pandas.DataFrame
         Columns ``time``, ``kind``, ``detail``: degenerate weights and their recovery,
-        observations outside the time window.
+        observations outside the time window, the measurement's events.
+    collected : dict of str to pandas.DataFrame
+        The collectors' tables by name (``smoothed``, ``ambiguity``, ``clock``, ...).
     """
 
     estimates: pd.DataFrame
@@ -335,6 +367,7 @@ class FilterResult:
     events: pd.DataFrame = field(
         default_factory=lambda: pd.DataFrame(columns=["time", "kind", "detail"])
     )
+    collected: dict[str, pd.DataFrame] = field(default_factory=dict)
 
 
 class ParticleFilter:
@@ -348,7 +381,9 @@ class ParticleFilter:
         (:mod:`hmmtrack.tracking.motion`).
     measurement
         Object with ``loglik(particles, obs, time) -> (N,)``; an optional attribute
-        ``columns`` lists the observation columns it needs (checked up front).
+        ``columns`` lists the observation columns it needs (checked up front), and the
+        optional hooks of :class:`hmmtrack.tracking.measurement.base.Measurement` are used
+        when present.
     n_particles : int
         Number of particles ``N``.
     bounds : (xmin, xmax, ymin, ymax)
@@ -372,6 +407,11 @@ class ParticleFilter:
         than :data:`PARALLEL_MIN_WORK` particle-steps) and otherwise whichever of one
         thread and ``numba.get_num_threads()`` (when the filter is made) has been faster per
         particle-step so far (:class:`ThreadChoice`). Results do not depend on it.
+    correction : Plain, Tempered or None
+        Correction policy (:mod:`hmmtrack.tracking.tempering`); ``None``: :class:`Plain`.
+    collect : sequence of collectors
+        Called at fixed points of a run (:mod:`hmmtrack.tracking.diagnostics`); their
+        tables are :attr:`FilterResult.collected`.
     """
 
     def __init__(
@@ -387,6 +427,8 @@ class ParticleFilter:
         dt: float = 1.0,
         backend: str = "auto",
         threads: int | None = None,
+        correction=None,
+        collect: Sequence = (),
     ) -> None:
         if int(n_particles) != n_particles or n_particles < 1:
             raise ValueError(f"n_particles must be a positive integer, got {n_particles!r}")
@@ -413,6 +455,12 @@ class ParticleFilter:
         self.dt = float(dt)
         self.compiled = compiled and backend != "numpy"
         self.threads = threads
+        self.correction = Plain() if correction is None else correction
+        self.collect = tuple(collect)
+        self._every_step = any(c.every_step for c in self.collect)
+        self._start = getattr(measurement, "start", None)
+        self._as_matrix = getattr(measurement, "as_matrix", None)
+        self._score = getattr(measurement, "score", None)
         # numba's thread count of this thread (``numba.set_num_threads``: 1 in the worker
         # processes of hmmtrack.experiments.executors, which run one trial per core)
         self._thread_choice = ThreadChoice(numba.get_num_threads())
@@ -422,17 +470,24 @@ class ParticleFilter:
         self._streams: np.ndarray | None = None
         #: ancestor indices (N,) of the last resampling (None before any); read by smoothers
         self.last_ancestors: np.ndarray | None = None
+        #: the measurement's state of this run (its ``start`` hook's; None without one)
+        self.measurement_state = None
         # (log weights, normalised weights, ESS, a point inside the cloud) after the last
         # correction or resampling, reused while the particles carry that very log-weight
-        # array (the filter and its subclasses replace log weights, never edit them in place)
+        # array (the filter and its correction policies replace log weights, never edit them
+        # in place)
         self._weighed: tuple[np.ndarray, np.ndarray, float, tuple[float, float]] | None = None
+        # whether the particles at self.time may still change (see _settle)
+        self._unsettled = False
 
     # ------------------------------------------------------------------ state
 
     def initialise(self, time: float) -> Estimate:
         """Algorithm 1 at ``time``: particles uniform in the bounds, equal weights; the
         motion model's ``initialise`` sets their motion fields (at rest for the baseline
-        and velocity models, drawn from the fitted model for the HMM)."""
+        and velocity models, drawn from the fitted model for the HMM); the measurement's
+        ``start`` hook creates its fields and its run state; the correction policy and the
+        collectors start."""
         self.particles = Particles.uniform(self.rng, self.n_particles, self.bounds)
         self.motion.initialise(self.rng, self.particles)
         self._streams = rs.new_streams(self.rng, self.n_particles)
@@ -440,7 +495,14 @@ class ParticleFilter:
         self.events = []
         self.last_ancestors = None
         self._weighed = None
-        return self.estimate()
+        estimate = self.estimate()
+        if self._start is not None:
+            self.measurement_state = self._start(self.particles, self.time, self.dt)
+        self.correction.initialised(self)
+        for collector in self.collect:
+            collector.start(self)
+        self._unsettled = True
+        return estimate
 
     def estimate(self) -> Estimate:
         """Weighted estimate of the current particles at the current time."""
@@ -455,11 +517,25 @@ class ParticleFilter:
     # ------------------------------------------------------------------ predict
 
     def predict(self, n_steps: int) -> list[Estimate]:
-        """Move the particles ``n_steps`` prediction steps; the estimate after each step."""
-        p = self._require_particles()
+        """Move the particles ``n_steps`` prediction steps; the estimate after each step.
+
+        One step at a time when a collector asks for every step (``every_step``)."""
+        self._require_particles()
         if n_steps <= 0:
             return []
-        weights, n_eff, origin = self._weights()
+        if not self._every_step:
+            self._unsettled = True
+            return self._predict(n_steps)
+        estimates = []
+        for _ in range(n_steps):
+            self._settle()
+            estimates += self._predict(1)
+            self._unsettled = True
+        return estimates
+
+    def _predict(self, n_steps: int) -> list[Estimate]:
+        p = self.particles
+        weights, n_eff, origin = self.weights()
         if self.compiled:
             moments = self._advance(p, n_steps, weights, origin)
         else:
@@ -471,7 +547,7 @@ class ParticleFilter:
         self.time = start + n_steps * self.dt
         return _estimates(start + np.arange(1, n_steps + 1) * self.dt, origin, moments, n_eff)
 
-    def _weights(self) -> tuple[np.ndarray, float, tuple[float, float]]:
+    def weights(self) -> tuple[np.ndarray, float, tuple[float, float]]:
         """Normalised weights (N,), their ESS and the weighted mean position (m) -- from the
         last correction or resampling when the log weights are still those."""
         p = self.particles
@@ -502,10 +578,38 @@ class ParticleFilter:
         Resampling is not done here (see :meth:`resample_if_due`). Degenerate weights (every
         particle impossible) are recovered as described in :meth:`_recover`.
         """
-        p = self._require_particles()
-        return self._weigh(self.measurement.loglik(p, obs, time=self.time), lambda: obs)
+        self._require_particles()
+        rows = obs if self._as_matrix is None else self._as_matrix(obs)
+        return self._correct(rows, lambda: obs)
 
-    def _weigh(self, loglik, rows) -> Estimate:
+    def _correct(self, rows, table) -> Estimate:
+        """One correction with ``rows`` (the measurement's form of the observations);
+        ``table()`` returns them as a table (only built when needed: for an error message
+        or a recovery).
+
+        The measurement scores (its ``score`` hook, else ``loglik``), the correction policy
+        applies the log-likelihood, the measurement commits (``Score.commit``), the
+        collectors record."""
+        p = self.particles
+        measurement = self.measurement
+        time = self.time
+        if self._score is None:
+            score = Score(
+                measurement.loglik(p, rows, time=time),
+                rescore=lambda particles, weights: measurement.loglik(particles, rows, time=time),
+            )
+        else:
+            score = self._score(p, rows, time, self.measurement_state, self.weights()[0])
+        for kind, detail in score.events:
+            self._record(kind, detail)
+        estimate = self.correction.correct(self, score, table)
+        if score.commit is not None:
+            score.commit(self.particles)
+        for collector in self.collect:
+            collector.corrected(self)
+        return estimate
+
+    def weigh(self, loglik, rows) -> Estimate:
         """Add ``loglik`` (N,) to the log weights and normalise (one compiled call); recover
         from degenerate weights. ``rows()`` returns the observations (only built when
         needed: for an error message or a recovery)."""
@@ -532,37 +636,19 @@ class ParticleFilter:
     def _recover(self, obs) -> None:
         """Re-initialise after degenerate weights; warn and record the event.
 
-        First on the ring of the observed range around the receiver with the shortest
-        range (radius ``range + N(0, var(r))``, any heading, at rest; other fields kept),
-        weighted by all the observations; if that is degenerate too, or the observations
-        have no ranges, uniformly in the bounds with equal weights.
+        First as the measurement's ``recover`` hook places them (the range-rate
+        measurement: on a range ring); if it has none or cannot, uniformly in the bounds
+        with equal weights (the motion fields re-drawn, other fields kept).
         """
         p = self.particles
-        action = "reinitialised uniformly in the bounds"
-        if all(c in obs for c in ("range", "receiver_x", "receiver_y")):
-            ranges = np.asarray(obs["range"], dtype=np.float64)
-            j = int(np.argmin(ranges))
-            covariance = getattr(self.measurement, "covariance", None)
-            sd = 1.0 if covariance is None else float(np.sqrt(covariance[0][0]))
-            radius = np.abs(ranges[j] + sd * self.rng.standard_normal(p.n))
-            bearing = self.rng.uniform(-np.pi, np.pi, p.n)
-            heading = self.rng.uniform(-np.pi, np.pi, p.n)
-            p.x = np.asarray(obs["receiver_x"], dtype=np.float64)[j] + radius * np.cos(bearing)
-            p.y = np.asarray(obs["receiver_y"], dtype=np.float64)[j] + radius * np.sin(bearing)
-            p.heading, p.cos_heading, p.sin_heading = heading, np.cos(heading), np.sin(heading)
-            p.speed, p.turn_rate = np.zeros(p.n), np.zeros(p.n)
-            log_weight = np.asarray(self.measurement.loglik(p, obs, time=self.time), dtype=float)
-            if np.isfinite(log_weight.max()) and not np.any(np.isnan(log_weight)):
-                p.log_weight = log_normalise(log_weight)
-                action = f"reinitialised on the {ranges[j]:.1f} m range ring of receiver " + (
-                    str(np.asarray(obs["receiver"])[j]) if "receiver" in obs else f"row {j}"
-                )
-                self._record("degenerate_weights", action)
-                return
-        fresh = Particles.uniform(self.rng, p.n, self.bounds)
-        for name in ("x", "y", "heading", "cos_heading", "sin_heading", "speed", "turn_rate"):
-            setattr(p, name, getattr(fresh, name))
-        p.log_weight = np.full(p.n, -np.log(p.n))
+        recover = getattr(self.measurement, "recover", None)
+        action = None if recover is None else recover(p, obs, self.time, self.rng)
+        if action is None:
+            action = "reinitialised uniformly in the bounds"
+            fresh = Particles.uniform(self.rng, p.n, self.bounds)
+            for name in ("x", "y", "heading", "cos_heading", "sin_heading", "speed", "turn_rate"):
+                setattr(p, name, getattr(fresh, name))
+            p.log_weight = np.full(p.n, -np.log(p.n))
         self._record("degenerate_weights", action)
 
     def _record(self, kind: str, detail: str) -> None:
@@ -570,24 +656,53 @@ class ParticleFilter:
         warnings.warn(f"t={self.time}: {kind}: {detail}", RuntimeWarning, stacklevel=3)
         self.events.append({"time": self.time, "kind": kind, "detail": detail})
 
+    def keep_weights(self, weights: np.ndarray) -> None:
+        """Keep ``weights`` (N,), the normalised weights of the particles' current log
+        weights, as :meth:`weights` returns them, with their effective sample size
+        ``1 / Σ w²`` and weighted mean position (m).
+
+        For correction policies that replace the log weights themselves
+        (:class:`hmmtrack.tracking.tempering.Tempered`); moving the particles afterwards
+        leaves the weights valid and the mean a point inside the cloud.
+        """
+        p = self.particles
+        self._weighed = (
+            p.log_weight,
+            weights,
+            1.0 / (weights @ weights),
+            (float(weights @ p.x), float(weights @ p.y)),
+        )
+
     def resample_if_due(self) -> bool:
-        """Resample per ``resample_when``; return whether it happened."""
+        """Resample per ``resample_when``; return whether it happened. The particles at
+        this time are settled first (the collectors see them corrected, not resampled)."""
         p = self._require_particles()
-        if self.resample_when == "ess" and self._weights()[1] >= self.ess_threshold * p.n:
+        self._settle()
+        if self.resample_when == "ess" and self.weights()[1] >= self.ess_threshold * p.n:
             return False
-        self._resample_now()
+        self.resample()
         return True
 
-    def _resample_now(self) -> None:
-        """Resample by the normalised weights (:meth:`_weights`): equal weights after it and
-        :attr:`last_ancestors` set."""
+    def resample(self) -> None:
+        """Resample by the normalised weights (:meth:`weights`): equal weights after it and
+        :attr:`last_ancestors` set; the collectors are told the ancestors."""
         p = self.particles
-        weights, _, origin = self._weights()
+        weights, _, origin = self.weights()
         ancestors = self._resample(self.rng, weights, p.n)
         self.particles = p.take(ancestors, equal_weights=True)
         self.last_ancestors = ancestors
         # equal weights now; the old weighted mean still lies inside the cloud
         self._weighed = (self.particles.log_weight, np.full(p.n, 1.0 / p.n), float(p.n), origin)
+        for collector in self.collect:
+            collector.resampled(self, ancestors)
+
+    def _settle(self) -> None:
+        """The particles at :attr:`time` are final (about to move or be resampled, or the
+        run ends): tell the collectors, once per time."""
+        if self._unsettled:
+            self._unsettled = False
+            for collector in self.collect:
+                collector.settled(self)
 
     # ------------------------------------------------------------------ online
 
@@ -673,12 +788,8 @@ class ParticleFilter:
         order = np.argsort(ticks, kind="stable")
         obs, ticks = obs.iloc[order], ticks[order]
         # the measurement's own matrix form of all observations, converted once (a pandas
-        # slice per correction costs more than the correction), unless a subclass corrects
-        # in its own way
-        as_matrix = getattr(self.measurement, "as_matrix", None)
-        matrix = None
-        if as_matrix is not None and type(self).correct is ParticleFilter.correct:
-            matrix = as_matrix(obs)
+        # slice per correction costs more than the correction)
+        matrix = obs if self._as_matrix is None else self._as_matrix(obs)
         snap_ticks = self._snapshot_ticks(snapshot_times, start, n_ticks)
         stops = np.union1d(np.union1d(ticks, snap_ticks), [0, n_ticks])
         # each stop's observations are rows lo:hi (one search for all stops, plain ints)
@@ -694,11 +805,8 @@ class ParticleFilter:
             predicted = self.predict(stop - current)
             yield from predicted[:-1]
             estimate = predicted[-1] if predicted else self.estimate()
-            if hi > lo and matrix is not None:
-                loglik = self.measurement.loglik_matrix(self.particles, matrix[lo:hi])
-                estimate = self._weigh(loglik, lambda lo=lo, hi=hi: obs.iloc[lo:hi])
-            elif hi > lo:
-                estimate = self.correct(obs.iloc[lo:hi])
+            if hi > lo:
+                estimate = self._correct(matrix[lo:hi], lambda lo=lo, hi=hi: obs.iloc[lo:hi])
             if stop in snap_ticks and snapshots is not None:
                 snapshots[self.time] = self.particles.to_frame()
             if hi > lo:
@@ -744,11 +852,17 @@ class ParticleFilter:
         end: float | None = None,
         snapshot_times: Sequence[float] = (),
     ) -> FilterResult:
-        """Run :meth:`iterate` to the end; estimates, snapshots and events together."""
+        """Run :meth:`iterate` to the end; estimates, snapshots, events and the collectors'
+        tables together."""
         snapshots: dict[float, pd.DataFrame] = {}
         rows = list(self.iterate(observations, start, end, snapshot_times, snapshots))
+        self._settle()
+        collected: dict[str, pd.DataFrame] = {}
+        for collector in self.collect:
+            collected.update(collector.result())
         return FilterResult(
             estimates=pd.DataFrame(rows, columns=list(ESTIMATE_COLUMNS)),
             snapshots=snapshots,
             events=pd.DataFrame(self.events, columns=["time", "kind", "detail"]),
+            collected=collected,
         )

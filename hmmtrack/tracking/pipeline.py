@@ -1,46 +1,23 @@
 """The tracking pipeline: detections + receiver positions + configuration → position estimates.
 
-:func:`build_observations` turns a detections table into the filter's observations table
-(``docs/interfaces.md``): ranges and range-rates from :mod:`hmmtrack.tracking.measurement.ranging`
-(optionally
-depth-corrected), each joined with the detecting receiver's position and velocity at the
-detection time from :class:`hmmtrack.tracking.receivers.ReceiverTracks`.
+:func:`track` runs the particle filter (:class:`hmmtrack.tracking.filter.ParticleFilter`) for
+every measurement model, the one ``config.measurement`` names
+(:data:`hmmtrack.tracking.measurement.MEASUREMENTS`): the measurement builds the observations
+from one transmitter's detections (:func:`build_observations`), derives the search box, adds
+its own particle fields, hooks and diagnostics; :func:`track` chooses the correction policy
+(the measurement's default, or tempered at ``config.tempering_ess``), runs the filter and
+returns one :class:`TrackingResult`.
 
-:func:`track` runs the paper's particle filter (:class:`hmmtrack.tracking.filter.ParticleFilter`
-with :class:`hmmtrack.tracking.measurement.range_rate.RangeRateMeasurement`) on those observations
-with one
-of the paper's motion models chosen by name (:func:`motion_model`): ``"baseline"``,
-``"velocity"`` or ``"hmm"`` (a saved :class:`hmmtrack.hmm.MovementHMM`, by default the
-bundled white-shark model ``hmmtrack/data/white_shark_hmm.json``), to which the
+The motion model is one of the paper's, chosen by name (:func:`motion_model`):
+``"baseline"``, ``"velocity"`` or ``"hmm"`` (a saved :class:`hmmtrack.hmm.MovementHMM`, by
+default the bundled white-shark model ``hmmtrack/data/white_shark_hmm.json``), to which the
 time-consistent variant adds a resting state by default (:data:`HMM_RESTING`: a tag may be
 shed, its animal dead or resting; ``motion_model("hmm", resting=None)`` switches it off).
 
-:func:`expected_measurements` gives the true (range, range-rate) of each observation
-from a known tag track, to estimate Σ_z from a calibration segment or a simulation.
-
-The first detection of each receiver anchors its ranges (its range is the given ``r0``)
-but has no range-rate, so it is not passed to the paper's (range, range-rate) likelihood;
-:func:`track` records each such detection as an ``"anchor_detection"`` event.
-
-Defaults and the paper's configuration
----------------------------------------
-The paper leaves the noise levels, measurement covariance and particle count unstated;
-the defaults here and in :class:`hmmtrack.tracking.config.TrackingConfig` were chosen on the
-synthetic analogues of its three datasets (stationary tag, swimmer, shark pursuit; 10-20
-trials per cell at 1,000 particles, fixed seeds; the measurements are quoted beside each
-constant). With them, mean (median) error after convergence over 20 trials, baseline /
-velocity / HMM: stationary tag 3.4 (3.5) / 3.3 (3.2) / 4.2 (3.6) m; swimmer 108 (132) /
-32 (3.5) / 32 (4.3) m; shark pursuit 898 (903) / 39 (12) / 37 (9.9) m (the HMM with its
-resting state, :data:`HMM_RESTING`; without it 7.2 (5.9) / 29 (4.2) / 34 (9.8) m). Most of
-the swimmer's mean comes from trials that settle on the mirror intersection of the two range
-circles (20-25 % of them for velocity and HMM); at
-:class:`~hmmtrack.tracking.config.TrackingConfig`'s
-default of 5,000 particles none of 20 did (velocity 5.4 m, HMM 5.3 m), the baseline still
-in 85 %. The shark-pursuit trials are bimodal at either count (about 9 m, or about 70 m
-when the filter follows the mirror for the first 45 minutes). The paper's algorithm stays reachable:
-``TrackingConfig(resampling="multinomial", resample_when="always")`` with
-``motion_model("hmm", variant="paper")``; on the same trials it gives HMM errors of 76 / 53 /
-325 m (the paper variant under-disperses headings, see :class:`hmmtrack.tracking.motion.HMMMotion`).
+The defaults were chosen on the synthetic analogues of the paper's three datasets; the
+measurements behind them are in reports/decisions.md ("Tracking defaults"). The paper's
+algorithm stays reachable: ``TrackingConfig(resampling="multinomial",
+resample_when="always")`` with ``motion_model("hmm", variant="paper")``.
 
 This module reads no files and computes no metrics (see :mod:`hmmtrack.io`,
 :mod:`hmmtrack.analysis.metrics`).
@@ -57,27 +34,25 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from hmmtrack.analysis import metrics
 from hmmtrack.random import SeedLike, as_generator
 from hmmtrack.tracking.config import TrackingConfig
 from hmmtrack.tracking.filter import ParticleFilter
-from hmmtrack.tracking.measurement import ranging
-from hmmtrack.tracking.measurement.range_rate import RangeRateMeasurement
+from hmmtrack.tracking.measurement import MEASUREMENTS
+from hmmtrack.tracking.measurement.base import EVENT_COLUMNS
 from hmmtrack.tracking.motion import BaselineMotion, HMMMotion, VelocityMotion, step_metres
 from hmmtrack.tracking.receivers import ReceiverTracks
+from hmmtrack.tracking.smoothing import Smoothed
+from hmmtrack.tracking.tempering import Tempered
 
 __all__ = [
     "MOTIONS",
     "HMM_RESTING",
-    "OBSERVATION_COLUMNS",
     "RestingState",
     "TrackingResult",
     "build_observations",
     "bundled_model_path",
-    "check_bounds",
-    "expected_measurements",
     "motion_model",
-    "search_bounds",
+    "particle_filter",
     "select_transmitter",
     "time_window",
     "track",
@@ -163,21 +138,6 @@ class RestingState:
 #: (±0.05 on a difference), though every resting setting measured lies a little below.
 #: ``motion_model("hmm", resting=None)`` switches it off
 HMM_RESTING = RestingState(enter_per_hour=0.5, leave_per_hour=2.0, drift_speed=0.05)
-
-#: columns of the observations table, in order (``docs/interfaces.md`` plus the
-#: transmitter and the pings missed since the receiver's previous detection)
-OBSERVATION_COLUMNS = (
-    "time",
-    "receiver",
-    "transmitter",
-    "range",
-    "range_rate",
-    "missed_pings",
-    "receiver_x",
-    "receiver_y",
-    "receiver_vx",
-    "receiver_vy",
-)
 
 
 def bundled_model_path() -> Path:
@@ -275,7 +235,7 @@ def select_transmitter(detections: pd.DataFrame, transmitter: str | None) -> pd.
     transmitter : str or None
         Transmitter to keep: full id (``A69-1602-15266``) or, when the table has a
         ``transmitter_id`` column (VUE and Fathom logs), its ID part (``15266``); ``None``
-        requires the table to hold exactly one.
+        requires the table to hold exactly one (or no ``transmitter`` column).
 
     Returns
     -------
@@ -283,6 +243,8 @@ def select_transmitter(detections: pd.DataFrame, transmitter: str | None) -> pd.
         The rows of that transmitter (the others are counted in a log message).
     """
     if "transmitter" not in detections.columns:
+        if transmitter is None:  # (arrival-time detections of one tag may carry no id)
+            return detections
         raise ValueError("detections table lacks column 'transmitter'")
     found = sorted(detections["transmitter"].astype(str).unique())
     if transmitter is None:
@@ -309,195 +271,6 @@ def select_transmitter(detections: pd.DataFrame, transmitter: str | None) -> pd.
     return detections.loc[keep]
 
 
-def _depth_corrected(table: pd.DataFrame, detections: pd.DataFrame, config: TrackingConfig):
-    """Replace ranges by horizontal ranges and recompute range-rates, per receiver."""
-    if config.depth == "none":
-        return table
-    if config.depth == "sensor":
-        if "depth" not in detections.columns:
-            raise ValueError(
-                "depth policy 'sensor' needs a 'depth' column (m) in the detections; "
-                f"found {list(detections.columns)}"
-            )
-        depth_of = detections[["time", "receiver", "depth"]].astype({"receiver": str})
-        merged = table.merge(depth_of, on=["time", "receiver"], how="left", validate="1:1")
-        depth = merged["depth"].to_numpy(dtype=float)
-        missing = np.flatnonzero(~np.isfinite(depth))
-        if missing.size:
-            raise ValueError(
-                f"depth policy 'sensor': no depth reading for detection(s) at times "
-                f"{table['time'].iloc[missing[:10]].tolist()} (receivers "
-                f"{table['receiver'].iloc[missing[:10]].tolist()})"
-            )
-    else:
-        depth = np.full(len(table), float(config.depth))
-    table = table.copy()
-    table["range"] = ranging.depth_correction(
-        table["range"].to_numpy(), depth, shallower=config.shallower
-    )
-    for _, rows in table.groupby(["receiver", "transmitter"], sort=False).groups.items():
-        table.loc[rows, "range_rate"] = ranging.range_rates(
-            table.loc[rows, "time"].to_numpy(), table.loc[rows, "range"].to_numpy()
-        )
-    return table
-
-
-def build_observations(
-    detections: pd.DataFrame, receivers: pd.DataFrame | ReceiverTracks, config: TrackingConfig
-) -> pd.DataFrame:
-    """Observations table of the filter from detections, receiver positions and config.
-
-    Parameters
-    ----------
-    detections : pandas.DataFrame
-        Detections table (``time`` s, ``receiver``, ``transmitter``; ``depth`` m for the
-        ``"sensor"`` depth policy).
-    receivers : pandas.DataFrame or ReceiverTracks
-        Receiver positions table (``docs/interfaces.md``), turned into tracks with
-        ``config.velocity_window``, or tracks built from it.
-    config : TrackingConfig
-        Period, sound speed, ``r0`` per receiver, transmitter, depth policy.
-
-    Returns
-    -------
-    pandas.DataFrame
-        One row per detection of the tracked transmitter, sorted by time, with
-        :data:`OBSERVATION_COLUMNS`: ``range`` (m), ``range_rate`` (m/s; NaN on each
-        receiver's first detection), ``missed_pings``, and the receiver's position (m) and
-        velocity (m/s) at the detection time.
-
-    Raises
-    ------
-    ValueError
-        When the transmitter is ambiguous, a receiver lacks ``r0`` or positions at a
-        detection time, or a depth correction is impossible (messages name what and where).
-    """
-    tracks = (
-        receivers
-        if isinstance(receivers, ReceiverTracks)
-        else ReceiverTracks.from_frame(receivers, velocity_window=config.velocity_window)
-    )
-    chosen = select_transmitter(detections, config.transmitter)
-    table = ranging.range_table(chosen, config.period, config.r0, config.sound_speed)
-    table = _depth_corrected(table, chosen, config)
-    unknown = sorted(set(table["receiver"]) - set(tracks.names))
-    if unknown:
-        raise ValueError(
-            f"no positions for receiver(s) {unknown} of the detections; receiver positions "
-            f"are known for {list(tracks.names)}"
-        )
-    state = np.empty((len(table), 4))
-    for receiver, rows in table.groupby("receiver", sort=False).indices.items():
-        state[rows] = np.column_stack(tracks.state(receiver, table["time"].to_numpy()[rows]))
-    for k, column in enumerate(("receiver_x", "receiver_y", "receiver_vx", "receiver_vy")):
-        table[column] = state[:, k]
-    return table[list(OBSERVATION_COLUMNS)]
-
-
-def expected_measurements(observations: pd.DataFrame, truth: pd.DataFrame) -> np.ndarray:
-    """True (range, range-rate) at each observation, from a known tag track.
-
-    For a calibration segment or a simulation: with
-    :func:`hmmtrack.tracking.measurement.ranging.estimate_measurement_covariance` it gives Σ_z from
-    data, e.g.
-    ``estimate_measurement_covariance(obs[["range", "range_rate"]], expected_measurements(
-    obs, truth))`` over the rows whose range-rate is defined.
-
-    Parameters
-    ----------
-    observations : pandas.DataFrame
-        Observations table (:func:`build_observations`).
-    truth : pandas.DataFrame
-        ``time`` (s), ``x``, ``y`` (m) of the tag; one row for a fixed tag. The tag's
-        velocity is the slope of the truth track (zero for one row).
-
-    Returns
-    -------
-    numpy.ndarray, shape (n, 2)
-        Range (m) and range-rate (m/s) the receivers' logged states and the true tag track
-        imply, with the paper's equations (as the filter predicts them for a particle).
-    """
-    times = observations["time"].to_numpy(dtype=float)
-    x, y = metrics.truth_at(truth, times)
-    vx = np.zeros_like(times)
-    vy = np.zeros_like(times)
-    if len(truth) > 1:
-        ordered = truth.sort_values("time")
-        t_true = ordered["time"].to_numpy(dtype=float)
-        vx = np.interp(times, t_true, np.gradient(ordered["x"].to_numpy(dtype=float), t_true))
-        vy = np.interp(times, t_true, np.gradient(ordered["y"].to_numpy(dtype=float), t_true))
-    dx = observations["receiver_x"].to_numpy(dtype=float) - x
-    dy = observations["receiver_y"].to_numpy(dtype=float) - y
-    dvx = observations["receiver_vx"].to_numpy(dtype=float) - vx
-    dvy = observations["receiver_vy"].to_numpy(dtype=float) - vy
-    r = np.hypot(dx, dy)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        rate = np.where(r > 0, (dx * dvx + dy * dvy) / r, 0.0)
-    return np.column_stack([r, rate])
-
-
-def search_bounds(
-    observations: pd.DataFrame, r0: dict[str, float], margin: float
-) -> tuple[float, float, float, float]:
-    """Box that holds the tag at the start: each receiver's first position ± (r0 + margin).
-
-    Parameters
-    ----------
-    observations : pandas.DataFrame
-        Observations table (:func:`build_observations`).
-    r0 : dict of str to float
-        Range at each receiver's first detection (m).
-    margin : float
-        Extra margin (m).
-
-    Returns
-    -------
-    (xmin, xmax, ymin, ymax) : tuple of float
-        The union of the receivers' squares (m): the tag lies inside each receiver's square
-        at that receiver's first detection.
-    """
-    if observations.empty:
-        raise ValueError("no observations to derive search bounds from; give bounds explicitly")
-    first = observations.drop_duplicates("receiver", keep="first")
-    reach = first["receiver"].map(r0).to_numpy(dtype=float) + margin
-    x, y = first["receiver_x"].to_numpy(), first["receiver_y"].to_numpy()
-    return (
-        float((x - reach).min()),
-        float((x + reach).max()),
-        float((y - reach).min()),
-        float((y + reach).max()),
-    )
-
-
-def check_bounds(
-    bounds: tuple[float, float, float, float],
-    observations: pd.DataFrame,
-    r0: dict[str, float],
-    margin: float,
-) -> None:
-    """Refuse search bounds that cannot hold the tag at the receivers' first detections.
-
-    At its first detection, receiver ``j`` is ``r0[j]`` from the tag, so the box must come
-    within ``r0[j] + margin`` of where the receiver was (e.g. bounds given in another frame
-    than the receivers fail this).
-
-    Raises
-    ------
-    ValueError
-        Naming the receiver, its position and the bounds.
-    """
-    xmin, xmax, ymin, ymax = bounds
-    first = observations.drop_duplicates("receiver", keep="first")
-    for name, x, y in first[["receiver", "receiver_x", "receiver_y"]].itertuples(index=False):
-        gap = np.hypot(max(xmin - x, 0.0, x - xmax), max(ymin - y, 0.0, y - ymax))
-        if gap > r0[name] + margin:
-            raise ValueError(
-                f"search bounds {tuple(bounds)} lie {gap:.0f} m from receiver {name!r} at "
-                f"({x:.1f}, {y:.1f}) m, farther than its r0 ({r0[name]:.1f} m) + margin "
-                f"({margin:.0f} m): are the bounds in the receivers' frame?"
-            )
-
-
 def time_window(
     times, config: TrackingConfig, start: float | None = None, end: float | None = None
 ) -> tuple[float, float]:
@@ -520,9 +293,36 @@ def time_window(
     return start, end
 
 
+def build_observations(
+    detections: pd.DataFrame, receivers: pd.DataFrame | ReceiverTracks, config: TrackingConfig
+) -> pd.DataFrame:
+    """The filter's observations of ``config.transmitter``, as ``config.measurement`` builds
+    them (its ``observations``: :meth:`RangeRateMeasurement.observations
+    <hmmtrack.tracking.measurement.range_rate.RangeRateMeasurement.observations>`,
+    :func:`hmmtrack.tracking.measurement.clocked.arrival_observations`).
+
+    Parameters
+    ----------
+    detections : pandas.DataFrame
+        Detections table (``time`` s, ``receiver``, ``transmitter``; what else the
+        measurement reads, e.g. ``depth`` m).
+    receivers : pandas.DataFrame or ReceiverTracks
+        Receiver positions table (``docs/interfaces.md``), or tracks built from it.
+    config : TrackingConfig
+
+    Raises
+    ------
+    ValueError
+        When the transmitter is ambiguous or the measurement cannot build its observations
+        (messages name what and where).
+    """
+    chosen = select_transmitter(detections, config.transmitter)
+    return MEASUREMENTS[config.measurement].observations(chosen, receivers, config)
+
+
 @dataclass(frozen=True)
 class TrackingResult:
-    """What :func:`track` returns.
+    """What :func:`track` returns, for every measurement.
 
     Attributes
     ----------
@@ -532,12 +332,22 @@ class TrackingResult:
     snapshots : dict of float to pandas.DataFrame
         Particles (``x``, ``y``, ..., ``weight``) at the requested snapshot times.
     events : pandas.DataFrame
-        ``time``, ``kind``, ``detail``: the filter's events (degenerate weights, ...) and
-        the anchor detections not passed to the likelihood.
+        ``time``, ``kind``, ``detail``: the filter's events (degenerate weights, a
+        re-acquired clock, ...) and the measurement's (the range-rate anchor detections not
+        passed to the likelihood), by time.
     observations : pandas.DataFrame
         The observations table built from the detections (all of them, anchors included).
     bounds : (xmin, xmax, ymin, ymax)
         Search box the particles started in (m).
+    smoothed : pandas.DataFrame or None
+        Fixed-lag smoothed estimates (:data:`hmmtrack.tracking.smoothing.SMOOTHED_COLUMNS`),
+        when a smoothing lag was given.
+    ambiguity : pandas.DataFrame or None
+        One row per correction (:data:`hmmtrack.tracking.diagnostics.AMBIGUITY_COLUMNS`),
+        when recorded (the arrival-time measurement does).
+    clock : pandas.DataFrame or None
+        The estimated emission clock after each correction
+        (:data:`hmmtrack.tracking.diagnostics.CLOCK_COLUMNS`; arrival-time measurement).
     """
 
     estimates: pd.DataFrame
@@ -545,6 +355,54 @@ class TrackingResult:
     events: pd.DataFrame
     observations: pd.DataFrame
     bounds: tuple[float, float, float, float]
+    smoothed: pd.DataFrame | None = None
+    ambiguity: pd.DataFrame | None = None
+    clock: pd.DataFrame | None = None
+
+
+def particle_filter(
+    config: TrackingConfig, measurement, bounds, motion, *, seed: SeedLike = None, collect=()
+) -> ParticleFilter:
+    """The filter :func:`track` runs, not yet started (e.g. to step it online).
+
+    Parameters
+    ----------
+    config : TrackingConfig
+        Particles, resampling, prediction step and ``tempering_ess``.
+    measurement : Measurement
+        E.g. ``MEASUREMENTS[config.measurement].from_config(config, observations, receivers)``.
+    bounds : (xmin, xmax, ymin, ymax)
+        Search box (m).
+    motion
+        Motion model.
+    seed : int, SeedSequence or Generator
+    collect : sequence of collectors
+        Besides the measurement's own (``measurement.collectors()``).
+
+    Returns
+    -------
+    ParticleFilter
+        Corrected by the measurement's default policy, or tempered at
+        ``config.tempering_ess`` when set.
+    """
+    correction = (
+        measurement.default_correction
+        if config.tempering_ess is None
+        else Tempered(config.tempering_ess)
+    )
+    return ParticleFilter(
+        motion,
+        measurement,
+        n_particles=config.n_particles,
+        bounds=bounds,
+        resampling=config.resampling,
+        resample_when=config.resample_when,
+        ess_threshold=config.ess_threshold,
+        rng=as_generator(seed),
+        dt=config.prediction_step,
+        correction=correction,
+        collect=[*measurement.collectors(), *collect],
+    )
 
 
 def track(
@@ -558,13 +416,16 @@ def track(
     start: float | None = None,
     end: float | None = None,
     snapshot_times: Sequence[float] = (),
+    smoothing_lag: int | None = None,
+    measurement=None,
+    collect: Sequence = (),
 ) -> TrackingResult:
     """Estimate the tag's position every ``config.prediction_step`` seconds.
 
     Parameters
     ----------
     detections, receivers, config
-        See :func:`build_observations`.
+        See :func:`build_observations`; ``config.measurement`` names the measurement.
     motion : {"baseline", "velocity", "hmm"}, motion model or None
         A name for :func:`motion_model`, or a motion model object; ``None`` (default): the
         one ``config`` names, with its noise (:meth:`TrackingConfig.motion_model`; "hmm" by
@@ -578,50 +439,50 @@ def track(
         unset the first and last detection of the tracked transmitter, in whole seconds.
     snapshot_times : sequence of float
         Times (s) at which to keep copies of the particles.
+    smoothing_lag : int, optional
+        Steps (s) of a fixed-lag smoother (:class:`hmmtrack.tracking.smoothing.Smoothed`);
+        its estimates are :attr:`TrackingResult.smoothed`.
+    measurement : Measurement, optional
+        The measurement to run instead of the one ``config`` builds (its class's
+        ``from_config``), e.g. an arrival-time measurement with another clock model; it
+        must be of the class ``config.measurement`` names.
+    collect : sequence of collectors
+        More collectors (:mod:`hmmtrack.tracking.diagnostics`) besides the measurement's.
 
     Returns
     -------
     TrackingResult
     """
+    kind = MEASUREMENTS[config.measurement]
     observations = build_observations(detections, receivers, config)
     if observations.empty:
         raise ValueError("no detections to track from")
+    if measurement is None:
+        measurement = kind.from_config(config, observations, receivers)
+    elif not isinstance(measurement, kind):
+        raise ValueError(
+            f"measurement {type(measurement).__name__} is not the configuration's "
+            f"{config.measurement!r} ({kind.__name__})"
+        )
     if motion is None:
         motion = config.motion_model(model)
     elif isinstance(motion, str):
         motion = motion_model(motion, model)
     elif model is not None:
         raise ValueError("model is used only with motion='hmm' given by name")
-    bounds = config.bounds or search_bounds(observations, config.r0, config.bounds_margin)
-    check_bounds(bounds, observations, config.r0, config.bounds_margin)
+    bounds = measurement.start_box(
+        observations, receivers, config, config.start if start is None else start
+    )
     start, end = time_window(observations["time"].to_numpy(), config, start, end)
-    anchors = observations["range_rate"].isna().to_numpy()
-    pf = ParticleFilter(
-        motion,
-        RangeRateMeasurement(np.array(config.measurement_covariance)),
-        n_particles=config.n_particles,
-        bounds=bounds,
-        resampling=config.resampling,
-        resample_when=config.resample_when,
-        ess_threshold=config.ess_threshold,
-        rng=as_generator(seed),
-        dt=config.prediction_step,
-    )
-    result = pf.run(observations.loc[~anchors], start, end, snapshot_times)
-    anchor_events = pd.DataFrame(
-        {
-            "time": observations.loc[anchors, "time"].to_numpy(),
-            "kind": "anchor_detection",
-            "detail": [
-                f"first detection of receiver {r}: range r0 = {d:.1f} m anchors its ranges; "
-                "no range-rate, not used in the likelihood"
-                for r, d in observations.loc[anchors, ["receiver", "range"]].itertuples(index=False)
-            ],
-        }
-    )
+    scored, measurement_events = measurement.split(observations)
+    collectors = [*collect]
+    if smoothing_lag is not None:
+        collectors.append(Smoothed(smoothing_lag))
+    pf = particle_filter(config, measurement, bounds, motion, seed=seed, collect=collectors)
+    result = pf.run(scored, start, end, snapshot_times)
     events = pd.concat(
-        [df for df in (anchor_events, result.events) if not df.empty]
-        or [pd.DataFrame(columns=["time", "kind", "detail"])],
+        [df for df in (measurement_events, result.events) if not df.empty]
+        or [pd.DataFrame(columns=list(EVENT_COLUMNS))],
         ignore_index=True,
     ).sort_values("time", kind="stable", ignore_index=True)
     return TrackingResult(
@@ -630,4 +491,5 @@ def track(
         events=events,
         observations=observations,
         bounds=tuple(float(b) for b in bounds),
+        **result.collected,
     )

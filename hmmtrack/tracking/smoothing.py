@@ -14,6 +14,10 @@ the correction (before resampling) and ``parent``: for each particle, the index 
 particle of the previous push it descends from (the resampling indices; ``None`` when no
 resampling happened in between).
 
+:class:`Smoothed` is the smoother as a collector of
+:class:`hmmtrack.tracking.filter.ParticleFilter` (``collect=[Smoothed(lag)]``): it pushes
+every step the filter settles and traces the ancestry of every resampling.
+
 This module does not run filters; it only consumes what they record.
 """
 
@@ -24,7 +28,7 @@ from collections import deque
 import numpy as np
 import pandas as pd
 
-from hmmtrack.analysis.metrics import sqrt_largest_eigenvalue
+from hmmtrack.tracking.filter import sqrt_largest_eigenvalue
 
 #: columns of the smoothed estimates table (the filter's estimates plus ``n_ancestors``)
 SMOOTHED_COLUMNS = ("time", "x", "y", "var_x", "var_y", "cov_xy", "sqrt_lambda1", "n_ancestors")
@@ -175,3 +179,44 @@ def smoothed_table(rows) -> pd.DataFrame:
     )
     raw["sqrt_lambda1"] = sqrt_largest_eigenvalue(raw["var_x"], raw["var_y"], raw["cov_xy"])
     return raw[list(SMOOTHED_COLUMNS)]
+
+
+class Smoothed:
+    """The fixed-lag smoother as a filter collector (table ``smoothed``).
+
+    Every second whose particles are final (``settled``: after the correction, before the
+    resampling) is pushed to a :class:`FixedLagSmoother`, with the ancestry of the
+    resamplings since the previous push (``resampled``: tempered steps included).
+
+    Parameters
+    ----------
+    lag : int
+        Steps (s) of the smoother; 0 reproduces the filter's own estimates.
+    """
+
+    #: the filter predicts one step at a time, so that every second is pushed
+    every_step = True
+
+    def __init__(self, lag: int) -> None:
+        self.lag = FixedLagSmoother(lag).lag  # (checked there)
+
+    def start(self, pf) -> None:
+        self._smoother = FixedLagSmoother(self.lag)
+        self._parent: np.ndarray | None = None
+        self._rows: list[tuple] = []
+
+    def settled(self, pf) -> None:
+        p = pf.particles
+        row = self._smoother.push(pf.time, p.x, p.y, p.log_weight, self._parent)
+        self._parent = None
+        if row is not None:
+            self._rows.append(row)
+
+    def resampled(self, pf, ancestors: np.ndarray) -> None:
+        self._parent = ancestors if self._parent is None else self._parent[ancestors]
+
+    def corrected(self, pf) -> None:
+        """Nothing to record (the corrected step is pushed once settled)."""
+
+    def result(self) -> dict[str, pd.DataFrame]:
+        return {"smoothed": smoothed_table(self._rows + self._smoother.finish())}

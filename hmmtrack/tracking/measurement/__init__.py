@@ -1,0 +1,15 @@
+"""Measurement models of the tracking filter, by name.
+
+:data:`MEASUREMENTS` maps each name a configuration may give (``TrackingConfig.measurement``,
+``hmmtrack track --measurement``) to its class, which follows the
+:class:`hmmtrack.tracking.measurement.base.Measurement` protocol: ``"range-rate"``, the paper's
+ranges and range-rates (:mod:`~hmmtrack.tracking.measurement.range_rate`), and
+``"arrival-time"``, arrival times scored against an emission clock carried by every particle
+(:mod:`~hmmtrack.tracking.measurement.clocked`). A new measurement registers here.
+"""
+
+from hmmtrack.tracking.measurement.clocked import ClockedArrivalTime
+from hmmtrack.tracking.measurement.range_rate import RangeRateMeasurement
+
+#: measurement classes by name
+MEASUREMENTS = {cls.name: cls for cls in (RangeRateMeasurement, ClockedArrivalTime)}

@@ -43,9 +43,7 @@ from numba import njit
 from scipy.special import erfcx, log_ndtr
 
 from hmmtrack.tracking.compiled.hermite import hermite_basis, hermite_value
-
-#: speed of sound in sea water used by the paper (m/s); fresh water is about 1416-1450
-SOUND_SPEED = 1460.0
+from hmmtrack.tracking.measurement.ranging import SOUND_SPEED
 
 #: columns an arrival-time observation table must have
 ARRIVAL_COLUMNS = ("time", "receiver", "receiver_x", "receiver_y")

@@ -12,6 +12,7 @@ of ppm. This module holds the three small models the arrival-time filter needs:
 * :class:`EmissionClockModel` - the linear-Gaussian model of the transmitter's clock that
   the filter carries per particle: a reference emission time, the period (s) and the
   period's rate of change, the period a random walk or an integrated random walk;
+  (:func:`predict_clock_covariance` is its covariance prediction, compiled);
 * :func:`local_period_ppm` and :func:`schedule_wander` - the two summaries by which a
   simulated or estimated emission schedule is compared with real tags.
 
@@ -27,6 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
+from numba import njit
 
 PPM = 1e-6
 
@@ -270,3 +272,35 @@ def local_period_ppm(emission_times, block: int = 400) -> np.ndarray:
     keep = sizes >= max(block // 2, 1)
     sums = np.add.reduceat(periods, starts)
     return (sums[keep] / sizes[keep] / mean_period - 1.0) / PPM
+
+
+@njit(cache=True)
+def predict_clock_covariance(covariance, n_pings, noise):
+    """Compiled :meth:`hmmtrack.tracking.measurement.clock.EmissionClockModel.predict_covariance`.
+
+    Parameters
+    ----------
+    covariance : numpy.ndarray, shape (3, 3)
+        Covariance of ``(e, P, R)`` at the reference emission.
+    n_pings : int
+        Pings ahead, >= 0.
+    noise : numpy.ndarray, shape (3,)
+        Per-ping variances of the phase, period and rate steps.
+
+    Returns
+    -------
+    numpy.ndarray, shape (3, 3)
+    """
+    out = covariance.copy()
+    left = np.empty((3, 3))
+    for _ in range(n_pings):
+        for j in range(3):  # left = F·out, F = [[1, 1, 0], [0, 1, 1], [0, 0, 1]]
+            left[0, j] = out[0, j] + out[1, j]
+            left[1, j] = out[1, j] + out[2, j]
+            left[2, j] = out[2, j]
+        for i in range(3):  # out = left·Fᵀ + noise
+            out[i, 0] = left[i, 0] + left[i, 1]
+            out[i, 1] = left[i, 1] + left[i, 2]
+            out[i, 2] = left[i, 2]
+            out[i, i] += noise[i]
+    return out

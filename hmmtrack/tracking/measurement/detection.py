@@ -10,6 +10,9 @@ curve ``p(r) = max_probability / (1 + exp((r − range_50) / width))`` it does t
   predicts when its ping reaches each receiver; if no detection came within a tolerance
   of that instant, the particle gains ``log(1 − p(range))``.
 
+:class:`SilenceModel` holds what the filter needs for that: the receivers, their curve and
+their detection times.
+
 :func:`fit_detection_probability` estimates the curve by maximum likelihood from
 ``(range, heard)`` pairs - from a range test, a simulation, or a first tracking pass
 (:func:`expected_pings` lists the pings an estimated track and emission schedule imply).
@@ -20,7 +23,7 @@ This module does not score arrival times (:mod:`hmmtrack.tracking.measurement.ar
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
@@ -438,7 +441,7 @@ def emission_schedule(clock: pd.DataFrame, end: float) -> np.ndarray:
     ----------
     clock : pandas.DataFrame
         Columns ``emission_time`` and ``period`` (s), one row per correction in time order,
-        as the clock table of :class:`hmmtrack.tracking.clock_filter.ClockFilterResult`.
+        as the clock table of :attr:`hmmtrack.tracking.pipeline.TrackingResult.clock`.
     end : float
         Last time to fill to (s).
 
@@ -494,3 +497,75 @@ def fit_detection_probability_from_track(
     y = np.interp(emissions, times, estimates["y"].to_numpy(dtype=float))
     table = expected_pings(emissions, x, y, receivers, detections, sound_speed, tolerance)
     return fit_detection_probability(table["range"], table["heard"])
+
+
+@dataclass(frozen=True)
+class SilenceModel:
+    """What an unheard ping tells: receivers, their detection curve and their detections.
+
+    Parameters
+    ----------
+    receivers : ReceiverTracks
+        Where the listening receivers are; a moving receiver listens within its GPS span.
+    detection : LogisticDetection
+        Detection probability against range (all receivers).
+    heard : dict of str to numpy.ndarray
+        Sorted detection times per receiver on the common time base (s).
+    tolerance : float
+        A detection this close (s) to a particle's expected arrival is that ping heard.
+    """
+
+    receivers: ReceiverTracks
+    detection: LogisticDetection
+    heard: dict[str, np.ndarray]
+    tolerance: float = 1.0
+    _grid: dict = field(default_factory=dict, init=False, repr=False, compare=False)
+    _heard_all: list = field(default_factory=list, init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        self.detection.require_unit_maximum("SilenceModel")
+
+    def heard_times(self, names) -> HeardTimes:
+        """Detection times of the receivers ``names`` in the compiled kernel's form."""
+        if not self._heard_all:  # once: every receiver's times, and their positions there
+            self._heard_all.append(HeardTimes.of(list(self.heard.values())))
+            self._heard_all.append({name: k for k, name in enumerate(self.heard)})
+        everyone, position = self._heard_all
+        return everyone.select(np.array([position[n] for n in names], dtype=np.int64))
+
+    def listening(self, time: float, step: float = 1.0, chunk: int = 1024):
+        """Receivers listening at ``time`` (within their GPS span) and their positions.
+
+        Positions are looked up on a grid of ``step`` seconds computed ``chunk`` steps
+        at a time (a filter asks once per correction, on its prediction grid).
+
+        Returns
+        -------
+        names : list of str
+        xy : numpy.ndarray, shape (K, 2)
+            Positions (m) at ``time``.
+        """
+        grid = self._grid
+        k = round((time - grid.get("start", np.inf)) / step) if grid else -1
+        if not (0 <= k < chunk and abs(grid["start"] + k * step - time) < 1e-6 * step):
+            times = time + step * np.arange(chunk)
+            span = {n: self.receivers.span(n) for n in self.receivers.names}
+            # (clipped to each span: positions outside it are never used)
+            xy = {n: np.array(self.receivers.state(n, np.clip(times, *span[n]))[:2]) for n in span}
+            grid.update(start=float(time), xy=xy, span=span)
+            k = 0
+        names = [n for n, (a, b) in grid["span"].items() if a <= time <= b]
+        return names, np.array([grid["xy"][n][:, k] for n in names]).reshape(len(names), 2)
+
+    @classmethod
+    def from_observations(
+        cls, observations: pd.DataFrame, receivers: ReceiverTracks, detection, tolerance=1.0
+    ) -> SilenceModel:
+        """Build from the arrival-time observations table the filter runs on."""
+        heard = {
+            name: np.sort(
+                observations.loc[observations["receiver"] == name, "time"].to_numpy(dtype=float)
+            )
+            for name in receivers.names
+        }
+        return cls(receivers, detection, heard, tolerance)

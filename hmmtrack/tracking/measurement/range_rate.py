@@ -1,14 +1,15 @@
-"""Measurement models of the tracking filter: log-likelihood of observations for all particles.
+"""The paper's measurement: ranges and range-rates from the tag period and known initial ranges.
 
-A measurement model has one method, ``loglik(particles, obs, time=None) -> (N,)``: the log
-density of the observations made at one filter step, for every particle at once, with
-simultaneous observations treated as independent (their log densities add). The filter
-(:mod:`hmmtrack.tracking.filter`) only ever calls that method, so any model with the same method
-plugs in (for instance :class:`hmmtrack.tracking.measurement.arrival_time.ArrivalTimeMeasurement`,
-which scores raw
-arrival times against a per-particle transmitter clock).
+:class:`RangeRateMeasurement` is the ``"range-rate"`` measurement of
+:data:`hmmtrack.tracking.measurement.MEASUREMENTS` (the
+:class:`hmmtrack.tracking.measurement.base.Measurement` protocol): it builds the observations
+table from detections (:meth:`RangeRateMeasurement.observations`: ranges and range-rates of
+:mod:`hmmtrack.tracking.measurement.ranging`, optionally depth-corrected, joined with the
+detecting receiver's position and velocity), derives the search box from the known initial
+ranges (:func:`search_bounds`, :func:`check_bounds`), recovers degenerate weights on a range
+ring, and scores particles.
 
-:class:`RangeRateMeasurement` is the paper's model (section "Correction Step"): each
+Its likelihood is the paper's (section "Correction Step") (section "Correction Step"): each
 observation ``z_j = (r, r_dot)`` from hydrophone ``j`` is Gaussian around the particle's
 predicted range and range-rate,
 
@@ -18,10 +19,15 @@ predicted range and range-rate,
 with the particle's velocity ``(vx, vy) = speed * (cos heading, sin heading)`` and a fixed
 covariance ``Sigma_z``. A positive range-rate means the tag and hydrophone move apart.
 
-The log-likelihood is a compiled loop over particles and observations;
-:func:`predicted_range_and_rate` is the same prediction in NumPy (for tests and plots).
-A model may also offer ``as_matrix(obs) -> (M, k)`` and ``loglik_matrix(particles, z)``:
-the filter then converts a whole run's observations once and scores row slices.
+with simultaneous observations independent (their log densities add). The first detection
+of each receiver anchors its ranges (its range is the given ``r0``) but has no range-rate,
+so it is not passed to the likelihood (:meth:`RangeRateMeasurement.split` makes it an
+``"anchor_detection"`` event).
+
+The log-likelihood is a compiled loop over particles and observations, on the (M, 6) matrix
+form of the observations (:meth:`RangeRateMeasurement.as_matrix`: the filter converts a
+whole run's observations once and scores row slices); :func:`predicted_range_and_rate` is
+the same prediction in NumPy (for tests and plots).
 
 This module does not resample or move particles, and does not compute ranges from
 detection times (that is :mod:`hmmtrack.tracking.measurement.ranging`).
@@ -37,9 +43,37 @@ import numpy as np
 import pandas as pd
 from numba import njit
 
+from hmmtrack.tracking.measurement import ranging
+from hmmtrack.tracking.measurement.base import no_events
 from hmmtrack.tracking.particles import Particles
+from hmmtrack.tracking.receivers import ReceiverTracks
+from hmmtrack.tracking.resampling import log_normalise
+from hmmtrack.tracking.tempering import Plain
 
-__all__ = ["RANGE_RATE_COLUMNS", "RangeRateMeasurement", "predicted_range_and_rate"]
+__all__ = [
+    "OBSERVATION_COLUMNS",
+    "RANGE_RATE_COLUMNS",
+    "RangeRateMeasurement",
+    "check_bounds",
+    "predicted_range_and_rate",
+    "search_bounds",
+]
+
+#: columns of the observations table, in order (``docs/interfaces.md`` plus the
+#: transmitter and the pings missed since the receiver's previous detection)
+OBSERVATION_COLUMNS = (
+    "time",
+    "receiver",
+    "transmitter",
+    "range",
+    "range_rate",
+    "missed_pings",
+    "receiver_x",
+    "receiver_y",
+    "receiver_vx",
+    "receiver_vy",
+)
+
 
 #: columns of the observations table (docs/interfaces.md) that this model reads
 RANGE_RATE_COLUMNS = (
@@ -97,7 +131,10 @@ class RangeRateMeasurement:
     """
 
     covariance: np.ndarray
+    name: ClassVar[str] = "range-rate"
     columns: ClassVar[tuple[str, ...]] = RANGE_RATE_COLUMNS
+    fields: ClassVar[tuple[str, ...]] = ()
+    default_correction: ClassVar[Plain] = Plain()
 
     def __post_init__(self) -> None:
         sigma = np.array(self.covariance, dtype=np.float64)
@@ -117,6 +154,121 @@ class RangeRateMeasurement:
         object.__setattr__(self, "_log_norm", -np.log(2.0 * np.pi) - 0.5 * log_det)
 
     @classmethod
+    def from_config(cls, config, observations=None, receivers=None) -> RangeRateMeasurement:
+        """The measurement of ``config.measurement_covariance`` (the data are not needed)."""
+        return cls(np.array(config.measurement_covariance))
+
+    @classmethod
+    def observations(
+        cls, detections: pd.DataFrame, receivers: pd.DataFrame | ReceiverTracks, config
+    ) -> pd.DataFrame:
+        """Observations table of one transmitter's detections, receiver positions and config.
+
+        Parameters
+        ----------
+        detections : pandas.DataFrame
+            Detections of one transmitter (``time`` s, ``receiver``, ``transmitter``;
+            ``depth`` m for the ``"sensor"`` depth policy).
+        receivers : pandas.DataFrame or ReceiverTracks
+            Receiver positions table (``docs/interfaces.md``), turned into tracks with
+            ``config.velocity_window``, or tracks built from it.
+        config : TrackingConfig
+            Period, sound speed, ``r0`` per receiver, depth policy.
+
+        Returns
+        -------
+        pandas.DataFrame
+            One row per detection, sorted by time, with :data:`OBSERVATION_COLUMNS`:
+            ``range`` (m), ``range_rate`` (m/s; NaN on each receiver's first detection),
+            ``missed_pings``, and the receiver's position (m) and velocity (m/s) at the
+            detection time.
+
+        Raises
+        ------
+        ValueError
+            When a receiver lacks ``r0`` or positions at a detection time, or a depth
+            correction is impossible (messages name what and where).
+        """
+        tracks = (
+            receivers
+            if isinstance(receivers, ReceiverTracks)
+            else ReceiverTracks.from_frame(receivers, velocity_window=config.velocity_window)
+        )
+        table = ranging.range_table(detections, config.period, config.r0, config.sound_speed)
+        table = _depth_corrected(table, detections, config)
+        unknown = sorted(set(table["receiver"]) - set(tracks.names))
+        if unknown:
+            raise ValueError(
+                f"no positions for receiver(s) {unknown} of the detections; receiver positions "
+                f"are known for {list(tracks.names)}"
+            )
+        state = np.empty((len(table), 4))
+        for receiver, rows in table.groupby("receiver", sort=False).indices.items():
+            state[rows] = np.column_stack(tracks.state(receiver, table["time"].to_numpy()[rows]))
+        for k, column in enumerate(("receiver_x", "receiver_y", "receiver_vx", "receiver_vy")):
+            table[column] = state[:, k]
+        return table[list(OBSERVATION_COLUMNS)]
+
+    def start_box(self, observations: pd.DataFrame, receivers, config, start=None):
+        """``config.bounds`` (checked by :func:`check_bounds`) or :func:`search_bounds`, with
+        ``config.r0`` and ``config.bounds_margin``."""
+        bounds = config.bounds or search_bounds(observations, config.r0, config.bounds_margin)
+        check_bounds(bounds, observations, config.r0, config.bounds_margin)
+        return tuple(float(b) for b in bounds)
+
+    def split(self, observations: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame]:
+        """The rows with a range-rate, and an ``"anchor_detection"`` event for each receiver's
+        first detection (its range is ``r0``; no range-rate, not scored)."""
+        anchors = observations["range_rate"].isna().to_numpy()
+        if not anchors.any():
+            return observations, no_events()
+        events = pd.DataFrame(
+            {
+                "time": observations.loc[anchors, "time"].to_numpy(),
+                "kind": "anchor_detection",
+                "detail": [
+                    f"first detection of receiver {r}: range r0 = {d:.1f} m anchors its ranges; "
+                    "no range-rate, not used in the likelihood"
+                    for r, d in observations.loc[anchors, ["receiver", "range"]].itertuples(
+                        index=False
+                    )
+                ],
+            }
+        )
+        return observations.loc[~anchors], events
+
+    def collectors(self) -> tuple:
+        """No diagnostics of its own."""
+        return ()
+
+    def recover(self, particles: Particles, obs, time: float, rng) -> str | None:
+        """Re-place particles whose weights degenerated on a range ring; what was done.
+
+        On the ring of the observed range around the receiver with the shortest range
+        (radius ``range + N(0, var(r))``, any heading, at rest; other fields kept), weighted
+        by all the observations ``obs`` (a table, or a mapping of columns); ``None`` (the
+        particles' positions moved, to be replaced by the filter) when that is degenerate too.
+        """
+        p = particles
+        ranges = np.asarray(obs["range"], dtype=np.float64)
+        j = int(np.argmin(ranges))
+        sd = float(np.sqrt(self.covariance[0][0]))
+        radius = np.abs(ranges[j] + sd * rng.standard_normal(p.n))
+        bearing = rng.uniform(-np.pi, np.pi, p.n)
+        heading = rng.uniform(-np.pi, np.pi, p.n)
+        p.x = np.asarray(obs["receiver_x"], dtype=np.float64)[j] + radius * np.cos(bearing)
+        p.y = np.asarray(obs["receiver_y"], dtype=np.float64)[j] + radius * np.sin(bearing)
+        p.heading, p.cos_heading, p.sin_heading = heading, np.cos(heading), np.sin(heading)
+        p.speed, p.turn_rate = np.zeros(p.n), np.zeros(p.n)
+        log_weight = np.asarray(self.loglik(p, obs, time=time), dtype=float)
+        if not (np.isfinite(log_weight.max()) and not np.any(np.isnan(log_weight))):
+            return None
+        p.log_weight = log_normalise(log_weight)
+        return f"reinitialised on the {ranges[j]:.1f} m range ring of receiver " + (
+            str(np.asarray(obs["receiver"])[j]) if "receiver" in obs else f"row {j}"
+        )
+
+    @classmethod
     def from_std(
         cls, range_std: float, range_rate_std: float, correlation: float = 0.0
     ) -> RangeRateMeasurement:
@@ -131,8 +283,9 @@ class RangeRateMeasurement:
         ----------
         particles : Particles
             N particles.
-        obs : mapping of column name to (M,) array, or DataFrame
-            M simultaneous observations with the columns :data:`RANGE_RATE_COLUMNS`.
+        obs : mapping of column name to (M,) array, DataFrame, or (M, 6) array
+            M simultaneous observations with the columns :data:`RANGE_RATE_COLUMNS`, or
+            their :meth:`as_matrix` form.
         time : float, optional
             Filter time; unused (observations are scored where the particles are now).
 
@@ -140,21 +293,33 @@ class RangeRateMeasurement:
         -------
         (N,) float; finite unless a squared error overflows (``-inf`` then).
         """
-        return self.loglik_matrix(particles, self.as_matrix(obs))
+        return _range_rate_loglik(
+            particles.x,
+            particles.y,
+            particles.cos_heading,
+            particles.sin_heading,
+            particles.speed,
+            np.ascontiguousarray(self.as_matrix(obs)),
+            self._precision,
+            self._log_norm,
+        )
 
     @staticmethod
     def as_matrix(obs) -> np.ndarray:
-        """Observations as the (M, 6) float matrix that :meth:`loglik_matrix` scores.
+        """Observations as the (M, 6) float matrix that :meth:`loglik` scores fastest.
 
         Parameters
         ----------
-        obs : mapping of column name to (M,) array, or DataFrame
-            Columns :data:`RANGE_RATE_COLUMNS` (m, m/s); other columns are ignored.
+        obs : mapping of column name to (M,) array, DataFrame, or (M, 6) array
+            Columns :data:`RANGE_RATE_COLUMNS` (m, m/s); other columns are ignored. An
+            array is taken as already converted.
 
         Returns
         -------
         (M, 6) float, columns in the order of :data:`RANGE_RATE_COLUMNS`.
         """
+        if isinstance(obs, np.ndarray):
+            return obs
         if isinstance(obs, pd.DataFrame):
             return obs[list(RANGE_RATE_COLUMNS)].to_numpy(dtype=np.float64)
         z = np.empty((len(obs["range"]), len(RANGE_RATE_COLUMNS)))
@@ -162,21 +327,100 @@ class RangeRateMeasurement:
             z[:, j] = np.asarray(obs[name], dtype=np.float64)
         return z
 
-    def loglik_matrix(self, particles: Particles, z: np.ndarray) -> np.ndarray:
-        """:meth:`loglik` of observations already in :meth:`as_matrix` form ``z`` (M, 6).
 
-        The filter converts all observations once and passes row slices here.
-        """
-        return _range_rate_loglik(
-            particles.x,
-            particles.y,
-            particles.cos_heading,
-            particles.sin_heading,
-            particles.speed,
-            np.ascontiguousarray(z),
-            self._precision,
-            self._log_norm,
+def _depth_corrected(table: pd.DataFrame, detections: pd.DataFrame, config):
+    """Replace ranges by horizontal ranges and recompute range-rates, per receiver."""
+    if config.depth == "none":
+        return table
+    if config.depth == "sensor":
+        if "depth" not in detections.columns:
+            raise ValueError(
+                "depth policy 'sensor' needs a 'depth' column (m) in the detections; "
+                f"found {list(detections.columns)}"
+            )
+        depth_of = detections[["time", "receiver", "depth"]].astype({"receiver": str})
+        merged = table.merge(depth_of, on=["time", "receiver"], how="left", validate="1:1")
+        depth = merged["depth"].to_numpy(dtype=float)
+        missing = np.flatnonzero(~np.isfinite(depth))
+        if missing.size:
+            raise ValueError(
+                f"depth policy 'sensor': no depth reading for detection(s) at times "
+                f"{table['time'].iloc[missing[:10]].tolist()} (receivers "
+                f"{table['receiver'].iloc[missing[:10]].tolist()})"
+            )
+    else:
+        depth = np.full(len(table), float(config.depth))
+    table = table.copy()
+    table["range"] = ranging.depth_correction(
+        table["range"].to_numpy(), depth, shallower=config.shallower
+    )
+    for _, rows in table.groupby(["receiver", "transmitter"], sort=False).groups.items():
+        table.loc[rows, "range_rate"] = ranging.range_rates(
+            table.loc[rows, "time"].to_numpy(), table.loc[rows, "range"].to_numpy()
         )
+    return table
+
+
+def search_bounds(
+    observations: pd.DataFrame, r0: dict[str, float], margin: float
+) -> tuple[float, float, float, float]:
+    """Box that holds the tag at the start: each receiver's first position ± (r0 + margin).
+
+    Parameters
+    ----------
+    observations : pandas.DataFrame
+        Observations table (:func:`build_observations`).
+    r0 : dict of str to float
+        Range at each receiver's first detection (m).
+    margin : float
+        Extra margin (m).
+
+    Returns
+    -------
+    (xmin, xmax, ymin, ymax) : tuple of float
+        The union of the receivers' squares (m): the tag lies inside each receiver's square
+        at that receiver's first detection.
+    """
+    if observations.empty:
+        raise ValueError("no observations to derive search bounds from; give bounds explicitly")
+    first = observations.drop_duplicates("receiver", keep="first")
+    reach = first["receiver"].map(r0).to_numpy(dtype=float) + margin
+    x, y = first["receiver_x"].to_numpy(), first["receiver_y"].to_numpy()
+    return (
+        float((x - reach).min()),
+        float((x + reach).max()),
+        float((y - reach).min()),
+        float((y + reach).max()),
+    )
+
+
+def check_bounds(
+    bounds: tuple[float, float, float, float],
+    observations: pd.DataFrame,
+    r0: dict[str, float],
+    margin: float,
+) -> None:
+    """Refuse search bounds that cannot hold the tag at the receivers' first detections.
+
+    At its first detection, receiver ``j`` is ``r0[j]`` from the tag, so the box must come
+    within ``r0[j] + margin`` of where the receiver was (e.g. bounds given in another frame
+    than the receivers fail this).
+
+    Raises
+    ------
+    ValueError
+        Naming the receiver, its position and the bounds.
+    """
+    xmin, xmax, ymin, ymax = bounds
+    first = observations.drop_duplicates("receiver", keep="first")
+    for name, x, y in first[["receiver", "receiver_x", "receiver_y"]].itertuples(index=False):
+        gap = np.hypot(max(xmin - x, 0.0, x - xmax), max(ymin - y, 0.0, y - ymax))
+        if gap > r0[name] + margin:
+            raise ValueError(
+                f"search bounds {tuple(bounds)} lie {gap:.0f} m from receiver {name!r} at "
+                f"({x:.1f}, {y:.1f}) m, farther than its r0 ({r0[name]:.1f} m) + margin "
+                f"({margin:.0f} m): are the bounds in the receivers' frame?"
+            )
 
 
 @njit(cache=True)

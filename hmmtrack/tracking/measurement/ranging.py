@@ -33,7 +33,8 @@ from collections.abc import Mapping
 import numpy as np
 import pandas as pd
 
-#: speed of sound in sea water used by the paper (m/s)
+#: speed of sound in sea water used by the paper (m/s), the one default of the package;
+#: fresh water is about 1416-1450
 SOUND_SPEED = 1460.0
 
 #: columns of the table returned by :func:`range_table`

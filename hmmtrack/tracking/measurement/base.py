@@ -1,0 +1,132 @@
+"""What a measurement model is to the tracker: the :class:`Measurement` protocol.
+
+A measurement turns detections into the filter's observations and scores particles
+against them. :func:`hmmtrack.tracking.pipeline.track` knows measurements only through this
+protocol, and :class:`hmmtrack.tracking.filter.ParticleFilter` only through ``loglik`` and
+the optional hooks below, so a new measurement (random burst intervals, TDOA across
+receivers, ...) plugs in as a class registered in
+:data:`hmmtrack.tracking.measurement.MEASUREMENTS`, touching neither.
+
+Required (checked for every registered measurement by ``tests/test_measurement_protocol.py``):
+
+* ``name``, ``columns`` (observation columns ``loglik`` reads besides ``time``; the filter
+  checks them up front) and ``fields`` (particle fields the measurement owns: it creates them
+  in ``start``; resampling carries them as ``Particles.extra``);
+* ``observations(detections, receivers, config)`` (a classmethod): the observations table of
+  one transmitter's detections;
+* ``from_config(config, observations, receivers)`` (a classmethod): the measurement a
+  configuration names, for that data;
+* ``start_box(observations, receivers, config, start)``: the search box of the initial
+  particles, ``(xmin, xmax, ymin, ymax)`` m (``config.bounds`` when given, checked);
+* ``split(observations) -> (scored, events)``: the rows the filter is given and events for
+  those it is not (the range-rate anchors: a receiver's first detection has no range-rate);
+* ``loglik(particles, obs, time) -> (N,)``: the log density of the observations made at one
+  filter step, for every particle;
+* ``collectors()``: the diagnostics a run reports (fresh collectors,
+  :mod:`hmmtrack.tracking.diagnostics`; the arrival-time measurement's ambiguity and clock);
+* ``default_correction``: the correction policy it is run with unless the configuration
+  says otherwise (:mod:`hmmtrack.tracking.tempering`).
+
+Optional hooks, used by the filter when present:
+
+* ``start(particles, time, dt) -> state``: create the owned fields at the start of a run
+  (``dt``: the filter's prediction step, s) and return the run's mutable state (kept by the
+  filter as ``measurement_state`` and handed to ``score``; e.g. the shared clock covariance
+  of the arrival-time measurement);
+* ``as_matrix(table)``: the run's observations converted once to the measurement's own
+  row-sliceable form, which ``loglik`` and ``score`` then receive instead of table slices;
+* ``score(particles, rows, time, state, weights) -> Score``: one correction's
+  log-likelihood with what the measurement does around it (see :class:`Score`); without
+  it, the filter scores with ``loglik``;
+* ``recover(particles, table, time, rng) -> str | None``: re-place the particles after
+  degenerate weights (every particle impossible) and describe what was done; ``None``
+  leaves the filter's fallback, uniform in the bounds.
+
+This module holds no measurement; the implementations are
+:mod:`hmmtrack.tracking.measurement.range_rate` and
+:mod:`hmmtrack.tracking.measurement.clocked`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, ClassVar, Protocol, runtime_checkable
+
+import numpy as np
+import pandas as pd
+
+Bounds = tuple[float, float, float, float]
+
+
+@dataclass(frozen=True)
+class Score:
+    """One correction's log-likelihood, and what its measurement does around it.
+
+    Attributes
+    ----------
+    loglik : numpy.ndarray, shape (N,)
+        Log density of the correction's observations for every particle.
+    rescore : callable
+        ``rescore(particles, weights) -> (N,)``: the same observations scored again on
+        particles that were resampled and moved since (tempered corrections); ``weights``
+        are their normalised weights.
+    commit : callable or None
+        ``commit(particles)``: what the measurement does once the weights are final (the
+        Kalman step of each particle's emission clock, computed by the last scoring).
+    events : tuple of (kind, detail)
+        Events for the filter to record (e.g. a re-acquired clock).
+    """
+
+    loglik: np.ndarray
+    rescore: Callable[[Any, np.ndarray], np.ndarray]
+    commit: Callable[[Any], None] | None = None
+    events: tuple[tuple[str, str], ...] = ()
+
+
+@runtime_checkable
+class Measurement(Protocol):
+    """A measurement model (see the module docstring for the optional hooks)."""
+
+    name: ClassVar[str]
+    columns: ClassVar[tuple[str, ...]]
+    fields: ClassVar[tuple[str, ...]]
+    default_correction: ClassVar[Any]
+
+    @classmethod
+    def observations(cls, detections: pd.DataFrame, receivers, config) -> pd.DataFrame:
+        """The observations table of one transmitter's ``detections`` (``time`` s and
+        :attr:`columns`), sorted by time."""
+        ...
+
+    @classmethod
+    def from_config(cls, config, observations: pd.DataFrame, receivers) -> Measurement:
+        """The measurement ``config`` names, for these observations and receivers."""
+        ...
+
+    def start_box(self, observations: pd.DataFrame, receivers, config, start) -> Bounds:
+        """Search box (m) that holds the tag at ``start`` (s; None: the first observation)."""
+        ...
+
+    def split(self, observations: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame]:
+        """The rows the filter scores, and events (``time``, ``kind``, ``detail``) for
+        the rows it does not."""
+        ...
+
+    def loglik(self, particles, obs, time: float | None = None) -> np.ndarray:
+        """Log density (N,) of the observations ``obs`` made at ``time`` (s)."""
+        ...
+
+    def collectors(self) -> tuple:
+        """Fresh collectors (:mod:`hmmtrack.tracking.diagnostics`) a run of this
+        measurement reports with."""
+        ...
+
+
+#: the columns of an events table
+EVENT_COLUMNS = ("time", "kind", "detail")
+
+
+def no_events() -> pd.DataFrame:
+    """An empty events table."""
+    return pd.DataFrame(columns=list(EVENT_COLUMNS))

@@ -1,0 +1,621 @@
+"""The arrival-time measurement: detections scored on their arrival times, with the
+transmitter's emission clock carried by every particle.
+
+:class:`ClockedArrivalTime` is the ``"arrival-time"`` measurement of
+:data:`hmmtrack.tracking.measurement.MEASUREMENTS` (the
+:class:`hmmtrack.tracking.measurement.base.Measurement` protocol). What it adds to the
+particle filter, through the protocol's hooks:
+
+* every particle carries the emission clock as a Kalman filter conditioned on its path
+  (a Rao-Blackwellised clock): fields ``emission_time`` (mean time of the particle's
+  reference emission, s), ``period`` (mean period, s) and ``period_rate`` (s per ping, 0
+  unless the clock model has a rate), with one ``(3, 3)`` covariance shared by all
+  particles (:class:`hmmtrack.tracking.measurement.clock.EmissionClockModel`), kept in the
+  run's :class:`ClockState`. A detection is scored on its marginal likelihood - the clock
+  integrated out - so particles are not lost for lack of the exact clock, and each
+  detection then updates every particle's clock (one compiled pass per detection over all
+  particles; committed once the correction's weights are final);
+* no known initial range: the clock phase is unknown (uniform over one period) until the
+  first detection, whose arrival time then fixes each particle's emission time given its
+  position - the exact posterior of a uniform phase, so the first detection carries no
+  weight and geometry plus motion resolve the rest;
+* when detections keep fitting no particle's clock (a clock jump, not multipath) the clock
+  is re-acquired from the latest one and a ``"clock_reacquired"`` event recorded;
+* optionally, unheard pings count against particles near a receiver
+  (:class:`hmmtrack.tracking.measurement.detection.SilenceModel`).
+
+Its corrections are tempered by default (:class:`hmmtrack.tracking.tempering.Tempered`): a
+detection scored on its arrival time is sharp (a few metres) against a cloud that may span
+kilometres. The ambiguity and clock tables of a run are collectors
+(:mod:`hmmtrack.tracking.diagnostics`).
+
+This module does not read files, and its pure scoring of a detection against given clocks
+is :mod:`hmmtrack.tracking.measurement.arrival_time`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from typing import ClassVar
+
+import numpy as np
+import pandas as pd
+from numba import njit
+
+from hmmtrack.tracking.diagnostics import Ambiguity, ClockTrace
+from hmmtrack.tracking.measurement.arrival_time import (
+    ArrivalLikelihood,
+    ArrivalTimeMeasurement,
+    check_arrival_observations,
+    emission_distance,
+    emission_range,
+    mixture_constants,
+    mixture_log_densities,
+    vertical_parts,
+    wrap_arrival,
+)
+from hmmtrack.tracking.measurement.base import Score, no_events
+from hmmtrack.tracking.measurement.clock import EmissionClockModel, predict_clock_covariance
+from hmmtrack.tracking.measurement.detection import (
+    SilenceModel,
+    silence_loglik_recent_pings,
+    softplus,
+)
+from hmmtrack.tracking.receivers import ReceiverTracks
+from hmmtrack.tracking.tempering import Tempered
+
+__all__ = [
+    "CLOCK_FIELDS",
+    "SEARCH_RADIUS",
+    "TEMPERING_ESS",
+    "ClockState",
+    "ClockedArrivalTime",
+    "arrival_observations",
+    "default_clock_model",
+]
+
+#: particle fields of the emission clock's mean (s, s, s per ping)
+CLOCK_FIELDS = ("emission_time", "period", "period_rate")
+#: half-width (m) added around the receivers for the search box without bounds: about a
+#: receiver's detection range
+SEARCH_RADIUS = 1000.0
+#: tempered corrections below this fraction of effective particles; two receivers on a
+#: fast-turning plan need 0.6 (benchmarks/bench_two_auv_plan.py)
+TEMPERING_ESS = 0.3
+_NO_ROWS = pd.DataFrame()
+
+
+@njit(cache=True)
+def _clock_row_kernel(
+    residual, ping, distance, weights, emission_time, period, rate, loglik, sigma,
+    late_fraction, late_mean, uniform_fraction, gain, range_50, width, total, direct,
+):  # fmt: skip
+    """Score one detection against every particle's clock and update the clocks in place.
+
+    Adds to ``loglik`` the marginal log density of each residual (innovation standard
+    deviation ``sigma``; :func:`hmmtrack.tracking.measurement.arrival_time.mixture_log_densities`,
+    into the scratch
+    arrays ``total`` and ``direct``, shape (N,)) and, when ``range_50`` is not NaN, the
+    logistic ``log p(distance)`` of being heard; moves each clock
+    ``(emission_time, period, rate)`` to the matched ping and applies the Kalman gain (3,)
+    scaled by the probability that the arrival is direct.
+
+    Returns
+    -------
+    accepted : float
+        Weighted mean probability that the arrival is direct (scales the covariance update).
+    closest : float
+        Smallest absolute residual (s).
+    """
+    accepted = 0.0
+    closest = math.inf
+    constants = mixture_constants(sigma, late_fraction, late_mean, uniform_fraction)
+    mixture_log_densities(residual, period, constants, total, direct)
+    for i in range(residual.size):
+        eps = residual[i]
+        loglik[i] += total[i]
+        if not math.isnan(range_50):  # log p = −softplus((distance − range_50) / width)
+            loglik[i] -= softplus((distance[i] - range_50) / width)
+        m = ping[i]
+        shift = direct[i] * eps
+        emission_time[i] += m * period[i] + 0.5 * m * (m - 1.0) * rate[i] + gain[0] * shift
+        period[i] += m * rate[i] + gain[1] * shift
+        rate[i] += gain[2] * shift
+        accepted += weights[i] * direct[i]
+        closest = min(closest, abs(eps))
+    return accepted, closest
+
+
+@njit(cache=True)
+def _correction_kernel(
+    x, y, speed, cos_heading, sin_heading, tag_depth, weights, emission_time, period, rate,
+    arrival, receiver_x, receiver_y, row_offset, time, sound_speed, covariance, noise,
+    measurement_sd, late_fraction, late_mean, uniform_fraction, range_50, width, lock_sigmas,
+    loglik,
+):  # fmt: skip
+    """Score detections one after the other and update every particle's clock in place.
+
+    For each row: match every particle's clock to the ping that fits
+    (:func:`hmmtrack.tracking.measurement.arrival_time.match_particle`), move the shared covariance
+    to the median
+    matched ping, score and update (:func:`_clock_row_kernel`).
+
+    Returns
+    -------
+    covariance : numpy.ndarray, shape (3, 3)
+        Shared clock covariance after the last row.
+    lost : bool
+        Whether some row fitted no particle within ``lock_sigmas`` innovation sds.
+    """
+    n = x.size
+    vx = speed * cos_heading
+    vy = speed * sin_heading
+    residual = np.empty(n)
+    ping = np.empty(n)
+    distance = np.empty(n)
+    total = np.empty(n)  # scratch of _clock_row_kernel
+    direct = np.empty(n)
+    lost = False
+    slowness = 1.0 / sound_speed
+    for j in range(arrival.size):
+        lag = time - arrival[j]
+        # match_particle in two loops: the ranges' compiles to vector code
+        for i in range(n):
+            distance[i] = emission_distance(
+                x[i], y[i], vx[i], vy[i], tag_depth[i] + row_offset[j], lag, receiver_x[j],
+                receiver_y[j], slowness,
+            )  # fmt: skip
+        lo, hi, missing = math.inf, -math.inf, False  # range of the matched pings
+        for i in range(n):
+            residual[i], ping[i] = wrap_arrival(
+                distance[i], emission_time[i], period[i], rate[i], arrival[j], slowness
+            )
+            lo = min(lo, ping[i])
+            hi = max(hi, ping[i])
+            missing |= math.isnan(ping[i])
+        ahead = max(int(np.nan if missing else _median_in_range(ping, lo, hi)), 0)
+        predicted = predict_clock_covariance(covariance, ahead, noise)
+        innovation_var = predicted[0, 0] + measurement_sd * measurement_sd
+        sigma = math.sqrt(innovation_var)
+        gain = predicted[:, 0] / innovation_var
+        accepted, closest = _clock_row_kernel(
+            residual, ping, distance, weights, emission_time, period, rate, loglik, sigma,
+            late_fraction, late_mean, uniform_fraction, gain, range_50, width, total, direct,
+        )  # fmt: skip
+        lost = lost or closest > lock_sigmas * sigma
+        covariance = predicted - accepted * innovation_var * np.outer(gain, gain)
+    return covariance, lost
+
+
+@njit(cache=True)
+def _median_ping(ping):
+    """``np.median`` of whole numbers (N,) held as floats, by counting them (linear in N)
+    when they span at most :data:`MEDIAN_COUNT_SPAN` values (the matched pings of a cloud
+    mostly agree); by ``np.median`` otherwise."""
+    lo = hi = ping[0]
+    for value in ping:
+        if math.isnan(value):
+            return np.nan
+        lo = min(lo, value)
+        hi = max(hi, value)
+    return _median_in_range(ping, lo, hi)
+
+
+@njit(cache=True)
+def _median_in_range(ping, lo, hi):
+    """:func:`_median_ping` of pings (no NaN) known to lie in ``[lo, hi]``."""
+    if not hi - lo < MEDIAN_COUNT_SPAN:
+        return np.median(ping)
+    counts = np.zeros(int(hi - lo) + 1, dtype=np.int64)
+    for value in ping:
+        counts[int(value - lo)] += 1
+    n = ping.size
+    below = (n - 1) // 2  # the middle order statistics (0-based): below and n // 2
+    first = -1
+    seen = 0
+    for k in range(counts.size):
+        seen += counts[k]
+        if first < 0 and seen > below:
+            first = k
+        if seen > n // 2:
+            return 0.5 * ((lo + first) + (lo + k))
+    return np.nan  # not reached
+
+
+#: span of matched pings up to which :func:`_median_ping` counts instead of sorting
+MEDIAN_COUNT_SPAN = 4096
+
+
+def default_clock_model(period: float) -> EmissionClockModel:
+    """The tag clock model of the arrival-time measurement when none is given.
+
+    ``EmissionClockModel(period, period_step_sd=3e-4, phase_step_sd=1e-4,
+    initial_period_sd=1e-3·period)``: a period random walk of 0.3 ms per ping, the size of a
+    real tag's block-to-block changes (reasons in reports/decisions.md, "Arrival-time
+    measurement").
+
+    Parameters
+    ----------
+    period : float
+        Nominal transmitter period (s).
+    """
+    return EmissionClockModel(period, 3e-4, 1e-4, 1e-3 * period)
+
+
+def arrival_observations(detections: pd.DataFrame, receivers: ReceiverTracks) -> pd.DataFrame:
+    """The arrival-time filter's input: detections with receiver positions at arrival.
+
+    Parameters
+    ----------
+    detections : pandas.DataFrame
+        ``time`` (common time base, s; see
+        :func:`hmmtrack.tracking.measurement.clock.to_common_time`),
+        ``receiver``; ``depth`` (m) is kept for depth-sensor tags.
+    receivers : ReceiverTracks
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``time``, ``receiver``, ``receiver_x``, ``receiver_y`` (m) and ``depth`` when
+        given, sorted by time.
+    """
+    missing = [c for c in ("time", "receiver") if c not in detections.columns]
+    if missing:
+        raise ValueError(f"detections lack column(s) {missing}; expected time, receiver")
+    unknown = sorted(set(detections["receiver"].astype(str)) - set(receivers.names))
+    if unknown:
+        rows = np.flatnonzero(detections["receiver"].astype(str).isin(unknown).to_numpy())
+        raise ValueError(
+            f"detections rows {rows[:10].tolist()} name receiver(s) {unknown} that have no "
+            f"positions; receivers with positions: {list(receivers.names)}"
+        )
+    columns = ["time", "receiver"] + (["depth"] if "depth" in detections.columns else [])
+    obs = detections[columns].copy()
+    check_arrival_observations(obs.assign(receiver_x=0.0, receiver_y=0.0), "detections")
+    obs["receiver"] = obs["receiver"].astype(str)
+    obs["receiver_x"] = np.nan
+    obs["receiver_y"] = np.nan
+    for name in receivers.names:
+        rows = (obs["receiver"] == name).to_numpy()
+        if rows.any():
+            x, y, _, _ = receivers.state(name, obs["time"].to_numpy(dtype=float)[rows])
+            obs.loc[rows, "receiver_x"] = x
+            obs.loc[rows, "receiver_y"] = y
+    return obs.sort_values("time", kind="stable").reset_index(drop=True)
+
+
+def _tracks(receivers) -> ReceiverTracks:
+    """Receiver tracks of a positions table (positions held outside their GPS span)."""
+    if isinstance(receivers, ReceiverTracks):
+        return receivers
+    return ReceiverTracks.from_frame(receivers, outside="clamp")
+
+
+@dataclass
+class ClockState:
+    """The mutable state of one run of :class:`ClockedArrivalTime` (its ``start`` hook's).
+
+    Attributes
+    ----------
+    dt : float
+        The filter's prediction step (s): detections up to ``time + dt/2`` are in a
+        correction at ``time``.
+    covariance : numpy.ndarray, shape (3, 3)
+        Covariance of the clock ``(emission_time, period, period_rate)`` shared by all
+        particles; NaN until the first detection.
+    started : bool
+        Whether the clock was started from a first detection.
+    lost : int
+        Corrections in a row with a detection that fitted no particle's clock.
+    silence_from : float
+        Unheard pings count from this time on (s): the last correction's cut.
+    """
+
+    dt: float
+    covariance: np.ndarray = field(default_factory=lambda: np.full((3, 3), np.nan))
+    started: bool = False
+    lost: int = 0
+    silence_from: float = -np.inf
+
+
+@dataclass(frozen=True)
+class ClockedArrivalTime:
+    """Arrival-time measurement with a Rao-Blackwellised emission clock (module docstring).
+
+    Parameters
+    ----------
+    clock : EmissionClockModel
+        The tag's clock model (:func:`default_clock_model` of the nominal period, or e.g.
+        :meth:`EmissionClockModel.temperature_drift` for tags known to drift smoothly).
+    arrival : ArrivalTimeMeasurement
+        Residual density and speed of sound.
+    silence : SilenceModel, optional
+        Detection probability as information: every detection adds ``log p(range)`` and
+        every unheard ping ``log(1 − p(range))`` to a particle's log weight.
+    lock_sigmas : float
+        A detection fits no particle when its residual exceeds this many predicted
+        standard deviations for every particle.
+    lost_corrections : int
+        After this many corrections in a row with a detection that fits no particle (more
+        than multipath can explain), the clock is re-acquired from the latest one.
+    search_radius : float
+        Without bounds, the search box is the receivers' positions at the start widened by
+        this many metres.
+    """
+
+    clock: EmissionClockModel
+    arrival: ArrivalTimeMeasurement = field(default_factory=ArrivalTimeMeasurement)
+    silence: SilenceModel | None = None
+    lock_sigmas: float = 10.0
+    lost_corrections: int = 3
+    search_radius: float = SEARCH_RADIUS
+    name: ClassVar[str] = "arrival-time"
+    columns: ClassVar[tuple[str, ...]] = ArrivalTimeMeasurement.columns
+    fields: ClassVar[tuple[str, ...]] = CLOCK_FIELDS
+    default_correction: ClassVar[Tempered] = Tempered(TEMPERING_ESS)
+
+    def __post_init__(self) -> None:
+        if not (self.lock_sigmas > 0 and int(self.lost_corrections) >= 1):
+            raise ValueError(
+                f"lock_sigmas must be positive and lost_corrections at least 1, got "
+                f"{self.lock_sigmas} and {self.lost_corrections}"
+            )
+        if not (np.isfinite(self.search_radius) and self.search_radius > 0):
+            raise ValueError(f"search_radius must be positive (m), got {self.search_radius}")
+        clock = self.clock
+        noise = np.array([clock.phase_step_sd**2, clock.period_step_sd**2, clock.rate_step_sd**2])
+        object.__setattr__(self, "_noise", noise)
+
+    # ------------------------------------------------------------------ from data
+
+    @classmethod
+    def observations(cls, detections: pd.DataFrame, receivers, config=None) -> pd.DataFrame:
+        """:func:`arrival_observations` with the receivers' positions held outside their
+        GPS span."""
+        return arrival_observations(detections, _tracks(receivers))
+
+    @classmethod
+    def from_config(cls, config, observations: pd.DataFrame, receivers) -> ClockedArrivalTime:
+        """The measurement of ``config``: :func:`default_clock_model` of ``config.period``,
+        :class:`ArrivalLikelihood` with ``config.arrival_sigma`` where given, the speed of
+        sound, ``config.search_radius`` and, with ``config.detection_curve``, a silence model
+        of these observations and receivers."""
+        likelihood = ArrivalLikelihood()
+        if config.arrival_sigma is not None:
+            likelihood = replace(likelihood, sigma=config.arrival_sigma)
+        silence = None
+        if config.detection_curve is not None:
+            silence = SilenceModel.from_observations(
+                observations, _tracks(receivers), config.detection_curve
+            )
+        return cls(
+            default_clock_model(config.period),
+            ArrivalTimeMeasurement(likelihood, sound_speed=config.sound_speed),
+            silence,
+            search_radius=SEARCH_RADIUS if config.search_radius is None else config.search_radius,
+        )
+
+    def start_box(self, observations: pd.DataFrame, receivers, config, start=None):
+        """``config.bounds``, else the receivers' positions at ``start`` (s; default: the
+        first observation) widened by :attr:`search_radius` (no initial range needed)."""
+        if config is not None and config.bounds is not None:
+            return tuple(float(b) for b in config.bounds)
+        tracks = _tracks(receivers)
+        at = float(observations["time"].min()) if start is None else float(start)
+        xs, ys = zip(*(tracks.state(name, at)[:2] for name in tracks.names), strict=True)
+        xs, ys = np.concatenate(xs), np.concatenate(ys)
+        radius = self.search_radius
+        return (
+            float(xs.min() - radius),
+            float(xs.max() + radius),
+            float(ys.min() - radius),
+            float(ys.max() + radius),
+        )
+
+    def split(self, observations: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame]:
+        """Every detection is scored: all rows, no events."""
+        return observations, no_events()
+
+    def collectors(self) -> tuple:
+        """Fresh :class:`~hmmtrack.tracking.diagnostics.Ambiguity` and
+        :class:`~hmmtrack.tracking.diagnostics.ClockTrace` collectors for a run."""
+        return (Ambiguity(), ClockTrace())
+
+    # ------------------------------------------------------------------ scoring
+
+    def loglik(self, particles, obs: pd.DataFrame, time: float | None = None) -> np.ndarray:
+        """Log density (N,) of detections ``obs`` given each particle's clock mean
+        (:meth:`ArrivalTimeMeasurement.loglik`; in a run the filter scores with
+        :meth:`score`, which integrates the clock out)."""
+        return self.arrival.loglik(particles, obs, time)
+
+    def start(self, particles, time: float, dt: float = 1.0) -> ClockState:
+        """Clock fields unknown (NaN; no rate) until a detection; a fresh run state."""
+        n = particles.n
+        particles.extra.update(
+            emission_time=np.full(n, np.nan), period=np.full(n, np.nan), period_rate=np.zeros(n)
+        )
+        return ClockState(dt=float(dt))
+
+    @staticmethod
+    def as_matrix(table: pd.DataFrame) -> np.ndarray:
+        """Detections as an (M, 5) matrix: arrival time (s), receiver x and y (m), and the
+        vertical offset (tag minus receiver depth, m) without and with a particle depth
+        field (:func:`hmmtrack.tracking.measurement.arrival_time.vertical_parts`)."""
+        with_depth = np.zeros(len(table))
+        if "receiver_depth" in table:
+            with_depth -= table["receiver_depth"].to_numpy(dtype=float)
+        without = with_depth.copy()
+        if "depth" in table:
+            without += table["depth"].to_numpy(dtype=float)
+        columns = [table[c].to_numpy(dtype=float) for c in ("time", "receiver_x", "receiver_y")]
+        return np.column_stack([*columns, without, with_depth])
+
+    def score(self, particles, rows: np.ndarray, time: float, state: ClockState, weights):
+        """One correction's marginal log-likelihood (see the module docstring).
+
+        Starts the clock on the first detection; re-acquires it (and says so in the events)
+        after :attr:`lost_corrections` corrections in a row with a detection that fitted no
+        particle. The clocks' Kalman step of the latest scoring is committed once the
+        weights are final.
+        """
+        if not state.started:
+            self._start_clock(particles, rows, time, state)
+        latest = []
+
+        def scored(particles, weights, state=state):
+            loglik, update, lost = self._loglik(particles, rows, time, state, weights)
+            latest[:] = [update]
+            return loglik, lost
+
+        loglik, lost = scored(particles, weights)
+        state.lost = state.lost + 1 if lost else 0
+        events = ()
+        if state.lost >= self.lost_corrections:
+            state.lost = 0
+            self._start_clock(particles, rows, time, state, reacquire=True)
+            events = (("clock_reacquired", f"no particle fitted the {len(rows)} detection(s)"),)
+            loglik, _ = scored(particles, weights)
+
+        def commit(particles):
+            clocks, covariance, silence_from = latest[0]
+            particles.extra.update(zip(CLOCK_FIELDS, clocks, strict=True))
+            state.covariance = covariance
+            state.silence_from = silence_from
+
+        return Score(
+            loglik,
+            rescore=lambda particles, weights: scored(particles, weights)[0],
+            commit=commit,
+            events=events,
+        )
+
+    def _start_clock(self, p, rows, time, state: ClockState, reacquire: bool = False) -> None:
+        """Set every particle's emission time from the first detection of ``rows``.
+
+        Given a particle's position, a uniform prior on the phase and one arrival time
+        leave only the measurement noise on its emission time. A re-acquisition keeps the
+        particles' periods.
+        """
+        arrival, receiver_x, receiver_y, offset = (float(v[0]) for v in _parts(p, rows[:1]))
+        sound_speed = self.arrival.sound_speed
+        r = emission_range(
+            p.x,
+            p.y,
+            p.speed * p.cos_heading,
+            p.speed * p.sin_heading,
+            time - arrival,
+            receiver_x,
+            receiver_y,
+            vertical_parts(p, _NO_ROWS)[0] + offset,
+            sound_speed,
+        )
+        p.extra["emission_time"] = arrival - r / sound_speed
+        covariance = self.clock.initial_covariance(self.arrival.likelihood.sigma)
+        if reacquire:
+            covariance[1, 1] = max(covariance[1, 1], float(np.var(p.period)))
+            covariance[2, 2] = max(covariance[2, 2], float(np.var(p.period_rate)))
+        else:
+            p.extra["period"] = np.full(p.n, self.clock.nominal_period)
+            p.extra["period_rate"] = np.zeros(p.n)
+            # silences count from the first ping on: earlier pings may predate the tag
+            state.silence_from = float(np.min(p.emission_time))
+        state.covariance = covariance
+        state.started = True
+
+    def _loglik(self, p, rows, time: float, state: ClockState, weights):
+        """Marginal log-likelihood (N,) of ``rows`` per particle, the pending update
+        ``(clocks, covariance, silence_from)`` and whether some detection fitted no
+        particle's clock within :attr:`lock_sigmas`.
+
+        Rows are taken one after the other: each is scored against every particle's
+        predicted clock (mean and shared covariance moved to the ping that fits), then the
+        clock is updated with it (Kalman gain scaled by the posterior probability that the
+        detection is a direct arrival), so simultaneous detections of one ping are scored
+        jointly. With a silence model, it includes ``log p(range)`` of each detection and
+        the unheard pings since the last correction.
+        """
+        likelihood = self.arrival.likelihood
+        clocks = tuple(np.array(p.extra[name], dtype=float) for name in CLOCK_FIELDS)
+        loglik = np.zeros(p.n)
+        detection = None if self.silence is None else self.silence.detection
+        arrival, receiver_x, receiver_y, row_offset = _parts(p, rows)
+        covariance, lost = _correction_kernel(
+            p.x,
+            p.y,
+            p.speed,
+            p.cos_heading,
+            p.sin_heading,
+            vertical_parts(p, _NO_ROWS)[0],  # the particles' depths
+            weights,
+            *clocks,
+            arrival,
+            receiver_x,
+            receiver_y,
+            row_offset,
+            float(time),
+            self.arrival.sound_speed,
+            state.covariance,
+            self._noise,
+            likelihood.sigma,
+            likelihood.late_fraction,
+            likelihood.late_mean,
+            likelihood.uniform_fraction,
+            np.nan if detection is None else detection.range_50,
+            np.nan if detection is None else detection.width,
+            self.lock_sigmas,
+            loglik,
+        )
+        silence_from = state.silence_from
+        if self.silence is not None:
+            silence, silence_from = self._silence_loglik(p, time, state)
+            loglik = loglik + silence
+        # (the sum of finite log-likelihoods of this size is finite)
+        if loglik.shape != (p.n,) or not math.isfinite(loglik.sum()):
+            raise ValueError(
+                f"arrival-time log-likelihood not finite at time {time} for detections at "
+                f"{arrival.tolist()} (receivers at x {receiver_x.tolist()}, "
+                f"y {receiver_y.tolist()})"
+            )
+        return loglik, (clocks, covariance, silence_from), lost
+
+    def _silence_loglik(self, p, time: float, state: ClockState) -> tuple[np.ndarray, float]:
+        """Unheard pings whose expected arrival fell since the last correction, and the
+        start of the next window.
+
+        Each particle's pings are stepped by its period; a period rate is left out (over
+        the at most 8 pings looked at it moves an arrival by well under ``tolerance``).
+        """
+        s = self.silence
+        window_start = state.silence_from
+        cut = time + 0.5 * state.dt - s.tolerance  # detections up to time + dt/2 are in
+        if cut <= window_start:
+            return np.zeros(p.n), window_start
+        # pings of a particle whose arrival can fall in the window, with one to spare
+        n_back = min(int(np.ceil((cut - window_start) / self.clock.nominal_period)) + 1, 8)
+        listening, at = s.listening(time, state.dt)
+        if not listening:
+            return np.zeros(p.n), cut
+        loglik = silence_loglik_recent_pings(
+            p.emission_time,
+            p.period,
+            p.x,
+            p.y,
+            at,
+            n_back,
+            s.heard_times(listening),
+            window_start,
+            cut,
+            s.detection,
+            s.tolerance,
+            self.arrival.sound_speed,
+        )
+        return loglik, cut
+
+
+def _parts(particles, rows: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Arrival times, receiver x and y and vertical offsets (M,) of :meth:`as_matrix` rows,
+    the offset for particles with or without a ``depth`` field."""
+    offset = 4 if getattr(particles, "depth", None) is not None else 3
+    return tuple(np.ascontiguousarray(rows[:, k]) for k in (0, 1, 2, offset))
