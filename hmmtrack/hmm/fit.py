@@ -1,8 +1,9 @@
 """Fitting movement HMMs: EM (Baum-Welch) with multi-start, then a direct-likelihood polish.
 
 :class:`MovementHMMEstimator` is the scikit-learn-shaped estimator (hyper-parameters in
-``__init__``; ``fit`` returns ``self``; learned attributes ``model_``, ``starts_``,
-``monitor_``; ``predict``, ``predict_proba``, ``score``, ``sample``) and
+``__init__``, read and set with ``get_params`` / ``set_params`` so that
+``sklearn.base.clone`` works; ``fit`` returns ``self``; learned attributes ``model_``,
+``starts_``, ``monitor_``; ``predict``, ``predict_proba``, ``score``, ``sample``) and
 :func:`fit_movement_hmm` the one-call convenience. One fit is:
 
 1. for each of ``n_starts`` starts (seeds from ``SeedSequence.spawn``, run serially or in
@@ -26,6 +27,7 @@ diagnostics; those live in the sibling modules.
 from __future__ import annotations
 
 import concurrent.futures
+import inspect
 import logging
 import multiprocessing
 import warnings
@@ -675,6 +677,33 @@ class MovementHMMEstimator:
         self.polish = polish
         self.dt = dt
         self.step_unit = step_unit
+
+    @classmethod
+    def _parameter_names(cls) -> list[str]:
+        """Names of the hyper-parameters: the arguments of ``__init__``."""
+        signature = inspect.signature(cls.__init__)
+        return [name for name in signature.parameters if name != "self"]
+
+    def get_params(self, deep: bool = True) -> dict:
+        """Hyper-parameters by name (scikit-learn's estimator contract).
+
+        Parameters
+        ----------
+        deep : bool
+            Accepted for scikit-learn; no hyper-parameter is itself an estimator.
+        """
+        return {name: getattr(self, name) for name in self._parameter_names()}
+
+    def set_params(self, **params) -> MovementHMMEstimator:
+        """Set hyper-parameters by name and return ``self`` (scikit-learn's contract)."""
+        valid = self._parameter_names()
+        for name, value in params.items():
+            if name not in valid:
+                raise ValueError(
+                    f"invalid parameter {name!r} for {type(self).__name__}; valid: {valid}"
+                )
+            setattr(self, name, value)
+        return self
 
     def _spec(self, data: FitData) -> FitSpec:
         for kind, name, known in (
