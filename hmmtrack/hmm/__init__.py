@@ -18,7 +18,7 @@ Submodules: :mod:`~hmmtrack.hmm.distributions` (emission families),
 :mod:`~hmmtrack.hmm.diagnostics` (pseudo-residuals, Wald intervals, AIC/BIC),
 :mod:`~hmmtrack.hmm.crw` (irregular tracks: continuous-time correlated random walk,
 regularisation and imputed tracks), :mod:`~hmmtrack.hmm.imputation` (fits to imputed tracks
-pooled by Rubin's rules).
+pooled by Rubin's rules), :mod:`~hmmtrack.hmm.formula` (formula design matrices).
 """
 
 from hmmtrack.hmm.distributions import (
