@@ -103,12 +103,7 @@ def working_hessian(likelihood: fit.WorkingLikelihood, theta: np.ndarray, step: 
 def working_covariance(model: MovementHMM, data: pd.DataFrame):
     """Working-scale estimate of a fitted model and its covariance (inverse observed information).
 
-    Parameters
-    ----------
-    model : MovementHMM
-        A fitted model (at the maximum of the likelihood of ``data``).
-    data : DataFrame
-        The prepared track it was fitted to.
+    ``model`` and ``data`` as in :func:`confidence_intervals` (a fit and its prepared track).
 
     Returns
     -------
