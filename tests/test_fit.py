@@ -249,3 +249,30 @@ def test_failed_starts_are_kept_and_reported(simulated, monkeypatch, caplog):
     monkeypatch.setattr(fit, "run_em", broken)
     with pytest.raises(ValueError, match="every EM start failed .start 0: ValueError: always"):
         MovementHMMEstimator(2, n_starts=2, seed=4).fit(data)
+
+
+def test_estimator_contract_get_params_set_params():
+    estimator = MovementHMMEstimator(3, step="weibull", covariates=("temp",), seed=4)
+    params = estimator.get_params()
+    assert params["n_states"] == 3 and params["step"] == "weibull" and params["seed"] == 4
+    assert set(params) == set(MovementHMMEstimator().get_params(deep=False))
+    twin = MovementHMMEstimator(**params)
+    assert twin.get_params() == params
+    assert estimator.set_params(n_states=2, polish=False) is estimator
+    assert estimator.n_states == 2 and estimator.polish is False
+    with pytest.raises(ValueError, match="invalid parameter 'states'"):
+        estimator.set_params(states=2)
+
+
+def test_sklearn_clone_copies_hyper_parameters_not_the_fit(fitted):
+    base = pytest.importorskip("sklearn.base")
+    copy = base.clone(fitted)
+    assert type(copy) is MovementHMMEstimator and copy is not fitted
+    assert copy.get_params() == fitted.get_params()
+    assert not hasattr(copy, "model_")
+
+
+def test_package_ships_py_typed():
+    from importlib import resources
+
+    assert resources.files("hmmtrack").joinpath("py.typed").is_file()

@@ -15,7 +15,10 @@ Submodules: :mod:`~hmmtrack.hmm.distributions` (emission families),
 :mod:`~hmmtrack.hmm.inference` (forward-backward, Viterbi), :mod:`~hmmtrack.hmm.covariates`
 (logit transition matrices), :mod:`~hmmtrack.hmm.fit` (EM, multi-start),
 :mod:`~hmmtrack.hmm.model` (the fitted model and its JSON file),
-:mod:`~hmmtrack.hmm.diagnostics` (pseudo-residuals, Wald intervals, AIC/BIC).
+:mod:`~hmmtrack.hmm.diagnostics` (pseudo-residuals, Wald intervals, AIC/BIC),
+:mod:`~hmmtrack.hmm.crw` (irregular tracks: continuous-time correlated random walk,
+regularisation and imputed tracks), :mod:`~hmmtrack.hmm.imputation` (fits to imputed tracks
+pooled by Rubin's rules), :mod:`~hmmtrack.hmm.formula` (formula design matrices).
 """
 
 from hmmtrack.hmm.distributions import (

@@ -100,6 +100,27 @@ def working_hessian(likelihood: fit.WorkingLikelihood, theta: np.ndarray, step: 
     return 0.5 * (hessian + hessian.T)
 
 
+def working_covariance(model: MovementHMM, data: pd.DataFrame):
+    """Working-scale estimate of a fitted model and its covariance (inverse observed information).
+
+    ``model`` and ``data`` as in :func:`confidence_intervals` (a fit and its prepared track).
+
+    Returns
+    -------
+    likelihood : WorkingLikelihood
+        Of ``data``, with the model's structure (its ``unpack`` maps working vectors back).
+    theta : ndarray, shape (n_parameters,)
+        The model's working vector.
+    covariance : ndarray, shape (n_parameters, n_parameters)
+        Pseudo-inverse of minus the Hessian of the log-likelihood at ``theta``.
+    """
+    params = fit.parameters_of(model)
+    observations = Observations.from_frame(data, model.covariate_names)
+    likelihood = fit.WorkingLikelihood(params, fit.fit_data(observations, model.covariate_scaling))
+    theta = likelihood.pack(params)
+    return likelihood, theta, np.linalg.pinv(-working_hessian(likelihood, theta))
+
+
 def natural_parameters(
     params: fit.Parameters, covariate_names=()
 ) -> tuple[list[tuple], np.ndarray]:
@@ -157,10 +178,7 @@ def confidence_intervals(model: MovementHMM, data: pd.DataFrame, level: float = 
         on the boundary (e.g. a zero mass of 0) gets a degenerate interval.
     """
     params = fit.parameters_of(model)
-    observations = Observations.from_frame(data, model.covariate_names)
-    likelihood = fit.WorkingLikelihood(params, fit.fit_data(observations, model.covariate_scaling))
-    theta = likelihood.pack(params)
-    covariance = np.linalg.pinv(-working_hessian(likelihood, theta))
+    likelihood, theta, covariance = working_covariance(model, data)
     names, values = natural_parameters(params, model.covariate_names)
     jacobian = np.empty((values.size, theta.size))
     for i in range(theta.size):

@@ -1,8 +1,9 @@
 """Fitting movement HMMs: EM (Baum-Welch) with multi-start, then a direct-likelihood polish.
 
 :class:`MovementHMMEstimator` is the scikit-learn-shaped estimator (hyper-parameters in
-``__init__``; ``fit`` returns ``self``; learned attributes ``model_``, ``starts_``,
-``monitor_``; ``predict``, ``predict_proba``, ``score``, ``sample``) and
+``__init__``, read and set with ``get_params`` / ``set_params`` so that
+``sklearn.base.clone`` works; ``fit`` returns ``self``; learned attributes ``model_``,
+``starts_``, ``monitor_``; ``predict``, ``predict_proba``, ``score``, ``sample``) and
 :func:`fit_movement_hmm` the one-call convenience. One fit is:
 
 1. for each of ``n_starts`` starts (seeds from ``SeedSequence.spawn``, run serially or in
@@ -26,8 +27,10 @@ diagnostics; those live in the sibling modules.
 from __future__ import annotations
 
 import concurrent.futures
+import inspect
 import logging
 import multiprocessing
+import warnings
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -44,6 +47,7 @@ logger = logging.getLogger(__name__)
 
 _TINY = 1e-12  # floor of probabilities whose log is a working parameter
 _POLISH_GTOL = 1e-6  # polish stops when no gradient entry of the per-row log-lik exceeds this
+_DT_TOLERANCE = 0.1  # fit warns when a time step differs from the median by more than 10 %
 
 
 # ---------------------------------------------------------------------------------------------
@@ -556,6 +560,34 @@ def as_table(X, lengths=None, covariate_names=()) -> pd.DataFrame:
     return table
 
 
+def warn_if_irregular(table: pd.DataFrame) -> None:
+    """Warn when the table's time steps (``dt``, s) are not one step: steps and turning
+    angles over different durations are different quantities, which a movement HMM cannot
+    tell apart.
+
+    The warning counts the rows whose ``dt`` differs from the median by more than
+    ``_DT_TOLERANCE`` (10 %) of it and names the functions that regularise a track.
+    """
+    if "dt" not in table.columns:
+        return
+    dt = np.asarray(table["dt"], dtype=float)
+    dt = dt[np.isfinite(dt)]
+    if dt.size == 0:
+        return
+    median = float(np.median(dt))
+    irregular = np.abs(dt - median) > _DT_TOLERANCE * median
+    if irregular.any():
+        warnings.warn(
+            f"time steps vary: {int(irregular.sum())} of {dt.size} differ from the median "
+            f"{median:g} s by more than {_DT_TOLERANCE:.0%}; regularise the track before "
+            "preparing it: hmmtrack.hmm.crw.regularise(tracks, step) (continuous-time "
+            "correlated random walk; crw.impute with imputation.fit_imputed for multiple "
+            "imputation) or hmmtrack.tracks.regularise(tracks, step) (linear interpolation)",
+            UserWarning,
+            stacklevel=3,
+        )
+
+
 def information_criteria(log_likelihood: float, n_parameters: int, n_obs: int):
     """AIC ``= -2 logL + 2 p`` and BIC ``= -2 logL + p log n`` (n = rows fitted)."""
     return (
@@ -646,6 +678,33 @@ class MovementHMMEstimator:
         self.dt = dt
         self.step_unit = step_unit
 
+    @classmethod
+    def _parameter_names(cls) -> list[str]:
+        """Names of the hyper-parameters: the arguments of ``__init__``."""
+        signature = inspect.signature(cls.__init__)
+        return [name for name in signature.parameters if name != "self"]
+
+    def get_params(self, deep: bool = True) -> dict:
+        """Hyper-parameters by name (scikit-learn's estimator contract).
+
+        Parameters
+        ----------
+        deep : bool
+            Accepted for scikit-learn; no hyper-parameter is itself an estimator.
+        """
+        return {name: getattr(self, name) for name in self._parameter_names()}
+
+    def set_params(self, **params) -> MovementHMMEstimator:
+        """Set hyper-parameters by name and return ``self`` (scikit-learn's contract)."""
+        valid = self._parameter_names()
+        for name, value in params.items():
+            if name not in valid:
+                raise ValueError(
+                    f"invalid parameter {name!r} for {type(self).__name__}; valid: {valid}"
+                )
+            setattr(self, name, value)
+        return self
+
     def _spec(self, data: FitData) -> FitSpec:
         for kind, name, known in (
             ("step", self.step, distributions.STEP_FAMILIES),
@@ -685,6 +744,7 @@ class MovementHMMEstimator:
         """
         names = tuple(self.covariates)
         table = as_table(X, lengths, names)
+        warn_if_irregular(table)
         observations = Observations.from_frame(table, names)
         scaling = cov.covariate_scaling(observations.covariates, names) if names else {}
         data = fit_data(observations, scaling)
