@@ -35,8 +35,7 @@ import pandas as pd
 from hmmtrack.hmm import Gamma, MovementHMM, VonMises
 from hmmtrack.tracking.filter import ParticleFilter
 from hmmtrack.tracking.measurement.range_rate import RangeRateMeasurement
-from hmmtrack.tracking.motion import HMMMotion, VelocityMotion
-from hmmtrack.tracking.pipeline import motion_model
+from hmmtrack.tracking.motion import HMMMotion, VelocityMotion, motion_model
 
 BOUNDS = (-1000.0, 1000.0, -1000.0, 1000.0)
 TARGET = 40e6  # particle-steps/s at N = 10,000 (issue 3)

@@ -45,7 +45,7 @@ from hmmtrack.scenarios.realistic import moored_array
 from hmmtrack.tracking import pipeline as tracking
 from hmmtrack.tracking.config import TrackingConfig
 from hmmtrack.tracking.measurement.detection import LogisticDetection
-from hmmtrack.tracking.motion import VelocityMotion
+from hmmtrack.tracking.motion import VelocityMotion, motion_model
 
 #: folder of the stored outputs: one sub-folder per case, one CSV per table
 GOLDEN_DIR = Path(__file__).parent / "data" / "golden"
@@ -188,7 +188,7 @@ def range_rate_hmm_paper() -> dict[str, pd.DataFrame]:
     """Range-rate tracking, the bundled HMM in the paper's variant (no resting state) with
     the paper's resampling: multinomial, after every correction."""
     return _track_range_rate(
-        tracking.motion_model("hmm", variant="paper"),
+        motion_model("hmm", variant="paper"),
         resampling="multinomial",
         resample_when="always",
     )
@@ -224,7 +224,7 @@ def _track_arrival_time(motion, smoothing_lag=None, **settings) -> dict[str, pd.
 
 def arrival_time_plain() -> dict[str, pd.DataFrame]:
     """Arrival-time tracking, the bundled HMM (time-consistent, default resting state)."""
-    return _track_arrival_time(tracking.motion_model("hmm"))
+    return _track_arrival_time(motion_model("hmm"))
 
 
 def arrival_time_smoothed() -> dict[str, pd.DataFrame]:

@@ -28,7 +28,7 @@ from hmmtrack.tracking import pipeline as tracking
 from hmmtrack.tracking.config import TrackingConfig
 from hmmtrack.tracking.measurement.detection import LogisticDetection
 from hmmtrack.tracking.measurement.range_rate import search_bounds
-from hmmtrack.tracking.motion import VelocityMotion
+from hmmtrack.tracking.motion import VelocityMotion, bundled_model_path, motion_model
 
 ESTIMATE_COLUMNS = ["time", "x", "y", "var_x", "var_y", "cov_xy", "sqrt_lambda1"]
 #: a UTM zone 11N origin off Long Beach, CA (m): scenario metres are shifted by it
@@ -312,7 +312,7 @@ def test_the_papers_configuration_is_reachable_from_the_command_line(scenario_fi
     assert main([*track_args(paths, paper), *options, "--hmm-variant", "paper"]) == 0
     assert main(track_args(paths, default)) == 0
     expected = library_estimates(
-        paths, tracking.motion_model("hmm", variant="paper"), resampling="multinomial"
+        paths, motion_model("hmm", variant="paper"), resampling="multinomial"
     )
     assert_written_is(paper, expected, default)
 
@@ -323,7 +323,7 @@ def test_no_resting_reaches_the_hmm_motion_model(scenario_files, tmp_path, capsy
     from hmmtrack.hmm import MovementHMM
 
     _, paths = scenario_files
-    fitted = MovementHMM.load(tracking.bundled_model_path()).n_states
+    fitted = MovementHMM.load(bundled_model_path()).n_states
     used, track = [], tracking.track
 
     def spy(detections, receivers, config, motion, **options):

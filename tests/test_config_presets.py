@@ -9,7 +9,6 @@ import pandas as pd
 import pytest
 
 from hmmtrack.tracking import config as config_module
-from hmmtrack.tracking import pipeline as tracking
 from hmmtrack.tracking.config import (
     DATA_KEYS,
     TrackingConfig,
@@ -26,7 +25,7 @@ from hmmtrack.tracking.measurement.clocked import (
     default_clock_model,
 )
 from hmmtrack.tracking.measurement.detection import LogisticDetection
-from hmmtrack.tracking.motion import HMMMotion, VelocityMotion
+from hmmtrack.tracking.motion import VELOCITY_SIGMA_SPEED, HMMMotion, VelocityMotion, motion_model
 from hmmtrack.tracking.tempering import Tempered
 
 PRESET = "two-moving-receivers"
@@ -102,9 +101,9 @@ def test_default_models_are_those_of_the_trackers():
     assert (plain.measurement, plain.motion) == ("range-rate", "hmm")
     assert isinstance(plain.motion_model(), HMMMotion)
     velocity = TrackingConfig(period=8.0, motion="velocity")
-    assert velocity.motion_model() == tracking.motion_model("velocity")
+    assert velocity.motion_model() == motion_model("velocity")
     assert TrackingConfig(period=8.0, motion="velocity", sigma_turn_rate=0.01).motion_model() == (
-        VelocityMotion(tracking.VELOCITY_SIGMA_SPEED, 0.01)
+        VelocityMotion(VELOCITY_SIGMA_SPEED, 0.01)
     )
     arrival = arrival_measurement(TrackingConfig(period=8.0, measurement="arrival-time"))
     assert arrival.search_radius == SEARCH_RADIUS

@@ -10,15 +10,9 @@ from scipy import stats
 
 from hmmtrack.hmm import Gamma, MovementHMM, VonMises
 from hmmtrack.tracking.compiled import streams as rs
-from hmmtrack.tracking.motion import (
-    BaselineMotion,
-    HMMMotion,
-    VelocityMotion,
-    _draw_pass,
-    _transition_pass,
-    arc_displacement,
-    transition_for_step,
-)
+from hmmtrack.tracking.motion import BaselineMotion, HMMMotion, VelocityMotion
+from hmmtrack.tracking.motion.arcs import arc_displacement
+from hmmtrack.tracking.motion.hmm import _draw_pass, _transition_pass, transition_for_step
 from hmmtrack.tracking.particles import Particles
 
 TRANSITION = np.array([[0.9, 0.1], [0.2, 0.8]])
@@ -180,7 +174,7 @@ def test_kernels_give_the_same_particles_on_any_number_of_threads(motion):
 # Python threads that each advance their own particles with two kernel threads, at once;
 # every result must equal a one-thread run. Run in this process (numba's OpenMP layer here)
 # and in a child process forced onto numba's "workqueue" layer, which aborts the process on
-# concurrent parallel calls unless motion.py serialises them.
+# concurrent parallel calls unless hmmtrack.tracking.compiled.chunks serialises them.
 CONCURRENT_ADVANCES = """
 from concurrent.futures import ThreadPoolExecutor
 

@@ -1,5 +1,5 @@
 """The resting state added to a fitted movement HMM at tracking time
-(``MovementHMM.with_resting_state``, ``tracking.motion_model(resting=...)``)."""
+(``MovementHMM.with_resting_state``, ``motion_model(resting=...)``)."""
 
 import math
 import warnings
@@ -13,7 +13,14 @@ from hmmtrack.experiments.configs import tracking_config
 from hmmtrack.hmm import Gamma, MovementHMM, VonMises, Weibull, WrappedCauchy
 from hmmtrack.tracking import pipeline as tracking
 from hmmtrack.tracking.compiled import streams as rs
-from hmmtrack.tracking.motion import HMMMotion, transition_for_step
+from hmmtrack.tracking.motion import (
+    HMM_RESTING,
+    HMMMotion,
+    RestingState,
+    bundled_model_path,
+    motion_model,
+)
+from hmmtrack.tracking.motion.hmm import transition_for_step
 from hmmtrack.tracking.particles import Particles
 
 
@@ -150,7 +157,7 @@ def test_covariate_model_contributes_its_matrix_at_the_covariate_means():
 
 
 def test_transition_for_the_prediction_step_is_a_valid_root():
-    rested = tracking.motion_model("hmm", resting=tracking.HMM_RESTING).model
+    rested = motion_model("hmm", resting=HMM_RESTING).model
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # no fallback: a true stochastic root
         root = transition_for_step(rested.transition, 1.0 / rested.dt)
@@ -226,16 +233,16 @@ def test_particle_state_frequencies_in_the_compiled_filter_equal_stationary():
 
 
 def test_tracking_default_adds_the_resting_state_to_the_time_consistent_hmm():
-    bundled = MovementHMM.load(tracking.bundled_model_path())
-    default = tracking.motion_model("hmm")
-    resting = tracking.HMM_RESTING
+    bundled = MovementHMM.load(bundled_model_path())
+    default = motion_model("hmm")
+    resting = HMM_RESTING
     metres = resting.drift_speed * bundled.dt
     expected = bundled.with_resting_state(
         resting.enter_per_hour, resting.leave_per_hour, resting_step=metres
     )
     assert default.model.to_dict() == expected.to_dict()
-    assert tracking.motion_model("hmm", resting=None).model.to_dict() == bundled.to_dict()
-    assert tracking.motion_model("hmm", variant="paper").model.n_states == bundled.n_states
+    assert motion_model("hmm", resting=None).model.to_dict() == bundled.to_dict()
+    assert motion_model("hmm", variant="paper").model.n_states == bundled.n_states
 
 
 def test_tracking_resting_state_converts_kilometre_steps():
@@ -247,14 +254,14 @@ def test_tracking_resting_state_converts_kilometre_steps():
             "step": Gamma.from_moments([0.02, 0.06], [0.01, 0.015]).to_dict(),
         }
     )
-    rates = tracking.RestingState(enter_per_hour=1.0, leave_per_hour=2.0, drift_speed=0.05)
-    motion = tracking.motion_model("hmm", in_km, resting=rates)
+    rates = RestingState(enter_per_hour=1.0, leave_per_hour=2.0, drift_speed=0.05)
+    motion = motion_model("hmm", in_km, resting=rates)
     assert motion.model.step.mean[-1] == pytest.approx(0.05 * 60.0 / 1000.0)
 
 
 def test_resting_state_is_refused_for_other_motions():
     with pytest.raises(ValueError, match="hmm"):
-        tracking.motion_model("velocity", resting=tracking.HMM_RESTING)
+        motion_model("velocity", resting=HMM_RESTING)
 
 
 @pytest.mark.parametrize(

@@ -24,7 +24,7 @@ from hmmtrack.tracking import pipeline as tracking
 from hmmtrack.tracking.config import TrackingConfig
 from hmmtrack.tracking.measurement import ranging
 from hmmtrack.tracking.measurement.range_rate import OBSERVATION_COLUMNS, search_bounds
-from hmmtrack.tracking.motion import VelocityMotion
+from hmmtrack.tracking.motion import VELOCITY_SIGMA_SPEED, VelocityMotion, motion_model
 from hmmtrack.tracking.receivers import ReceiverTracks
 
 PERIOD = 8.179
@@ -178,9 +178,7 @@ def test_without_a_motion_the_config_chooses_it(stationary):
     )  # fmt: skip
     data = stationary.detections, stationary.receivers
     implicit = tracking.track(*data, config, seed=3)
-    explicit = tracking.track(
-        *data, config, VelocityMotion(tracking.VELOCITY_SIGMA_SPEED, 0.005), seed=3
-    )
+    explicit = tracking.track(*data, config, VelocityMotion(VELOCITY_SIGMA_SPEED, 0.005), seed=3)
     by_name = tracking.track(*data, config, "velocity", seed=3)
     pd.testing.assert_frame_equal(implicit.estimates, explicit.estimates)
     assert not np.allclose(implicit.estimates["x"], by_name.estimates["x"])
@@ -239,7 +237,8 @@ def run_scores(scenario, motion, seed):
 def test_acceptance_on_every_geometry(acceptance_cases, chosen_seeds, motion):
     """Issue 3: on every chosen stationary-tag seed the model converges with a mean error
     after convergence under 10 m (filter seed = scenario seed). The HMM is the bundled
-    white-shark model with tracking's default resting state (``tracking.HMM_RESTING``;
+    white-shark model with tracking's default resting state
+    (``hmmtrack.tracking.motion.HMM_RESTING``;
     measured: at most 5.7 m, 95 % ellipse coverage at least 0.93)."""
     failures = []
     for seed in chosen_seeds:
@@ -261,7 +260,7 @@ def test_hmm_without_resting_state_is_wide_but_honest(acceptance_cases, chosen_s
     seed and 95 % on average (measured: 74 % at worst, 98 % on average): wide, not
     overconfident. Most seeds converge.
     """
-    motion = tracking.motion_model("hmm", resting=None)
+    motion = motion_model("hmm", resting=None)
     converged, coverages = [], []
     for seed in chosen_seeds:
         scores, coverage = run_scores(acceptance_cases[seed][0], motion, seed)
@@ -277,10 +276,10 @@ def test_hmm_without_resting_state_meets_the_acceptance_with_more_heading_diffus
     acceptance_cases, chosen_seeds
 ):
     """Without the resting state but with heading diffusion 0.5 rad/√s (a less ballistic
-    cloud; it loses the shark pursuit, see hmmtrack.tracking.pipeline.HMM_HEADING_DIFFUSION) the
+    cloud; it loses the shark pursuit, see hmmtrack.tracking.motion.HMM_HEADING_DIFFUSION) the
     HMM converges on every chosen seed and is under 10 m on at least 90 % of them (measured:
     95 % at three filter seeds; 97 % over 100 scenario seeds) and under 12 m on all."""
-    motion = tracking.motion_model("hmm", heading_diffusion=0.5, resting=None)
+    motion = motion_model("hmm", heading_diffusion=0.5, resting=None)
     errors = []
     for seed in chosen_seeds:
         scores, _ = run_scores(acceptance_cases[seed][0], motion, seed)

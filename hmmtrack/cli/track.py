@@ -49,7 +49,12 @@ from hmmtrack.tracking.filter import RESAMPLE_WHEN
 from hmmtrack.tracking.measurement import MEASUREMENTS
 from hmmtrack.tracking.measurement.arrival_time import ArrivalLikelihood
 from hmmtrack.tracking.measurement.clocked import SEARCH_RADIUS, TEMPERING_ESS
-from hmmtrack.tracking.motion import HMM_VARIANTS
+from hmmtrack.tracking.motion import (
+    HMM_VARIANTS,
+    MOTIONS,
+    VELOCITY_SIGMA_SPEED,
+    VELOCITY_SIGMA_TURN_RATE,
+)
 from hmmtrack.tracking.resampling import RESAMPLERS
 
 #: defaults of the configuration (help texts, build_config)
@@ -126,7 +131,7 @@ def register(subparsers) -> None:
         help="range at the receiver's first detection (m); once per receiver",
     )
     parser.add_argument(
-        "--motion", choices=tracking.MOTIONS, help="motion model (default: the preset's, or hmm)"
+        "--motion", choices=MOTIONS, help="motion model (default: the preset's, or hmm)"
     )
     parser.add_argument(
         "--model", help="movement HMM JSON for --motion hmm (default: bundled white shark)"
@@ -148,7 +153,7 @@ def register(subparsers) -> None:
         action="store_true",
         help=(
             "--motion hmm only: track with the movement HMM as fitted, without the resting "
-            "state added by default (hmmtrack.tracking.pipeline.HMM_RESTING)"
+            "state added by default (hmmtrack.tracking.motion.HMM_RESTING)"
         ),
     )
     parser.add_argument(
@@ -266,7 +271,7 @@ def register(subparsers) -> None:
         metavar="M_PER_S",
         help=(
             "velocity motion only: spread of the speed increments "
-            f"(m/s per sqrt(s); default {tracking.VELOCITY_SIGMA_SPEED:g})"
+            f"(m/s per sqrt(s); default {VELOCITY_SIGMA_SPEED:g})"
         ),
     )
     parser.add_argument(
@@ -275,7 +280,7 @@ def register(subparsers) -> None:
         metavar="RAD_PER_S",
         help=(
             "velocity motion only: spread of the turn-rate increments "
-            f"(rad/s per sqrt(s); default {tracking.VELOCITY_SIGMA_TURN_RATE:g})"
+            f"(rad/s per sqrt(s); default {VELOCITY_SIGMA_TURN_RATE:g})"
         ),
     )
     parser.add_argument(

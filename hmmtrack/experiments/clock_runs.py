@@ -33,8 +33,8 @@ from hmmtrack.tracking.measurement.arrival_time import ArrivalTimeMeasurement
 from hmmtrack.tracking.measurement.clock import EmissionClockModel
 from hmmtrack.tracking.measurement.clocked import ClockedArrivalTime, ClockState
 from hmmtrack.tracking.measurement.detection import SilenceModel
-from hmmtrack.tracking.motion import VelocityMotion
-from hmmtrack.tracking.pipeline import TrackingResult, motion_model, particle_filter, track
+from hmmtrack.tracking.motion import VelocityMotion, motion_model
+from hmmtrack.tracking.pipeline import TrackingResult, particle_filter, track
 from hmmtrack.tracking.receivers import ReceiverTracks
 
 #: length of a clock study's runs (s): the 2 h of issue 5

@@ -21,7 +21,7 @@ scenario seed, so the geometry changes from trial to trial) and relates each tri
   filter's own x-y covariance) holds the truth (:func:`hmmtrack.analysis.metrics.ellipse_coverage`;
   0.95 for a consistent filter) and the median NEES (1.39 for a consistent filter).
 
-Settings (:func:`settings`): the three models with :mod:`hmmtrack.tracking.pipeline`'s
+Settings (:func:`settings`): the three models with :mod:`hmmtrack.tracking.motion`'s
 defaults (the HMM with its resting state), the baseline with the σ it had before this study,
 the HMM without the resting state, without it but with more heading diffusion, and with
 other resting rates; settings of one model share each trial's filter seed.
@@ -50,7 +50,7 @@ from hmmtrack.experiments.studies import PAPER_SCENARIOS, paper_scenarios
 from hmmtrack.experiments.trials import MOTIONS, child_seed, experiment_seed
 from hmmtrack.tracking import pipeline as tracking
 from hmmtrack.tracking.config import TrackingConfig
-from hmmtrack.tracking.motion import BaselineMotion
+from hmmtrack.tracking.motion import BaselineMotion, RestingState, motion_model
 from hmmtrack.tracking.receivers import ReceiverTracks
 
 #: the baseline's random-walk spread before this study (m/√s)
@@ -59,10 +59,10 @@ PREVIOUS_BASELINE_SIGMA = 1.0
 STATIONARY_HMM_HEADING_DIFFUSION = 0.4
 #: the HMM as it was before the resting state
 HMM_WITHOUT_RESTING = "hmm without resting (before)"
-#: resting states compared with the default (``tracking.HMM_RESTING``)
+#: resting states compared with the default (``hmmtrack.tracking.motion.HMM_RESTING``)
 OTHER_RESTING = (
-    tracking.RestingState(enter_per_hour=0.5, leave_per_hour=1.0, drift_speed=0.05),
-    tracking.RestingState(enter_per_hour=1.0, leave_per_hour=4.0, drift_speed=0.1),
+    RestingState(enter_per_hour=0.5, leave_per_hour=1.0, drift_speed=0.05),
+    RestingState(enter_per_hour=1.0, leave_per_hour=4.0, drift_speed=0.1),
 )
 #: the moving-tag scenarios of the reproduction, and its particle count
 MOVING_SCENARIOS = ("swimmer", "shark_pursuit")
@@ -81,7 +81,7 @@ GEOMETRY_COLUMNS = (
 ANGLE_BANDS = (90, 110, 120, 130, 140, 150, 160, 170, 180)
 
 
-def resting_label(resting: tracking.RestingState) -> str:
+def resting_label(resting: RestingState) -> str:
     """The label of an HMM setting with ``resting``'s rates (per hour) and drift (m/s)."""
     return (
         f"hmm resting {resting.enter_per_hour:g}/{resting.leave_per_hour:g} per h, "
@@ -92,15 +92,12 @@ def resting_label(resting: tracking.RestingState) -> str:
 def hmm_settings() -> dict[str, object]:
     """The HMM settings compared: label → motion model."""
     return {
-        "hmm": tracking.motion_model("hmm"),
-        HMM_WITHOUT_RESTING: tracking.motion_model("hmm", resting=None),
-        f"hmm D={STATIONARY_HMM_HEADING_DIFFUSION:g} without resting": tracking.motion_model(
+        "hmm": motion_model("hmm"),
+        HMM_WITHOUT_RESTING: motion_model("hmm", resting=None),
+        f"hmm D={STATIONARY_HMM_HEADING_DIFFUSION:g} without resting": motion_model(
             "hmm", heading_diffusion=STATIONARY_HMM_HEADING_DIFFUSION, resting=None
         ),
-        **{
-            resting_label(rates): tracking.motion_model("hmm", resting=rates)
-            for rates in OTHER_RESTING
-        },
+        **{resting_label(rates): motion_model("hmm", resting=rates) for rates in OTHER_RESTING},
     }
 
 
@@ -108,12 +105,12 @@ def settings() -> dict[str, tuple[int, object]]:
     """Motion settings compared: label → (family, model). Settings of one family share the
     filter seed of a scenario, so that they differ by their parameters only."""
     return {
-        "baseline": (0, tracking.motion_model("baseline")),
+        "baseline": (0, motion_model("baseline")),
         f"baseline σ={PREVIOUS_BASELINE_SIGMA:g} (before)": (
             0,
             BaselineMotion(sigma=PREVIOUS_BASELINE_SIGMA),
         ),
-        "velocity": (1, tracking.motion_model("velocity")),
+        "velocity": (1, motion_model("velocity")),
         **{label: (2, motion) for label, motion in hmm_settings().items()},
     }
 

@@ -29,6 +29,7 @@ from hmmtrack.scenarios import Scenario
 from hmmtrack.tracking import pipeline as tracking
 from hmmtrack.tracking.filter import ParticleFilter
 from hmmtrack.tracking.measurement.range_rate import OBSERVATION_COLUMNS, RangeRateMeasurement
+from hmmtrack.tracking.motion import motion_model
 
 #: the paper's three motion models, in its order
 MOTIONS = ("baseline", "velocity", "hmm")
@@ -164,7 +165,7 @@ def track_scenario(
     ----------
     scenario : Scenario
     motion_name : {"baseline", "velocity", "hmm"}
-        :func:`hmmtrack.tracking.pipeline.motion_model` with its defaults; the HMM (the bundled
+        :func:`hmmtrack.tracking.motion.motion_model` with its defaults; the HMM (the bundled
         white-shark model) in the :data:`HMM_VARIANT` variant.
     seed : int, SeedSequence or Generator
     n_particles : int
@@ -214,8 +215,8 @@ def track_scenario(
 def _motion(motion_name: str):
     """The motion model of a trial: tracking's defaults, the HMM in :data:`HMM_VARIANT`."""
     if motion_name == "hmm":
-        return tracking.motion_model("hmm", variant=HMM_VARIANT)
-    return tracking.motion_model(motion_name)
+        return motion_model("hmm", variant=HMM_VARIANT)
+    return motion_model(motion_name)
 
 
 @dataclass(frozen=True)

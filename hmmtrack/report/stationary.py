@@ -26,7 +26,7 @@ from hmmtrack.experiments.stationary import (
 from hmmtrack.plots.studies import stationary_errors
 from hmmtrack.report.markdown import indexed_markdown
 from hmmtrack.report.studies import provenance, run_timed
-from hmmtrack.tracking import pipeline as tracking
+from hmmtrack.tracking.motion import BASELINE_SIGMA, HMM_HEADING_DIFFUSION, HMM_RESTING
 
 #: what the tables show (the numbers above are recomputed by every run; this reading of them
 #: is the study's, checked on 100 seeds at 1,000 and 5,000 particles)
@@ -53,7 +53,7 @@ DIAGNOSIS = (
     "10 m; most of their error comes later (error over the last 600 s above: 13-16 m "
     "against 2-4 m), as the early information is forgotten.",
     "- **Baseline: fixed.** σ = 1 m/√s let the cloud wander (median spread 7.6 m); "
-    "σ = 0.3 m/√s (`hmmtrack.tracking.pipeline.BASELINE_SIGMA`) keeps the early information: "
+    "σ = 0.3 m/√s (`hmmtrack.tracking.motion.BASELINE_SIGMA`) keeps the early information: "
     "98 % of "
     "the trials under 10 m at 5,000 particles, 93 % at 1,000, against about 70 % before. "
     "The baseline stays lost on the moving tags, as in the paper.",
@@ -73,7 +73,8 @@ DIAGNOSIS = (
     "- **HMM with a resting state: fixed at 5,000 particles.** A tag can be at rest (shed, "
     "dead animal, resting on the bottom) although the fitted animal always swims, so "
     "tracking adds a third behavioural state (`MovementHMM.with_resting_state`, "
-    "`tracking.HMM_RESTING`): entered at 0.5 per hour from either swimming state, left at 2 "
+    "`hmmtrack.tracking.motion.HMM_RESTING`): entered at 0.5 per hour from either swimming "
+    "state, left at 2 "
     "per hour into them (20 % of the particles under the prior), steps of 3 m per 60 s in "
     "any direction (0.05 m/s). On the fixed tag the resting particles near the tag outweigh "
     "the swimmers and keep the early information, as the slow baseline does: 98 % of the "
@@ -150,7 +151,7 @@ def stationary_markdown(study: StationaryStudy, written_by: str) -> str:
         ],
         axis=1,
     )
-    resting = tracking.HMM_RESTING
+    resting = HMM_RESTING
     lines = [
         "# Stationary tag: accuracy, information limit and honesty of the filter",
         "",
@@ -158,10 +159,11 @@ def stationary_markdown(study: StationaryStudy, written_by: str) -> str:
         "`stationary_tag_trials.csv`. One trial = one scenario seed of "
         "`hmmtrack.scenarios.stationary_tag` (new geometry, GPS noise, ping jitter) and one "
         "filter seed; settings of one motion model share the filter seed. Defaults: "
-        f"`hmmtrack.tracking.pipeline` (baseline σ = {tracking.BASELINE_SIGMA:g} m/√s; HMM heading "
-        f"diffusion {tracking.HMM_HEADING_DIFFUSION:g} rad/√s and a resting state entered at "
+        f"`hmmtrack.tracking.motion` (baseline σ = {BASELINE_SIGMA:g} m/√s; HMM heading "
+        f"diffusion {HMM_HEADING_DIFFUSION:g} rad/√s and a resting state entered at "
         f"{resting.enter_per_hour:g} per hour, left at {resting.leave_per_hour:g} per hour, "
-        f"drifting at {resting.drift_speed:g} m/s, `tracking.HMM_RESTING`); also shown: the "
+        f"drifting at {resting.drift_speed:g} m/s, `hmmtrack.tracking.motion.HMM_RESTING`); "
+        "also shown: the "
         f"baseline before this study (σ = {PREVIOUS_BASELINE_SIGMA:g}), the HMM without the "
         "resting state (before), without it but with heading diffusion "
         f"{STATIONARY_HMM_HEADING_DIFFUSION:g}, and with other resting rates.",

@@ -167,7 +167,7 @@ def _differences_section(comparison: pd.DataFrame) -> str:
         + " and ".join(f"{v:.2f} m/s" for v in speeds)
         + " in its two states, so on its own its particles keep wandering around a "
         "stationary tag. Tracking adds a resting state to it "
-        "(`hmmtrack.tracking.pipeline.HMM_RESTING`: "
+        "(`hmmtrack.tracking.motion.HMM_RESTING`: "
         "a tag may be shed, its animal dead or resting), which takes the posterior on the "
         "stationary tag and costs the moving tags little (`reports/stationary_tag.md`). The "
         "paper's model, fitted to real sharks, may well be slower in its resident state.\n"
@@ -176,14 +176,14 @@ def _differences_section(comparison: pd.DataFrame) -> str:
         "`hmmtrack.tracking.motion.HMMMotion`: behaviour switches with the transition matrix's "
         f"root for 1 s, speed and turn rate are held for {model.dt:g} s (staggered across "
         "particles), and headings diffuse a little "
-        "(`hmmtrack.tracking.pipeline.HMM_HEADING_DIFFUSION`) "
+        "(`hmmtrack.tracking.motion.HMM_HEADING_DIFFUSION`) "
         "so that resampled copies do not move as one block. Redrawing the "
         f"{model.dt:g} s model every second (the `paper` variant, which divides turning "
         "angles by the time step and so under-disperses headings) drifts off a stationary "
         "tag and loses the shark on our analogue.\n"
         "- **Unstated settings.** The paper gives no particle count, random-walk or velocity "
         "noise levels or measurement covariance; we use the run's particle count above and "
-        "the defaults of `hmmtrack.tracking.pipeline` and "
+        "the defaults of `hmmtrack.tracking.motion` and "
         "`hmmtrack.tracking.config.TrackingConfig`.\n"
     )
 

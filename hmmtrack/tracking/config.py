@@ -38,6 +38,7 @@ from hmmtrack.tracking.filter import RESAMPLE_WHEN
 from hmmtrack.tracking.measurement import MEASUREMENTS
 from hmmtrack.tracking.measurement.detection import LogisticDetection
 from hmmtrack.tracking.measurement.ranging import SOUND_SPEED
+from hmmtrack.tracking.motion import MOTIONS, motion_model
 from hmmtrack.tracking.resampling import RESAMPLERS
 
 #: depth policies that are not a number (see :attr:`TrackingConfig.depth`)
@@ -144,13 +145,13 @@ class TrackingConfig:
         (``"range-rate"``, the default), or arrival times scored against the tag's emission
         clock carried by each particle (``"arrival-time"``).
     motion : {"baseline", "velocity", "hmm"}
-        Motion model of :meth:`motion_model` (:data:`hmmtrack.tracking.pipeline.MOTIONS`);
+        Motion model of :meth:`motion_model` (:data:`hmmtrack.tracking.motion.MOTIONS`);
         ``"hmm"``,
         the bundled white-shark model, by default.
     sigma_speed, sigma_turn_rate : float or None
         ``motion="velocity"`` only: spreads of the speed (m/s per √s) and turn-rate (rad/s
         per √s) increments of :class:`hmmtrack.tracking.motion.VelocityMotion`; ``None`` keeps
-        :data:`hmmtrack.tracking.pipeline.VELOCITY_SIGMA_SPEED` and ``VELOCITY_SIGMA_TURN_RATE``.
+        :data:`hmmtrack.tracking.motion.VELOCITY_SIGMA_SPEED` and ``VELOCITY_SIGMA_TURN_RATE``.
     arrival_sigma : float or None
         ``measurement="arrival-time"`` only: standard deviation (s) of a direct-path
         arrival-time residual
@@ -272,14 +273,12 @@ class TrackingConfig:
         self._check_models()
 
     def _check_models(self) -> None:
-        from hmmtrack.tracking.pipeline import MOTIONS  # tracking imports this module
-
         if self.measurement not in MEASUREMENTS:
             raise ValueError(
                 f"measurement must be one of {tuple(MEASUREMENTS)}, got {self.measurement!r}"
             )
         if self.motion not in MOTIONS:
-            raise ValueError(f"motion must be one of {MOTIONS}, got {self.motion!r}")
+            raise ValueError(f"motion must be one of {tuple(MOTIONS)}, got {self.motion!r}")
         set_ = object.__setattr__
         for name in ("sigma_speed", "sigma_turn_rate"):
             value = getattr(self, name)
@@ -316,18 +315,16 @@ class TrackingConfig:
         Parameters
         ----------
         model, variant, resting
-            For ``motion="hmm"`` only, see :func:`hmmtrack.tracking.pipeline.motion_model`
+            For ``motion="hmm"`` only, see :func:`hmmtrack.tracking.motion.motion_model`
             (``resting=None``: no resting state added to the movement HMM).
 
         Returns
         -------
         BaselineMotion, VelocityMotion or HMMMotion
-            :func:`hmmtrack.tracking.pipeline.motion_model`'s, with :attr:`sigma_speed` and
+            :func:`hmmtrack.tracking.motion.motion_model`'s, with :attr:`sigma_speed` and
             :attr:`sigma_turn_rate` where given.
         """
-        from hmmtrack.tracking import pipeline as tracking  # pipeline imports this module
-
-        motion = tracking.motion_model(self.motion, model, variant=variant, resting=resting)
+        motion = motion_model(self.motion, model, variant=variant, resting=resting)
         noise = {
             name: getattr(self, name)
             for name in ("sigma_speed", "sigma_turn_rate")

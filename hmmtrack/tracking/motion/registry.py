@@ -1,0 +1,183 @@
+"""The paper's motion models by name, with hmmtrack's default parameters.
+
+:data:`MOTIONS` maps each name (``"baseline"``, ``"velocity"``, ``"hmm"``) to a factory of
+that model with the defaults below; :func:`motion_model` is the one entry point that
+configurations, the command line and the experiments call. The paper gives no noise
+levels: the defaults were chosen on the synthetic analogues of its three datasets (the
+trials are in ``reports/decisions.md``, "Motion models"). The HMM model is by default the
+bundled white-shark model (:func:`bundled_model_path`) with a resting state added
+(:data:`HMM_RESTING`) in the time-consistent variant.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+
+from hmmtrack.tracking.motion.base import MotionModel
+from hmmtrack.tracking.motion.baseline import BaselineMotion
+from hmmtrack.tracking.motion.hmm import HMMMotion, step_metres
+from hmmtrack.tracking.motion.velocity import VelocityMotion
+
+__all__ = [
+    "BASELINE_SIGMA",
+    "HMM_HEADING_DIFFUSION",
+    "HMM_RESTING",
+    "MOTIONS",
+    "VELOCITY_SIGMA_SPEED",
+    "VELOCITY_SIGMA_TURN_RATE",
+    "RestingState",
+    "bundled_model_path",
+    "motion_model",
+]
+
+#: random-walk step spread of the baseline model (m per √s): small enough that the cloud
+#: keeps the early detections that tell a fixed tag from its mirror position
+BASELINE_SIGMA = 0.3
+#: spreads of the velocity model's speed (m/s per √s) and turn-rate (rad/s per √s)
+#: increments: speed must follow a swimming animal, turn rates change slowly
+VELOCITY_SIGMA_SPEED = 0.1
+VELOCITY_SIGMA_TURN_RATE = 0.02
+#: heading random walk (rad/√s) of the HMM motion model in its time-consistent variant
+#: (:class:`~hmmtrack.tracking.motion.HMMMotion`): lets the resampled copies of a particle,
+#: which hold one speed and turn rate for the fitted step, part; kept small for the
+#: swimming animals the model was fitted to
+HMM_HEADING_DIFFUSION = 0.2
+
+
+@dataclass(frozen=True)
+class RestingState:
+    """A resting state added to a movement HMM at tracking time
+    (:meth:`hmmtrack.hmm.MovementHMM.with_resting_state`).
+
+    Attributes
+    ----------
+    enter_per_hour : float
+        Rate (per hour) at which a swimming animal comes to rest.
+    leave_per_hour : float
+        Rate (per hour) at which a resting tag starts swimming again.
+    drift_speed : float
+        Mean speed of a resting tag (m/s): its steps over the model's time step have mean and
+        standard deviation ``drift_speed * model.dt``, in uniform directions.
+    """
+
+    enter_per_hour: float
+    leave_per_hour: float
+    drift_speed: float
+
+
+#: resting state of the HMM motion model (time-consistent variant) by default: a tag may be
+#: shed, its animal dead or resting, although the bundled white-shark model always swims;
+#: mean rest 30 min, 20 % of the particles resting under the prior, a slow drift so that
+#: resampled copies of a resting particle do not pile up on one point.
+#: ``motion_model("hmm", resting=None)`` switches it off
+HMM_RESTING = RestingState(enter_per_hour=0.5, leave_per_hour=2.0, drift_speed=0.05)
+
+
+def bundled_model_path() -> Path:
+    """Path of the bundled white-shark movement HMM (``hmmtrack/data/white_shark_hmm.json``)."""
+    path = Path(str(resources.files("hmmtrack") / "data" / "white_shark_hmm.json"))
+    if not path.is_file():
+        raise FileNotFoundError(f"the bundled white-shark model is missing: {path}")
+    return path
+
+
+def _baseline() -> BaselineMotion:
+    return BaselineMotion(sigma=BASELINE_SIGMA)
+
+
+def _velocity() -> VelocityMotion:
+    return VelocityMotion(
+        sigma_speed=VELOCITY_SIGMA_SPEED, sigma_turn_rate=VELOCITY_SIGMA_TURN_RATE
+    )
+
+
+def _hmm(
+    model: str | Path | object | None = None,
+    variant: str = "time_consistent",
+    heading_diffusion: float | None = None,
+    resting: RestingState | None | str = "default",
+) -> HMMMotion:
+    from hmmtrack.hmm import MovementHMM
+
+    if model is None:
+        model = bundled_model_path()
+    if isinstance(model, str | Path):
+        model = MovementHMM.load(model)
+    if heading_diffusion is None:
+        heading_diffusion = HMM_HEADING_DIFFUSION if variant == "time_consistent" else 0.0
+    if isinstance(resting, str):
+        if resting != "default":
+            raise ValueError(f"resting must be a RestingState, None or 'default', got {resting!r}")
+        resting = HMM_RESTING if variant == "time_consistent" else None
+    if resting is not None:
+        model = model.with_resting_state(
+            resting.enter_per_hour,
+            resting.leave_per_hour,
+            resting_step=resting.drift_speed * model.dt / step_metres(model),
+        )
+    return HMMMotion(model, variant=variant, heading_diffusion=heading_diffusion)
+
+
+#: the paper's motion models, by name: a factory of each with hmmtrack's defaults (the
+#: ``"hmm"`` factory takes :func:`motion_model`'s HMM options)
+MOTIONS: dict[str, Callable[..., MotionModel]] = {
+    "baseline": _baseline,
+    "velocity": _velocity,
+    "hmm": _hmm,
+}
+
+
+def motion_model(
+    name: str,
+    model: str | Path | object | None = None,
+    variant: str = "time_consistent",
+    heading_diffusion: float | None = None,
+    resting: RestingState | None | str = "default",
+) -> MotionModel:
+    """One of the paper's motion models, by name, with hmmtrack's default parameters.
+
+    Parameters
+    ----------
+    name : {"baseline", "velocity", "hmm"}
+        ``baseline``: :class:`~hmmtrack.tracking.motion.BaselineMotion` with ``sigma`` =
+        :data:`BASELINE_SIGMA`; ``velocity``: :class:`~hmmtrack.tracking.motion.VelocityMotion`
+        with :data:`VELOCITY_SIGMA_SPEED` and :data:`VELOCITY_SIGMA_TURN_RATE`; ``hmm``:
+        :class:`~hmmtrack.tracking.motion.HMMMotion` of ``model``.
+    model : path, MovementHMM or None
+        For ``hmm`` only: a saved model file, a fitted model, or ``None`` for the bundled
+        white-shark model.
+    variant : {"time_consistent", "paper"}
+        For ``hmm`` only, see :class:`~hmmtrack.tracking.motion.HMMMotion`.
+        ``"time_consistent"`` (default) respects the time step the model was fitted at;
+        ``"paper"`` is the paper's algorithm (new draws every prediction step).
+    heading_diffusion : float, optional
+        For ``hmm`` only: heading random walk (rad/√s) of
+        :class:`~hmmtrack.tracking.motion.HMMMotion`; by default :data:`HMM_HEADING_DIFFUSION`
+        in the time-consistent variant and 0 in the paper's.
+    resting : RestingState, None or "default"
+        For ``hmm`` only: add a resting state to the model
+        (:meth:`~hmmtrack.hmm.MovementHMM.with_resting_state`), so that the filter can hold
+        a tag that does not move (shed, dead, resting) although the fitted animal always
+        swims; it costs moving tags little (measurements at :data:`HMM_RESTING`). The
+        estimates' particles then carry ``K + 1`` states, the last one resting. ``"default"``:
+        :data:`HMM_RESTING` in the time-consistent variant, none in the paper's; ``None``:
+        the model as given.
+
+    Returns
+    -------
+    MotionModel
+        A motion model for :class:`hmmtrack.tracking.filter.ParticleFilter`.
+    """
+    if name not in MOTIONS:
+        raise ValueError(f"motion must be one of {tuple(MOTIONS)}, got {name!r}")
+    if name != "hmm":
+        if model is not None or heading_diffusion is not None or resting != "default":
+            raise ValueError(
+                "a movement model, heading diffusion and a resting state are used by motion "
+                f"'hmm' only, not {name!r}"
+            )
+        return MOTIONS[name]()
+    return MOTIONS[name](model, variant, heading_diffusion, resting)

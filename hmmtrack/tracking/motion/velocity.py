@@ -1,0 +1,120 @@
+"""The paper's velocity motion model: random walks in speed and turn rate, moves along arcs.
+
+Each step adds Gaussian increments to speed and turn rate (standard deviations
+``sigma * sqrt(dt)``), then moves along the constant-turn-rate arc of the new speed and
+turn rate (:mod:`hmmtrack.tracking.motion.arcs`). :class:`VelocityMotion` has the NumPy
+reference (``propagate``) and the compiled path (``advance``,
+:mod:`hmmtrack.tracking.motion.base`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+from numba import njit
+
+from hmmtrack.tracking.compiled import streams as rs
+from hmmtrack.tracking.compiled.chunks import moments_pass, next_chunk, run_chunks
+from hmmtrack.tracking.motion.arcs import arc_pass, finish_headings, move_along_arc
+from hmmtrack.tracking.motion.base import motion_views
+from hmmtrack.tracking.particles import Particles
+
+__all__ = ["VelocityMotion"]
+
+
+@njit(cache=True, inline="always")
+def _add_scaled(target, z, scale):
+    """``target += scale * z`` (a random-walk increment)."""
+    for i in range(target.size):
+        target[i] += scale * z[i]
+
+
+@njit(cache=True, nogil=True)
+def _velocity_kernel(
+    x, y, heading, c, s, v, w, streams, n_steps, dt, sigma_speed, sigma_turn, weights, ox, oy,
+    counter, sums,
+):  # fmt: skip
+    root_dt = math.sqrt(dt)
+    chunk, lo, hi = next_chunk(counter, x.size)
+    while chunk >= 0:
+        xs, ys, hs, cs, ss, vs, ws = motion_views(lo, hi, x, y, heading, c, s, v, w)
+        chunk_streams = streams[lo:hi]
+        z = np.empty(hi - lo)
+        retry = np.empty(hi - lo, dtype=np.bool_)
+        for t in range(n_steps):
+            rs.normals_into(chunk_streams, z, retry)  # as normal_pair: speed, then turn
+            _add_scaled(vs, z, sigma_speed * root_dt)
+            rs.normals_into(chunk_streams, z, retry)
+            _add_scaled(ws, z, sigma_turn * root_dt)
+            arc_pass(xs, ys, cs, ss, hs, vs, ws, dt)
+            moments_pass(xs, ys, weights[lo:hi], ox, oy, sums[chunk, t])
+        finish_headings(hs, cs, ss)
+        chunk, lo, hi = next_chunk(counter, x.size)
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def _velocity_parallel(
+    threads, x, y, heading, c, s, v, w, streams, n_steps, dt, sigma_speed, sigma_turn, weights,
+    ox, oy, counter, sums,
+):  # fmt: skip
+    for _ in numba.prange(threads):
+        _velocity_kernel(
+            x, y, heading, c, s, v, w, streams, n_steps, dt, sigma_speed, sigma_turn, weights,
+            ox, oy, counter, sums,
+        )  # fmt: skip
+
+
+@dataclass(frozen=True)
+class VelocityMotion:
+    """The paper's velocity motion model (constant turn rate between steps).
+
+    Each step adds ``N(0, sigma_speed^2 dt)`` to the speed and ``N(0, sigma_turn_rate^2 dt)``
+    to the turn rate (random walks in speed and turn rate, so their spread over a horizon
+    does not depend on the prediction step), then moves along the arc of the new speed and
+    turn rate. As in the paper the speed is a signed linear velocity and may become negative
+    (motion against the heading).
+
+    Parameters
+    ----------
+    sigma_speed : float
+        Standard deviation of the speed increment over one second, m/s.
+    sigma_turn_rate : float
+        Standard deviation of the turn-rate increment over one second, rad/s.
+    """
+
+    sigma_speed: float
+    sigma_turn_rate: float
+    compiled = True
+
+    def __post_init__(self) -> None:
+        for name in ("sigma_speed", "sigma_turn_rate"):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value >= 0):
+                raise ValueError(f"VelocityMotion.{name} must be a number >= 0, got {value}")
+
+    def initialise(self, rng: np.random.Generator, particles: Particles) -> None:
+        """Nothing to set: particles start at rest as in the paper's Algorithm 1."""
+
+    def propagate(self, rng: np.random.Generator, particles: Particles, dt: float) -> None:
+        """One step of ``dt`` s for all particles, in place (NumPy reference)."""
+        self.apply(particles, dt, rng.standard_normal((2, particles.n)))
+
+    def apply(self, particles: Particles, dt: float, normals: np.ndarray) -> None:
+        """The step of :meth:`propagate` with given standard normals ``(2, N)`` (dv, domega)."""
+        particles.speed = particles.speed + self.sigma_speed * np.sqrt(dt) * normals[0]
+        particles.turn_rate = particles.turn_rate + self.sigma_turn_rate * np.sqrt(dt) * normals[1]
+        move_along_arc(particles, dt)
+
+    def advance(self, particles, streams, n_steps, dt, weights, origin, threads=None) -> np.ndarray:
+        """``n_steps`` compiled steps of ``dt`` s, in place; the weighted moments after each,
+        ``(n_steps, 5)`` (:meth:`hmmtrack.tracking.motion.base.MotionModel.advance`)."""
+        p = particles
+        return run_chunks(
+            _velocity_kernel, _velocity_parallel, p.n, n_steps, threads,
+            p.x, p.y, p.heading, p.cos_heading, p.sin_heading, p.speed, p.turn_rate,
+            streams, n_steps, float(dt), float(self.sigma_speed), float(self.sigma_turn_rate),
+            weights, *origin,
+        )  # fmt: skip
