@@ -66,6 +66,7 @@ from numba import njit
 
 from hmmtrack.random import SeedLike, as_generator
 from hmmtrack.tracking.compiled import streams as rs
+from hmmtrack.tracking.compiled.threads import ThreadChoice
 from hmmtrack.tracking.measurement.base import Score
 from hmmtrack.tracking.particles import Particles, as_bounds
 from hmmtrack.tracking.resampling import get_resampler
@@ -76,7 +77,6 @@ __all__ = [
     "Estimate",
     "FilterResult",
     "ParticleFilter",
-    "ThreadChoice",
     "sqrt_largest_eigenvalue",
 ]
 
@@ -269,79 +269,6 @@ def _n_rows(obs) -> int:
     if isinstance(obs, pd.DataFrame):
         return len(obs)
     return len(np.atleast_1d(next(iter(obs.values())))) if len(obs) else 0
-
-
-class ThreadChoice:
-    """Chooses between one thread and ``max_threads`` for compiled calls by timing both.
-
-    The cost (s per particle-step) of the option in use is a running average of its calls;
-    that of the other is the best of its latest retry, a burst of ``RETRY_CALLS`` calls (an
-    option left idle starts cold: its first call is slow). The first calls try each option
-    once; afterwards the cheaper one runs, and the other is retried after ``explore_every``
-    calls -- an interval that doubles (up to 1024) each time the retry loses and resets to
-    16 when it wins, so that a machine whose load changes is followed without paying often
-    for a bad option. Only speed depends on the choice, never results.
-
-    Parameters
-    ----------
-    max_threads : int
-        The alternative to one thread (numba's maximum).
-    """
-
-    RETRY_CALLS = 3
-
-    def __init__(self, max_threads: int) -> None:
-        self.options = (1, max_threads) if max_threads > 1 else (1,)
-        #: s per particle-step of each option (None until measured)
-        self.cost: dict[int, float | None] = dict.fromkeys(self.options)
-        self.explore_every = 16
-        self._calls_since_explore = 0
-        self._retry: list[float] = []  # costs of the retry under way
-        self._retry_left = 0
-
-    def best(self) -> int:
-        """The option with the lowest measured cost (one thread while unmeasured)."""
-        measured = {k: v for k, v in self.cost.items() if v is not None}
-        return min(measured, key=measured.get) if measured else 1
-
-    def _other(self) -> int:
-        return next(k for k in self.options if k != self.best())
-
-    def pick(self) -> int:
-        """Threads for the next call."""
-        if len(self.options) == 1:
-            return 1
-        for option, cost in self.cost.items():
-            if cost is None:
-                return option
-        if self._retry_left:
-            return self._other()
-        self._calls_since_explore += 1
-        if self._calls_since_explore < self.explore_every:
-            return self.best()
-        self._calls_since_explore = 0
-        self._retry, self._retry_left = [], self.RETRY_CALLS
-        return self._other()
-
-    def record(self, threads: int, cost: float) -> None:
-        """Note that a call with ``threads`` (as :meth:`pick` said) cost ``cost`` s per
-        particle-step."""
-        old = self.cost[threads]
-        if old is None:  # first measurement of this option
-            self.cost[threads] = cost
-            if None not in self.cost.values():
-                self._settle(won=self.best() == threads)
-        elif self._retry_left and threads == self._other():
-            self._retry.append(cost)
-            self._retry_left -= 1
-            if not self._retry_left:
-                self.cost[threads] = min(self._retry)
-                self._settle(won=self.best() == threads)
-        else:
-            self.cost[threads] = 0.5 * (old + cost)
-
-    def _settle(self, won: bool) -> None:
-        self.explore_every = 16 if won else min(2 * self.explore_every, 1024)
 
 
 @dataclass
