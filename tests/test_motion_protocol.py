@@ -187,13 +187,7 @@ def test_advance_returns_the_weighted_moments_after_every_step(case):
     for _ in range(3):  # step by step: the moments of each call's last step
         rows.append(motion.advance(p, streams, 1, 1.0, weights, origin)[-1])
         dx, dy = p.x - origin[0], p.y - origin[1]
-        expected = [
-            weights @ dx,
-            weights @ dy,
-            weights @ dx**2,
-            weights @ dy**2,
-            weights @ (dx * dy),
-        ]
+        expected = weights @ np.column_stack([dx, dy, dx**2, dy**2, dx * dy])
         np.testing.assert_allclose(rows[-1], expected, rtol=1e-10)
     fused = started(motion)
     moments = motion.advance(
