@@ -12,11 +12,10 @@ from hmmtrack.tracking.filter import (
     ParticleFilter,
     _weigh,
     _weight_summary,
-    sqrt_largest_eigenvalue,
 )
 from hmmtrack.tracking.measurement.range_rate import RangeRateMeasurement
 from hmmtrack.tracking.motion import BaselineMotion, HMMMotion, VelocityMotion
-from hmmtrack.tracking.particles import _ARRAY_NAMES, Particles
+from hmmtrack.tracking.particles import _ARRAY_NAMES, Particles, sqrt_largest_eigenvalue
 from hmmtrack.tracking.resampling import effective_sample_size, log_normalise, multinomial
 
 TAG = np.array([30.0, -20.0])

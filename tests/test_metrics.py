@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from hmmtrack.analysis import metrics
-from hmmtrack.tracking.filter import sqrt_largest_eigenvalue
+from hmmtrack.tracking.particles import sqrt_largest_eigenvalue
 
 
 def estimates_table(times, x, y, spread):

@@ -68,7 +68,7 @@ from hmmtrack.random import SeedLike, as_generator
 from hmmtrack.tracking.compiled import streams as rs
 from hmmtrack.tracking.compiled.threads import ThreadChoice
 from hmmtrack.tracking.measurement.base import Score
-from hmmtrack.tracking.particles import Particles, as_bounds
+from hmmtrack.tracking.particles import Particles, as_bounds, sqrt_largest_eigenvalue
 from hmmtrack.tracking.resampling import get_resampler
 from hmmtrack.tracking.tempering import Plain
 
@@ -77,7 +77,6 @@ __all__ = [
     "Estimate",
     "FilterResult",
     "ParticleFilter",
-    "sqrt_largest_eigenvalue",
 ]
 
 
@@ -89,28 +88,6 @@ ESTIMATE_COLUMNS = ("time", "x", "y", "var_x", "var_y", "cov_xy", "sqrt_lambda1"
 PARALLEL_MIN_WORK = 20_000
 BACKENDS = ("auto", "numba", "numpy")
 RESAMPLE_WHEN = ("always", "ess")
-
-
-def sqrt_largest_eigenvalue(var_x, var_y, cov_xy) -> np.ndarray | float:
-    """√λ₁ of 2×2 covariances, the paper's closed form (its convergence measure).
-
-    Parameters
-    ----------
-    var_x, var_y, cov_xy : array_like, shape (n,), or float
-        Entries of the x-y covariance (m²).
-
-    Returns
-    -------
-    numpy.ndarray, shape (n,), or float for float inputs
-        ``sqrt((var_x + var_y)/2 + sqrt(((var_x − var_y)/2)² + cov_xy²))`` (m).
-    """
-    if not all(isinstance(a, float) for a in (var_x, var_y, cov_xy)):
-        var_x, var_y, cov_xy = (np.asarray(a, dtype=float) for a in (var_x, var_y, cov_xy))
-    # written with operators only, so that plain floats (the filter's estimate every second)
-    # take no NumPy call: about 0.3 against 3 us
-    half_sum = 0.5 * (var_x + var_y)
-    half_diff = 0.5 * (var_x - var_y)
-    return (half_sum + (half_diff * half_diff + cov_xy * cov_xy) ** 0.5) ** 0.5
 
 
 class Estimate(NamedTuple):

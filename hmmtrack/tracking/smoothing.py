@@ -28,7 +28,7 @@ from collections import deque
 import numpy as np
 import pandas as pd
 
-from hmmtrack.tracking.filter import sqrt_largest_eigenvalue
+from hmmtrack.tracking.particles import sqrt_largest_eigenvalue
 
 #: columns of the smoothed estimates table (the filter's estimates plus ``n_ancestors``)
 SMOOTHED_COLUMNS = ("time", "x", "y", "var_x", "var_y", "cov_xy", "sqrt_lambda1", "n_ancestors")
