@@ -9,17 +9,16 @@ detecting receiver's position and velocity), derives the search box from the kno
 ranges (:func:`search_bounds`, :func:`check_bounds`), recovers degenerate weights on a range
 ring, and scores particles.
 
-Its likelihood is the paper's (section "Correction Step") (section "Correction Step"): each
-observation ``z_j = (r, r_dot)`` from hydrophone ``j`` is Gaussian around the particle's
-predicted range and range-rate,
+Its likelihood is the paper's (section "Correction Step"): each observation
+``z_j = (r, r_dot)`` from hydrophone ``j`` is Gaussian around the particle's predicted range
+and range-rate,
 
     r_hat = sqrt((x_h - x)^2 + (y_h - y)^2)
     r_dot_hat = ((x_h - x)(vx_h - vx) + (y_h - y)(vy_h - vy)) / r_hat
 
 with the particle's velocity ``(vx, vy) = speed * (cos heading, sin heading)`` and a fixed
-covariance ``Sigma_z``. A positive range-rate means the tag and hydrophone move apart.
-
-with simultaneous observations independent (their log densities add). The first detection
+covariance ``Sigma_z``, simultaneous observations independent (their log densities add).
+A positive range-rate means the tag and hydrophone move apart. The first detection
 of each receiver anchors its ranges (its range is the given ``r0``) but has no range-rate,
 so it is not passed to the likelihood (:meth:`RangeRateMeasurement.split` makes it an
 ``"anchor_detection"`` event).
