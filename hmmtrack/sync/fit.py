@@ -11,16 +11,20 @@ sound speed ``c`` is one unknown per segment, or fixed, or from temperature and 
 have their x, y refined with a Gaussian prior around the file's position (sd
 ``refine_positions`` m); depths stay as given.
 
-The residuals ``e`` are Student-t (``degrees_of_freedom``, default 3, as YAPS uses) with a
-scale per receiver: sync detections carry multipath echoes, late by milliseconds to
-seconds, and a Gaussian fit would be dragged by them. The fit is an EM algorithm on the
+The residuals ``e`` are Student-t (``degrees_of_freedom``, default 3, as YAPS uses) with
+one scale for all receivers: sync detections carry multipath echoes, late by milliseconds
+to seconds, and a Gaussian fit would be dragged by them. (A scale per receiver makes the
+likelihood unbounded: with a free emission time per ping, one receiver's residuals can all
+be made zero and its scale collapse.) The fit is an EM algorithm on the
 t-distribution as a scale mixture of Gaussians: the E-step gives each detection a weight
-``(nu + 1) / (nu + (e / sigma_r)**2)``; the M-step is a weighted least-squares solve by
-:func:`scipy.optimize.least_squares` (trust region, sparse analytic Jacobian, LSMR) over
-the emission times, clock coefficients, sound speeds and positions, then each receiver's
-scale ``sigma_r**2 = sum(w e**2) / n_r``. EM was chosen over ``least_squares``' built-in
-robust losses because those share one fixed scale for all residuals, while receivers'
-residual scales differ and must be estimated, and the position priors must stay Gaussian.
+``(nu + 1) / (nu + (e / sigma)**2)``; the M-step is one Gauss-Newton step of the weighted
+least squares over the emission times, clock coefficients, sound speeds and positions
+(sparse analytic Jacobian, normal equations solved by a sparse direct solver, step halved
+while the weighted cost grows), then the scale ``sigma**2 = sum(w e**2) / n``. Why not
+:func:`scipy.optimize.least_squares` with a robust loss: its loss has a fixed scale, which
+must be estimated here, and it would bend the Gaussian position priors too; and its sparse
+trust-region solver (LSMR) needed thousands of iterations per solve on this problem, whose
+emission-time and clock-offset columns are nearly collinear (see ``reports/decisions.md``).
 Detections farther than ``reject_scales`` scales from the fit get weight zero and are
 reported as rejected outliers.
 
@@ -69,8 +73,10 @@ class SyncFit:
         ``rejected`` (bool).
     summary : DataFrame
         One row per receiver: ``receiver``, ``detections``, ``rejected``,
-        ``residual_sd_ms`` (kept residuals), ``residual_median_ms``, ``scale_ms`` (the
-        Student-t scale), ``sync_tag``, ``fixed``, ``moved_m`` (refinement of the position).
+        ``residual_sd_ms`` (kept residuals), ``residual_median_ms``, ``sync_tag``,
+        ``fixed``, ``moved_m`` (refinement of the position).
+    scale_ms : float
+        The Student-t scale of the residuals (ms).
     iterations : int
         EM iterations run.
     """
@@ -78,6 +84,7 @@ class SyncFit:
     clocks: ReceiverClocks
     residuals: pd.DataFrame
     summary: pd.DataFrame
+    scale_ms: float
     iterations: int
 
 
@@ -221,7 +228,8 @@ def fit_clocks(
     max_iterations : int
         EM iterations at most.
     tolerance : float
-        EM stops when no receiver's scale changes by more than this fraction.
+        EM stops when the scale changes by less than this fraction (and the fit by less
+        than a microsecond, and the rejected outliers are the same).
 
     Returns
     -------
@@ -502,32 +510,25 @@ class _Problem:
         return x
 
     def solve(self, nu, reject_scales, max_iterations, tolerance):
-        """EM for Student-t residuals; returns unknowns, scales (R,), weights, rejected."""
+        """EM for Student-t residuals; returns unknowns, the scale (s), weights, rejected."""
         x = self.x0.copy()
-        scale = np.full(len(self.names), INITIAL_SCALE)
+        scale = INITIAL_SCALE
         weight = np.ones(len(self.time))
         rejected = np.zeros(len(self.time), dtype=bool)
-        counts = np.bincount(self.receiver, minlength=len(self.names))
         iteration = 0
         while iteration < max_iterations:
             iteration += 1
-            gain = np.sqrt(weight) / scale[self.receiver]
-            moved = self._gauss_newton_step(x, gain)
+            moved = self._gauss_newton_step(x, np.sqrt(weight) / scale)
             shift = np.max(np.abs(self.errors(moved) - self.errors(x)))
             x = moved
             error = self.errors(x)
             previous = scale
-            kept = np.bincount(self.receiver, weights=~rejected, minlength=len(self.names))
-            scale = np.sqrt(
-                np.bincount(self.receiver, weights=weight * error**2, minlength=len(self.names))
-                / np.maximum(kept, 1)
-            )
-            scale = np.maximum(np.where(counts > 0, scale, INITIAL_SCALE), MIN_SCALE)
-            z = error / scale[self.receiver]
+            scale = max(np.sqrt(np.sum(weight * error**2) / max(np.sum(~rejected), 1)), MIN_SCALE)
+            z = error / scale
             was = rejected
             rejected = np.abs(z) > reject_scales
             weight = np.where(rejected, 0.0, (nu + 1.0) / (nu + z**2))
-            change = np.max(np.abs(scale / previous - 1.0))
+            change = abs(scale / previous - 1.0)
             if change < tolerance and shift < MIN_SCALE and np.array_equal(was, rejected):
                 break
         return x, scale, weight, rejected, iteration
@@ -581,7 +582,6 @@ class _Problem:
                 "rejected": by["rejected"].sum().reindex(self.names, fill_value=0).to_numpy(),
                 "residual_sd_ms": kept.std(ddof=1).reindex(self.names).to_numpy(),
                 "residual_median_ms": kept.median().reindex(self.names).to_numpy(),
-                "scale_ms": 1e3 * scale,
                 "sync_tag": self.array["sync_tag"].to_numpy(),
                 "fixed": self.array["fixed"].to_numpy(dtype=bool),
                 "moved_m": np.linalg.norm(positions[:, :2] - file_positions[:, :2], axis=1),
@@ -606,4 +606,10 @@ class _Problem:
             echoes_dropped=echoes,
             settings=settings,
         )
-        return SyncFit(clocks=clocks, residuals=residuals, summary=summary, iterations=iterations)
+        return SyncFit(
+            clocks=clocks,
+            residuals=residuals,
+            summary=summary,
+            scale_ms=1e3 * scale,
+            iterations=iterations,
+        )
