@@ -570,9 +570,9 @@ class _Problem:
                 "rejected": rejected,
             }
         )
-        xy = self._xy(x) + self.centre
-        positions = np.column_stack([xy, self.z])
         file_positions = self.array[["x", "y", "z"]].to_numpy(dtype=float)
+        positions = file_positions.copy()
+        positions[self.refined, :2] = self._xy(x)[self.refined] + self.centre
         kept = residuals[~residuals["rejected"]].groupby("receiver")["residual_ms"]
         by = residuals.groupby("receiver")
         summary = pd.DataFrame(
@@ -598,7 +598,7 @@ class _Problem:
             positions=positions,
             file_positions=file_positions,
             fixed=self.array["fixed"].to_numpy(dtype=bool),
-            sync_tags=tuple(self.array["sync_tag"]),
+            sync_tags=tuple(t if isinstance(t, str) else None for t in self.array["sync_tag"]),
             residual_sd_ms=summary["residual_sd_ms"].to_numpy(dtype=float),
             detections=summary["detections"].to_numpy(dtype=int),
             rejected=summary["rejected"].to_numpy(dtype=int),
