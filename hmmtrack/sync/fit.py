@@ -88,7 +88,7 @@ class SyncFit:
     iterations: int
 
 
-def moored_array(receivers: pd.DataFrame) -> pd.DataFrame:
+def array_table(receivers: pd.DataFrame) -> pd.DataFrame:
     """One row per moored receiver: ``receiver``, ``x``, ``y``, ``z`` (0 when absent),
     ``sync_tag`` (str or None), ``fixed`` (bool); refuses mobile receivers."""
     mobile = receivers["time"].notna().to_numpy()
@@ -120,7 +120,7 @@ def sync_detections(
         Detections table (``time``, ``receiver``, ``transmitter`` and ``transmitter_id``
         when the names have a code space).
     array : DataFrame
-        From :func:`moored_array`.
+        From :func:`array_table`.
 
     Returns
     -------
@@ -235,7 +235,7 @@ def fit_clocks(
     -------
     SyncFit
     """
-    array = moored_array(receivers)
+    array = array_table(receivers)
     names = array["receiver"].tolist()
     if time_keeper is not None and time_keeper not in names:
         raise ValueError(
