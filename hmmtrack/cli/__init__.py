@@ -21,7 +21,7 @@ import sys
 from hmmtrack import __version__
 
 #: command modules, in the order ``hmmtrack --help`` lists them
-COMMANDS = ("fit", "decode", "track", "simulate", "reproduce", "study")
+COMMANDS = ("fit", "decode", "track", "sync", "simulate", "reproduce", "study")
 
 
 class UserInputError(Exception):

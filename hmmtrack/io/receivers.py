@@ -2,6 +2,9 @@
 
 A receiver is moored (one row without time) or mobile (a GPS track of an AUV or boat, a time
 on every row); positions are given in metres or in lon/lat, projected by :mod:`hmmtrack.io.geo`.
+A moored array's file may also say, per receiver, its depth or height ``z`` (m), the
+transmitter moored beside it as a sync tag (``sync_tag``, for clock synchronisation,
+:mod:`hmmtrack.sync`) and whether its surveyed position is ``fixed`` (not to be refined).
 """
 
 from __future__ import annotations
@@ -26,6 +29,9 @@ def read_receivers(
     y_col: str = "y",
     lon_col: str = "lon",
     lat_col: str = "lat",
+    z_col: str = "z",
+    sync_tag_col: str = "sync_tag",
+    fixed_col: str = "fixed",
     tz: str | None = None,
     projection: Projection | str = "utm",
 ) -> pd.DataFrame:
@@ -37,7 +43,12 @@ def read_receivers(
         CSV with a receiver column, positions either as ``x``/``y`` (m) or as ``lon``/``lat``
         (degrees, WGS 84; used when the x/y columns are absent), and a time column. A moored
         receiver is one row with an empty time (or the file has no time column).
-    receiver_col, time_col, x_col, y_col, lon_col, lat_col : str
+        Optional columns of a moored array: ``z`` (m, depth or height, one sign throughout;
+        only differences are used), ``sync_tag`` (the transmitter moored at the receiver as a
+        sync tag, full id ``A69-1602-59334`` or ID part ``59334``; empty for none) and
+        ``fixed`` (``true``/``false``, ``yes``/``no``, ``1``/``0``; empty = false: a surveyed
+        position that clock synchronisation must not refine).
+    receiver_col, time_col, x_col, y_col, lon_col, lat_col, z_col, sync_tag_col, fixed_col : str
         Column names in the file.
     tz : str, optional
         Zone of naive times.
@@ -48,8 +59,10 @@ def read_receivers(
     -------
     DataFrame
         Receiver positions: ``receiver`` (str), ``time`` (s, NaN for a moored receiver),
-        ``x``, ``y`` (m), plus ``lon``/``lat`` for lon/lat input (``attrs["crs"]`` set) and the
-        other columns; rows of a receiver contiguous and in time order; index = file line.
+        ``x``, ``y`` (m), plus ``lon``/``lat`` for lon/lat input (``attrs["crs"]`` set),
+        ``z`` (float m), ``sync_tag`` (str, NaN for none) and ``fixed`` (bool) when the file
+        has them, and the other columns; rows of a receiver contiguous and in time order;
+        index = file line.
     """
     table = read_csv(path)
     has_time = time_col is not None and time_col in table.columns
@@ -58,8 +71,11 @@ def read_receivers(
     geographic = x_col not in table.columns and y_col not in table.columns
     coords = {"lon": lon_col, "lat": lat_col} if geographic else {"x": x_col, "y": y_col}
     require(table, {"receiver": receiver_col, **coords}, "read_receivers")
+    optional = {"z": z_col, "sync_tag": sync_tag_col, "fixed": fixed_col}
+    optional = {role: col for role, col in optional.items() if col in table.columns}
     table = rename(
-        table, {"receiver": receiver_col, "time": time_col if has_time else None, **coords}
+        table,
+        {"receiver": receiver_col, "time": time_col if has_time else None, **coords, **optional},
     )
     empty = np.flatnonzero(table["receiver"].isna().to_numpy())
     if empty.size:
@@ -77,6 +93,13 @@ def read_receivers(
         table["x"] = numeric(table, "x", "metres")
         table["y"] = numeric(table, "y", "metres")
         handle_missing(table, ["x", "y"], "error")
+    if "z" in table.columns:
+        table["z"] = numeric(table, "z", "metres")
+        handle_missing(table, ["z"], "error")
+    if "sync_tag" in table.columns:
+        table["sync_tag"] = table["sync_tag"].str.strip().replace("", np.nan)
+    if "fixed" in table.columns:
+        table["fixed"] = _flags(table, "fixed")
     table["time"] = parse_times(table, "time", tz) if has_time else np.nan
     front = ["receiver", "time", "x", "y"]
     table = table[front + [c for c in table.columns if c not in front]]
@@ -85,6 +108,22 @@ def read_receivers(
     if proj is not None:
         table.attrs["crs"] = proj.crs
     return table
+
+
+_TRUE = {"true", "yes", "1", "t", "y"}
+_FALSE = {"false", "no", "0", "f", "n"}
+
+
+def _flags(table: pd.DataFrame, column: str) -> np.ndarray:
+    """A yes/no column as bool (empty = False); other text raises naming lines and column."""
+    text = table[column].fillna("false").astype(str).str.strip().str.lower()
+    bad = np.flatnonzero(~text.isin(_TRUE | _FALSE).to_numpy())
+    if bad.size:
+        raise ValueError(
+            f"{describe_rows(table, bad)}: column {column!r} must be true/false (yes/no, 1/0), "
+            f"found {table[column].iloc[bad[0]]!r}"
+        )
+    return text.isin(_TRUE).to_numpy()
 
 
 def validate_receivers(positions: pd.DataFrame) -> None:
