@@ -6,7 +6,7 @@ a form that tends to the straight line ``v dt (cos theta, sin theta)`` as ``omeg
 without cancellation. :func:`arc_displacement` and :func:`move_along_arc` are the NumPy
 reference; :func:`arc_pass` and :func:`finish_headings` are their compiled twins, inlined
 into the motion kernels, which take each step as a branch-free (vectorised) pass with a
-polynomial arc and a scalar pass for the rare turns wider than :data:`WIDE_TURN`.
+polynomial arc and call a scalar pass only when some turns are wider than :data:`WIDE_TURN`.
 """
 
 from __future__ import annotations
@@ -120,14 +120,17 @@ def arc_pass(x, y, c, s, heading, v, turn, dt):
     """Move particles in place for ``dt`` s along the arcs of speed ``v`` (m/s) and turn rate
     ``turn`` (rad/s), all arrays (n,) (the NumPy path's equations, :func:`arc_displacement`).
 
-    A branch-free (vectorised) pass for turns up to :data:`WIDE_TURN`, then a scalar pass
-    for the wider ones with the library's sine and cosine. ``(cos, sin)`` of the heading are
-    rotated by ``phi``; ``heading`` gains ``phi`` (wrapped later, :func:`finish_headings`).
+    A branch-free (vectorised) pass for turns up to :data:`WIDE_TURN` that also counts the
+    wider ones, then, only when there are any, :func:`_wide_turns` for those. ``(cos, sin)``
+    of the heading are rotated by ``phi``; ``heading`` gains ``phi`` (wrapped later,
+    :func:`finish_headings`).
     """
+    n_wide = 0
     for i in range(x.size):
         phi = turn[i] * dt
         length = v[i] * dt
         narrow = abs(phi) <= WIDE_TURN
+        n_wide += not narrow
         phi = phi if narrow else 0.0  # wide turns: no move here, see below
         length = length if narrow else 0.0
         sinc, cosc = _arc_coefficients(phi)
@@ -140,6 +143,16 @@ def arc_pass(x, y, c, s, heading, v, turn, dt):
         c[i] = ci * cos_phi - si * sin_phi
         s[i] = si * cos_phi + ci * sin_phi
         heading[i] += phi
+    if n_wide > 0:
+        _wide_turns(x, y, c, s, heading, v, turn, dt)
+
+
+# not inlined: a call LLVM cannot if-convert, so the arc pass never computes sine and cosine
+# for every particle (a vectorising LLVM, e.g. with SVML, would do so for an inlined loop)
+@njit(cache=True, nogil=True)
+def _wide_turns(x, y, c, s, heading, v, turn, dt):
+    """:func:`arc_pass` for the particles whose ``|turn dt|`` exceeds :data:`WIDE_TURN`
+    (more than 229 degrees in one step), with the library's sine and cosine."""
     for i in range(x.size):
         phi = turn[i] * dt
         if abs(phi) > WIDE_TURN:
