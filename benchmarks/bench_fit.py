@@ -52,6 +52,13 @@ TRUE = MovementHMM(
     step=Gamma(np.array([2.0, 10.0]), np.array([1.5, 4.0])),
     angle=VonMises(np.array([np.pi, 0.0]), np.array([1.0, 5.0])),
 )
+#: the 5-state fit's data: five behaviours from slow and tortuous to fast and directed
+FIVE = MovementHMM(
+    initial=np.full(5, 0.2),
+    transition=np.full((5, 5), 0.025) + 0.875 * np.eye(5),
+    step=Gamma(np.array([1.0, 3.0, 6.0, 10.0, 15.0]), np.array([0.7, 1.5, 2.5, 3.5, 5.0])),
+    angle=VonMises(np.array([np.pi, np.pi, 0.0, 0.0, 0.0]), np.array([0.5, 1.0, 3.0, 8.0, 20.0])),
+)
 
 
 class GammaVonMisesHMM(BaseHMM):
@@ -134,9 +141,9 @@ class GammaVonMisesHMM(BaseHMM):
         self.kappa_ = kappa
 
 
-def simulate(n: int, n_tracks: int, seed: int):
+def simulate(n: int, n_tracks: int, seed: int, model: MovementHMM = TRUE):
     rng = np.random.default_rng(seed)
-    parts = [TRUE.simulate(rng, n // n_tracks) for _ in range(n_tracks)]
+    parts = [model.simulate(rng, n // n_tracks) for _ in range(n_tracks)]
     X = np.vstack([p[["step", "angle"]].to_numpy() for p in parts])
     return X, np.full(n_tracks, n // n_tracks)
 
@@ -227,7 +234,7 @@ def main() -> None:
         f"best log-lik {serial[2]:.4f}"
     )
 
-    X5, lengths5 = simulate(20_000, 1, seed=3)
+    X5, lengths5 = simulate(20_000, 1, seed=3, model=FIVE)
     five = best_of(run_hmmtrack, 2, X5, lengths5, n_states=5)
     print("\n20,000 observations, 5 states, 1 start (best of 2)")
     print(

@@ -94,6 +94,35 @@ def test_working_gradient_matches_finite_differences():
     np.testing.assert_allclose(likelihood.pack(likelihood.unpack(theta)), theta, atol=1e-10)
 
 
+def test_accelerated_em_reaches_plain_em_optimum_in_fewer_iterations(monkeypatch):
+    """A crawling EM (3 states fitted to 5 behaviours) switches to SQUAREM after
+    ACCELERATE_AFTER iterations: a monotone history, the optimum of plain EM (which the
+    polish also finds) in fewer E-steps."""
+    five = MovementHMM(
+        initial=np.full(5, 0.2),
+        transition=np.full((5, 5), 0.025) + 0.875 * np.eye(5),
+        step=Gamma(np.array([1.0, 3.0, 6.0, 10.0, 15.0]), np.array([0.7, 1.5, 2.5, 3.5, 5.0])),
+        angle=VonMises(np.array([np.pi, np.pi, 0, 0, 0]), np.array([0.5, 1, 3, 8, 20.0])),
+    )
+    frame = five.simulate(np.random.default_rng(3), 20_000).assign(segment=0)
+    data = fit.fit_data(Observations.from_frame(frame), {})
+    spec = fit.FitSpec(3, "gamma", "vonmises", True, False, max_iter=1000, tol=1e-9)
+    start = fit.initial_parameters(None, data, spec)
+    fast, fast_value, fast_monitor = fit.run_em(start, data, 1000, 1e-9)
+    monkeypatch.setattr(fit, "ACCELERATE_AFTER", 1000)
+    plain, plain_value, plain_monitor = fit.run_em(start, data, 1000, 1e-9)
+    assert fast_monitor.converged and plain_monitor.converged
+    assert plain_monitor.n_iter > 40 and fast_monitor.n_iter < 0.7 * plain_monitor.n_iter
+    assert np.all(np.diff(fast_monitor.history) > -1e-6)
+    assert fast_value >= plain_value - 1e-3
+    # both stop within EM's tolerance of the optimum the polish reaches
+    polished, polished_value = fit.polish(plain, data)
+    assert polished_value - fast_value < 1e-3
+    for em in (fast, plain):
+        np.testing.assert_allclose(em.step.mean, polished.step.mean, rtol=1e-3)
+        np.testing.assert_allclose(em.transition, polished.transition, atol=1e-3)
+
+
 def test_covariate_effects_are_recovered():
     rng = np.random.default_rng(21)
     n = 20_000

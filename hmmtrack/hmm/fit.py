@@ -11,6 +11,7 @@
    E-step is :func:`hmmtrack.hmm.inference.forward_backward`, the M-step the weighted
    maximum-likelihood fits of the emission families, the initial distribution and the
    transition matrix (closed form) or its logit coefficients (:mod:`~hmmtrack.hmm.covariates`);
+   an EM still crawling after :data:`ACCELERATE_AFTER` iterations continues with SQUAREM;
 2. the best start is *polished*: BFGS on the full log-likelihood over the working
    parameters (the scale moveHMM's ``nlm`` maximises on), with the gradient from Fisher's
    identity (one forward-backward pass plus the emission scores), so that the optimum is
@@ -48,6 +49,8 @@ logger = logging.getLogger(__name__)
 _TINY = 1e-12  # floor of probabilities whose log is a working parameter
 _POLISH_GTOL = 1e-6  # polish stops when no gradient entry of the per-row log-lik exceeds this
 _DT_TOLERANCE = 0.1  # fit warns when a time step differs from the median by more than 10 %
+#: EM iterations before run_em accelerates (SQUAREM); common fits have converged by then
+ACCELERATE_AFTER = 20
 
 
 # ---------------------------------------------------------------------------------------------
@@ -352,25 +355,66 @@ def m_step(params: Parameters, data: FitData, post) -> Parameters:
 def run_em(params: Parameters, data: FitData, max_iter: int, tol: float):
     """Baum-Welch from ``params`` until the gain per observation is below ``tol``.
 
+    Plain EM for the first :data:`ACCELERATE_AFTER` iterations (most fits converge within
+    them); an EM that is still crawling then continues with SQUAREM (Varadhan & Roland 2008,
+    scheme S3) on the working parameters (:class:`WorkingLikelihood`): two EM steps ``r``
+    and ``v`` give the extrapolation ``theta0 - 2 alpha r + alpha^2 v``, kept only when its
+    log-likelihood is at least that of the second EM step, so that every value in the
+    history is at least the one before. Each E-step counts as one iteration.
+
     Returns
     -------
     params : Parameters
-        The last M-step's parameters.
+        The parameters of the last E-step.
     log_likelihood : float
         Log-likelihood of the returned parameters.
     monitor : ConvergenceMonitor
     """
     history = []
-    converged = False
     post = _posterior(params, data)
-    for _ in range(max_iter):
+
+    def step(params, post):
+        """EM step; ``None`` for a gain below ``tol`` or the end of ``max_iter``."""
         history.append(post.log_likelihood)
         params = m_step(params, data, post)
-        del post  # free its (T, K) arrays before the next E-step allocates the same again
         post = _posterior(params, data)
-        if post.log_likelihood - history[-1] < tol * data.n_obs:
-            converged = True
+        done = post.log_likelihood - history[-1] < tol * data.n_obs
+        return params, post, done or len(history) >= max_iter
+
+    done = max_iter < 1
+    while not done and len(history) < ACCELERATE_AFTER:
+        params, post, done = step(params, post)
+    working = WorkingLikelihood(params, data)
+    step_max = 1.0
+    while not done:
+        start = working.pack(params)
+        first, first_post, done = step(params, post)
+        if done:
+            params, post = first, first_post
             break
+        second, second_post, done = step(first, first_post)
+        params, post = second, second_post
+        if done:
+            break
+        r = working.pack(first) - start
+        v = working.pack(second) - start - 2.0 * r
+        if not (np.all(np.isfinite(v)) and np.any(v)):
+            continue
+        alpha = min(-1.0, max(-step_max, -np.sqrt(r @ r / (v @ v))))
+        if alpha == -step_max:
+            step_max *= 4.0
+        if alpha == -1.0:  # the extrapolation is the second EM step itself
+            continue
+        candidate = working.unpack(start - 2.0 * alpha * r + alpha * alpha * v)
+        try:
+            candidate_post = _posterior(candidate, data)
+        except ValueError:  # some observation impossible under every state path
+            continue
+        if candidate_post.log_likelihood >= second_post.log_likelihood:
+            history.append(second_post.log_likelihood)
+            params, post = candidate, candidate_post
+            done = len(history) >= max_iter
+    converged = bool(history) and post.log_likelihood - history[-1] < tol * data.n_obs
     monitor = ConvergenceMonitor(tuple(history), len(history), converged, tol)
     return params, float(post.log_likelihood), monitor
 
