@@ -46,7 +46,7 @@ def world(tmp_path_factory) -> Path:
     (root / "folder").mkdir()
     (root / "reports").mkdir()
     (root / "reports" / "summary.md").write_text(PREVIOUS)
-    for name in ("previous.csv", "previous.json", "previous.png", "plain_file"):
+    for name in ("previous.csv", "previous.json", "previous.png", "plain_file", "c_residuals.csv"):
         (root / name).write_text(PREVIOUS)
     (root / "link.csv").symlink_to(root / "sim" / "detections.csv")
     bad = {

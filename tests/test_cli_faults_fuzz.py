@@ -1,8 +1,9 @@
 """Fuzzing of the readers and the model loader: any bytes load or raise a one-line error.
 
-``io.read_tracks``, ``io.read_detections`` (plain, VUE and Fathom detection), and
-``io.read_receivers`` get byte strings built from CSV-like pieces (headers of each format,
-numbers, times, quotes, non-UTF-8 bytes, ragged rows) and arbitrary bytes;
+``io.read_tracks``, ``io.read_detections`` (plain, VUE and Fathom detection),
+``io.read_receivers``, ``MovementHMM.load`` and ``sync.read_clocks`` get byte strings built
+from CSV-like pieces (headers of each format, numbers, times, quotes, non-UTF-8 bytes,
+ragged rows) and arbitrary bytes;
 ``MovementHMM.load`` gets arbitrary bytes and valid model files with fields replaced by
 arbitrary JSON values or removed. Each either returns or raises a ``ValueError`` whose
 message is one line naming the file; anything else (another exception, a traceback-worthy
@@ -22,6 +23,7 @@ from hypothesis import strategies as st
 from hmmtrack import io
 from hmmtrack.hmm import MovementHMM
 from hmmtrack.scenarios.white_shark_hmm import load_white_shark_hmm
+from hmmtrack.sync import read_clocks
 
 PIECES = [
     b"id,time,x,y\n",
@@ -54,6 +56,7 @@ READERS = {
     "detections": io.read_detections,
     "receivers": io.read_receivers,
     "model": MovementHMM.load,
+    "clocks": read_clocks,
 }
 FUZZ = settings(max_examples=300, suppress_health_check=[HealthCheck.too_slow])
 

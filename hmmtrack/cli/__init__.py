@@ -59,8 +59,6 @@ EXIT_INTERRUPTED = 128  # + the signal's number: 130 for SIGINT, 143 for SIGTERM
 #: exceptions that mean "fix the command line or the input files"
 BAD_INPUT = (ValueError, FileNotFoundError, IsADirectoryError, NotADirectoryError)
 
-logger = logging.getLogger("hmmtrack")
-
 
 class UserInputError(Exception):
     """Raised for bad input that the user can fix; the CLI prints it without a traceback."""
