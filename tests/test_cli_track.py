@@ -180,7 +180,7 @@ def test_hmm_without_model_uses_the_bundled_model(scenario_files, tmp_path):
     assert len(pd.read_csv(output)) > 1000
 
 
-def test_options_without_a_config_file(scenario_files, tmp_path, capsys):
+def test_options_without_a_config_file(scenario_files, tmp_path, capsys, caplog):
     scenario, paths = scenario_files
     output = tmp_path / "plain.csv"
     r0 = [f"--r0={name}={metres}" for name, metres in scenario.r0.items()]
@@ -210,11 +210,13 @@ def test_options_without_a_config_file(scenario_files, tmp_path, capsys):
     fixed = tmp_path / "tag.csv"
     fixed.write_text("x,y\n0.0,0.0\n")
     window = ["--start", "2022-06-08T17:01:00Z", "--end", "2022-06-08T17:06:00.000Z"]
-    with pytest.warns(RuntimeWarning, match="outside"):  # detections outside the window
-        assert main([*args, *window, "--seed", "2", "--truth", str(fixed)]) == 0
+    caplog.clear()
+    assert main([*args, *window, "--seed", "2", "--truth", str(fixed)]) == 0
     printed = capsys.readouterr()
     assert "time to convergence" in printed.out
-    assert "observations_outside_window" in printed.err
+    # detections outside the window: one log line with the ISO time, not a Python warning
+    assert caplog.text.count("observations_outside_window") == 1
+    assert "filter event at 2022-06-08T17:01:00.000Z: observations_outside_window" in caplog.text
     table = pd.read_csv(output)
     assert table["time"].iloc[[0, -1]].tolist() == [
         "2022-06-08T17:01:00.000Z",

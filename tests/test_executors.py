@@ -140,7 +140,7 @@ def run_script(directory, body: str) -> subprocess.CompletedProcess:
     script = directory / "script.py"
     script.write_text(textwrap.dedent(body))
     return subprocess.run(
-        [sys.executable, str(script)], capture_output=True, text=True, timeout=60, check=False
+        [sys.executable, str(script)], capture_output=True, text=True, timeout=600, check=False
     )
 
 

@@ -253,7 +253,7 @@ def test_a_process_forked_after_openmp_started_still_runs_kernels(tmp_path):
     script = tmp_path / "fork_after_openmp.py"
     script.write_text(FORK_AFTER_OPENMP)
     done = subprocess.run(
-        [sys.executable, str(script)], capture_output=True, text=True, timeout=180
+        [sys.executable, str(script)], capture_output=True, text=True, timeout=600
     )  # without the guard the pool waits for ever on its ended workers
     assert done.returncode == 0, done.stderr[-3000:]
     assert done.stdout.split() == ["same"]

@@ -9,23 +9,92 @@ Each command lives in its own module of this package and exposes two functions:
 
 The commands hold no logic that the library lacks: they parse arguments, call library
 functions and print or write what those return.
+
+:func:`main` is the one place where failures become messages and exit codes (a command's
+``run`` raises; it never prints a traceback or exits itself):
+
+====  ============================================================================
+code  meaning
+====  ============================================================================
+0     done
+1     the run failed: disk full, no permission, out of memory, a busy output folder,
+      a lost cluster or worker process (``OSError`` other than a missing file,
+      ``MemoryError``, ``BrokenProcessPool``)
+2     bad input the user can fix: options, input files, output paths checked
+      before the work starts (``UserInputError``, ``ValueError``,
+      ``FileNotFoundError``, ``IsADirectoryError``, ``NotADirectoryError``)
+130   interrupted (Ctrl-C, SIGINT); 143 for SIGTERM
+====  ============================================================================
+
+Each failure is one line on stderr, ``hmmtrack COMMAND: error: ...``; ``--debug`` adds the
+traceback. SIGINT and SIGTERM raise :class:`Interrupted`, so that the outputs being written
+(:mod:`hmmtrack.io.outputs`) are removed on the way out. Python warnings are logged as one
+line each (``WARNING: ...``), without the source line that Python prints.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import logging
+import signal
 import sys
+import threading
+import traceback
+import warnings
+from collections.abc import Iterator
+from concurrent.futures.process import BrokenProcessPool
 
 from hmmtrack import __version__
 
 #: command modules, in the order ``hmmtrack --help`` lists them
 COMMANDS = ("fit", "decode", "track", "sync", "simulate", "reproduce", "study")
 
+#: exit codes (see the module docstring)
+EXIT_FAILURE = 1
+EXIT_BAD_INPUT = 2
+EXIT_INTERRUPTED = 128  # + the signal's number: 130 for SIGINT, 143 for SIGTERM
+
+#: exceptions that mean "fix the command line or the input files"
+BAD_INPUT = (ValueError, FileNotFoundError, IsADirectoryError, NotADirectoryError)
+
 
 class UserInputError(Exception):
     """Raised for bad input that the user can fix; the CLI prints it without a traceback."""
+
+
+class Interrupted(KeyboardInterrupt):
+    """SIGINT or SIGTERM received (``signum``); a ``KeyboardInterrupt``, so that library code
+    catching ``Exception`` lets it through and ``finally`` blocks clean up."""
+
+    def __init__(self, signum: int):
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+def _raise_interrupted(signum: int, frame) -> None:
+    raise Interrupted(signum)
+
+
+@contextlib.contextmanager
+def _signals_raise() -> Iterator[None]:
+    """SIGINT and SIGTERM raise :class:`Interrupted` inside the block (main thread only)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    signals = (signal.SIGINT, signal.SIGTERM)
+    previous = {s: signal.signal(s, _raise_interrupted) for s in signals}
+    try:
+        yield
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+
+
+def _log_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """``warnings.showwarning`` for the CLI: one log line, no source path or line."""
+    logging.getLogger("py.warnings").warning("%s", message)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -35,6 +104,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"hmmtrack {__version__}")
     parser.add_argument("-v", "--verbose", action="count", default=0, help="more log output")
+    parser.add_argument(
+        "--debug",
+        action="store_true",
+        help="print the traceback of a failure (default: a one-line message)",
+    )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
     for name in COMMANDS:
@@ -42,19 +116,42 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def message(exc: BaseException) -> str:
+    """One line saying what went wrong: the exception's text (an ``OSError``'s file and
+    reason), its lines joined."""
+    if isinstance(exc, MemoryError):
+        return "out of memory; try fewer particles or a shorter time window"
+    if isinstance(exc, OSError) and exc.strerror and exc.filename:
+        text = f"{exc.filename}: {exc.strerror}"
+    else:
+        text = str(exc) or type(exc).__name__
+    return " ".join(part.strip() for part in text.splitlines() if part.strip())
+
+
 def main(argv: list[str] | None = None) -> int:
+    """Run ``hmmtrack`` with ``argv`` (default ``sys.argv[1:]``); return the exit code."""
     parser = build_parser()
     args = parser.parse_args(argv)
     logging.basicConfig(
-        level=logging.WARNING - 10 * min(args.verbose, 2),
-        format="%(levelname)s %(name)s: %(message)s",
+        level=logging.WARNING - 10 * min(args.verbose, 2), format="%(levelname)s: %(message)s"
     )
-    try:
-        return int(args.func(args) or 0)
-    except (UserInputError, ValueError, FileNotFoundError) as exc:
-        print(f"hmmtrack {args.command}: error: {exc}", file=sys.stderr)
-        return 2
-
-
-if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())
+    with warnings.catch_warnings():
+        warnings.showwarning = _log_warning
+        try:
+            with _signals_raise():
+                return int(args.func(args) or 0)
+        except KeyboardInterrupt as exc:
+            error = exc
+            signum = getattr(exc, "signum", signal.SIGINT)
+            code, failure = (
+                EXIT_INTERRUPTED + signum,
+                f"interrupted ({signal.Signals(signum).name})",
+            )
+        except (UserInputError, *BAD_INPUT) as exc:
+            error, code, failure = exc, EXIT_BAD_INPUT, message(exc)
+        except (OSError, MemoryError, BrokenProcessPool) as exc:
+            error, code, failure = exc, EXIT_FAILURE, message(exc)
+    if args.debug:
+        traceback.print_exception(type(error), error, error.__traceback__)
+    print(f"hmmtrack {args.command}: error: {failure}", file=sys.stderr)
+    return code

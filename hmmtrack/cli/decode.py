@@ -21,6 +21,7 @@ import numpy as np
 from hmmtrack import io
 from hmmtrack.cli.fit import add_track_arguments, read_prepared, step_unit
 from hmmtrack.hmm import MovementHMM
+from hmmtrack.io.outputs import atomic_files, check_paths
 
 
 def register(subparsers) -> None:
@@ -36,6 +37,7 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    check_paths({"tracks": args.tracks, "--model": args.model}, outputs={"-o": args.output})
     model = MovementHMM.load(args.model)
     if model.step_unit != step_unit(args.scale):
         raise ValueError(
@@ -51,7 +53,8 @@ def run(args: argparse.Namespace) -> int:
         out[f"p_state{k + 1}"] = probabilities[:, k]
     if "time" in out.columns:
         out["time"] = io.format_times(out["time"].to_numpy())
-    out.to_csv(args.output, index=False)
+    with atomic_files(args.output) as (written,):
+        out.to_csv(written, index=False)
     counts = ", ".join(
         f"state {k + 1}: {n}" for k, n in enumerate(np.bincount(states, minlength=model.n_states))
     )

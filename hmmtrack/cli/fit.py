@@ -19,6 +19,7 @@ import pandas as pd
 
 from hmmtrack import io, tracks
 from hmmtrack.hmm import MovementHMMEstimator, diagnostics, distributions
+from hmmtrack.io.outputs import atomic_files, check_paths
 
 
 def add_track_arguments(parser: argparse.ArgumentParser) -> None:
@@ -114,6 +115,7 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    check_paths({"tracks": args.tracks}, outputs={"-o": args.output})
     prepared = read_prepared(args)
     estimator = MovementHMMEstimator(
         n_states=args.states,
@@ -127,8 +129,9 @@ def run(args: argparse.Namespace) -> int:
         step_unit=step_unit(args.scale),
     ).fit(prepared)
     model = estimator.model_
-    model.save(args.output)
     intervals = diagnostics.confidence_intervals(model, prepared, level=args.level)
+    with atomic_files(args.output) as (written,):
+        model.save(written)
     print(f"{args.tracks}: {len(prepared)} rows, {prepared['segment'].nunique()} segments")
     print(diagnostics.summary(model, intervals))
     starts = ", ".join(f"{s.log_likelihood:.4f}" for s in estimator.starts_)

@@ -12,6 +12,7 @@ import argparse
 import sys
 
 from hmmtrack.cli import UserInputError
+from hmmtrack.io.outputs import check_paths
 
 DESCRIPTION = (
     "Rerun the paper's experiments on the bundled synthetic datasets and write every figure "
@@ -84,6 +85,7 @@ def run(args: argparse.Namespace) -> int:
     _positive("--trials", args.trials)
     _positive("--particles", args.particles)
     _positive("--workers", args.workers)
+    check_paths(folders={"--out": args.out})
     progress = sys.stderr.isatty() if args.progress is None else args.progress
     client = None
     if args.dask_scheduler:

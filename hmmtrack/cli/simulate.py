@@ -8,9 +8,11 @@ tracker can be tried on our analogues of the paper's datasets.
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
+from hmmtrack.io.outputs import check_paths, staged_folder
 from hmmtrack.scenarios import GENERATORS
-from hmmtrack.scenarios.export import write_scenario
+from hmmtrack.scenarios.export import FILE_NAMES, write_scenario
 
 
 def register(subparsers) -> None:
@@ -39,18 +41,21 @@ def register(subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     if args.dive and args.scenario != "shark-pursuit":
         raise ValueError("--dive applies to shark-pursuit only")
+    check_paths(folders={"-o": args.out})
     generator = GENERATORS[args.scenario]
     scenario = generator(args.seed, dive=True) if args.dive else generator(args.seed)
-    paths = write_scenario(scenario, args.out)
-    if args.plot:
-        import matplotlib
+    with staged_folder(args.out, last=FILE_NAMES["metadata"]) as stage:
+        names = {key: path.name for key, path in write_scenario(scenario, stage).items()}
+        if args.plot:
+            import matplotlib
 
-        matplotlib.use("Agg")
-        from hmmtrack.plots.experiments import plot_scenario
+            matplotlib.use("Agg")
+            from hmmtrack.plots.experiments import plot_scenario
 
-        figure = plot_scenario(scenario).figure
-        paths["overview"] = paths["metadata"].with_name("overview.png")
-        figure.savefig(paths["overview"], dpi=120, bbox_inches="tight")
+            names["overview"] = "overview.png"
+            figure = plot_scenario(scenario).figure
+            figure.savefig(stage / names["overview"], dpi=120, bbox_inches="tight")
+    paths = {key: Path(args.out) / name for key, name in names.items()}
     n_receivers = scenario.receivers["receiver"].nunique()
     print(
         f"{scenario.name}: {len(scenario.detections)} detections at {n_receivers} receivers "

@@ -21,6 +21,7 @@ import importlib
 import warnings
 
 from hmmtrack.cli import UserInputError
+from hmmtrack.io.outputs import check_paths
 
 #: subcommand -> (report module, writer, help)
 STUDIES = {
@@ -150,6 +151,8 @@ def run(args: argparse.Namespace) -> int:
 
     matplotlib.use("Agg")  # figures go to files; no display needed
     module, writer, _ = STUDIES[args.study]
+    report = getattr(args, "filter_report", None)
+    check_paths({"--filter-report": report}, folders={"--out": args.out})
     write = getattr(importlib.import_module(f"hmmtrack.report.{module}"), writer)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # re-initialised clouds are in the runs

@@ -21,6 +21,7 @@ import time
 from pathlib import Path
 
 from hmmtrack import io
+from hmmtrack.io.outputs import atomic_files, check_paths
 from hmmtrack.sync import apply_clocks, fit_clocks, write_clocks
 
 
@@ -93,6 +94,17 @@ def register(subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     started = time.perf_counter()
+    out = Path(args.out)
+    table = Path(args.residuals) if args.residuals else out.with_name(out.stem + "_residuals.csv")
+    check_paths(
+        {"--detections": args.detections, "--receivers": args.receivers},
+        outputs={
+            "-o": out,
+            "--residuals": table,
+            "--plot": args.plot,
+            "--write-synced": args.write_synced,
+        },
+    )
     detections = io.read_detections(args.detections, tz=args.tz)
     receivers = io.read_receivers(args.receivers)
     temperature, salinity = args.water if args.water else (None, None)
@@ -110,25 +122,22 @@ def run(args: argparse.Namespace) -> int:
         max_clock_offset=args.max_clock_offset,
     )
     clocks = fit.clocks
-    out = Path(args.out)
-    write_clocks(clocks, out)
-    written = [out]
-    table = Path(args.residuals) if args.residuals else out.with_name(out.stem + "_residuals.csv")
-    fit.summary.to_csv(table, index=False, float_format="%.6g")
-    written.append(table)
-    if args.plot:
-        import matplotlib
+    written = [p for p in (out, table, args.plot, args.write_synced) if p]
+    with atomic_files(*written) as temporary:
+        files = iter(temporary)
+        write_clocks(clocks, next(files))
+        fit.summary.to_csv(next(files), index=False, float_format="%.6g")
+        if args.plot:
+            import matplotlib
 
-        matplotlib.use("Agg")
-        from hmmtrack.plots.sync import plot_sync_residuals
+            matplotlib.use("Agg")
+            from hmmtrack.plots.sync import plot_sync_residuals
 
-        figure = plot_sync_residuals(fit.residuals).figure
-        figure.savefig(args.plot, dpi=120, bbox_inches="tight")
-        written.append(Path(args.plot))
-    if args.write_synced:
-        synced = apply_clocks(detections[detections["receiver"].isin(clocks.receivers)], clocks)
-        synced.to_csv(args.write_synced, index=False, float_format="%.6f")
-        written.append(Path(args.write_synced))
+            figure = plot_sync_residuals(fit.residuals).figure
+            figure.savefig(next(files), dpi=120, bbox_inches="tight")
+        if args.write_synced:
+            synced = apply_clocks(detections[detections["receiver"].isin(clocks.receivers)], clocks)
+            synced.to_csv(next(files), index=False, float_format="%.6f")
     speeds = ", ".join(f"{c:.1f}" for c in clocks.sound_speed)
     print(
         f"synchronised {len(clocks.receivers)} receivers to {clocks.time_keeper} from "

@@ -27,8 +27,10 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import logging
 import math
 import sys
+import warnings
 
 import numpy as np
 import pandas as pd
@@ -36,6 +38,7 @@ import pandas as pd
 from hmmtrack import io
 from hmmtrack.analysis import metrics
 from hmmtrack.cli import UserInputError
+from hmmtrack.io.outputs import atomic_files, check_paths
 from hmmtrack.tracking import pipeline as tracking
 from hmmtrack.tracking.config import (
     TrackingConfig,
@@ -56,6 +59,8 @@ from hmmtrack.tracking.motion import (
     VELOCITY_SIGMA_TURN_RATE,
 )
 from hmmtrack.tracking.resampling import RESAMPLERS
+
+logger = logging.getLogger(__name__)
 
 #: defaults of the configuration (help texts, build_config)
 _CONFIG_DEFAULTS = {f.name: f.default for f in dataclasses.fields(TrackingConfig)}
@@ -443,6 +448,9 @@ def run(args: argparse.Namespace) -> int:
         raise UserInputError("--model is used with --motion hmm only")
     if args.no_resting and config.motion != "hmm":
         raise UserInputError("--no-resting is used with --motion hmm only")
+    inputs = {"--detections": args.detections, "--receivers": args.receivers}
+    inputs |= {"--config": args.config, "--model": args.model, "--truth": args.truth}
+    check_paths(inputs, outputs={"-o": args.output, "--plot": args.plot})
     seed = args.seed
     if seed is None:
         seed = int(np.random.SeedSequence().entropy % 2**63)
@@ -450,6 +458,7 @@ def run(args: argparse.Namespace) -> int:
     detections = io.read_detections(args.detections)
     receivers = io.read_receivers(args.receivers)
     projection = io.Projection.from_frame(receivers)
+    truth = io.read_truth(args.truth, projection) if args.truth else None
     if args.bounds is not None and projection is not None:
         config = config.override(bounds=io.bounds_in_metres(args.bounds, projection))
     resting = None if args.no_resting else "default"
@@ -460,27 +469,28 @@ def run(args: argparse.Namespace) -> int:
 
         tracked = tracking.select_transmitter(detections, config.transmitter)
         snapshot_times = choose_snapshots(*tracking.time_window(tracked["time"], config))
-    result = tracking.track(
-        detections,
-        receivers,
-        config,
-        motion,
-        seed=seed,
-        snapshot_times=snapshot_times,
-        smoothing_lag=args.smooth,
-    )
+    with warnings.catch_warnings():
+        # the filter warns of each event as it happens; they are logged once below
+        warnings.filterwarnings("ignore", message=r"t=\S+: \w+: ", category=RuntimeWarning)
+        result = tracking.track(
+            detections,
+            receivers,
+            config,
+            motion,
+            seed=seed,
+            snapshot_times=snapshot_times,
+            smoothing_lag=args.smooth,
+        )
     if result.ambiguity is not None:
         _warn_ambiguous(result.ambiguity)
     estimates = result.estimates if result.smoothed is None else result.smoothed
     events, snapshots, observations = result.events, result.snapshots, result.observations
-    io.write_estimates(estimates, args.output, projection=projection)
-    print(f"wrote {len(estimates)} estimates to {args.output}")
-    for event in events.itertuples(index=False):
-        if event.kind != "anchor_detection":
-            print(f"event at {event.time}: {event.kind}: {event.detail}", file=sys.stderr)
-    truth = errors = convergence = None
-    if args.truth:
-        truth = io.read_truth(args.truth, projection)
+    events = events[events["kind"] != "anchor_detection"]
+    times = io.format_times(events["time"].to_numpy(dtype=float))
+    for time, kind, detail in zip(times, events["kind"], events["detail"], strict=True):
+        logger.warning("filter event at %s: %s: %s", time, kind, detail)
+    errors = convergence = None
+    if truth is not None:
         scored = _within_truth(estimates, truth)
         summary = metrics.tracking_metrics(scored, truth)
         converged = "" if summary.converged else " (never converged; 0 by the paper's rule)"
@@ -494,6 +504,7 @@ def run(args: argparse.Namespace) -> int:
         convergence = metrics.time_to_convergence(
             scored["time"].to_numpy(), scored["sqrt_lambda1"].to_numpy()
         )
+    figure = None
     if args.plot:
         import matplotlib
 
@@ -509,6 +520,11 @@ def run(args: argparse.Namespace) -> int:
             errors=errors,
             convergence=convergence,
         )
-        figure.savefig(args.plot, dpi=120, bbox_inches="tight")
+    with atomic_files(*filter(None, (args.output, args.plot))) as written:
+        io.write_estimates(estimates, written[0], projection=projection)
+        if figure is not None:
+            figure.savefig(written[1], dpi=120, bbox_inches="tight")
+    print(f"wrote {len(estimates)} estimates to {args.output}")
+    if args.plot:
         print(f"wrote {args.plot}")
     return 0

@@ -452,6 +452,8 @@ class MovementHMM:
             document = json.loads(path.read_text(encoding="utf-8"))
         except json.JSONDecodeError as exc:
             raise ValueError(f"{path}: not a JSON file ({exc})") from exc
+        except UnicodeDecodeError as exc:
+            raise ValueError(f"{path}: not a JSON file (not UTF-8 text: {exc.reason})") from exc
         return cls.from_dict(document, source=str(path))
 
     @classmethod

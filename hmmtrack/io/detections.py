@@ -14,7 +14,13 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from hmmtrack.io.tables import numeric, numeric_columns, read_csv, require
+from hmmtrack.io.tables import (
+    numeric,
+    numeric_columns,
+    read_csv,
+    require,
+    unreadable_as_value_error,
+)
 from hmmtrack.io.times import parse_times
 from hmmtrack.tracks import describe_rows
 
@@ -38,7 +44,7 @@ VUE_COLUMNS = (
 def detect_format(path: str | Path) -> str:
     """Guess a detection log's format from its first line: ``"fathom"``, ``"vue"`` or
     ``"plain"``."""
-    with open(path, encoding="utf-8-sig") as handle:
+    with unreadable_as_value_error(path), open(path, encoding="utf-8-sig") as handle:
         first = handle.readline()
     fields = next(csv.reader([first]), [])
     if fields and fields[0].strip().upper() == "VEMCO DATA LOG":
@@ -208,7 +214,7 @@ def _read_vue(path: Path, tz: str | None) -> pd.DataFrame:
 
 
 def _read_fathom(path: Path, tz: str | None) -> pd.DataFrame:
-    with open(path, encoding="utf-8-sig", newline="") as handle:
+    with unreadable_as_value_error(path), open(path, encoding="utf-8-sig", newline="") as handle:
         rows = list(csv.reader(handle))
     if not rows or rows[0][:1] != ["VEMCO DATA LOG"]:
         raise ValueError(f"{path}: line 1 should start with 'VEMCO DATA LOG' (Fathom CSV)")

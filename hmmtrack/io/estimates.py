@@ -12,6 +12,7 @@ import numpy as np
 import pandas as pd
 
 from hmmtrack.io.geo import Projection
+from hmmtrack.io.tables import unreadable_as_value_error
 from hmmtrack.io.times import format_times, parse_times
 
 
@@ -60,7 +61,8 @@ def read_truth(path: str | Path, projection: Projection | None) -> pd.DataFrame:
     DataFrame
         ``time`` (s, NaN for a fixed tag), ``x``, ``y`` (m).
     """
-    table = pd.read_csv(path)
+    with unreadable_as_value_error(path):
+        table = pd.read_csv(path)
     table.attrs["source"] = str(path)
     if "time" not in table.columns:
         if len(table) != 1:

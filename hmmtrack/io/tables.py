@@ -13,7 +13,11 @@ Not for: a format's own columns (the reader modules beside this one).
 
 from __future__ import annotations
 
+import contextlib
+import csv
 import logging
+import warnings
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -27,23 +31,76 @@ _MISSING_CHOICES = ("error", "drop", "keep")
 
 
 def read_csv(path: str | Path, **kwargs) -> pd.DataFrame:
-    """Read a CSV as strings, index = 1-based file line (header = 1), blank lines skipped."""
+    """Read a CSV as strings, index = 1-based file line (header = 1), blank lines skipped;
+    a file without data rows is refused."""
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(f"{path}: no such file")
-    table = pd.read_csv(
-        path,
-        dtype=str,
-        keep_default_na=False,
-        na_values=["", "NA", "NaN", "nan"],  # empty cells and R's NA are missing
-        skip_blank_lines=False,
-        encoding="utf-8-sig",
-        **kwargs,
-    )
+    with unreadable_as_value_error(path), warnings.catch_warnings():
+        warnings.simplefilter("error", pd.errors.ParserWarning)  # cells beyond the header
+        table = pd.read_csv(
+            path,
+            dtype=str,
+            keep_default_na=False,
+            na_values=["", "NA", "NaN", "nan"],  # empty cells and R's NA are missing
+            skip_blank_lines=False,
+            encoding="utf-8-sig",
+            index_col=False,  # never take extra cells for an index: refuse them
+            **kwargs,
+        )
     table.index = pd.RangeIndex(2, 2 + len(table), name="line")
     table = table.loc[table.notna().any(axis=1)].copy()
+    if table.empty:
+        raise ValueError(f"{path}: no data rows (only a header line)")
     table.attrs["source"] = str(path)
     return table
+
+
+@contextlib.contextmanager
+def unreadable_as_value_error(path: str | Path) -> Iterator[None]:
+    """Turn what text and CSV parsing raise on a malformed file (bytes that are not UTF-8,
+    no header, a ragged row, an unclosed quote) into a one-line ``ValueError`` naming the
+    file and, where known, its line."""
+    try:
+        yield
+    except UnicodeDecodeError:
+        raise ValueError(f"{path}: {_not_utf8(Path(path))}") from None
+    except pd.errors.EmptyDataError:
+        raise ValueError(f"{path}: empty file (no header line)") from None
+    except pd.errors.ParserWarning:
+        raise ValueError(f"{path}: {_long_row(Path(path))}") from None
+    except (pd.errors.ParserError, csv.Error) as exc:
+        reason = " ".join(str(exc).replace("Error tokenizing data. C error: ", "").split())
+        raise ValueError(
+            f"{path}: not a readable CSV: {reason} (rows need as many cells as the header; "
+            "quote cells that hold commas or quotes)"
+        ) from None
+
+
+def _long_row(path: Path) -> str:
+    with open(path, encoding="utf-8-sig", newline="") as handle:
+        rows = csv.reader(handle)
+        width = len(next(rows, []))
+        for row in rows:
+            if len(row) > width:
+                return (
+                    f"line {rows.line_num} has {len(row)} cells, the header {width} (quote cells "
+                    "that hold commas)"
+                )
+    return "rows have more cells than the header (quote cells that hold commas)"
+
+
+def _not_utf8(path: Path) -> str:
+    data = path.read_bytes()
+    try:
+        data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = data[: exc.start].count(b"\n") + 1
+        return (
+            f"line {line} is not UTF-8 text (byte 0x{data[exc.start]:02x}); save the file as "
+            "UTF-8 (spreadsheets: 'CSV UTF-8')"
+        )
+    return "not UTF-8 text; save the file as UTF-8"
 
 
 def require(table: pd.DataFrame, columns: dict[str, str | None], what: str) -> None:

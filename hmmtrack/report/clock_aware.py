@@ -14,6 +14,7 @@ import pandas as pd
 
 from hmmtrack.experiments.arrival import ArrivalStudy, arrival_study
 from hmmtrack.experiments.clock_runs import DURATION
+from hmmtrack.io.outputs import atomic_files
 from hmmtrack.report.markdown import frame_markdown
 from hmmtrack.report.studies import provenance, run_timed
 
@@ -106,7 +107,8 @@ def write_clock_aware(
     )
     out.mkdir(parents=True, exist_ok=True)
     path = out / FILE_NAME
-    path.write_text(clock_aware_markdown(study, provenance(command, seconds, load)))
+    with atomic_files(path) as (written,):
+        written.write_text(clock_aware_markdown(study, provenance(command, seconds, load)))
     return path
 
 

@@ -20,6 +20,7 @@ from hmmtrack.experiments.clock_bound import (
     clock_bound_study,
 )
 from hmmtrack.experiments.clock_runs import DURATION
+from hmmtrack.io.outputs import atomic_files
 from hmmtrack.plots.studies import bound_curves
 from hmmtrack.report.clock_aware import read_filter_errors
 from hmmtrack.report.markdown import frame_markdown
@@ -165,13 +166,14 @@ def write_clock_bound(
     out.mkdir(parents=True, exist_ok=True)
     path = out / "clock_bound.md"
     figure = path.with_suffix(".png")
-    axes = bound_curves(study.curves)
-    axes[0].figure.tight_layout()
-    axes[0].figure.savefig(figure, dpi=110)
-    plt.close(axes[0].figure)
     reading = kept_reading(path)
     text = clock_bound_markdown(
         study, provenance(command, seconds, load), figure.name, str(filter_report), sweep_seeds
     )
-    path.write_text(text + ("\n" + reading if reading else ""))
+    with atomic_files(path, figure) as (markdown, png):
+        axes = bound_curves(study.curves)
+        axes[0].figure.tight_layout()
+        axes[0].figure.savefig(png, dpi=110)
+        plt.close(axes[0].figure)
+        markdown.write_text(text + ("\n" + reading if reading else ""))
     return path

@@ -21,6 +21,7 @@ from hmmtrack.experiments.closed_loop_study import (
     ClosedLoopStudy,
     closed_loop_study,
 )
+from hmmtrack.io.outputs import atomic_files
 from hmmtrack.plots.studies import closed_loop_errors
 from hmmtrack.report.markdown import frame_markdown
 from hmmtrack.report.studies import READING_MARKER, kept_reading, provenance, run_timed
@@ -96,13 +97,14 @@ def write_closed_loop(
     out.mkdir(parents=True, exist_ok=True)
     path = out / "closed_loop.md"
     figure = path.with_suffix(".png")
-    ax = closed_loop_errors(study.series, 0)
-    ax.figure.tight_layout()
-    ax.figure.savefig(figure, dpi=120)
-    plt.close(ax.figure)
     reading = kept_reading(path) or READING_MARKER
     text = closed_loop_markdown(
         study, provenance(command, seconds, load), latency, duration, figure.name
     )
-    path.write_text(text + reading)
+    with atomic_files(path, figure) as (markdown, png):
+        ax = closed_loop_errors(study.series, 0)
+        ax.figure.tight_layout()
+        ax.figure.savefig(png, dpi=120)
+        plt.close(ax.figure)
+        markdown.write_text(text + reading)
     return path

@@ -31,6 +31,7 @@ from hmmtrack.experiments import (
     paper_scenarios,
 )
 from hmmtrack.experiments.executors import default_workers, get_executor
+from hmmtrack.io.outputs import staged_folder
 from hmmtrack.plots import results as plots
 from hmmtrack.plots.experiments import plot_scenario
 from hmmtrack.report.paper import PAPER
@@ -178,7 +179,10 @@ def reproduce(
     Parameters
     ----------
     out : str or Path
-        Output folder; created.
+        Output folder, created in a folder that must exist. The run is built in a temporary
+        sibling folder and moved into ``out`` at the end, under a lock against a concurrent
+        run into the same folder (:func:`hmmtrack.io.outputs.staged_folder`): a failed or
+        interrupted run leaves ``out`` as it was.
     quick : bool
         :data:`QUICK` instead of :data:`FULL`.
     n_trials, n_particles : int, optional
@@ -199,7 +203,30 @@ def reproduce(
         size, n_trials=n_trials or size.n_trials, n_particles=n_particles or size.n_particles
     )
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    with staged_folder(out, last="summary.md") as stage:
+        _run(
+            stage,
+            size,
+            quick=quick,
+            seed=seed,
+            executor=executor,
+            max_workers=max_workers,
+            progress=progress,
+        )
+    return out / "summary.md"
+
+
+def _run(
+    out: Path,
+    size: RunSize,
+    *,
+    quick: bool,
+    seed: int,
+    executor: Any,
+    max_workers: int | None,
+    progress: bool,
+) -> None:
+    """The run of :func:`reproduce` at ``size``, its files written into ``out``."""
     clock = time.perf_counter()
     datasets = paper_scenarios(seed)
     common = {"seed": seed, "n_particles": size.n_particles, "progress": progress}
@@ -254,6 +281,6 @@ def reproduce(
         "wall time": f"{time.perf_counter() - clock:.0f} s",
         "machine load (1-min average) at the end": f"{os.getloadavg()[0]:.1f}",
     }
-    return write_summary(
+    write_summary(
         out / "summary.md", comparison=comparison, loss=loss, depth=depth, figures=figures, run=run
     )

@@ -23,6 +23,7 @@ from hmmtrack.experiments.stationary import (
     settings,
     stationary_study,
 )
+from hmmtrack.io.outputs import atomic_files
 from hmmtrack.plots.studies import stationary_errors
 from hmmtrack.report.markdown import indexed_markdown
 from hmmtrack.report.studies import provenance, run_timed
@@ -263,11 +264,13 @@ def write_stationary(
         )
     )
     out.mkdir(parents=True, exist_ok=True)
-    study.trials.to_csv(out / "stationary_tag_trials.csv", index=False)
-    left, _ = stationary_errors(study.trials)
-    left.figure.tight_layout()
-    left.figure.savefig(out / "stationary_tag.png", dpi=110)
-    plt.close(left.figure)
     path = out / "stationary_tag.md"
-    path.write_text(stationary_markdown(study, provenance(command, seconds, load)))
+    files = (path, out / "stationary_tag_trials.csv", out / "stationary_tag.png")
+    with atomic_files(*files) as (markdown, trials, figure):
+        study.trials.to_csv(trials, index=False)
+        left, _ = stationary_errors(study.trials)
+        left.figure.tight_layout()
+        left.figure.savefig(figure, dpi=110)
+        plt.close(left.figure)
+        markdown.write_text(stationary_markdown(study, provenance(command, seconds, load)))
     return path

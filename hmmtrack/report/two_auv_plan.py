@@ -18,6 +18,7 @@ from hmmtrack.experiments.two_auv_plan import (
     tuned_settings,
     two_auv_plan_study,
 )
+from hmmtrack.io.outputs import atomic_files
 from hmmtrack.report.markdown import frame_markdown
 from hmmtrack.report.studies import provenance, run_timed
 
@@ -83,5 +84,6 @@ def write_two_auv_plan(
     )
     out.mkdir(parents=True, exist_ok=True)
     path = out / "two_auv_plan.md"
-    path.write_text(two_auv_plan_markdown(study, provenance(command, seconds, load), seeds))
+    with atomic_files(path) as (written,):
+        written.write_text(two_auv_plan_markdown(study, provenance(command, seconds, load), seeds))
     return path

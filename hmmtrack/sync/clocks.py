@@ -311,6 +311,8 @@ def read_clocks(path: str | Path) -> ReceiverClocks:
         document = json.loads(path.read_text(encoding="utf-8"))
     except json.JSONDecodeError as exc:
         raise ValueError(f"{path}: not a JSON file ({exc})") from exc
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"{path}: not a JSON file (not UTF-8 text: {exc.reason})") from exc
     return ReceiverClocks.from_dict(document, source=str(path))
 
 
