@@ -1,14 +1,16 @@
 """``hmmtrack simulate``: write one of the paper-like synthetic datasets as files.
 
-Writes ``detections.csv``, ``receivers.csv``, ``truth.csv`` and ``scenario.json`` (period,
-r0, bounds, sound speed) into a directory, the inputs ``hmmtrack track`` reads, so that the
-tracker can be tried on our analogues of the paper's datasets.
+Writes ``detections.csv``, ``receivers.csv``, ``truth.csv`` and ``scenario.json`` (the
+tracker's settings of the scenario: period, r0, bounds, sound speed, time window; a
+``--config`` file of ``hmmtrack track``) into a directory, the inputs ``hmmtrack track``
+reads, so that the tracker can be tried on our analogues of the paper's datasets.
 """
 
 from __future__ import annotations
 
 import argparse
 
+from hmmtrack.experiments.configs import scenario_settings
 from hmmtrack.scenarios import GENERATORS
 from hmmtrack.scenarios.export import write_scenario
 
@@ -41,7 +43,7 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError("--dive applies to shark-pursuit only")
     generator = GENERATORS[args.scenario]
     scenario = generator(args.seed, dive=True) if args.dive else generator(args.seed)
-    paths = write_scenario(scenario, args.out)
+    paths = write_scenario(scenario, args.out, scenario_settings(scenario))
     if args.plot:
         import matplotlib
 
