@@ -252,6 +252,7 @@ def test_round_trip_config_to_json_and_back(tmp_path):
     again = TrackingConfig.from_json(path)
     assert again == config and again.to_dict() == config.to_dict()
     assert config.start == 1654707600.0 and config.measurement.depth == 10.7
+    assert config.override(n_particles=None, period=5.0).measurement.period == 5.0
     np.testing.assert_allclose(config.measurement.covariance, [[9.0, 0.3], [0.3, 0.04]])
     arrival = config.override(measurement="arrival-time", detection_curve=[160, 40])
     assert arrival.measurement.period == 8.179  # the key both measurements have is kept

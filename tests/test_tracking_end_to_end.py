@@ -227,8 +227,11 @@ def test_the_acceptance_rule_keeps_most_geometries(acceptance_cases, chosen_seed
 
 
 def run_scores(scenario, motion, seed):
-    """Default configuration (TrackingConfig's particle count): metrics and 95 % coverage."""
+    """Default configuration (FilterSettings' particle count): metrics and 95 % coverage;
+    ``motion`` a name or a motion model."""
     config = scenario_config(scenario, n_particles=FilterSettings().n_particles)
+    if isinstance(motion, str):
+        config, motion = config.override(motion=motion), None
     result = tracking.track(scenario.detections, scenario.receivers, config, motion, seed=seed)
     assert len(result.estimates) == int(scenario.end - scenario.start) + 1
     scores = metrics.tracking_metrics(result.estimates, scenario.truth)

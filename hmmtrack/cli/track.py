@@ -80,6 +80,13 @@ class Option:
         return "--" + (self.field.metadata["option"] or self.key.replace("_", "-"))
 
     @property
+    def spelled(self) -> str:
+        """The option as the user may have spelled it (``--resting/--no-resting``)."""
+        if self.field.metadata["check"] is boolean:
+            return f"{self.flag}/--no-{self.flag[2:]}"
+        return self.flag
+
+    @property
     def default_text(self) -> str | None:
         """The default as the help says it (``None``: no default, e.g. the period)."""
         text = self.field.metadata["default_text"]
@@ -274,7 +281,7 @@ def _check_used(option: Option, settings: dict) -> None:
         name = section.get("name", SECTIONS[option.section])
         if name not in option.components:
             raise UserInputError(
-                f"{option.flag} is used with --{option.section} "
+                f"{option.spelled} is used with --{option.section} "
                 f"{' or '.join(option.components)} only (this run's {option.section} is {name})"
             )
     requires = option.field.metadata["requires"]
@@ -284,7 +291,7 @@ def _check_used(option: Option, settings: dict) -> None:
         used = section.get(key, default[key])
         if used != value:
             raise UserInputError(
-                f"{option.flag} is used with --{key.replace('_', '-')} {value} only "
+                f"{option.spelled} is used with --{key.replace('_', '-')} {value} only "
                 f"(this run's {key} is {used})"
             )
 

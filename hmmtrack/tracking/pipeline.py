@@ -287,6 +287,11 @@ def track(
             f"measurement {type(measurement).__name__} is not the configuration's "
             f"{settings.name!r} ({kind.__name__})"
         )
+    if isinstance(motion, str):
+        raise ValueError(
+            f"motion {motion!r}: give a motion model, or name it in the configuration "
+            "(its motion section, e.g. config.override(motion=...))"
+        )
     if motion is None:
         motion = config.motion.build()
     bounds = measurement.start_box(
