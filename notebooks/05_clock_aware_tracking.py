@@ -134,7 +134,8 @@ arrival = track(detections, sc.receivers, arrival_config, seed=seed)
 runs = {RANGE_RATE: range_rate.estimates, FILTERED: arrival.estimates, SMOOTHED: arrival.smoothed}
 for name, estimates in runs.items():
     assert np.isfinite(estimates[["x", "y"]].to_numpy()).all(), f"{name}: estimate is NaN"
-print(f"{len(detections)} detections, {preset['n_particles']} particles, {end - start:.0f} s")
+particles = arrival_config.filter.n_particles
+print(f"{len(detections)} detections, {particles} particles, {end - start:.0f} s")
 
 # %% [markdown]
 # ## Errors
