@@ -46,7 +46,7 @@ def preset_inputs(case, seed: int, duration: float):
     tempering and motion for both filters; the case's window, box and detection curve."""
     settings = read_preset(PRESET)
     detections, config, options = clock_inputs(
-        case, seed, settings["n_particles"], "velocity", duration
+        case, seed, settings["filter"]["n_particles"], "velocity", duration
     )
     options |= config_options(arrival_config(case, settings, duration))
     return detections, config, options
@@ -88,11 +88,11 @@ def timing_rows(n_particles, motion, lag, duration, repeats) -> list[dict]:
                 run()
                 wall[label] = min(wall[label], time.perf_counter() - tic)
                 cpu[label] = min(cpu[label], time.process_time() - tic_cpu)
-        steps = config.n_particles * (config.end - config.start)
+        steps = config.filter.n_particles * (config.end - config.start)
         rows.append(
             {
                 "case": name,
-                "particles": config.n_particles,
+                "particles": config.filter.n_particles,
                 "detections": len(detections),
                 **{f"{label} s": wall.get(label, np.nan) for label in (*runs, "+ smoother")},
                 "range-rate M steps/s": steps / wall["range-rate"] / 1e6,

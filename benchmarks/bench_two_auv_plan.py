@@ -38,7 +38,7 @@ def throughput(case, settings: dict, silences: bool, duration: float, repeats: i
         tic = time.perf_counter()
         arrival_run(case, settings, None, 0, silences, duration)
         best = min(best, time.perf_counter() - tic)
-    return settings["n_particles"] * duration / best
+    return settings["filter"]["n_particles"] * duration / best
 
 
 def main(argv=None) -> int:
@@ -55,8 +55,8 @@ def main(argv=None) -> int:
         "tuned": throughput(case, tuned, True, args.duration, args.repeats),
         NO_SILENCES: throughput(case, tuned, False, args.duration, args.repeats),
     }
-    run_time_ratio = (tuned["n_particles"] / speed["tuned"]) / (
-        DEFAULT["n_particles"] / speed["default"]
+    run_time_ratio = (tuned["filter"]["n_particles"] / speed["tuned"]) / (
+        DEFAULT["filter"]["n_particles"] / speed["default"]
     )
     print(
         f"throughput, filter alone, {plan_label(PLANS[0])}, seed 0 (particle-steps/s): "

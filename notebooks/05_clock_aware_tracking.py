@@ -51,7 +51,7 @@ from hmmtrack.analysis.metrics import (
     time_to_convergence,
 )
 from hmmtrack.scenarios.realistic import realistic_shark_pursuit
-from hmmtrack.tracking.config import TrackingConfig, read_preset
+from hmmtrack.tracking.config import TrackingConfig, merge_settings, nest, read_preset
 from hmmtrack.tracking.measurement.clock import local_period_ppm, schedule_wander
 from hmmtrack.tracking.pipeline import track
 
@@ -112,39 +112,30 @@ if out is not None:
 # %%
 detections = case.corrected_detections()
 detections = detections[detections["time"] < end].reset_index(drop=True)
-preset = read_preset(PRESET)
-if n_particles is not None:
-    preset["n_particles"] = n_particles
+preset = merge_settings(read_preset(PRESET), nest({"n_particles": n_particles}))
 window = {"period": sc.period, "start": start, "end": end, "sound_speed": sc.sound_speed}
 
-range_rate_config = TrackingConfig(
+range_rate_config = TrackingConfig.from_keys(
     **window,
     r0=sc.r0,
-    n_particles=preset["n_particles"],
+    n_particles=preset["filter"]["n_particles"],
     motion="velocity",
     sigma_speed=0.05,
     sigma_turn_rate=0.02,
 )
-range_rate = track(
-    detections, sc.receivers, range_rate_config, range_rate_config.motion_model(), seed=seed
-)
+range_rate = track(detections, sc.receivers, range_rate_config, seed=seed)
 
+data = {"bounds": case.search_bounds, "detection_curve": case.detection_probability}
 arrival_config = TrackingConfig.from_dict(
-    preset | window | {"bounds": case.search_bounds, "detection_curve": case.detection_probability},
+    merge_settings(preset, nest(window | data | {"smoothing_lag": SMOOTHING_LAG})),
     source=f"preset {PRESET}",
 )
-arrival = track(
-    detections,
-    sc.receivers,
-    arrival_config,
-    arrival_config.motion_model(),
-    smoothing_lag=SMOOTHING_LAG,
-    seed=seed,
-)
+arrival = track(detections, sc.receivers, arrival_config, seed=seed)
 runs = {RANGE_RATE: range_rate.estimates, FILTERED: arrival.estimates, SMOOTHED: arrival.smoothed}
 for name, estimates in runs.items():
     assert np.isfinite(estimates[["x", "y"]].to_numpy()).all(), f"{name}: estimate is NaN"
-print(f"{len(detections)} detections, {preset['n_particles']} particles, {end - start:.0f} s")
+particles = arrival_config.filter.n_particles
+print(f"{len(detections)} detections, {particles} particles, {end - start:.0f} s")
 
 # %% [markdown]
 # ## Errors

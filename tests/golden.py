@@ -45,7 +45,6 @@ from hmmtrack.scenarios.realistic import moored_array
 from hmmtrack.tracking import pipeline as tracking
 from hmmtrack.tracking.config import TrackingConfig
 from hmmtrack.tracking.measurement.detection import LogisticDetection
-from hmmtrack.tracking.motion import VelocityMotion, motion_model
 
 #: folder of the stored outputs: one sub-folder per case, one CSV per table
 GOLDEN_DIR = Path(__file__).parent / "data" / "golden"
@@ -95,7 +94,7 @@ def range_rate_inputs() -> tuple[pd.DataFrame, pd.DataFrame, TrackingConfig]:
     end = sc.start + SPAN
     detections = sc.detections[sc.detections["time"] <= end].reset_index(drop=True)
     receivers = sc.receivers[sc.receivers["time"] <= end + RECEIVER_MARGIN].reset_index(drop=True)
-    config = TrackingConfig(
+    config = TrackingConfig.from_keys(
         period=sc.period,
         r0=dict(sc.r0),
         sound_speed=sc.sound_speed,
@@ -155,14 +154,12 @@ def _range_rate_tables(result) -> dict[str, pd.DataFrame]:
     }
 
 
-def _track_range_rate(motion, **changes) -> dict[str, pd.DataFrame]:
+def _track_range_rate(**changes) -> dict[str, pd.DataFrame]:
     detections, receivers, config = range_rate_inputs()
-    config = config.override(**changes) if changes else config
     result = tracking.track(
         detections,
         receivers,
-        config,
-        motion,
+        config.override(**changes),
         seed=TRACK_SEED,
         snapshot_times=(config.start + SNAPSHOT_AFTER,),
     )
@@ -171,26 +168,24 @@ def _track_range_rate(motion, **changes) -> dict[str, pd.DataFrame]:
 
 def range_rate_baseline() -> dict[str, pd.DataFrame]:
     """Range-rate tracking, baseline motion (random walk)."""
-    return _track_range_rate("baseline")
+    return _track_range_rate(motion="baseline")
 
 
 def range_rate_velocity() -> dict[str, pd.DataFrame]:
     """Range-rate tracking, velocity motion."""
-    return _track_range_rate("velocity")
+    return _track_range_rate(motion="velocity")
 
 
 def range_rate_hmm() -> dict[str, pd.DataFrame]:
     """Range-rate tracking, the bundled HMM (time-consistent, default resting state)."""
-    return _track_range_rate("hmm")
+    return _track_range_rate(motion="hmm")
 
 
 def range_rate_hmm_paper() -> dict[str, pd.DataFrame]:
     """Range-rate tracking, the bundled HMM in the paper's variant (no resting state) with
     the paper's resampling: multinomial, after every correction."""
     return _track_range_rate(
-        motion_model("hmm", variant="paper"),
-        resampling="multinomial",
-        resample_when="always",
+        motion="hmm", variant="paper", resampling="multinomial", resample_when="always"
     )
 
 
@@ -211,33 +206,31 @@ def _arrival_time_tables(result) -> dict[str, pd.DataFrame]:
     return tables
 
 
-def _track_arrival_time(motion, smoothing_lag=None, **settings) -> dict[str, pd.DataFrame]:
+def _track_arrival_time(**settings) -> dict[str, pd.DataFrame]:
     detections, receivers, window = arrival_time_inputs()
-    config = TrackingConfig(
+    config = TrackingConfig.from_keys(
         measurement="arrival-time", n_particles=N_PARTICLES, **window, **settings
     )
-    result = tracking.track(
-        detections, receivers, config, motion, seed=TRACK_SEED, smoothing_lag=smoothing_lag
-    )
+    result = tracking.track(detections, receivers, config, seed=TRACK_SEED)
     return _arrival_time_tables(result)
 
 
 def arrival_time_plain() -> dict[str, pd.DataFrame]:
     """Arrival-time tracking, the bundled HMM (time-consistent, default resting state)."""
-    return _track_arrival_time(motion_model("hmm"))
+    return _track_arrival_time(motion="hmm")
 
 
 def arrival_time_smoothed() -> dict[str, pd.DataFrame]:
     """Arrival-time tracking, velocity motion, fixed-lag smoother of :data:`SMOOTHING_LAG`."""
     return _track_arrival_time(
-        VelocityMotion(sigma_speed=0.05, sigma_turn_rate=0.02), smoothing_lag=SMOOTHING_LAG
+        motion="velocity", sigma_speed=0.05, sigma_turn_rate=0.02, smoothing_lag=SMOOTHING_LAG
     )
 
 
 def arrival_time_silence() -> dict[str, pd.DataFrame]:
     """Arrival-time tracking, velocity motion, unheard pings scored with :data:`DETECTION`."""
     return _track_arrival_time(
-        VelocityMotion(sigma_speed=0.05, sigma_turn_rate=0.02), detection_curve=DETECTION
+        motion="velocity", sigma_speed=0.05, sigma_turn_rate=0.02, detection_curve=DETECTION
     )
 
 

@@ -20,6 +20,7 @@ from pathlib import Path
 
 import pytest
 
+from hmmtrack.experiments.configs import scenario_settings
 from hmmtrack.io.outputs import PAUSE_VARIABLE
 from hmmtrack.scenarios import stationary_tag
 from hmmtrack.scenarios.export import write_scenario
@@ -35,7 +36,8 @@ EXIT_TIMEOUT = 120
 @pytest.fixture(scope="module")
 def inputs(tmp_path_factory) -> Path:
     root = tmp_path_factory.mktemp("inputs")
-    write_scenario(stationary_tag(11), root / "sim")
+    scenario = stationary_tag(11)
+    write_scenario(scenario, root / "sim", scenario_settings(scenario))
     load_white_shark_hmm().save(root / "model.json")
     return root
 

@@ -8,6 +8,7 @@ the lon/lat round trip and the plot; on a moored array and on two AUVs with the
 
 from __future__ import annotations
 
+import argparse
 import dataclasses
 import json
 from pathlib import Path
@@ -20,12 +21,20 @@ from pyproj import Transformer
 from hmmtrack import io
 from hmmtrack.analysis import metrics
 from hmmtrack.cli import build_parser, main
-from hmmtrack.cli.track import build_config
+from hmmtrack.cli.track import build_config, register, settings_options
+from hmmtrack.experiments.configs import scenario_settings
 from hmmtrack.scenarios import stationary_tag
 from hmmtrack.scenarios.export import write_scenario
 from hmmtrack.scenarios.realistic import moored_array, realistic_shark_pursuit
 from hmmtrack.tracking import pipeline as tracking
-from hmmtrack.tracking.config import TrackingConfig
+from hmmtrack.tracking.config import (
+    SECTIONS,
+    TrackingConfig,
+    merge_settings,
+    nest,
+    read_settings,
+    section_classes,
+)
 from hmmtrack.tracking.measurement.detection import LogisticDetection
 from hmmtrack.tracking.measurement.range_rate import search_bounds
 from hmmtrack.tracking.motion import VelocityMotion, bundled_model_path, motion_model
@@ -40,7 +49,7 @@ UTM_11N = "EPSG:32611"
 def scenario_files(tmp_path_factory):
     directory = tmp_path_factory.mktemp("stationary")
     scenario = stationary_tag(11)
-    return scenario, write_scenario(scenario, directory)
+    return scenario, write_scenario(scenario, directory, scenario_settings(scenario))
 
 
 def track_args(paths, output, *extra):
@@ -77,7 +86,7 @@ def arrival_args(scenario, paths, particles, seed):
 def library_estimates(paths, motion_model=None, **settings):
     """What ``tracking.track`` gives on the fixture files with the metadata file's settings,
     1000 particles and ``settings``, seed 3 (the CLI runs are compared with it)."""
-    config = TrackingConfig.from_json(paths["metadata"], n_particles=1000, **settings)
+    config = TrackingConfig.from_json(paths["metadata"]).override(n_particles=1000, **settings)
     detections = io.read_detections(paths["detections"])
     return tracking.track(
         detections, io.read_receivers(paths["receivers"]), config, motion_model, seed=3
@@ -227,9 +236,8 @@ def test_options_without_a_config_file(scenario_files, tmp_path, capsys, caplog)
 @pytest.mark.parametrize(
     ("change", "message"),
     [
-        (["--period", "-1"], "period must be a positive"),
         (["--model", "x.json", "--motion", "baseline"], "--motion hmm only"),
-        (["--depth", "deep"], "depth must be one of"),
+        (["--measurement", "arrival-time", "--r0", "a=1"], "--measurement range-rate only"),
     ],
 )
 def test_bad_options_are_clear_errors(scenario_files, tmp_path, capsys, change, message):
@@ -247,7 +255,9 @@ def test_missing_settings_and_bad_config_files(scenario_files, tmp_path, capsys)
     with pytest.raises(SystemExit):
         main([*base, "--period", "8.179", "--r0", "auv:20"])
     bad = tmp_path / "bad.json"
-    bad.write_text(json.dumps({"period": 8.179, "r0": {"auv": 20}, "particles": 10}))
+    bad.write_text(
+        json.dumps({"measurement": {"period": 8.179, "r0": {"auv": 20}}, "particles": 10})
+    )
     assert main([*base, "--config", str(bad)]) == 2
     err = capsys.readouterr().err
     assert str(bad) in err and "unknown key(s) ['particles']" in err
@@ -258,27 +268,31 @@ def arrival_files(tmp_path_factory):
     """A moored array heard with clock-corrected times (no initial range), as CSV files."""
     case = moored_array(5, duration=300.0)
     scenario = dataclasses.replace(case.scenario, detections=case.corrected_detections())
-    return scenario, write_scenario(scenario, tmp_path_factory.mktemp("arrival"))
+    return scenario, write_scenario(
+        scenario, tmp_path_factory.mktemp("arrival"), scenario_settings(scenario)
+    )
 
 
 def arrival_time_run(paths, scenario, motion, n_particles, seed, smoothing_lag=None, **settings):
     """The library's arrival-time run (:func:`hmmtrack.tracking.pipeline.track`) on the
-    files ``paths`` with these settings, over the scenario's span."""
-    config = TrackingConfig(
+    files ``paths`` with these settings, over the scenario's span; ``motion`` a name or a
+    motion model."""
+    config = TrackingConfig.from_keys(
         period=scenario.period,
         measurement="arrival-time",
         n_particles=n_particles,
         start=scenario.start,
         end=scenario.end,
+        smoothing_lag=smoothing_lag,
+        motion=motion if isinstance(motion, str) else None,
         **settings,
     )
     return tracking.track(
         io.read_detections(paths["detections"]),
         io.read_receivers(paths["receivers"]),
         config,
-        motion,
+        None if isinstance(motion, str) else motion,
         seed=seed,
-        smoothing_lag=smoothing_lag,
     )
 
 
@@ -328,9 +342,9 @@ def test_no_resting_reaches_the_hmm_motion_model(scenario_files, tmp_path, capsy
     fitted = MovementHMM.load(bundled_model_path()).n_states
     used, track = [], tracking.track
 
-    def spy(detections, receivers, config, motion, **options):
-        used.append(motion.model.n_states)
-        return track(detections, receivers, config, motion, **options)
+    def spy(detections, receivers, config, **options):
+        used.append(config.motion.build().model.n_states)
+        return track(detections, receivers, config, **options)
 
     monkeypatch.setattr(tracking, "track", spy)
     assert main([*track_args(paths, tmp_path / "r.csv"), "--motion", "hmm"]) == 0
@@ -344,33 +358,35 @@ def test_no_resting_reaches_the_hmm_motion_model(scenario_files, tmp_path, capsy
     assert used == [fitted + 1, fitted]  # the error comes before any tracking
 
 
-def test_smooth_needs_the_arrival_time_measurement(scenario_files, tmp_path, capsys):
+def test_smooth_works_with_the_range_rate_measurement_too(scenario_files, tmp_path, capsys):
+    """The smoother is a collector of any run: ``--smooth`` writes the range-rate run's
+    smoothed estimates, the library's with that smoothing lag."""
     _, paths = scenario_files
-    assert main([*track_args(paths, tmp_path / "e.csv"), "--smooth", "10"]) == 2
-    assert "--smooth needs --measurement arrival-time" in capsys.readouterr().err
-
-
-def test_config_round_trip_and_validation():
-    config = TrackingConfig(
-        period=8.179,
-        r0={"a": 1.5, "b": 30},
-        bounds=(0, 10, -5, 5),
-        measurement_covariance=[[9.0, 0.3], [0.3, 0.04]],
-        depth="10.7",
-        start="2022-06-08T17:00:00Z",
-        end=1654708800,
-    )
-    assert config.depth == 10.7 and config.start == 1654707600.0
-    assert TrackingConfig.from_dict(json.loads(json.dumps(config.to_dict()))) == config
-    assert config.override(n_particles=None, period=5.0).period == 5.0
+    smoothed = tmp_path / "smoothed.csv"
+    options = ["--smooth", "10", "--motion", "velocity"]
+    assert main([*track_args(paths, smoothed), *options]) == 0
+    config = TrackingConfig.from_json(paths["metadata"])
+    config = config.override(n_particles=1000, motion="velocity", smoothing_lag=10)
+    detections, receivers = (io.read_detections(paths["detections"]),
+                             io.read_receivers(paths["receivers"]))  # fmt: skip
+    expected = tracking.track(detections, receivers, config, seed=3).smoothed
+    written = pd.read_csv(smoothed)
+    assert "n_ancestors" in written.columns
+    np.testing.assert_allclose(written[["x", "y"]], expected[["x", "y"]], rtol=1e-9)
+    with pytest.raises(SystemExit):
+        main([*track_args(paths, tmp_path / "e.csv"), "--smooth", "0"])
+    assert "smoothing_lag must be a positive integer" in capsys.readouterr().err
 
 
 def test_config_file_with_overrides(tmp_path):
     path = tmp_path / "c.json"
-    path.write_text(json.dumps({"period": 8.179, "r0": {"a": 1.0, "b": 2.0}, "name": "x"}))
-    config = TrackingConfig.from_json(path, r0={"b": 5.0}, n_particles=10, period=None)
-    assert config.r0 == {"a": 1.0, "b": 5.0} and config.n_particles == 10
-    assert config.period == 8.179
+    path.write_text(
+        json.dumps({"measurement": {"period": 8.179, "r0": {"a": 1.0, "b": 2.0}}, "name": "x"})
+    )
+    layer = nest({"r0": {"b": 5.0}, "n_particles": 10, "period": None})
+    config = TrackingConfig.from_dict(merge_settings(read_settings(path), layer))
+    assert config.measurement.r0 == {"a": 1.0, "b": 5.0} and config.filter.n_particles == 10
+    assert config.measurement.period == 8.179
     path.write_text("{not json")
     with pytest.raises(ValueError, match="not valid JSON"):
         TrackingConfig.from_json(path)
@@ -380,8 +396,8 @@ def test_config_file_with_overrides(tmp_path):
     ("change", "message"),
     [
         ({"r0": {"a": -1}}, "r0 of receiver 'a'"),
-        ({"measurement_covariance": [[1, 2], [2, 1]]}, "positive definite"),
-        ({"measurement_covariance": [[1, 0.1], [0, 1]]}, "symmetric"),
+        ({"sigma_range": -1}, "sigma_range must be a positive"),
+        ({"range_rate_correlation": -1}, r"range_rate_correlation must lie in \(-1, 1\)"),
         ({"bounds": (10, 0, 0, 1)}, "xmin < xmax"),
         ({"n_particles": 2.5}, "positive integer"),
         ({"start": "2022-06-08T17:00:00"}, "UTC offset"),
@@ -395,7 +411,45 @@ def test_config_file_with_overrides(tmp_path):
 )
 def test_config_validation(change, message):
     with pytest.raises(ValueError, match=message):
-        TrackingConfig(**({"period": 8.179, "r0": {"a": 1.0}} | change))
+        TrackingConfig.from_keys(**({"period": 8.179, "r0": {"a": 1.0}} | change))
+
+
+def test_every_setting_has_its_generated_option_with_its_default():
+    """One option per key of every section, named after the key (or the option its field
+    names), with the field's help and default in its help text; nothing given, the options
+    build the defaults of every section. Fails when a field has no option or when an
+    option's default differs from the field's."""
+    options = {option.key: option for option in settings_options()}
+    keys = set(TrackingConfig.keys()) - set(SECTIONS)
+    for section in SECTIONS:
+        for cls in section_classes(section).values():
+            keys |= set(cls.keys())
+    assert set(options) == keys
+    subparsers = argparse.ArgumentParser().add_subparsers()
+    register(subparsers)
+    actions = {action.dest: action for action in subparsers.choices["track"]._actions}
+    for key, option in options.items():
+        action = actions[key]
+        assert option.flag in action.option_strings
+        assert action.default is None  # not given: the preset, the file or the field decide
+        assert option.field.metadata["help"] in action.help
+        if option.default_text is not None:
+            assert f"(default: {option.default_text})" in action.help
+        default = option.field.default
+        if isinstance(default, float):
+            assert f"(default: {default:g})" in action.help
+    for key, flag in {"n_particles": "--particles", "variant": "--hmm-variant",
+                      "smoothing_lag": "--smooth", "model": "--model", "r0": "--r0",
+                      "resting": "--no-resting"}.items():  # fmt: skip
+        assert flag in actions[key].option_strings
+    base = ["track", "--detections", "d.csv", "--receivers", "r.csv", "-o", "e.csv"]
+    parser = build_parser()
+    built = build_config(parser.parse_args([*base, "--period", "8", "--r0", "a=1"]))
+    assert built == TrackingConfig.from_keys(period=8.0, r0={"a": 1.0})
+    arrival = ["--period", "8", "--measurement", "arrival-time", "--motion", "velocity"]
+    assert build_config(parser.parse_args([*base, *arrival])) == TrackingConfig.from_keys(
+        period=8.0, measurement="arrival-time", motion="velocity"
+    )
 
 
 REAL = Path(__file__).resolve().parents[2] / "shared" / "data" / "yaps_ssu1"
@@ -471,7 +525,9 @@ def observable_files(tmp_path_factory):
     scenario = dataclasses.replace(
         case.scenario, detections=detections[detections["time"] <= end], end=end
     )
-    return scenario, write_scenario(scenario, tmp_path_factory.mktemp("observable"))
+    return scenario, write_scenario(
+        scenario, tmp_path_factory.mktemp("observable"), scenario_settings(scenario)
+    )
 
 
 def test_preset_runs_the_arrival_time_filter_with_its_settings(observable_files, tmp_path):
@@ -503,27 +559,38 @@ def test_preset_runs_the_arrival_time_filter_with_its_settings(observable_files,
 def test_preset_then_config_file_then_options(tmp_path, capsys):
     """Each source overrides the one before; an unknown preset lists the available ones."""
     settings = tmp_path / "settings.json"
-    settings.write_text(json.dumps({"period": 8.0, "n_particles": 2000, "tempering_ess": 0.5}))
+    settings.write_text(
+        json.dumps(nest({"period": 8.0, "n_particles": 2000, "tempering_ess": 0.5}))
+    )
     base = ["track", "--detections", "d.csv", "--receivers", "r.csv", "-o", "e.csv"]
     preset = ["--preset", "two-moving-receivers"]
 
     def config_of(*extra):
         return build_config(build_parser().parse_args([*base, *extra]))
 
+    def summary(config):
+        return (
+            config.filter.n_particles,
+            config.filter.tempering_ess,
+            config.measurement.arrival_sigma,
+        )
+
     alone = config_of(*preset, "--period", "8.0")
-    assert (alone.n_particles, alone.tempering_ess, alone.arrival_sigma) == (4000, 0.3, 1.2e-3)
+    assert summary(alone) == (4000, 0.3, 1.2e-3)
     filed = config_of(*preset, "--config", str(settings))
-    assert (filed.n_particles, filed.tempering_ess, filed.arrival_sigma) == (2000, 0.5, 1.2e-3)
+    assert summary(filed) == (2000, 0.5, 1.2e-3)
     flagged = config_of(*preset, "--config", str(settings), "--particles", "1000")
-    assert (flagged.n_particles, flagged.tempering_ess) == (1000, 0.5)
-    assert flagged.motion_model() == VelocityMotion(0.1, 0.003)
+    assert summary(flagged)[:2] == (1000, 0.5)
+    assert flagged.motion.build() == VelocityMotion(0.1, 0.003)
     assert main([*base, "--preset", "two-auvs", "--period", "8"]) == 2
     assert "unknown preset 'two-auvs'; available presets: two-moving-receivers" in (
         capsys.readouterr().err
     )
     paper = ["--period", "8", "--r0", "auv-1=10", "--measurement", "range-rate"]
     assert main([*base, *preset, *paper]) == 2
-    assert "is a setting of measurement 'arrival-time'" in capsys.readouterr().err
+    assert "(range-rate): unknown key(s) ['arrival_sigma', 'search_radius']" in (
+        capsys.readouterr().err
+    )
 
 
 @pytest.fixture
@@ -577,7 +644,9 @@ def test_bounds_option_is_the_starting_particles_box(scenario_files, tmp_path, s
     assert inside(filed, file_box).all() and not inside(filed, box).all()
     # derived: each receiver's first position ± (r0 + margin)
     observations = tracking.build_observations(
-        scenario.detections, scenario.receivers, TrackingConfig(scenario.period, scenario.r0)
+        scenario.detections,
+        scenario.receivers,
+        TrackingConfig.from_keys(period=scenario.period, r0=scenario.r0),
     )
     for run, margin in ((tight, 0.0), (wide, 50.0)):
         expected = search_bounds(observations, scenario.r0, margin)
@@ -633,14 +702,13 @@ def test_lonlat_bounds_are_degrees_converted_like_the_receivers(
         (["--sigma-range-rate", "0.1", "--measurement", "arrival-time"], "--measurement range"),
         (["--arrival-sigma", "0.001"], "--arrival-sigma is used with --measurement arrival-time"),
         (["--detection-curve", "500", "50"], "--detection-curve is used with --measurement arr"),
-        (["--measurement", "arrival-time", "--detection-curve", "500", "0"], "positive width"),
+        # the file's range-rate keys are not the arrival-time measurement's
+        (["--measurement", "arrival-time"], "(arrival-time): unknown key(s) ['r0']; valid keys"),
         (["--search-radius", "100"], "--search-radius is used with --measurement arrival-time"),
-        (["--tempering-ess", "0.5"], "--tempering-ess is used with --measurement arrival-time"),
-        (["--measurement", "arrival-time", "--tempering-ess", "1.5"], "tempering_ess must lie"),
+        (["--heading-diffusion", "0.1", "--motion", "velocity"], "--motion hmm only"),
         (["--sigma-speed", "0.1"], "--sigma-speed is used with --motion velocity only (this"),
         (["--motion", "baseline", "--sigma-turn-rate", "0"], "run's motion is baseline)"),
         (["--ess-threshold", "0.5"], "--ess-threshold is used with --resample-when ess only"),
-        (["--resample-when", "ess", "--ess-threshold", "2"], "ess_threshold must lie in"),
     ],
 )
 def test_bad_settings_options_are_clear_errors(scenario_files, tmp_path, capsys, change, message):
@@ -655,14 +723,22 @@ def test_bad_settings_options_are_clear_errors(scenario_files, tmp_path, capsys,
         (["--bounds", "0", "nan", "0", "1"], "argument --bounds: expected a finite number"),
         (["--bounds", "0", "1", "west", "1"], "argument --bounds: expected a number, got 'west'"),
         (["--bounds", "0", "1", "0"], "argument --bounds: expected 4 arguments"),
-        (["--bounds-margin", "-1"], "argument --bounds-margin: expected a number >= 0"),
-        (["--sigma-range", "0"], "argument --sigma-range: expected a positive number"),
-        (["--sigma-range-rate", "inf"], "argument --sigma-range-rate: expected a finite"),
-        (["--arrival-sigma", "-0.001"], "argument --arrival-sigma: expected a positive"),
+        (["--bounds-margin", "-1"], "argument --bounds-margin: bounds_margin must be a non-neg"),
+        (["--sigma-range", "0"], "argument --sigma-range: sigma_range must be a positive"),
+        (
+            ["--sigma-range-rate", "inf"],
+            "argument --sigma-range-rate: sigma_range_rate must be a f",
+        ),
+        (["--arrival-sigma", "-0.001"], "argument --arrival-sigma: arrival_sigma must be a posit"),
         (["--detection-curve", "500"], "argument --detection-curve: expected 2 arguments"),
-        (["--search-radius", "0"], "argument --search-radius: expected a positive number"),
-        (["--sigma-speed", "-0.1"], "argument --sigma-speed: expected a number >= 0"),
-        (["--sound-speed", "nan"], "argument --sound-speed: expected a finite number"),
+        (["--search-radius", "0"], "argument --search-radius: search_radius must be a positive"),
+        (["--sigma-speed", "-0.1"], "argument --sigma-speed: sigma_speed must be a non-negative"),
+        (["--sound-speed", "nan"], "argument --sound-speed: sound_speed must be a finite number"),
+        (["--tempering-ess", "1.5"], "argument --tempering-ess: tempering_ess must lie in (0, 1)"),
+        (["--ess-threshold", "2"], "argument --ess-threshold: ess_threshold must lie in (0, 1]"),
+        (["--period", "-1"], "argument --period: period must be a positive"),
+        (["--depth", "deep"], "argument --depth: depth must be one of"),
+        (["--particles", "0"], "argument --particles: n_particles must be a positive integer"),
     ],
 )
 def test_settings_options_that_do_not_parse(scenario_files, tmp_path, capsys, change, message):
@@ -681,10 +757,10 @@ def test_sigma_options_reach_the_range_rate_likelihood(scenario_files, tmp_path)
     sigmas = ["--sigma-range", "2", "--sigma-range-rate", "0.3", "--motion", "velocity"]
     assert main([*track_args(paths, tight), *sigmas]) == 0
     assert main([*track_args(paths, default), "--motion", "velocity"]) == 0
-    expected = library_estimates(
-        paths, measurement_covariance=[[4.0, 0.0], [0.0, 0.09]], motion="velocity"
-    )
+    expected = library_estimates(paths, sigma_range=2.0, sigma_range_rate=0.3, motion="velocity")
     assert_written_is(tight, expected, default)
+    config = build_config(build_parser().parse_args([*track_args(paths, tight), *sigmas]))
+    np.testing.assert_allclose(config.measurement.covariance, [[4.0, 0.0], [0.0, 0.09]])
 
 
 def test_detection_curve_reaches_the_arrival_time_filter(arrival_files, tmp_path):
@@ -729,40 +805,44 @@ def test_new_settings_keep_preset_then_config_then_options(tmp_path):
     arrival = tmp_path / "arrival.json"
     arrival.write_text(
         json.dumps(
-            {"period": 8.0, "bounds": [0, 10, 0, 10], "arrival_sigma": 0.003,
-             "detection_curve": {"range_50": 300, "width": 30}}
+            {"bounds": [0, 10, 0, 10],
+             "measurement": {"period": 8.0, "arrival_sigma": 0.003,
+                             "detection_curve": {"range_50": 300, "width": 30}}}
         )
     )  # fmt: skip
     paper = tmp_path / "paper.json"
     paper.write_text(
         json.dumps(
-            {"period": 8.0, "r0": {"a": 5.0}, "bounds_margin": 20,
-             "measurement_covariance": [[9.0, 0.3], [0.3, 0.04]]}
+            {"measurement": {"period": 8.0, "r0": {"a": 5.0}, "bounds_margin": 20,
+                             "sigma_range": 3.0, "sigma_range_rate": 0.2,
+                             "range_rate_correlation": 0.5}}
         )
     )  # fmt: skip
 
     def config_of(*extra):
         return build_config(build_parser().parse_args([*base, *extra]))
 
+    def summary(config):
+        return config.bounds, config.measurement.arrival_sigma, config.measurement.detection_curve
+
     alone = config_of(*preset, "--period", "8")
-    assert (alone.bounds, alone.arrival_sigma, alone.detection_curve) == (None, 1.2e-3, None)
+    assert summary(alone) == (None, 1.2e-3, None)
     filed = config_of(*preset, "--config", str(arrival))
-    assert (filed.bounds, filed.arrival_sigma) == ((0.0, 10.0, 0.0, 10.0), 0.003)
-    assert filed.detection_curve == LogisticDetection(300.0, 30.0)
+    assert summary(filed) == ((0.0, 10.0, 0.0, 10.0), 0.003, LogisticDetection(300.0, 30.0))
     options = ["--bounds", "-5", "5", "-6", "6", "--arrival-sigma", "0.001"]
     flagged = config_of(
         *preset, "--config", str(arrival), *options, "--detection-curve", "200", "20"
     )
-    assert (flagged.bounds, flagged.arrival_sigma) == ((-5.0, 5.0, -6.0, 6.0), 0.001)
-    assert flagged.detection_curve == LogisticDetection(200.0, 20.0)
-    ranged = config_of("--config", str(paper))
-    assert ranged.bounds_margin == 20.0 and ranged.measurement_covariance[0] == (9.0, 0.3)
+    assert summary(flagged) == ((-5.0, 5.0, -6.0, 6.0), 0.001, LogisticDetection(200.0, 20.0))
+    ranged = config_of("--config", str(paper)).measurement
+    assert ranged.bounds_margin == 20.0
+    np.testing.assert_allclose(ranged.covariance[0], (9.0, 0.3))
     ranged = config_of("--config", str(paper), "--sigma-range", "6", "--bounds-margin", "0")
-    assert ranged.bounds_margin == 0.0
-    # correlation 0.3 / (3 * 0.2) = 0.5 kept: 0.5 * 6 * 0.2 = 0.6
-    np.testing.assert_allclose(ranged.measurement_covariance, [[36.0, 0.6], [0.6, 0.04]])
+    assert ranged.measurement.bounds_margin == 0.0
+    # the file's correlation 0.5 kept: 0.5 * 6 * 0.2 = 0.6
+    np.testing.assert_allclose(ranged.measurement.covariance, [[36.0, 0.6], [0.6, 0.04]])
     plain = config_of("--period", "8", "--r0", "a=5", "--sigma-range-rate", "0.1")
-    np.testing.assert_allclose(plain.measurement_covariance, [[25.0, 0.0], [0.0, 0.01]])
+    np.testing.assert_allclose(plain.measurement.covariance, [[25.0, 0.0], [0.0, 0.01]])
 
 
 def test_search_and_motion_settings_by_options(arrival_files, tmp_path, starting_particles):
@@ -803,8 +883,9 @@ def test_ess_threshold_reaches_the_range_rate_filter(scenario_files, tmp_path):
 
 def test_sigma_options_name_a_bad_covariance_of_the_config_file(tmp_path, capsys):
     bad = tmp_path / "bad.json"
-    bad.write_text(json.dumps({"period": 8.0, "measurement_covariance": [[1, 2], [2, 1]]}))
+    bad.write_text(json.dumps({"measurement": {"period": 8.0, "range_rate_correlation": 2}}))
     base = ["track", "--detections", "d.csv", "--receivers", "r.csv", "-o", "e.csv"]
     assert main([*base, "--config", str(bad), "--r0", "a=1", "--sigma-range", "3"]) == 2
     err = capsys.readouterr().err
-    assert f"{bad}: measurement_covariance must be a symmetric positive definite" in err
+    assert f"{bad}, command line, section 'measurement' (range-rate): range_rate_correlation" in err
+    assert "must lie in (-1, 1), got 2" in err

@@ -440,21 +440,17 @@ def test_moored_array_without_initial_range_under_10_m_and_smoothing_helps():
     fixed-lag smoothed track's at most 70 % of the filter's (measured: 3.0 m vs 1.0 m)."""
     case = moored_array(5, duration=900.0)
     sc = case.scenario
-    config = TrackingConfig(
+    config = TrackingConfig.from_keys(
         period=sc.period,
         measurement="arrival-time",
         n_particles=2000,
         detection_curve=case.detection_probability,
         start=sc.start,
         end=sc.end,
+        smoothing_lag=30,
     )
     result = track(
-        case.corrected_detections(),
-        sc.receivers,
-        config,
-        VelocityMotion(0.05, 0.02),
-        smoothing_lag=30,
-        seed=1,
+        case.corrected_detections(), sc.receivers, config, VelocityMotion(0.05, 0.02), seed=1
     )
     error = position_error(result.estimates, sc.truth)
     converged = np.flatnonzero(result.estimates["sqrt_lambda1"].to_numpy() < 10.0)
@@ -541,7 +537,7 @@ def test_track_passes_tempering_ess_to_the_filter():
     case = moored_array(5, duration=300.0)
     sc = case.scenario
     detections = case.corrected_detections()
-    config = TrackingConfig(
+    config = TrackingConfig.from_keys(
         period=sc.period, measurement="arrival-time", n_particles=300, start=sc.start, end=sc.end
     )
     motion = VelocityMotion(0.05, 0.02)

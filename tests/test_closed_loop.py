@@ -19,7 +19,7 @@ from hmmtrack.experiments.closed_loop import (
 from hmmtrack.experiments.configs import arrival_config
 from hmmtrack.scenarios.realistic import realistic_shark_pursuit
 from hmmtrack.scenarios.steering import RotatingPlan
-from hmmtrack.tracking.config import TrackingConfig, read_preset
+from hmmtrack.tracking.config import TrackingConfig, merge_settings, nest, read_preset
 from hmmtrack.tracking.pipeline import track
 
 PLAN = RotatingPlan()  # the "observable" plan
@@ -32,9 +32,10 @@ def observable_case(seed: int):
 
 def preset_config(case, duration: float, n_particles: int) -> TrackingConfig:
     """The ``two-moving-receivers`` preset on ``case``'s first ``duration`` s, ``n_particles``."""
-    return arrival_config(
-        case, read_preset("two-moving-receivers") | {"n_particles": n_particles}, duration
+    settings = merge_settings(
+        read_preset("two-moving-receivers"), nest({"n_particles": n_particles})
     )
+    return arrival_config(case, settings, duration)
 
 
 def fly(case, duration, n_particles=300, filter_seed=5, **options):

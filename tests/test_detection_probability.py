@@ -215,7 +215,7 @@ def test_curve_fitted_from_a_tracking_run_is_close_to_the_truth():
     detections = case.corrected_detections()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        config = TrackingConfig(
+        config = TrackingConfig.from_keys(
             period=sc.period,
             measurement="arrival-time",
             n_particles=1500,

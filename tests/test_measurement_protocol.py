@@ -50,7 +50,7 @@ def range_rate_case() -> Case:
 def arrival_time_case() -> Case:
     case = moored_array(2, duration=600.0)
     sc = case.scenario
-    config = TrackingConfig(
+    config = TrackingConfig.from_keys(
         period=sc.period,
         measurement="arrival-time",
         n_particles=N,
@@ -71,16 +71,17 @@ def built(request):
     assert name in CASES, f"measurement {name!r} has no conformance case"
     case = CASES[name]()
     cls = MEASUREMENTS[name]
-    observations = cls.observations(case.detections, case.receivers, case.config)
-    measurement = cls.from_config(case.config, observations, case.receivers)
+    observations = cls.observations(case.detections, case.receivers, case.config.measurement)
+    measurement = cls.from_settings(case.config.measurement, observations, case.receivers)
     return name, case, observations, measurement
 
 
 def started_filter(case, measurement, observations):
     """The filter of ``track`` on ``case``, initialised at the first scored observation."""
-    bounds = measurement.start_box(observations, case.receivers, case.config, None)
+    settings = case.config.measurement
+    bounds = measurement.start_box(observations, case.receivers, settings, None, None)
     motion = VelocityMotion(0.05, 0.02)
-    pf = pipeline.particle_filter(case.config, measurement, bounds, motion, seed=SEED)
+    pf = pipeline.particle_filter(case.config.filter, measurement, bounds, motion, seed=SEED)
     scored, _ = measurement.split(observations)
     pf.initialise(float(np.rint(scored["time"].iloc[0])))
     return pf, scored
@@ -121,13 +122,15 @@ def test_split_keeps_rows_and_describes_the_others_as_events(built):
 def test_start_box_holds_the_truth_at_the_start_and_keeps_given_bounds(built):
     _, case, observations, measurement = built
     start = float(observations["time"].iloc[0])
-    xmin, xmax, ymin, ymax = measurement.start_box(observations, case.receivers, case.config, None)
+    settings = case.config.measurement
+    xmin, xmax, ymin, ymax = measurement.start_box(
+        observations, case.receivers, settings, None, None
+    )
     x, y = (float(v[0]) for v in truth_at(case.truth, np.array([start])))
     assert xmin < x < xmax and ymin < y < ymax
     assert xmax - xmin < 10_000 and ymax - ymin < 10_000  # a search box, not the ocean
     given = (x - 50.0, x + 50.0, y - 50.0, y + 50.0)
-    config = case.config.override(bounds=given)
-    assert measurement.start_box(observations, case.receivers, config, None) == given
+    assert measurement.start_box(observations, case.receivers, settings, given, None) == given
 
 
 def test_owned_fields_are_created_and_carried_through_resampling(built):

@@ -272,11 +272,10 @@ def test_filter_posterior_rests_on_a_fixed_tag_and_swims_on_a_moving_one(name, b
     """Posterior weight of the resting state at the end of a run with tracking's default
     HMM (measured: 0.97 on the moored tag, 0.0015 on the swimmer; 0.20 under the prior)."""
     scenario = paper_scenarios(0, [name])[name]
-    config = tracking_config(scenario, n_particles=2000, shallower="clip")
+    config = tracking_config(scenario, n_particles=2000, shallower="clip", motion="hmm")
     run = tracking.track(
-        scenario.detections, scenario.receivers, config, "hmm", seed=1,
-        snapshot_times=[scenario.end],
-    )  # fmt: skip
+        scenario.detections, scenario.receivers, config, seed=1, snapshot_times=[scenario.end]
+    )
     cloud = run.snapshots[scenario.end]
     resting = cloud.loc[cloud["state"] == 2, "weight"].sum() / cloud["weight"].sum()
     assert bounds[0] <= resting <= bounds[1]

@@ -534,7 +534,8 @@ def test_simulate_cli_writes_files_that_io_reads_back(tmp_path):
     truth = pd.read_csv(tmp_path / "truth.csv")
     assert len(truth) == 1201
     metadata = json.loads((tmp_path / "scenario.json").read_text())
-    assert metadata["period"] == 8.179 and metadata["r0"] == pytest.approx(s.r0)
+    measurement = metadata["measurement"]
+    assert measurement["period"] == 8.179 and measurement["r0"] == pytest.approx(s.r0)
     assert metadata["bounds"] == pytest.approx(list(s.bounds))
     with pytest.raises(ValueError, match="--dive applies to shark-pursuit"):
         args = parser.parse_args(["simulate", "swimmer", "--seed", "1", "--dive", "-o", "x"])

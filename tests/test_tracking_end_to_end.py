@@ -22,6 +22,7 @@ from hmmtrack.analysis.crb import static_tag_fit
 from hmmtrack.experiments.configs import tracking_config
 from hmmtrack.tracking import pipeline as tracking
 from hmmtrack.tracking.config import TrackingConfig
+from hmmtrack.tracking.filter import FilterSettings
 from hmmtrack.tracking.measurement import ranging
 from hmmtrack.tracking.measurement.range_rate import OBSERVATION_COLUMNS, search_bounds
 from hmmtrack.tracking.motion import VELOCITY_SIGMA_SPEED, VelocityMotion, motion_model
@@ -96,14 +97,14 @@ def test_depth_correction_gives_horizontal_ranges(policy):
             lambda t: 5.0 + 0.1 * (t - t[0])
         )
         depth = "sensor"
-    config = TrackingConfig(period=PERIOD, r0={"M": slant[0]}, depth=depth)
+    config = TrackingConfig.from_keys(period=PERIOD, r0={"M": slant[0]}, depth=depth)
     observations = tracking.build_observations(detections, receivers, config)
     np.testing.assert_allclose(observations["range"], horizontal, atol=1e-6)
     # range-rates are recomputed from the horizontal ranges
     rates = np.diff(horizontal) / np.diff(detections["time"].to_numpy())
     np.testing.assert_allclose(observations["range_rate"].to_numpy()[1:], rates, atol=1e-6)
     uncorrected = tracking.build_observations(
-        detections, receivers, TrackingConfig(period=PERIOD, r0={"M": slant[0]})
+        detections, receivers, TrackingConfig.from_keys(period=PERIOD, r0={"M": slant[0]})
     )
     np.testing.assert_allclose(uncorrected["range"], slant, atol=1e-6)
 
@@ -114,11 +115,13 @@ def test_depth_policy_errors_name_the_problem():
         tracking.build_observations(
             detections.drop(columns="depth"),
             receivers,
-            TrackingConfig(period=PERIOD, r0={"M": slant[0]}, depth="sensor"),
+            TrackingConfig.from_keys(period=PERIOD, r0={"M": slant[0]}, depth="sensor"),
         )
     with pytest.raises(ValueError, match="range shorter than depth"):
         tracking.build_observations(
-            detections, receivers, TrackingConfig(period=PERIOD, r0={"M": slant[0]}, depth=45.0)
+            detections,
+            receivers,
+            TrackingConfig.from_keys(period=PERIOD, r0={"M": slant[0]}, depth=45.0),
         )
 
 
@@ -148,17 +151,20 @@ def test_pipeline_errors_name_what_is_missing(stationary):
 def test_search_bounds_hold_the_tag(stationary):
     config = scenario_config(stationary)
     observations = tracking.build_observations(stationary.detections, stationary.receivers, config)
-    xmin, xmax, ymin, ymax = search_bounds(observations, config.r0, margin=0.0)
+    r0 = config.measurement.r0
+    xmin, xmax, ymin, ymax = search_bounds(observations, r0, margin=0.0)
     start = stationary.truth.iloc[0]
     assert xmin <= start["x"] <= xmax and ymin <= start["y"] <= ymax
     # no bigger than the receivers' reach: the widest is 2 (r0 + GPS error) across
-    assert xmax - xmin <= 2 * max(config.r0.values()) + 10.0
+    assert xmax - xmin <= 2 * max(r0.values()) + 10.0
 
 
 def test_same_seed_same_estimates(stationary):
     config = scenario_config(stationary, n_particles=500)
     runs = [
-        tracking.track(stationary.detections, stationary.receivers, config, "velocity", seed=s)
+        tracking.track(
+            stationary.detections, stationary.receivers, config.override(motion="velocity"), seed=s
+        )
         for s in (7, 7, 8)
     ]
     pd.testing.assert_frame_equal(runs[0].estimates, runs[1].estimates)
@@ -179,12 +185,10 @@ def test_without_a_motion_the_config_chooses_it(stationary):
     data = stationary.detections, stationary.receivers
     implicit = tracking.track(*data, config, seed=3)
     explicit = tracking.track(*data, config, VelocityMotion(VELOCITY_SIGMA_SPEED, 0.005), seed=3)
-    by_name = tracking.track(*data, config, "velocity", seed=3)
+    by_name = tracking.track(*data, config.override(sigma_turn_rate=0.02), seed=3)
     pd.testing.assert_frame_equal(implicit.estimates, explicit.estimates)
     assert not np.allclose(implicit.estimates["x"], by_name.estimates["x"])
-    default = tracking.track(
-        *data, dataclasses.replace(config, motion="hmm", sigma_turn_rate=None), seed=3
-    )
+    default = tracking.track(*data, config.override(motion="hmm"), seed=3)
     assert not np.allclose(implicit.estimates["x"], default.estimates["x"])
 
 
@@ -193,7 +197,7 @@ def data_error(scenario) -> float:
     config = scenario_config(scenario)
     observations = tracking.build_observations(scenario.detections, scenario.receivers, config)
     scored = observations[observations["range_rate"].notna()]
-    position, _ = static_tag_fit(scored, [0.0, 0.0], config.measurement_covariance)
+    position, _ = static_tag_fit(scored, [0.0, 0.0], config.measurement.covariance)
     return float(np.hypot(*position))
 
 
@@ -223,8 +227,11 @@ def test_the_acceptance_rule_keeps_most_geometries(acceptance_cases, chosen_seed
 
 
 def run_scores(scenario, motion, seed):
-    """Default configuration (TrackingConfig's particle count): metrics and 95 % coverage."""
-    config = scenario_config(scenario, n_particles=TrackingConfig.n_particles)
+    """Default configuration (FilterSettings' particle count): metrics and 95 % coverage;
+    ``motion`` a name or a motion model."""
+    config = scenario_config(scenario, n_particles=FilterSettings().n_particles)
+    if isinstance(motion, str):
+        config, motion = config.override(motion=motion), None
     result = tracking.track(scenario.detections, scenario.receivers, config, motion, seed=seed)
     assert len(result.estimates) == int(scenario.end - scenario.start) + 1
     scores = metrics.tracking_metrics(result.estimates, scenario.truth)
@@ -294,13 +301,14 @@ def test_resampling_settings_reach_the_filter(stationary):
     """Resampling after every correction leaves equal weights (n_eff = N) between
     corrections; ESS-triggered resampling with a low threshold leaves them unequal."""
     n = 300
-    config = scenario_config(stationary, n_particles=n, end=stationary.start + 120)
-    always = tracking.track(stationary.detections, stationary.receivers, config, "velocity", seed=2)
+    config = scenario_config(
+        stationary, n_particles=n, end=stationary.start + 120, motion="velocity"
+    )
+    always = tracking.track(stationary.detections, stationary.receivers, config, seed=2)
     lazy = tracking.track(
         stationary.detections,
         stationary.receivers,
-        dataclasses.replace(config, resample_when="ess", ess_threshold=0.05),
-        "velocity",
+        config.override(resample_when="ess", ess_threshold=0.05),
         seed=2,
     )
     corrected = set(always.observations["time"].round())
@@ -311,16 +319,16 @@ def test_resampling_settings_reach_the_filter(stationary):
 
 
 def test_range_rate_tracking_needs_r0_for_every_receiver(stationary):
-    config = TrackingConfig(period=stationary.period, transmitter=stationary.transmitter)
-    assert config.r0 == {}  # arrival-time tracking needs none
+    config = TrackingConfig.from_keys(period=stationary.period, transmitter=stationary.transmitter)
+    assert config.measurement.r0 == {}  # given, as arrival-time tracking needs none
     with pytest.raises(ValueError, match=r"no initial range r0 for receiver\(s\)"):
         tracking.build_observations(stationary.detections, stationary.receivers, config)
 
 
 def test_bounds_in_another_frame_are_refused(stationary):
-    config = scenario_config(stationary, bounds=(1e5, 1e5 + 300, 0.0, 300.0))
+    config = scenario_config(stationary, bounds=(1e5, 1e5 + 300, 0.0, 300.0), motion="baseline")
     with pytest.raises(ValueError, match="are the bounds in the receivers' frame"):
-        tracking.track(stationary.detections, stationary.receivers, config, "baseline", seed=0)
+        tracking.track(stationary.detections, stationary.receivers, config, seed=0)
 
 
 def test_expected_measurements_hand_values():

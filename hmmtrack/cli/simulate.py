@@ -1,8 +1,9 @@
 """``hmmtrack simulate``: write one of the paper-like synthetic datasets as files.
 
-Writes ``detections.csv``, ``receivers.csv``, ``truth.csv`` and ``scenario.json`` (period,
-r0, bounds, sound speed) into a directory, the inputs ``hmmtrack track`` reads, so that the
-tracker can be tried on our analogues of the paper's datasets.
+Writes ``detections.csv``, ``receivers.csv``, ``truth.csv`` and ``scenario.json`` (the
+tracker's settings of the scenario: period, r0, bounds, sound speed, time window; a
+``--config`` file of ``hmmtrack track``) into a directory, the inputs ``hmmtrack track``
+reads, so that the tracker can be tried on our analogues of the paper's datasets.
 """
 
 from __future__ import annotations
@@ -10,6 +11,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from hmmtrack.experiments.configs import scenario_settings
 from hmmtrack.io.outputs import check_paths, staged_folder
 from hmmtrack.scenarios import GENERATORS
 from hmmtrack.scenarios.export import FILE_NAMES, write_scenario
@@ -45,7 +47,10 @@ def run(args: argparse.Namespace) -> int:
     generator = GENERATORS[args.scenario]
     scenario = generator(args.seed, dive=True) if args.dive else generator(args.seed)
     with staged_folder(args.out, last=FILE_NAMES["metadata"]) as stage:
-        names = {key: path.name for key, path in write_scenario(scenario, stage).items()}
+        names = {
+            key: path.name
+            for key, path in write_scenario(scenario, stage, scenario_settings(scenario)).items()
+        }
         if args.plot:
             import matplotlib
 

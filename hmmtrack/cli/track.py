@@ -14,13 +14,12 @@ lag (its detection times must be on one common time base).
 
 Settings come, in increasing precedence, from ``--preset`` (a bundled set of settings
 for one kind of deployment, e.g. ``two-moving-receivers``), ``--config`` (a JSON file, see
-:mod:`hmmtrack.tracking.config`) and the command-line options; every setting a run usually needs
-has an option: search box (``--bounds``, in the receivers file's frame: metres, or degrees
-for lon/lat receivers, converted with their projection by :func:`hmmtrack.io.bounds_in_metres`),
-measurement noise (``--sigma-range``, ``--sigma-range-rate``; ``--arrival-sigma``), the
-detection curve that makes missed pings count (``--detection-curve``), the search radius,
-tempering and velocity-motion noise. An option that the run's measurement or motion model
-does not use is an error, not ignored.
+:mod:`hmmtrack.tracking.config`) and the command-line options. The options are generated
+from the settings classes of the configuration's sections (:func:`settings_options`): one
+per setting, with its help text, check and default, so that every default lives beside its
+component. ``--bounds`` are in the receivers file's frame: metres, or degrees for lon/lat
+receivers, converted with their projection by :func:`hmmtrack.io.bounds_in_metres`. An option
+that the run's measurement or motion model does not use is an error, not ignored.
 """
 
 from __future__ import annotations
@@ -28,9 +27,9 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import logging
-import math
 import sys
 import warnings
+from collections.abc import Iterator
 
 import numpy as np
 import pandas as pd
@@ -41,63 +40,142 @@ from hmmtrack.cli import UserInputError
 from hmmtrack.io.outputs import atomic_files, check_paths
 from hmmtrack.tracking import pipeline as tracking
 from hmmtrack.tracking.config import (
+    SECTIONS,
     TrackingConfig,
-    measurement_covariance_with,
     merge_settings,
+    nest,
     preset_names,
     read_preset,
     read_settings,
+    section_classes,
 )
-from hmmtrack.tracking.filter import RESAMPLE_WHEN
-from hmmtrack.tracking.measurement import MEASUREMENTS
-from hmmtrack.tracking.measurement.arrival_time import ArrivalLikelihood
-from hmmtrack.tracking.measurement.clocked import SEARCH_RADIUS, TEMPERING_ESS
-from hmmtrack.tracking.motion import (
-    HMM_VARIANTS,
-    MOTIONS,
-    VELOCITY_SIGMA_SPEED,
-    VELOCITY_SIGMA_TURN_RATE,
-)
-from hmmtrack.tracking.resampling import RESAMPLERS
+from hmmtrack.tracking.settings import boolean
 
 logger = logging.getLogger(__name__)
 
-#: defaults of the configuration (help texts, build_config)
-_CONFIG_DEFAULTS = {f.name: f.default for f in dataclasses.fields(TrackingConfig)}
+
+@dataclasses.dataclass(frozen=True)
+class Option:
+    """One generated option: a setting's key, its section and the components that have it.
+
+    Attributes
+    ----------
+    key : str
+        The setting's key (the option's ``dest``).
+    section : str or None
+        Its section (``None``: a key of the run itself).
+    components : tuple of str
+        Names of the section's components whose settings have the key (all of them, or
+        ``(None,)`` for the filter and the run).
+    owner : type
+        The settings class of the first of them.
+    field : dataclasses.Field
+        Its field (the same help, check and default in all of them).
+    """
+
+    key: str
+    section: str | None
+    components: tuple
+    owner: type
+    field: dataclasses.Field
+
+    @property
+    def flag(self) -> str:
+        """``--option``."""
+        return "--" + (self.field.metadata["option"] or self.key.replace("_", "-"))
+
+    @property
+    def spelled(self) -> str:
+        """The option as the user may have spelled it (``--resting/--no-resting``)."""
+        if self.field.metadata["check"] is boolean:
+            return f"{self.flag}/--no-{self.flag[2:]}"
+        return self.flag
+
+    @property
+    def default_text(self) -> str | None:
+        """The default as the help says it (``None``: no default, e.g. the period)."""
+        text = self.field.metadata["default_text"]
+        if text is not None:
+            return text
+        if self.field.default is dataclasses.MISSING:
+            return None
+        return (
+            format(self.field.default, "g")
+            if isinstance(self.field.default, float)
+            else (str(self.field.default))
+        )
 
 
-def _r0_pair(text: str) -> tuple[str, float]:
-    name, sep, value = text.rpartition("=")
-    if not sep or not name:
-        raise argparse.ArgumentTypeError(f"expected RECEIVER=METRES, got {text!r}")
-    try:
-        return name, float(value)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"r0 of {name!r} is not a number: {value!r}") from None
+def settings_options() -> Iterator[Option]:
+    """The options of every setting: the run's own keys, then each section's, a key shared
+    by several components of a section (e.g. ``period``) once."""
+    sections = {None: {None: TrackingConfig}} | {s: section_classes(s) for s in SECTIONS}
+    for section, classes in sections.items():
+        seen: dict[str, list] = {}
+        for name, cls in classes.items():
+            for field in dataclasses.fields(cls):
+                if "help" in field.metadata:
+                    seen.setdefault(field.name, []).append((name, cls, field))
+        for key, found in seen.items():
+            _, owner, field = found[0]
+            yield Option(key, section, tuple(name for name, _, _ in found), owner, field)
 
 
-def _finite(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-    if not np.isfinite(value):
-        raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
-    return value
+def _checked(option: Option):
+    """argparse type of a one-word option: parsed and checked by its setting."""
+    parse, check = option.field.metadata["parse"], option.field.metadata["check"]
+
+    def convert(text: str):
+        try:
+            value = parse(text)
+            return value if check is None else check(option.key, value)
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+
+    return convert
 
 
-def _positive(text: str) -> float:
-    value = _finite(text)
-    if value <= 0:
-        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
-    return value
+def _add(parser: argparse.ArgumentParser, option: Option) -> None:
+    meta = option.field.metadata
+    help_text = meta["help"]
+    if option.components != (None,) and len(option.components) < len(
+        section_classes(option.section)
+    ):
+        help_text = f"{option.section} {' or '.join(option.components)} only: {help_text}"
+    if meta["requires"] is not None:
+        key, value = meta["requires"]
+        help_text = f"with --{key.replace('_', '-')} {value} only: {help_text}"
+    if option.default_text is not None:
+        help_text += f" (default: {option.default_text})"
+    kwargs = {"dest": option.key, "help": help_text, "metavar": meta["metavar"]}
+    if meta["check"] is boolean:
+        kwargs = {"dest": option.key, "help": help_text}
+        parser.add_argument(option.flag, action=argparse.BooleanOptionalAction, **kwargs)
+        return
+    if meta["choices"] is not None:
+        kwargs.update(choices=meta["choices"], metavar=None)
+    if meta["append"]:
+        kwargs.update(action="append", type=meta["parse"])
+    elif meta["nargs"] is not None:
+        kwargs.update(nargs=meta["nargs"], type=_checked_word(meta["parse"]))
+    elif meta["choices"] is None:
+        kwargs["type"] = _checked(option)
+    parser.add_argument(option.flag, **kwargs)
 
 
-def _non_negative(text: str) -> float:
-    value = _finite(text)
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected a number >= 0, got {text!r}")
-    return value
+def _checked_word(parse):
+    """argparse type of one word of a several-word option (checked as a whole later)."""
+
+    def convert(text: str):
+        try:
+            value = parse(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+        if isinstance(value, float) and not np.isfinite(value):
+            raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
+        return value
+
+    return convert
 
 
 def register(subparsers) -> None:
@@ -125,192 +203,23 @@ def register(subparsers) -> None:
     )
     parser.add_argument(
         "--config",
-        help="JSON file of settings (keys of TrackingConfig); overrides --preset",
-    )
-    parser.add_argument("--period", type=float, help="transmitter period T (s), e.g. 8.179")
-    parser.add_argument(
-        "--r0",
-        type=_r0_pair,
-        action="append",
-        metavar="RECEIVER=METRES",
-        help="range at the receiver's first detection (m); once per receiver",
-    )
-    parser.add_argument(
-        "--motion", choices=MOTIONS, help="motion model (default: the preset's, or hmm)"
-    )
-    parser.add_argument(
-        "--model", help="movement HMM JSON for --motion hmm (default: bundled white shark)"
-    )
-    parser.add_argument(
-        "--hmm-variant",
-        choices=HMM_VARIANTS,
-        default="time_consistent",
-        help=(
-            "HMM motion variant: time_consistent (default) respects the time step the model "
-            "was fitted at (state switches and speed/turn draws per fitted step, plus a "
-            "small heading random walk); paper redraws speed, turn and state every second "
-            "whatever that step (the paper's algorithm; under-disperses headings for a "
-            "model fitted at a coarser step)"
-        ),
-    )
-    parser.add_argument(
-        "--no-resting",
-        action="store_true",
-        help=(
-            "--motion hmm only: track with the movement HMM as fitted, without the resting "
-            "state added by default (hmmtrack.tracking.motion.HMM_RESTING)"
-        ),
+        help="JSON file of settings (sections measurement, motion, filter); overrides --preset",
     )
     parser.add_argument(
         "--measurement",
-        choices=tuple(MEASUREMENTS),
+        choices=tuple(section_classes("measurement")),
         help=(
-            "range-rate (default unless the preset says otherwise): the paper's ranges and "
-            "range-rates (needs --r0); "
+            "range-rate (default): the paper's ranges and range-rates (needs --r0); "
             "arrival-time: the tag's emission clock in the particle state, no initial range"
         ),
     )
     parser.add_argument(
-        "--smooth",
-        type=int,
-        metavar="LAG",
-        help="arrival-time only: write the fixed-lag smoothed estimates (lag in seconds)",
+        "--motion",
+        choices=tuple(section_classes("motion")),
+        help=f"motion model (default: {SECTIONS['motion']})",
     )
-    parser.add_argument("--particles", type=int, help="number of particles")
-    parser.add_argument(
-        "--resampling",
-        choices=sorted(RESAMPLERS),
-        help="resampling scheme (default systematic; multinomial is the paper's)",
-    )
-    parser.add_argument(
-        "--resample-when",
-        choices=RESAMPLE_WHEN,
-        help="resample after every correction (always: default, the paper) or on low ESS",
-    )
-    parser.add_argument(
-        "--bounds",
-        type=_finite,
-        nargs=4,
-        metavar=("XMIN", "XMAX", "YMIN", "YMAX"),
-        help=(
-            "search box of the initial particles, in the frame of the receivers file: "
-            "metres for x/y receivers; for lon/lat receivers LON_MIN LON_MAX LAT_MIN LAT_MAX "
-            "in degrees, converted with the receivers' projection (the smallest x/y box "
-            "holding it; a --config file's bounds are metres of that projection). "
-            "Default: range-rate, the receivers' first positions widened by "
-            "r0 + --bounds-margin; arrival-time, the receivers widened by --search-radius"
-        ),
-    )
-    parser.add_argument(
-        "--bounds-margin",
-        type=_non_negative,
-        metavar="METRES",
-        help=(
-            "range-rate only: metres added around the derived search box (default "
-            f"{_CONFIG_DEFAULTS['bounds_margin']:g}), "
-            "and how far given --bounds may miss a receiver's first range"
-        ),
-    )
-    parser.add_argument(
-        "--sigma-range",
-        type=_positive,
-        metavar="METRES",
-        help=(
-            "range-rate only: standard deviation of the range in the measurement covariance "
-            f"(m; default {math.sqrt(_CONFIG_DEFAULTS['measurement_covariance'][0][0]):g}); "
-            "a --config file's correlation of range and range-rate is kept"
-        ),
-    )
-    parser.add_argument(
-        "--sigma-range-rate",
-        type=_positive,
-        metavar="M_PER_S",
-        help=(
-            "range-rate only: standard deviation of the range-rate (m/s; default "
-            f"{math.sqrt(_CONFIG_DEFAULTS['measurement_covariance'][1][1]):g})"
-        ),
-    )
-    parser.add_argument(
-        "--arrival-sigma",
-        type=_positive,
-        metavar="SECONDS",
-        help=(
-            "arrival-time only: standard deviation of an arrival-time residual "
-            f"(s; default {ArrivalLikelihood().sigma:g})"
-        ),
-    )
-    parser.add_argument(
-        "--detection-curve",
-        type=_finite,
-        nargs=2,
-        metavar=("RANGE_50", "WIDTH"),
-        help=(
-            "arrival-time only: probability of hearing a ping against range, "
-            "1 / (1 + exp((r - RANGE_50) / WIDTH)) (both in metres), so that pings the "
-            "particles say should have been heard but were not count against them"
-        ),
-    )
-    parser.add_argument(
-        "--search-radius",
-        type=_positive,
-        metavar="METRES",
-        help=(
-            "arrival-time only, without --bounds: the search box is the receivers' positions "
-            "at the start widened by this (about their detection range; default "
-            f"{SEARCH_RADIUS:g})"
-        ),
-    )
-    parser.add_argument(
-        "--tempering-ess",
-        type=_positive,
-        metavar="FRACTION",
-        help=(
-            "arrival-time only: temper a correction that would leave fewer than this "
-            f"fraction of the particles, in (0, 1] (default "
-            f"{TEMPERING_ESS:g})"
-        ),
-    )
-    parser.add_argument(
-        "--sigma-speed",
-        type=_non_negative,
-        metavar="M_PER_S",
-        help=(
-            "velocity motion only: spread of the speed increments "
-            f"(m/s per sqrt(s); default {VELOCITY_SIGMA_SPEED:g})"
-        ),
-    )
-    parser.add_argument(
-        "--sigma-turn-rate",
-        type=_non_negative,
-        metavar="RAD_PER_S",
-        help=(
-            "velocity motion only: spread of the turn-rate increments "
-            f"(rad/s per sqrt(s); default {VELOCITY_SIGMA_TURN_RATE:g})"
-        ),
-    )
-    parser.add_argument(
-        "--ess-threshold",
-        type=_positive,
-        metavar="FRACTION",
-        help=(
-            "with --resample-when ess: resample below this fraction of N, in (0, 1] "
-            f"(default {_CONFIG_DEFAULTS['ess_threshold']:g})"
-        ),
-    )
-    parser.add_argument(
-        "--sound-speed",
-        type=_positive,
-        metavar="M_PER_S",
-        help=f"speed of sound (m/s, default {_CONFIG_DEFAULTS['sound_speed']:g})",
-    )
-    parser.add_argument(
-        "--transmitter", help="transmitter to track (full id or ID part) when the log holds several"
-    )
-    parser.add_argument(
-        "--depth", help="depth correction: none (default), sensor, or a depth in metres"
-    )
-    parser.add_argument("--start", help="start of the run (ISO 8601 UTC; default first detection)")
-    parser.add_argument("--end", help="end of the run (ISO 8601 UTC; default last detection)")
+    for option in settings_options():
+        _add(parser, option)
     parser.add_argument("--seed", type=int, help="random seed (printed when not given)")
     parser.add_argument(
         "--truth", help="true positions CSV (time, x, y or lon, lat): print metrics"
@@ -319,19 +228,15 @@ def register(subparsers) -> None:
     parser.set_defaults(func=run)
 
 
-#: options that one measurement or motion model only uses: option -> (setting, value)
-_MODEL_OPTIONS = {
-    "bounds_margin": ("measurement", "range-rate"),
-    "sigma_range": ("measurement", "range-rate"),
-    "sigma_range_rate": ("measurement", "range-rate"),
-    "arrival_sigma": ("measurement", "arrival-time"),
-    "detection_curve": ("measurement", "arrival-time"),
-    "search_radius": ("measurement", "arrival-time"),
-    "tempering_ess": ("measurement", "arrival-time"),
-    "sigma_speed": ("motion", "velocity"),
-    "sigma_turn_rate": ("motion", "velocity"),
-    "ess_threshold": ("resample_when", "ess"),
-}
+def _given(args: argparse.Namespace) -> dict:
+    """The settings given as options, by key (``r0`` pairs as a mapping)."""
+    given = {key: getattr(args, key) for key in ("measurement", "motion")}
+    for option in settings_options():
+        value = getattr(args, option.key)
+        if option.field.metadata["append"] and value is not None:
+            value = dict(value)
+        given[option.key] = value
+    return {key: value for key, value in given.items() if value is not None}
 
 
 def build_config(args: argparse.Namespace) -> TrackingConfig:
@@ -349,33 +254,7 @@ def build_config(args: argparse.Namespace) -> TrackingConfig:
                 "for x/y receivers, LON_MIN LON_MAX LAT_MIN LAT_MAX degrees for lon/lat ones), "
                 f"got {' '.join(f'{b:g}' for b in args.bounds)}"
             )
-    overrides = {
-        "bounds": args.bounds,
-        "bounds_margin": args.bounds_margin,
-        "arrival_sigma": args.arrival_sigma,
-        "search_radius": args.search_radius,
-        "tempering_ess": args.tempering_ess,
-        "sigma_speed": args.sigma_speed,
-        "sigma_turn_rate": args.sigma_turn_rate,
-        "ess_threshold": args.ess_threshold,
-        "detection_curve": (
-            None
-            if args.detection_curve is None
-            else {"range_50": args.detection_curve[0], "width": args.detection_curve[1]}
-        ),
-        "period": args.period,
-        "r0": dict(args.r0) if args.r0 else None,
-        "n_particles": args.particles,
-        "resampling": args.resampling,
-        "resample_when": args.resample_when,
-        "sound_speed": args.sound_speed,
-        "transmitter": args.transmitter,
-        "depth": args.depth,
-        "start": args.start,
-        "end": args.end,
-        "measurement": args.measurement,
-        "motion": args.motion,
-    }
+    given = _given(args)
     layers, sources = [], []
     if args.preset:
         layers.append(read_preset(args.preset))
@@ -383,30 +262,43 @@ def build_config(args: argparse.Namespace) -> TrackingConfig:
     if args.config:
         layers.append(read_settings(args.config))
         sources.append(args.config)
-    settings = merge_settings(*layers, overrides)
-    for name, (setting, needed) in _MODEL_OPTIONS.items():
-        used = settings.get(setting, _CONFIG_DEFAULTS[setting])
-        if getattr(args, name) is not None and used != needed:
-            raise UserInputError(
-                f"--{name.replace('_', '-')} is used with --{setting.replace('_', '-')} "
-                f"{needed} only (this run's {setting} is {used})"
-            )
-    if args.sigma_range is not None or args.sigma_range_rate is not None:
-        try:
-            settings["measurement_covariance"] = measurement_covariance_with(
-                settings.get("measurement_covariance", _CONFIG_DEFAULTS["measurement_covariance"]),
-                args.sigma_range,
-                args.sigma_range_rate,
-            )
-        except ValueError as exc:  # the covariance of the preset or file
-            raise ValueError(f"{', '.join(sources)}: {exc}") from None
+    settings = merge_settings(*layers, nest(given))
+    for option in settings_options():
+        if option.key in given:
+            _check_used(option, settings)
     if not args.config:
-        arrival = settings.get("measurement") == "arrival-time"
-        needed = ("period",) if arrival else ("period", "r0")
-        missing = [f"--{k}" for k in needed if k not in settings]
+        measurement = settings.get("measurement", {})
+        needed = (
+            ("period", "r0")
+            if measurement.get("name", "range-rate") == "range-rate"
+            else ("period",)
+        )
+        missing = [f"--{k}" for k in needed if k not in measurement]
         if missing:
             raise UserInputError(f"give {' and '.join(missing)}, or a --config file with them")
     return TrackingConfig.from_dict(settings, source=", ".join([*sources, "command line"]))
+
+
+def _check_used(option: Option, settings: dict) -> None:
+    """Refuse an option that the run's components do not use."""
+    section = settings.get(option.section, {}) if option.section else settings
+    if option.components != (None,):
+        name = section.get("name", SECTIONS[option.section])
+        if name not in option.components:
+            raise UserInputError(
+                f"{option.spelled} is used with --{option.section} "
+                f"{' or '.join(option.components)} only (this run's {option.section} is {name})"
+            )
+    requires = option.field.metadata["requires"]
+    if requires is not None:
+        key, value = requires
+        default = {f.name: f.default for f in dataclasses.fields(option.owner)}
+        used = section.get(key, default[key])
+        if used != value:
+            raise UserInputError(
+                f"{option.spelled} is used with --{key.replace('_', '-')} {value} only "
+                f"(this run's {key} is {used})"
+            )
 
 
 def _within_truth(estimates: pd.DataFrame, truth: pd.DataFrame) -> pd.DataFrame:
@@ -438,16 +330,6 @@ def _warn_ambiguous(ambiguity: pd.DataFrame) -> None:
 
 def run(args: argparse.Namespace) -> int:
     config = build_config(args)
-    if args.smooth is not None and config.measurement != "arrival-time":
-        raise UserInputError("--smooth needs --measurement arrival-time")
-    if args.smooth is not None and args.smooth < 1:
-        raise UserInputError(
-            f"--smooth LAG must be a positive number of seconds, got {args.smooth}"
-        )
-    if args.model and config.motion != "hmm":
-        raise UserInputError("--model is used with --motion hmm only")
-    if args.no_resting and config.motion != "hmm":
-        raise UserInputError("--no-resting is used with --motion hmm only")
     inputs = {"--detections": args.detections, "--receivers": args.receivers}
     inputs |= {"--config": args.config, "--model": args.model, "--truth": args.truth}
     check_paths(inputs, outputs={"-o": args.output, "--plot": args.plot})
@@ -461,8 +343,6 @@ def run(args: argparse.Namespace) -> int:
     truth = io.read_truth(args.truth, projection) if args.truth else None
     if args.bounds is not None and projection is not None:
         config = config.override(bounds=io.bounds_in_metres(args.bounds, projection))
-    resting = None if args.no_resting else "default"
-    motion = config.motion_model(args.model, variant=args.hmm_variant, resting=resting)
     snapshot_times = ()
     if args.plot:
         from hmmtrack.plots.tracking import snapshot_times as choose_snapshots
@@ -473,13 +353,7 @@ def run(args: argparse.Namespace) -> int:
         # the filter warns of each event as it happens; they are logged once below
         warnings.filterwarnings("ignore", message=r"t=\S+: \w+: ", category=RuntimeWarning)
         result = tracking.track(
-            detections,
-            receivers,
-            config,
-            motion,
-            seed=seed,
-            snapshot_times=snapshot_times,
-            smoothing_lag=args.smooth,
+            detections, receivers, config, seed=seed, snapshot_times=snapshot_times
         )
     if result.ambiguity is not None:
         _warn_ambiguous(result.ambiguity)

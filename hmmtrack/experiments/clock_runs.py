@@ -28,7 +28,7 @@ import pandas as pd
 from hmmtrack.analysis.metrics import position_error, time_to_convergence
 from hmmtrack.scenarios.clocks import ClockScenario
 from hmmtrack.tracking.config import TrackingConfig
-from hmmtrack.tracking.filter import FilterResult
+from hmmtrack.tracking.filter import FilterResult, FilterSettings
 from hmmtrack.tracking.measurement.arrival_time import ArrivalTimeMeasurement
 from hmmtrack.tracking.measurement.clock import EmissionClockModel
 from hmmtrack.tracking.measurement.clocked import ClockedArrivalTime, ClockState
@@ -137,7 +137,7 @@ def clock_inputs(case: ClockScenario, seed, n_particles: int, motion: str, durat
     start, end = sc.start, min(sc.end, sc.start + duration)
     detections = case.corrected_detections()
     detections = detections[detections["time"] < end].reset_index(drop=True)
-    config = TrackingConfig(
+    config = TrackingConfig.from_keys(
         period=sc.period,
         r0=sc.r0,
         sound_speed=sc.sound_speed,
@@ -145,7 +145,7 @@ def clock_inputs(case: ClockScenario, seed, n_particles: int, motion: str, durat
         start=start,
         end=end,
     )
-    arrival = TrackingConfig(
+    arrival = TrackingConfig.from_keys(
         period=sc.period,
         measurement="arrival-time",
         bounds=case.search_bounds,
@@ -160,13 +160,15 @@ def clock_inputs(case: ClockScenario, seed, n_particles: int, motion: str, durat
 def config_options(config: TrackingConfig) -> dict:
     """The :func:`track_arrival` options an arrival-time ``config`` sets: the configuration
     and its motion model (seed and smoother lag are the caller's)."""
-    return {"config": config, "motion": config.motion_model()}
+    return {"config": config, "motion": config.motion.build()}
 
 
 def without_silences(options: dict) -> dict:
     """``options`` with no detection curve: unheard pings tell nothing (as ``hmmtrack track``
     runs without ``--detection-curve``)."""
-    return options | {"config": dataclasses.replace(options["config"], detection_curve=None)}
+    config = options["config"]
+    measurement = dataclasses.replace(config.measurement, detection_curve=None)
+    return options | {"config": dataclasses.replace(config, measurement=measurement)}
 
 
 def track_arrival(
@@ -195,15 +197,14 @@ def track_arrival(
     if options.get("clock") is not None:
         tracks = ReceiverTracks.from_frame(receivers, outside="clamp")
         observations = ClockedArrivalTime.observations(detections, tracks)
-        built = ClockedArrivalTime.from_config(config, observations, tracks)
+        built = ClockedArrivalTime.from_settings(config.measurement, observations, tracks)
         measurement = dataclasses.replace(built, clock=options["clock"])
     return track(
         detections,
         receivers,
-        config,
+        config.override(smoothing_lag=options.get("smoothing_lag")),
         options["motion"],
         seed=options["seed"],
-        smoothing_lag=options.get("smoothing_lag"),
         measurement=measurement,
     )
 
@@ -265,8 +266,8 @@ def known_clock_run(
         SilenceModel.from_observations(obs, tracks, case.detection_probability),
         first_emission=intercept,
     )
-    config = TrackingConfig(period=period, measurement="arrival-time", n_particles=n_particles)
-    pf = particle_filter(config, measurement, case.search_bounds, make_motion(motion), seed=seed)
+    settings = FilterSettings(n_particles=n_particles)
+    pf = particle_filter(settings, measurement, case.search_bounds, make_motion(motion), seed=seed)
     return pf.run(obs, start, end)
 
 

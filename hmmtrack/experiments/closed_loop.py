@@ -518,15 +518,19 @@ def arrival_time_tracker(config: TrackingConfig, seed: SeedLike = None) -> Parti
         configuration (its default clock model: a period random walk of 0.3 ms per ping,
         phase steps of 0.1 ms, the period known to 0.1 %).
     """
-    if config.measurement != "arrival-time" or config.bounds is None:
+    if config.measurement.name != "arrival-time" or config.bounds is None:
         raise ValueError(
             "arrival_time_tracker: the configuration needs measurement 'arrival-time' and bounds"
         )
-    if config.detection_curve is not None:
+    if config.measurement.detection_curve is not None:
         raise ValueError(
             "arrival_time_tracker: the closed loop runs without a detection curve (the "
             "silence model is built from the whole detection table, future pings included); "
             "remove detection_curve from the configuration"
         )
-    measurement = ClockedArrivalTime.from_config(config, observations=None, receivers=None)
-    return particle_filter(config, measurement, config.bounds, config.motion_model(), seed=seed)
+    measurement = ClockedArrivalTime.from_settings(
+        config.measurement, observations=None, receivers=None
+    )
+    return particle_filter(
+        config.filter, measurement, config.bounds, config.motion.build(), seed=seed
+    )

@@ -42,7 +42,7 @@ from hmmtrack.experiments.closed_loop import arrival_time_tracker, fly_closed_lo
 from hmmtrack.experiments.configs import arrival_config
 from hmmtrack.scenarios.realistic import realistic_shark_pursuit
 from hmmtrack.scenarios.steering import RotatingPlan
-from hmmtrack.tracking.config import TrackingConfig, read_preset
+from hmmtrack.tracking.config import TrackingConfig, merge_settings, nest, read_preset
 from hmmtrack.tracking.measurement.clock import to_common_time
 
 #: the plan flown (``steering="observable"``)
@@ -61,8 +61,8 @@ MODES = {"open loop (truth)": "truth", "closed loop (estimate)": "estimate"}
 def preset_config(case, n_particles: int | None = None, duration=DURATION) -> TrackingConfig:
     """The preset on ``case`` over the first ``duration`` seconds (with ``n_particles``
     instead of the preset's when given)."""
-    particles = {} if n_particles is None else {"n_particles": n_particles}
-    return arrival_config(case, read_preset(PRESET) | particles, duration)
+    particles = nest({"n_particles": n_particles})
+    return arrival_config(case, merge_settings(read_preset(PRESET), particles), duration)
 
 
 def geometry(run, truth: pd.DataFrame, duration=DURATION) -> dict:

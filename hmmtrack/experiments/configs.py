@@ -7,6 +7,8 @@ and build a :class:`~hmmtrack.tracking.config.TrackingConfig`.
 
 * :func:`tracking_config` — the paper's range-rate method on a
   :class:`~hmmtrack.scenarios.scenario.Scenario` (true ``r0`` and its box);
+  :func:`scenario_settings` — the scenario's part of it as a configuration dictionary (the
+  ``scenario.json`` of ``hmmtrack simulate``);
 * :func:`arrival_config` — the arrival-time method on a
   :class:`~hmmtrack.scenarios.clocks.ClockScenario` (no initial range, the case's search box).
 """
@@ -17,7 +19,31 @@ from collections.abc import Mapping
 
 from hmmtrack.scenarios.clocks import ClockScenario
 from hmmtrack.scenarios.scenario import Scenario
-from hmmtrack.tracking.config import TrackingConfig
+from hmmtrack.tracking.config import TrackingConfig, merge_settings, nest
+
+
+def scenario_settings(scenario: Scenario) -> dict:
+    """What ``scenario`` tells the paper's range-rate method, as a configuration dictionary
+    (the settings of the ``scenario.json`` that ``hmmtrack simulate`` writes).
+
+    Returns
+    -------
+    dict
+        ``transmitter``, ``bounds``, ``start``, ``end`` and the ``measurement`` section
+        (``range-rate``: ``period``, ``sound_speed``, the true ``r0``).
+    """
+    return nest(
+        {
+            "transmitter": scenario.transmitter,
+            "bounds": list(scenario.bounds),
+            "start": scenario.start,
+            "end": scenario.end,
+            "measurement": "range-rate",
+            "period": scenario.period,
+            "sound_speed": scenario.sound_speed,
+            "r0": dict(scenario.r0),
+        }
+    )
 
 
 def tracking_config(scenario: Scenario, **changes) -> TrackingConfig:
@@ -27,7 +53,8 @@ def tracking_config(scenario: Scenario, **changes) -> TrackingConfig:
     ----------
     scenario : Scenario
     **changes
-        Settings that differ from the scenario's (e.g. ``n_particles``, ``depth``).
+        Settings by key that differ from the scenario's (e.g. ``n_particles``, ``depth``;
+        ``bounds=None`` derives the search box from ``r0``).
 
     Returns
     -------
@@ -35,7 +62,7 @@ def tracking_config(scenario: Scenario, **changes) -> TrackingConfig:
         ``period``, ``r0``, ``sound_speed``, ``transmitter``, ``bounds``, ``start`` and
         ``end`` from the scenario, the rest from ``changes`` or the defaults.
     """
-    settings = {
+    keys = {
         "period": scenario.period,
         "r0": dict(scenario.r0),
         "sound_speed": scenario.sound_speed,
@@ -44,7 +71,7 @@ def tracking_config(scenario: Scenario, **changes) -> TrackingConfig:
         "start": scenario.start,
         "end": scenario.end,
     }
-    return TrackingConfig(**(settings | changes))
+    return TrackingConfig.from_keys(**(keys | changes))
 
 
 def arrival_config(
@@ -56,8 +83,8 @@ def arrival_config(
     ----------
     case : ClockScenario
     settings : mapping, optional
-        Keys of :class:`~hmmtrack.tracking.config.TrackingConfig` (e.g. a preset's,
-        :func:`hmmtrack.tracking.config.read_preset`); the case's own keys below win over them.
+        A configuration dictionary (e.g. a preset's,
+        :func:`hmmtrack.tracking.config.read_preset`); the case's own keys below win over it.
     duration : float, optional
         Track the first ``duration`` seconds (s); default: the whole scenario.
 
@@ -77,4 +104,5 @@ def arrival_config(
         "end": end,
         "sound_speed": sc.sound_speed,
     }
-    return TrackingConfig.from_dict({"measurement": "arrival-time", **(settings or {}), **window})
+    layers = (nest({"measurement": "arrival-time"}), settings or {}, nest(window))
+    return TrackingConfig.from_dict(merge_settings(*layers), source="arrival_config")

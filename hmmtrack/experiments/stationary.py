@@ -154,7 +154,7 @@ def geometry_row(scenario, config: TrackingConfig, late_after: float = 300.0) ->
     scored = observations[observations["range_rate"].notna()]
     late = scored[scored["time"] > scenario.start + late_after]
     tag = scenario.truth[["x", "y"]].to_numpy(dtype=float)[0]
-    sigma_z = config.measurement_covariance
+    sigma_z = config.measurement.covariance
     bound = crb.static_tag_crb(scored, *tag, sigma_z)
     fixed = pd.DataFrame({"time": [np.nan], "x": [tag[0]], "y": [tag[1]]})  # the moored tag
     residual = scored[["range", "range_rate"]].to_numpy() - expected_measurements(scored, fixed)
@@ -178,7 +178,7 @@ def receiver_tracks(scenario, config) -> ReceiverTracks:
     """The hydrophones' tracks; a detection logged a few ms after the AUV's last GPS fix (the
     scenario ends its tracks at its end time, seeds 53 and 61) takes the last position."""
     return ReceiverTracks.from_frame(
-        scenario.receivers, velocity_window=config.velocity_window, outside="clamp"
+        scenario.receivers, velocity_window=config.measurement.velocity_window, outside="clamp"
     )
 
 

@@ -195,7 +195,7 @@ def track_scenario(
     if detections.empty:  # everything dropped: the filter runs on its motion model alone
         pf = ParticleFilter(
             _motion(motion_name),
-            RangeRateMeasurement(np.array(config.measurement_covariance)),
+            RangeRateMeasurement(np.array(config.measurement.covariance)),
             n_particles=n_particles,
             bounds=scenario.bounds,
             rng=as_generator(seed),

@@ -48,7 +48,7 @@ from hmmtrack.experiments.clock_runs import (
 from hmmtrack.experiments.configs import arrival_config
 from hmmtrack.scenarios.realistic import realistic_shark_pursuit
 from hmmtrack.scenarios.steering import ROTATING_PLANS, RotatingPlan
-from hmmtrack.tracking.config import read_preset
+from hmmtrack.tracking.config import merge_settings, nest, read_preset
 from hmmtrack.tracking.pipeline import TrackingResult, track
 
 #: steerings of ``realistic_shark_pursuit``: the recommended plan first, then the observable
@@ -65,14 +65,16 @@ PRESET = "two-moving-receivers"
 #: name of the preset's runs without the detection curve
 NO_SILENCES = "tuned, no detection curve"
 #: the arrival-time defaults with the clock studies' velocity motion
-#: (:func:`hmmtrack.experiments.clock_runs.make_motion`), as configuration settings
-DEFAULT = {
-    "measurement": "arrival-time",
-    "motion": "velocity",
-    "sigma_speed": make_motion("velocity").sigma_speed,
-    "sigma_turn_rate": make_motion("velocity").sigma_turn_rate,
-    "n_particles": 3000,
-}
+#: (:func:`hmmtrack.experiments.clock_runs.make_motion`), as a configuration dictionary
+DEFAULT = nest(
+    {
+        "measurement": "arrival-time",
+        "motion": "velocity",
+        "sigma_speed": make_motion("velocity").sigma_speed,
+        "sigma_turn_rate": make_motion("velocity").sigma_turn_rate,
+        "n_particles": 3000,
+    }
+)
 
 
 def tuned_settings() -> dict:
@@ -100,7 +102,8 @@ def arrival_run(
     case's detection curve, so that missed pings count, unless ``silences`` is False (as
     ``hmmtrack track`` runs without ``--detection-curve``)."""
     sc = case.scenario
-    detections, _, options = clock_inputs(case, seed, settings["n_particles"], "velocity", duration)
+    n_particles = settings["filter"]["n_particles"]
+    detections, _, options = clock_inputs(case, seed, n_particles, "velocity", duration)
     options |= config_options(arrival_config(case, settings, duration))
     options["smoothing_lag"] = smoothing_lag
     if not silences:
@@ -143,8 +146,9 @@ def range_rate_errors(case, seed: int, n_particles: int, duration: float) -> dic
 def plan_rows(plan, seeds, n_particles: int | None = None, duration=DURATION) -> list[dict]:
     """Bound, AUV speeds and every setting's errors on ``plan`` (a steering) for each seed;
     ``n_particles`` replaces every setting's particle count when given."""
-    particles = {} if n_particles is None else {"n_particles": n_particles}
-    default, tuned = DEFAULT | particles, tuned_settings() | particles
+    particles = nest({"n_particles": n_particles})
+    default = merge_settings(DEFAULT, particles)
+    tuned = merge_settings(tuned_settings(), particles)
     rows = []
     for seed in seeds:
         case = realistic_shark_pursuit(seed, steering=plan)
@@ -160,7 +164,7 @@ def plan_rows(plan, seeds, n_particles: int | None = None, duration=DURATION) ->
             "bound_filter_rms_m": rms_after_skip(bound, inputs, "filter_position_m"),
             "bound_smoother_rms_m": rms_after_skip(bound, inputs, "smoother_position_m"),
         }
-        paper = range_rate_errors(case, seed, tuned["n_particles"], duration)
+        paper = range_rate_errors(case, seed, tuned["filter"]["n_particles"], duration)
         runs = [("default", default, seed, True)]
         runs += [("tuned", tuned, seed + offset, True) for offset in TUNED_FILTER_SEEDS]
         runs += [(NO_SILENCES, tuned, seed + offset, False) for offset in TUNED_FILTER_SEEDS]

@@ -84,27 +84,6 @@ class Scenario:
     pings: pd.DataFrame
     receivers_truth: pd.DataFrame
 
-    def metadata(self) -> dict:
-        """The scalar settings a tracker needs (the ``scenario.json`` of ``hmmtrack simulate``).
-
-        Returns
-        -------
-        dict
-            ``name``, ``description``, ``transmitter``, ``period`` (s), ``sound_speed`` (m/s),
-            ``start`` and ``end`` (UTC s), ``r0`` (m per receiver), ``bounds`` (m).
-        """
-        return {
-            "name": self.name,
-            "description": self.description,
-            "transmitter": self.transmitter,
-            "period": self.period,
-            "sound_speed": self.sound_speed,
-            "start": self.start,
-            "end": self.end,
-            "r0": dict(self.r0),
-            "bounds": list(self.bounds),
-        }
-
 
 def assemble_scenario(
     rng: np.random.Generator,

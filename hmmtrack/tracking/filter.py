@@ -69,13 +69,23 @@ from hmmtrack.tracking.compiled import streams as rs
 from hmmtrack.tracking.compiled.threads import ThreadChoice
 from hmmtrack.tracking.measurement.base import Score
 from hmmtrack.tracking.particles import Particles, as_bounds, sqrt_largest_eigenvalue
-from hmmtrack.tracking.resampling import get_resampler
+from hmmtrack.tracking.resampling import RESAMPLERS, get_resampler
+from hmmtrack.tracking.settings import (
+    Settings,
+    fraction,
+    number,
+    one_of,
+    positive,
+    positive_integer,
+    setting,
+)
 from hmmtrack.tracking.tempering import Plain
 
 __all__ = [
     "ESTIMATE_COLUMNS",
     "Estimate",
     "FilterResult",
+    "FilterSettings",
     "ParticleFilter",
 ]
 
@@ -770,3 +780,83 @@ class ParticleFilter:
             events=pd.DataFrame(self.events, columns=["time", "kind", "detail"]),
             collected=collected,
         )
+
+
+def _tempering_ess(name: str, value) -> float:
+    result = number(name, value)
+    if not 0 < result < 1:
+        raise ValueError(f"{name} must lie in (0, 1), got {value!r}")
+    return result
+
+
+@dataclass(frozen=True)
+class FilterSettings(Settings):
+    """The ``filter`` section of a tracking configuration: the :class:`ParticleFilter`'s
+    own settings (reasons for the defaults in reports/decisions.md, "Tracking defaults").
+
+    Parameters
+    ----------
+    n_particles : int
+        Number of particles.
+    prediction_step : float
+        Time between predictions and between estimates (s); 1 s as the paper.
+    resampling : str
+        Scheme of :data:`hmmtrack.tracking.resampling.RESAMPLERS`; ``"systematic"`` (less
+        resampling noise than the paper's ``"multinomial"``).
+    resample_when : {"always", "ess"}
+        After every correction (the paper) or below ``ess_threshold * n_particles``
+        effective particles.
+    ess_threshold : float
+        Fraction in ``(0, 1]`` for ``resample_when="ess"``.
+    tempering_ess : float or None
+        Temper a correction (:class:`hmmtrack.tracking.tempering.Tempered`) that would leave
+        fewer than this fraction of the particles, in ``(0, 1)``; ``None``: the
+        measurement's own policy (its ``default_correction``).
+    """
+
+    n_particles: int = setting(
+        5000,
+        help="number of particles",
+        check=positive_integer,
+        option="particles",
+        parse=int,
+        metavar="N",
+    )
+    prediction_step: float = setting(
+        1.0,
+        help="time between predictions and between estimates (s)",
+        check=positive,
+        parse=float,
+        metavar="SECONDS",
+    )
+    resampling: str = setting(
+        "systematic",
+        help="resampling scheme (multinomial is the paper's)",
+        check=one_of(*sorted(RESAMPLERS)),
+        choices=tuple(sorted(RESAMPLERS)),
+    )
+    resample_when: str = setting(
+        "always",
+        help="resample after every correction (always, the paper) or on low ESS (ess)",
+        check=one_of(*RESAMPLE_WHEN),
+        choices=RESAMPLE_WHEN,
+    )
+    ess_threshold: float = setting(
+        0.5,
+        help="resample below this fraction of the particles, in (0, 1]",
+        check=fraction,
+        requires=("resample_when", "ess"),
+        parse=float,
+        metavar="FRACTION",
+    )
+    tempering_ess: float | None = setting(
+        None,
+        help=(
+            "temper a correction that would leave fewer than this fraction of the particles, "
+            "in (0, 1)"
+        ),
+        check=_tempering_ess,
+        parse=float,
+        metavar="FRACTION",
+        default_text="the measurement's: none for range-rate, 0.3 for arrival-time",
+    )

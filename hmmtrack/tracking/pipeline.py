@@ -1,20 +1,22 @@
 """The tracking pipeline: detections + receiver positions + configuration → position estimates.
 
 :func:`track` runs the particle filter (:class:`hmmtrack.tracking.filter.ParticleFilter`) for
-every measurement model, the one ``config.measurement`` names
+every measurement model, the one the configuration's ``measurement`` section names
 (:data:`hmmtrack.tracking.measurement.MEASUREMENTS`): the measurement builds the observations
 from one transmitter's detections (:func:`build_observations`), derives the search box, adds
 its own particle fields, hooks and diagnostics; :func:`track` chooses the correction policy
-(the measurement's default, or tempered at ``config.tempering_ess``), runs the filter and
+(the measurement's default, or tempered at the ``filter`` section's ``tempering_ess``), adds
+a fixed-lag smoother when the configuration has a ``smoothing_lag``, runs the filter and
 returns one :class:`TrackingResult`.
 
-The motion model is one of the paper's (:mod:`hmmtrack.tracking.motion`), by default the one
-the configuration names, or chosen by name (:func:`hmmtrack.tracking.motion.motion_model`).
+The motion model is one of the paper's (:mod:`hmmtrack.tracking.motion`), the one the
+configuration's ``motion`` section builds unless a motion model is given.
 
 The defaults were chosen on the synthetic analogues of the paper's three datasets; the
-measurements behind them are in reports/decisions.md ("Tracking defaults", "Motion
-models"). The paper's algorithm stays reachable: ``TrackingConfig(resampling="multinomial",
-resample_when="always")`` with ``motion_model("hmm", variant="paper")``.
+measurements behind them are in reports/decisions.md ("Tracking defaults", "Motion models",
+"Tracking configuration"). The paper's
+algorithm stays reachable: ``config.override(resampling="multinomial",
+resample_when="always", variant="paper")`` (the HMM motion model in the paper's variant).
 
 This module reads no files and computes no metrics (see :mod:`hmmtrack.io`,
 :mod:`hmmtrack.analysis.metrics`).
@@ -25,17 +27,15 @@ from __future__ import annotations
 import logging
 from collections.abc import Sequence
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from hmmtrack.random import SeedLike, as_generator
 from hmmtrack.tracking.config import TrackingConfig
-from hmmtrack.tracking.filter import ParticleFilter
+from hmmtrack.tracking.filter import FilterSettings, ParticleFilter
 from hmmtrack.tracking.measurement import MEASUREMENTS
 from hmmtrack.tracking.measurement.base import EVENT_COLUMNS
-from hmmtrack.tracking.motion import motion_model
 from hmmtrack.tracking.receivers import ReceiverTracks
 from hmmtrack.tracking.smoothing import Smoothed
 from hmmtrack.tracking.tempering import Tempered
@@ -123,8 +123,8 @@ def time_window(
 def build_observations(
     detections: pd.DataFrame, receivers: pd.DataFrame | ReceiverTracks, config: TrackingConfig
 ) -> pd.DataFrame:
-    """The filter's observations of ``config.transmitter``, as ``config.measurement`` builds
-    them (its ``observations``: :meth:`RangeRateMeasurement.observations
+    """The filter's observations of ``config.transmitter``, as the configuration's measurement
+    builds them (its ``observations``: :meth:`RangeRateMeasurement.observations
     <hmmtrack.tracking.measurement.range_rate.RangeRateMeasurement.observations>`,
     :func:`hmmtrack.tracking.measurement.clocked.arrival_observations`).
 
@@ -144,7 +144,8 @@ def build_observations(
         (messages name what and where).
     """
     chosen = select_transmitter(detections, config.transmitter)
-    return MEASUREMENTS[config.measurement].observations(chosen, receivers, config)
+    settings = config.measurement
+    return MEASUREMENTS[settings.name].observations(chosen, receivers, settings)
 
 
 @dataclass(frozen=True)
@@ -168,7 +169,7 @@ class TrackingResult:
         Search box the particles started in (m).
     smoothed : pandas.DataFrame or None
         Fixed-lag smoothed estimates (:data:`hmmtrack.tracking.smoothing.SMOOTHED_COLUMNS`),
-        when a smoothing lag was given.
+        when the configuration has a smoothing lag.
     ambiguity : pandas.DataFrame or None
         One row per correction (:data:`hmmtrack.tracking.diagnostics.AMBIGUITY_COLUMNS`),
         when recorded (the arrival-time measurement does).
@@ -188,16 +189,17 @@ class TrackingResult:
 
 
 def particle_filter(
-    config: TrackingConfig, measurement, bounds, motion, *, seed: SeedLike = None, collect=()
+    settings: FilterSettings, measurement, bounds, motion, *, seed: SeedLike = None, collect=()
 ) -> ParticleFilter:
     """The filter :func:`track` runs, not yet started (e.g. to step it online).
 
     Parameters
     ----------
-    config : TrackingConfig
-        Particles, resampling, prediction step and ``tempering_ess``.
+    settings : FilterSettings
+        Particles, resampling, prediction step and ``tempering_ess`` (a configuration's
+        ``filter`` section).
     measurement : Measurement
-        E.g. ``MEASUREMENTS[config.measurement].from_config(config, observations, receivers)``.
+        E.g. ``MEASUREMENTS[name].from_settings(config.measurement, observations, receivers)``.
     bounds : (xmin, xmax, ymin, ymax)
         Search box (m).
     motion
@@ -210,23 +212,23 @@ def particle_filter(
     -------
     ParticleFilter
         Corrected by the measurement's default policy, or tempered at
-        ``config.tempering_ess`` when set.
+        ``settings.tempering_ess`` when set.
     """
     correction = (
         measurement.default_correction
-        if config.tempering_ess is None
-        else Tempered(config.tempering_ess)
+        if settings.tempering_ess is None
+        else Tempered(settings.tempering_ess)
     )
     return ParticleFilter(
         motion,
         measurement,
-        n_particles=config.n_particles,
+        n_particles=settings.n_particles,
         bounds=bounds,
-        resampling=config.resampling,
-        resample_when=config.resample_when,
-        ess_threshold=config.ess_threshold,
+        resampling=settings.resampling,
+        resample_when=settings.resample_when,
+        ess_threshold=settings.ess_threshold,
         rng=as_generator(seed),
-        dt=config.prediction_step,
+        dt=settings.prediction_step,
         correction=correction,
         collect=[*measurement.collectors(), *collect],
     )
@@ -236,29 +238,25 @@ def track(
     detections: pd.DataFrame,
     receivers: pd.DataFrame | ReceiverTracks,
     config: TrackingConfig,
-    motion: str | object | None = None,
+    motion=None,
     *,
-    model: str | Path | object | None = None,
     seed: SeedLike = None,
     start: float | None = None,
     end: float | None = None,
     snapshot_times: Sequence[float] = (),
-    smoothing_lag: int | None = None,
     measurement=None,
     collect: Sequence = (),
 ) -> TrackingResult:
-    """Estimate the tag's position every ``config.prediction_step`` seconds.
+    """Estimate the tag's position every prediction step (the ``filter`` section's, 1 s).
 
     Parameters
     ----------
     detections, receivers, config
-        See :func:`build_observations`; ``config.measurement`` names the measurement.
-    motion : {"baseline", "velocity", "hmm"}, motion model or None
-        A name for :func:`motion_model`, or a motion model object; ``None`` (default): the
-        one ``config`` names, with its noise (:meth:`TrackingConfig.motion_model`; "hmm" by
-        default).
-    model : path or MovementHMM, optional
-        Movement HMM for ``motion="hmm"``; the bundled white-shark model when ``None``.
+        See :func:`build_observations`; the configuration's sections name the measurement,
+        the motion model (its model file, variant, resting state), the filter's settings,
+        and its ``smoothing_lag`` a fixed-lag smoother.
+    motion : motion model, optional
+        The motion model to run instead of the one the ``motion`` section builds.
     seed : int, SeedSequence or Generator
         Seed of every random draw of the filter; the same seed gives the same estimates.
     start, end : float, optional
@@ -266,13 +264,10 @@ def track(
         unset the first and last detection of the tracked transmitter, in whole seconds.
     snapshot_times : sequence of float
         Times (s) at which to keep copies of the particles.
-    smoothing_lag : int, optional
-        Steps (s) of a fixed-lag smoother (:class:`hmmtrack.tracking.smoothing.Smoothed`);
-        its estimates are :attr:`TrackingResult.smoothed`.
     measurement : Measurement, optional
-        The measurement to run instead of the one ``config`` builds (its class's
-        ``from_config``), e.g. an arrival-time measurement with another clock model; it
-        must be of the class ``config.measurement`` names.
+        The measurement to run instead of the one the ``measurement`` section builds (its
+        class's ``from_settings``), e.g. an arrival-time measurement with another clock
+        model; it must be of the class the section names.
     collect : sequence of collectors
         More collectors (:mod:`hmmtrack.tracking.diagnostics`) besides the measurement's.
 
@@ -280,32 +275,34 @@ def track(
     -------
     TrackingResult
     """
-    kind = MEASUREMENTS[config.measurement]
+    settings = config.measurement
+    kind = MEASUREMENTS[settings.name]
     observations = build_observations(detections, receivers, config)
     if observations.empty:
         raise ValueError("no detections to track from")
     if measurement is None:
-        measurement = kind.from_config(config, observations, receivers)
+        measurement = kind.from_settings(settings, observations, receivers)
     elif not isinstance(measurement, kind):
         raise ValueError(
             f"measurement {type(measurement).__name__} is not the configuration's "
-            f"{config.measurement!r} ({kind.__name__})"
+            f"{settings.name!r} ({kind.__name__})"
+        )
+    if isinstance(motion, str):
+        raise ValueError(
+            f"motion {motion!r}: give a motion model, or name it in the configuration "
+            "(its motion section, e.g. config.override(motion=...))"
         )
     if motion is None:
-        motion = config.motion_model(model)
-    elif isinstance(motion, str):
-        motion = motion_model(motion, model)
-    elif model is not None:
-        raise ValueError("model is used only with motion='hmm' given by name")
+        motion = config.motion.build()
     bounds = measurement.start_box(
-        observations, receivers, config, config.start if start is None else start
+        observations, receivers, settings, config.bounds, config.start if start is None else start
     )
     start, end = time_window(observations["time"].to_numpy(), config, start, end)
     scored, measurement_events = measurement.split(observations)
     collectors = [*collect]
-    if smoothing_lag is not None:
-        collectors.append(Smoothed(smoothing_lag))
-    pf = particle_filter(config, measurement, bounds, motion, seed=seed, collect=collectors)
+    if config.smoothing_lag is not None:
+        collectors.append(Smoothed(config.smoothing_lag))
+    pf = particle_filter(config.filter, measurement, bounds, motion, seed=seed, collect=collectors)
     result = pf.run(scored, start, end, snapshot_times)
     events = pd.concat(
         [df for df in (measurement_events, result.events) if not df.empty]

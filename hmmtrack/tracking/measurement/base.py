@@ -12,12 +12,15 @@ Required (checked for every registered measurement by ``tests/test_measurement_p
 * ``name``, ``columns`` (observation columns ``loglik`` reads besides ``time``; the filter
   checks them up front) and ``fields`` (particle fields the measurement owns: it creates them
   in ``start``; resampling carries them as ``Particles.extra``);
-* ``observations(detections, receivers, config)`` (a classmethod): the observations table of
-  one transmitter's detections;
-* ``from_config(config, observations, receivers)`` (a classmethod): the measurement a
-  configuration names, for that data;
-* ``start_box(observations, receivers, config, start)``: the search box of the initial
-  particles, ``(xmin, xmax, ymin, ymax)`` m (``config.bounds`` when given, checked);
+* ``settings`` (a class attribute): its settings class, the ``measurement`` section of a
+  configuration (:class:`hmmtrack.tracking.settings.Settings`; the section's ``name`` is
+  the measurement's);
+* ``observations(detections, receivers, settings)`` (a classmethod): the observations table
+  of one transmitter's detections;
+* ``from_settings(settings, observations, receivers)`` (a classmethod): the measurement its
+  settings describe, for that data;
+* ``start_box(observations, receivers, settings, bounds, start)``: the search box of the
+  initial particles, ``(xmin, xmax, ymin, ymax)`` m (``bounds`` when given, checked);
 * ``split(observations) -> (scored, events)``: the rows the filter is given and events for
   those it is not (the range-rate anchors: a receiver's first detection has no range-rate);
 * ``loglik(particles, obs, time) -> (N,)``: the log density of the observations made at one
@@ -56,6 +59,9 @@ from typing import Any, ClassVar, Protocol, runtime_checkable
 import numpy as np
 import pandas as pd
 
+from hmmtrack.tracking.measurement.ranging import SOUND_SPEED
+from hmmtrack.tracking.settings import positive, setting
+
 Bounds = tuple[float, float, float, float]
 
 
@@ -89,23 +95,27 @@ class Measurement(Protocol):
     """A measurement model (see the module docstring for the optional hooks)."""
 
     name: ClassVar[str]
+    settings: ClassVar[type]
     columns: ClassVar[tuple[str, ...]]
     fields: ClassVar[tuple[str, ...]]
     default_correction: ClassVar[Any]
 
     @classmethod
-    def observations(cls, detections: pd.DataFrame, receivers, config) -> pd.DataFrame:
+    def observations(cls, detections: pd.DataFrame, receivers, settings) -> pd.DataFrame:
         """The observations table of one transmitter's ``detections`` (``time`` s and
         :attr:`columns`), sorted by time."""
         ...
 
     @classmethod
-    def from_config(cls, config, observations: pd.DataFrame, receivers) -> Measurement:
-        """The measurement ``config`` names, for these observations and receivers."""
+    def from_settings(cls, settings, observations: pd.DataFrame, receivers) -> Measurement:
+        """The measurement ``settings`` describe, for these observations and receivers."""
         ...
 
-    def start_box(self, observations: pd.DataFrame, receivers, config, start) -> Bounds:
-        """Search box (m) that holds the tag at ``start`` (s; None: the first observation)."""
+    def start_box(
+        self, observations: pd.DataFrame, receivers, settings, bounds: Bounds | None, start
+    ) -> Bounds:
+        """Search box (m) that holds the tag at ``start`` (s; None: the first observation):
+        ``bounds`` when given, else derived from the data."""
         ...
 
     def split(self, observations: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame]:
@@ -130,3 +140,21 @@ EVENT_COLUMNS = ("time", "kind", "detail")
 def no_events() -> pd.DataFrame:
     """An empty events table."""
     return pd.DataFrame(columns=list(EVENT_COLUMNS))
+
+
+def period_setting():
+    """The ``period`` key of a measurement section: the tag's nominal period (s)."""
+    return setting(
+        help="transmitter period T (s), e.g. 8.179",
+        check=positive,
+        parse=float,
+        metavar="SECONDS",
+        data=True,
+    )
+
+
+def sound_speed_setting():
+    """The ``sound_speed`` key of a measurement section (m/s)."""
+    return setting(
+        SOUND_SPEED, help="speed of sound (m/s)", check=positive, parse=float, metavar="M_PER_S"
+    )

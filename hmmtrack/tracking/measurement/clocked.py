@@ -36,7 +36,8 @@ is :mod:`hmmtrack.tracking.measurement.arrival_time`.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
@@ -55,20 +56,29 @@ from hmmtrack.tracking.measurement.arrival_time import (
     vertical_parts,
     wrap_arrival,
 )
-from hmmtrack.tracking.measurement.base import Score, no_events
+from hmmtrack.tracking.measurement.base import (
+    Bounds,
+    Score,
+    no_events,
+    period_setting,
+    sound_speed_setting,
+)
 from hmmtrack.tracking.measurement.clock import EmissionClockModel, predict_clock_covariance
 from hmmtrack.tracking.measurement.detection import (
+    LogisticDetection,
     SilenceModel,
     silence_loglik_recent_pings,
     softplus,
 )
 from hmmtrack.tracking.receivers import ReceiverTracks
+from hmmtrack.tracking.settings import Settings, number, positive, setting
 from hmmtrack.tracking.tempering import Tempered
 
 __all__ = [
     "CLOCK_FIELDS",
     "SEARCH_RADIUS",
     "TEMPERING_ESS",
+    "ArrivalTimeSettings",
     "ClockState",
     "ClockedArrivalTime",
     "arrival_observations",
@@ -84,6 +94,90 @@ SEARCH_RADIUS = 1000.0
 #: fast-turning plan need 0.6 (benchmarks/bench_two_auv_plan.py)
 TEMPERING_ESS = 0.3
 _NO_ROWS = pd.DataFrame()
+
+
+def _detection_curve(name: str, value) -> LogisticDetection:
+    if isinstance(value, LogisticDetection):
+        curve = value
+    else:
+        keys = ("range_50", "width")
+        if isinstance(value, list | tuple) and len(value) == 2:
+            value = dict(zip(keys, value, strict=True))
+        if not isinstance(value, Mapping) or set(value) != set(keys):
+            raise ValueError(
+                f'{name} must be {{"range_50": metres, "width": metres}} (the logistic curve of '
+                f"hmmtrack.tracking.measurement.detection.LogisticDetection), got {value!r}"
+            )
+        curve = LogisticDetection(*(number(f"{name} {k}", value[k]) for k in keys))
+    curve.require_unit_maximum(name)
+    return curve
+
+
+@dataclass(frozen=True)
+class ArrivalTimeSettings(Settings):
+    """The ``measurement`` section of the ``"arrival-time"`` measurement.
+
+    Parameters
+    ----------
+    period : float
+        Nominal transmitter period (s) of the clock model (:func:`default_clock_model`).
+    sound_speed : float
+        Speed of sound (m/s).
+    arrival_sigma : float
+        Standard deviation (s) of a direct-path arrival-time residual
+        (:class:`~hmmtrack.tracking.measurement.arrival_time.ArrivalLikelihood`'s ``sigma``).
+    detection_curve : LogisticDetection or None
+        The receivers' probability of hearing a ping against range (``max_probability`` 1;
+        in a file ``{"range_50": m, "width": m}``), so that pings a particle says should
+        have been heard but were not count against it; ``None``: missed pings carry no
+        information.
+    search_radius : float
+        Without given bounds, the search box is the receivers' positions at the start
+        widened by this many metres (about their detection range).
+    """
+
+    name: ClassVar[str] = "arrival-time"
+
+    period: float = period_setting()
+    sound_speed: float = sound_speed_setting()
+    arrival_sigma: float = setting(
+        ArrivalLikelihood.sigma,
+        help="standard deviation of an arrival-time residual (s)",
+        check=positive,
+        parse=float,
+        metavar="SECONDS",
+    )
+    detection_curve: LogisticDetection | None = setting(
+        None,
+        help=(
+            "probability of hearing a ping against range, 1 / (1 + exp((r - RANGE_50) / WIDTH)) "
+            "(both in metres), so that pings the particles say should have been heard but were "
+            "not count against them"
+        ),
+        check=_detection_curve,
+        parse=float,
+        metavar=("RANGE_50", "WIDTH"),
+        nargs=2,
+        default_text="none, missed pings tell nothing",
+    )
+    search_radius: float = setting(
+        SEARCH_RADIUS,
+        help=(
+            "without bounds, the search box is the receivers' positions at the start widened "
+            "by this (m; about their detection range)"
+        ),
+        check=positive,
+        parse=float,
+        metavar="METRES",
+    )
+
+    def to_dict(self) -> dict:
+        """As :meth:`Settings.to_dict`, the detection curve as ``{"range_50", "width"}``."""
+        out = super().to_dict()
+        if self.detection_curve is not None:
+            curve = self.detection_curve
+            out["detection_curve"] = {"range_50": curve.range_50, "width": curve.width}
+        return out
 
 
 @njit(cache=True)
@@ -351,6 +445,7 @@ class ClockedArrivalTime:
     lost_corrections: int = 3
     search_radius: float = SEARCH_RADIUS
     name: ClassVar[str] = "arrival-time"
+    settings: ClassVar[type] = ArrivalTimeSettings
     columns: ClassVar[tuple[str, ...]] = ArrivalTimeMeasurement.columns
     fields: ClassVar[tuple[str, ...]] = CLOCK_FIELDS
     default_correction: ClassVar[Tempered] = Tempered(TEMPERING_ESS)
@@ -370,37 +465,45 @@ class ClockedArrivalTime:
     # ------------------------------------------------------------------ from data
 
     @classmethod
-    def observations(cls, detections: pd.DataFrame, receivers, config=None) -> pd.DataFrame:
+    def observations(cls, detections: pd.DataFrame, receivers, settings=None) -> pd.DataFrame:
         """:func:`arrival_observations` with the receivers' positions held outside their
         GPS span."""
         return arrival_observations(detections, _tracks(receivers))
 
     @classmethod
-    def from_config(cls, config, observations: pd.DataFrame, receivers) -> ClockedArrivalTime:
-        """The measurement of ``config``: :func:`default_clock_model` of ``config.period``,
-        :class:`ArrivalLikelihood` with ``config.arrival_sigma`` where given, the speed of
-        sound, ``config.search_radius`` and, with ``config.detection_curve``, a silence model
-        of these observations and receivers."""
-        likelihood = ArrivalLikelihood()
-        if config.arrival_sigma is not None:
-            likelihood = replace(likelihood, sigma=config.arrival_sigma)
+    def from_settings(
+        cls, settings: ArrivalTimeSettings, observations: pd.DataFrame, receivers
+    ) -> ClockedArrivalTime:
+        """The measurement of ``settings``: :func:`default_clock_model` of the period,
+        :class:`ArrivalLikelihood` with ``arrival_sigma``, the speed of sound, the search
+        radius and, with a detection curve, a silence model of these observations and
+        receivers."""
         silence = None
-        if config.detection_curve is not None:
+        if settings.detection_curve is not None:
             silence = SilenceModel.from_observations(
-                observations, _tracks(receivers), config.detection_curve
+                observations, _tracks(receivers), settings.detection_curve
             )
         return cls(
-            default_clock_model(config.period),
-            ArrivalTimeMeasurement(likelihood, sound_speed=config.sound_speed),
+            default_clock_model(settings.period),
+            ArrivalTimeMeasurement(
+                ArrivalLikelihood(sigma=settings.arrival_sigma), sound_speed=settings.sound_speed
+            ),
             silence,
-            search_radius=SEARCH_RADIUS if config.search_radius is None else config.search_radius,
+            search_radius=settings.search_radius,
         )
 
-    def start_box(self, observations: pd.DataFrame, receivers, config, start=None):
-        """``config.bounds``, else the receivers' positions at ``start`` (s; default: the
-        first observation) widened by :attr:`search_radius` (no initial range needed)."""
-        if config is not None and config.bounds is not None:
-            return tuple(float(b) for b in config.bounds)
+    def start_box(
+        self,
+        observations: pd.DataFrame,
+        receivers,
+        settings: ArrivalTimeSettings | None = None,
+        bounds: Bounds | None = None,
+        start=None,
+    ):
+        """``bounds``, else the receivers' positions at ``start`` (s; default: the first
+        observation) widened by :attr:`search_radius` (no initial range needed)."""
+        if bounds is not None:
+            return tuple(float(b) for b in bounds)
         tracks = _tracks(receivers)
         at = float(observations["time"].min()) if start is None else float(start)
         xs, ys = zip(*(tracks.state(name, at)[:2] for name in tracks.names), strict=True)

@@ -35,6 +35,7 @@ detection times (that is :mod:`hmmtrack.tracking.measurement.ranging`).
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -43,16 +44,23 @@ import pandas as pd
 from numba import njit
 
 from hmmtrack.tracking.measurement import ranging
-from hmmtrack.tracking.measurement.base import no_events
+from hmmtrack.tracking.measurement.base import (
+    Bounds,
+    no_events,
+    period_setting,
+    sound_speed_setting,
+)
 from hmmtrack.tracking.particles import Particles
 from hmmtrack.tracking.receivers import ReceiverTracks
 from hmmtrack.tracking.resampling import log_normalise
+from hmmtrack.tracking.settings import Settings, non_negative, number, one_of, positive, setting
 from hmmtrack.tracking.tempering import Plain
 
 __all__ = [
     "OBSERVATION_COLUMNS",
     "RANGE_RATE_COLUMNS",
     "RangeRateMeasurement",
+    "RangeRateSettings",
     "check_bounds",
     "predicted_range_and_rate",
     "search_bounds",
@@ -118,6 +126,157 @@ def predicted_range_and_rate(
     return r_hat, r_dot_hat
 
 
+#: depth policies that are not a number (see :attr:`RangeRateSettings.depth`)
+DEPTH_POLICIES = ("none", "sensor")
+
+
+def _r0_pair(text: str) -> tuple[str, float]:
+    """``RECEIVER=METRES`` of the command line."""
+    name, sep, value = text.rpartition("=")
+    if not sep or not name:
+        raise ValueError(f"expected RECEIVER=METRES, got {text!r}")
+    return name, value
+
+
+def _ranges(name: str, value) -> dict[str, float]:
+    if not isinstance(value, Mapping):
+        raise ValueError(f"{name} must map receiver names to ranges (m), got {value!r}")
+    ranges = {}
+    for receiver, metres in value.items():
+        try:
+            ranges[str(receiver)] = non_negative(name, metres)
+        except ValueError:
+            raise ValueError(
+                f"{name} of receiver {receiver!r} must be a non-negative range in metres, "
+                f"got {metres!r}"
+            ) from None
+    return ranges
+
+
+def _depth(name: str, value) -> str | float:
+    if isinstance(value, str):
+        if value in DEPTH_POLICIES:
+            return value
+        try:
+            value = float(value)
+        except ValueError:
+            raise ValueError(
+                f"{name} must be one of {list(DEPTH_POLICIES)} or a depth in metres, got {value!r}"
+            ) from None
+    return non_negative(name, value)
+
+
+def _correlation(name: str, value) -> float:
+    result = number(name, value)
+    if not -1 < result < 1:
+        raise ValueError(f"{name} must lie in (-1, 1), got {value!r}")
+    return result
+
+
+@dataclass(frozen=True)
+class RangeRateSettings(Settings):
+    """The ``measurement`` section of the ``"range-rate"`` measurement.
+
+    Parameters
+    ----------
+    period : float
+        Transmitter period ``T`` (s).
+    r0 : mapping of str to float
+        Known range (m, ≥ 0) between the tag and each receiver at that receiver's first
+        detection, by receiver name; one per detecting receiver.
+    sound_speed : float
+        Speed of sound (m/s); 1460 as the paper.
+    sigma_range, sigma_range_rate, range_rate_correlation : float
+        ``Sigma_z`` of (range m, range-rate m/s) as standard deviations and a correlation
+        (:attr:`covariance`). The paper gives no value; estimate it with
+        :func:`hmmtrack.tracking.measurement.ranging.estimate_measurement_covariance`, then
+        inflate it: the likelihood must also absorb the particles' spread. The default
+        (5 m, 0.5 m/s, uncorrelated) is 3-5 times the errors measured on the synthetic
+        scenarios (reports/decisions.md, "Tracking defaults").
+    depth : "none", "sensor" or float
+        Depth correction of the ranges: ``"none"`` (2-D, the paper), ``"sensor"`` (the
+        detections' ``depth`` column) or an assumed constant depth (m).
+    shallower : {"raise", "clip"}
+        What a depth correction does with a range shorter than the depth
+        (:func:`hmmtrack.tracking.measurement.ranging.depth_correction`).
+    velocity_window : float
+        Width (s) over which receiver velocities are averaged from their GPS tracks
+        (:class:`hmmtrack.tracking.receivers.ReceiverTracks`); 0: the slope of the GPS segment.
+    bounds_margin : float
+        Margin (m) added around the search box derived from ``r0``
+        (:func:`search_bounds`), and the slack of :func:`check_bounds` for given bounds.
+    """
+
+    name: ClassVar[str] = "range-rate"
+
+    period: float = period_setting()
+    r0: Mapping[str, float] = setting(
+        default_factory=dict,
+        help="range at the receiver's first detection (m); once per receiver",
+        check=_ranges,
+        parse=_r0_pair,
+        metavar="RECEIVER=METRES",
+        append=True,
+        data=True,
+    )
+    sound_speed: float = sound_speed_setting()
+    sigma_range: float = setting(
+        5.0,
+        help="standard deviation of the range in the measurement covariance (m)",
+        check=positive,
+        parse=float,
+        metavar="METRES",
+    )
+    sigma_range_rate: float = setting(
+        0.5,
+        help="standard deviation of the range-rate in the measurement covariance (m/s)",
+        check=positive,
+        parse=float,
+        metavar="M_PER_S",
+    )
+    range_rate_correlation: float = setting(
+        0.0,
+        help="correlation of range and range-rate errors, in (-1, 1)",
+        check=_correlation,
+        parse=float,
+        metavar="RHO",
+    )
+    depth: str | float = setting(
+        "none",
+        help="depth correction: none, sensor (the detections' depth column), or a depth (m)",
+        check=_depth,
+    )
+    shallower: str = setting(
+        "raise",
+        help="what a depth correction does with a range shorter than the depth",
+        check=one_of("raise", "clip"),
+        choices=("raise", "clip"),
+    )
+    velocity_window: float = setting(
+        20.0,
+        help="window (s) over which receiver velocities are averaged from their GPS fixes",
+        check=non_negative,
+        parse=float,
+        metavar="SECONDS",
+    )
+    bounds_margin: float = setting(
+        100.0,
+        help=(
+            "metres added around the search box derived from r0, and how far given bounds "
+            "may miss a receiver's first range"
+        ),
+        check=non_negative,
+        parse=float,
+        metavar="METRES",
+    )
+
+    @property
+    def covariance(self) -> tuple[tuple[float, float], tuple[float, float]]:
+        """``Sigma_z``: ``((var_r, cov), (cov, var_rdot))`` in m², m²/s, m²/s²."""
+        cov = self.range_rate_correlation * self.sigma_range * self.sigma_range_rate
+        return ((self.sigma_range**2, cov), (cov, self.sigma_range_rate**2))
+
+
 @dataclass(frozen=True, eq=False)
 class RangeRateMeasurement:
     """The paper's Gaussian likelihood of (range, range-rate) observations.
@@ -131,6 +290,7 @@ class RangeRateMeasurement:
 
     covariance: np.ndarray
     name: ClassVar[str] = "range-rate"
+    settings: ClassVar[type] = RangeRateSettings
     columns: ClassVar[tuple[str, ...]] = RANGE_RATE_COLUMNS
     fields: ClassVar[tuple[str, ...]] = ()
     default_correction: ClassVar[Plain] = Plain()
@@ -153,15 +313,20 @@ class RangeRateMeasurement:
         object.__setattr__(self, "_log_norm", -np.log(2.0 * np.pi) - 0.5 * log_det)
 
     @classmethod
-    def from_config(cls, config, observations=None, receivers=None) -> RangeRateMeasurement:
-        """The measurement of ``config.measurement_covariance`` (the data are not needed)."""
-        return cls(np.array(config.measurement_covariance))
+    def from_settings(
+        cls, settings: RangeRateSettings, observations=None, receivers=None
+    ) -> RangeRateMeasurement:
+        """The measurement of ``settings.covariance`` (the data are not needed)."""
+        return cls(np.array(settings.covariance))
 
     @classmethod
     def observations(
-        cls, detections: pd.DataFrame, receivers: pd.DataFrame | ReceiverTracks, config
+        cls,
+        detections: pd.DataFrame,
+        receivers: pd.DataFrame | ReceiverTracks,
+        settings: RangeRateSettings,
     ) -> pd.DataFrame:
-        """Observations table of one transmitter's detections, receiver positions and config.
+        """Observations table of one transmitter's detections, receiver positions and settings.
 
         Parameters
         ----------
@@ -170,8 +335,8 @@ class RangeRateMeasurement:
             ``depth`` m for the ``"sensor"`` depth policy).
         receivers : pandas.DataFrame or ReceiverTracks
             Receiver positions table (``docs/interfaces.md``), turned into tracks with
-            ``config.velocity_window``, or tracks built from it.
-        config : TrackingConfig
+            ``settings.velocity_window``, or tracks built from it.
+        settings : RangeRateSettings
             Period, sound speed, ``r0`` per receiver, depth policy.
 
         Returns
@@ -191,10 +356,10 @@ class RangeRateMeasurement:
         tracks = (
             receivers
             if isinstance(receivers, ReceiverTracks)
-            else ReceiverTracks.from_frame(receivers, velocity_window=config.velocity_window)
+            else ReceiverTracks.from_frame(receivers, velocity_window=settings.velocity_window)
         )
-        table = ranging.range_table(detections, config.period, config.r0, config.sound_speed)
-        table = _depth_corrected(table, detections, config)
+        table = ranging.range_table(detections, settings.period, settings.r0, settings.sound_speed)
+        table = _depth_corrected(table, detections, settings)
         unknown = sorted(set(table["receiver"]) - set(tracks.names))
         if unknown:
             raise ValueError(
@@ -208,11 +373,19 @@ class RangeRateMeasurement:
             table[column] = state[:, k]
         return table[list(OBSERVATION_COLUMNS)]
 
-    def start_box(self, observations: pd.DataFrame, receivers, config, start=None):
-        """``config.bounds`` (checked by :func:`check_bounds`) or :func:`search_bounds`, with
-        ``config.r0`` and ``config.bounds_margin``."""
-        bounds = config.bounds or search_bounds(observations, config.r0, config.bounds_margin)
-        check_bounds(bounds, observations, config.r0, config.bounds_margin)
+    def start_box(
+        self,
+        observations: pd.DataFrame,
+        receivers,
+        settings: RangeRateSettings,
+        bounds: Bounds | None = None,
+        start=None,
+    ):
+        """``bounds`` (checked by :func:`check_bounds`) or :func:`search_bounds`, with
+        ``settings.r0`` and ``settings.bounds_margin``."""
+        r0, margin = settings.r0, settings.bounds_margin
+        bounds = bounds or search_bounds(observations, r0, margin)
+        check_bounds(bounds, observations, r0, margin)
         return tuple(float(b) for b in bounds)
 
     def split(self, observations: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame]:
@@ -327,11 +500,11 @@ class RangeRateMeasurement:
         return z
 
 
-def _depth_corrected(table: pd.DataFrame, detections: pd.DataFrame, config):
+def _depth_corrected(table: pd.DataFrame, detections: pd.DataFrame, settings):
     """Replace ranges by horizontal ranges and recompute range-rates, per receiver."""
-    if config.depth == "none":
+    if settings.depth == "none":
         return table
-    if config.depth == "sensor":
+    if settings.depth == "sensor":
         if "depth" not in detections.columns:
             raise ValueError(
                 "depth policy 'sensor' needs a 'depth' column (m) in the detections; "
@@ -348,10 +521,10 @@ def _depth_corrected(table: pd.DataFrame, detections: pd.DataFrame, config):
                 f"{table['receiver'].iloc[missing[:10]].tolist()})"
             )
     else:
-        depth = np.full(len(table), float(config.depth))
+        depth = np.full(len(table), float(settings.depth))
     table = table.copy()
     table["range"] = ranging.depth_correction(
-        table["range"].to_numpy(), depth, shallower=config.shallower
+        table["range"].to_numpy(), depth, shallower=settings.shallower
     )
     for _, rows in table.groupby(["receiver", "transmitter"], sort=False).groups.items():
         table.loc[rows, "range_rate"] = ranging.range_rates(
