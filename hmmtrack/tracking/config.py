@@ -173,6 +173,11 @@ class TrackingConfig:
         count against it (:class:`hmmtrack.tracking.measurement.detection.LogisticDetection`,
         ``max_probability`` 1; in a file ``{"range_50": m, "width": m}``). ``None``:
         missed pings carry no information.
+    mixture : bool
+        Keep every mode of the posterior: resample each component of the particle cloud on
+        its own (:class:`hmmtrack.tracking.mixture.Mixture`, its default settings) and
+        report the components (``TrackingResult.modes``); ``False`` resamples the whole
+        cloud (the paper's algorithm).
     """
 
     period: float
@@ -203,6 +208,7 @@ class TrackingConfig:
     tempering_ess: float | None = None
     search_radius: float | None = None
     detection_curve: LogisticDetection | None = None
+    mixture: bool = False
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__

@@ -316,6 +316,10 @@ class ParticleFilter:
     collect : sequence of collectors
         Called at fixed points of a run (:mod:`hmmtrack.tracking.diagnostics`); their
         tables are :attr:`FilterResult.collected`.
+    mixture : Mixture or None
+        Mode-preserving resampling (:class:`hmmtrack.tracking.mixture.Mixture`: each
+        component of the cloud resampled on its own, with the ``resampling`` scheme);
+        ``None``: the whole cloud at once (the paper).
     """
 
     def __init__(
@@ -333,6 +337,7 @@ class ParticleFilter:
         threads: int | None = None,
         correction=None,
         collect: Sequence = (),
+        mixture=None,
     ) -> None:
         if int(n_particles) != n_particles or n_particles < 1:
             raise ValueError(f"n_particles must be a positive integer, got {n_particles!r}")
@@ -361,6 +366,7 @@ class ParticleFilter:
         self.threads = threads
         self.correction = Plain() if correction is None else correction
         self.collect = tuple(collect)
+        self.mixture = mixture
         self._every_step = any(c.every_step for c in self.collect)
         self._start = getattr(measurement, "start", None)
         self._as_matrix = getattr(measurement, "as_matrix", None)
@@ -402,6 +408,8 @@ class ParticleFilter:
         estimate = self.estimate()
         if self._start is not None:
             self.measurement_state = self._start(self.particles, self.time, self.dt)
+        if self.mixture is not None:
+            self.mixture.initialised(self)
         self.correction.initialised(self)
         for collector in self.collect:
             collector.start(self)
@@ -588,15 +596,22 @@ class ParticleFilter:
         return True
 
     def resample(self) -> None:
-        """Resample by the normalised weights (:meth:`weights`): equal weights after it and
-        :attr:`last_ancestors` set; the collectors are told the ancestors."""
+        """Resample by the normalised weights (:meth:`weights`): equal weights after it
+        (with a mixture: equal within each component) and :attr:`last_ancestors` set; the
+        collectors are told the ancestors."""
         p = self.particles
         weights, _, origin = self.weights()
-        ancestors = self._resample(self.rng, weights, p.n)
-        self.particles = p.take(ancestors, equal_weights=True)
+        if self.mixture is None:
+            ancestors = self._resample(self.rng, weights, p.n)
+            self.particles = p.take(ancestors, equal_weights=True)
+            # equal weights now; the old weighted mean still lies inside the cloud
+            self._weighed = (self.particles.log_weight, np.full(p.n, 1.0 / p.n), float(p.n), origin)
+        else:
+            ancestors, log_weight = self.mixture.resample(self, weights)
+            self.particles = p.take(ancestors, equal_weights=True)
+            self.particles.log_weight = log_weight
+            self.keep_weights(np.exp(log_weight))
         self.last_ancestors = ancestors
-        # equal weights now; the old weighted mean still lies inside the cloud
-        self._weighed = (self.particles.log_weight, np.full(p.n, 1.0 / p.n), float(p.n), origin)
         for collector in self.collect:
             collector.resampled(self, ancestors)
 

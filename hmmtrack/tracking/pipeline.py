@@ -35,6 +35,7 @@ from hmmtrack.tracking.config import TrackingConfig
 from hmmtrack.tracking.filter import ParticleFilter
 from hmmtrack.tracking.measurement import MEASUREMENTS
 from hmmtrack.tracking.measurement.base import EVENT_COLUMNS
+from hmmtrack.tracking.mixture import Mixture, Modes
 from hmmtrack.tracking.motion import motion_model
 from hmmtrack.tracking.receivers import ReceiverTracks
 from hmmtrack.tracking.smoothing import Smoothed
@@ -175,6 +176,9 @@ class TrackingResult:
     clock : pandas.DataFrame or None
         The estimated emission clock after each correction
         (:data:`hmmtrack.tracking.diagnostics.CLOCK_COLUMNS`; arrival-time measurement).
+    modes : pandas.DataFrame or None
+        The mixture's components after each resampling
+        (:data:`hmmtrack.tracking.mixture.MODE_COLUMNS`), with ``config.mixture``.
     """
 
     estimates: pd.DataFrame
@@ -185,6 +189,7 @@ class TrackingResult:
     smoothed: pd.DataFrame | None = None
     ambiguity: pd.DataFrame | None = None
     clock: pd.DataFrame | None = None
+    modes: pd.DataFrame | None = None
 
 
 def particle_filter(
@@ -210,7 +215,9 @@ def particle_filter(
     -------
     ParticleFilter
         Corrected by the measurement's default policy, or tempered at
-        ``config.tempering_ess`` when set.
+        ``config.tempering_ess`` when set; with ``config.mixture``, resampled by
+        components (:class:`hmmtrack.tracking.mixture.Mixture`) and reporting them
+        (:class:`hmmtrack.tracking.mixture.Modes`).
     """
     correction = (
         measurement.default_correction
@@ -228,7 +235,8 @@ def particle_filter(
         rng=as_generator(seed),
         dt=config.prediction_step,
         correction=correction,
-        collect=[*measurement.collectors(), *collect],
+        collect=[*measurement.collectors(), *collect, *([Modes()] if config.mixture else [])],
+        mixture=Mixture() if config.mixture else None,
     )
 
 
