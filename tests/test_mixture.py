@@ -106,55 +106,46 @@ def test_plain_resampling_loses_a_mode_and_the_mixture_keeps_both_with_the_right
     assert abs(np.median(mixed) - oracle.mean()) < 0.1
 
 
-def blob(rng, n, centre, sd):
-    return rng.normal(centre[0], sd, n), rng.normal(centre[1], sd, n)
+def blobs(seed, sizes, centres, sd):
+    """Positions (m) of Gaussian blobs of ``sizes`` particles about ``centres``, in order,
+    and equal weights."""
+    rng = np.random.default_rng(seed)
+    x = np.concatenate([rng.normal(cx, sd, n) for n, (cx, _) in zip(sizes, centres, strict=True)])
+    y = np.concatenate([rng.normal(cy, sd, n) for n, (_, cy) in zip(sizes, centres, strict=True)])
+    return x, y, np.full(x.size, 1.0 / x.size)
 
 
 def test_a_component_that_forms_two_separated_clusters_is_split():
-    rng = np.random.default_rng(0)
-    x1, y1 = blob(rng, 300, (0.0, 0.0), 3.0)
-    x2, y2 = blob(rng, 100, (80.0, 60.0), 3.0)
-    x, y = np.concatenate([x1, x2]), np.concatenate([y1, y2])
-    weights = np.full(400, 1 / 400)
+    x, y, weights = blobs(0, (300, 100), ((0.0, 0.0), (80.0, 60.0)), 3.0)
     labels = Mixture().recluster(x, y, weights, np.zeros(400, dtype=np.int64))
     assert len(np.unique(labels[:300])) == 1 and len(np.unique(labels[300:])) == 1
     assert labels[0] != labels[-1]
 
 
 def test_one_gaussian_cluster_is_not_split():
-    rng = np.random.default_rng(1)
-    x, y = blob(rng, 1000, (500.0, -200.0), 30.0)
-    labels = Mixture().recluster(x, y, np.full(1000, 1e-3), np.zeros(1000, dtype=np.int64))
+    x, y, weights = blobs(1, (1000,), ((500.0, -200.0),), 30.0)
+    labels = Mixture().recluster(x, y, weights, np.zeros(1000, dtype=np.int64))
     assert (labels == 0).all()
 
 
 def test_a_light_cluster_below_the_split_share_stays_in_its_component():
-    rng = np.random.default_rng(2)
-    x, y = blob(rng, 400, (0.0, 0.0), 3.0)
+    x, y, weights = blobs(2, (400,), ((0.0, 0.0),), 3.0)
     x[:4] += 200.0  # 1 % of the weight, below split_share = 2 %
-    labels = Mixture().recluster(x, y, np.full(400, 1 / 400), np.zeros(400, dtype=np.int64))
+    labels = Mixture().recluster(x, y, weights, np.zeros(400, dtype=np.int64))
     assert (labels == 0).all()
 
 
 def test_components_whose_means_meet_are_merged_and_far_ones_are_not():
-    rng = np.random.default_rng(3)
-    x1, y1 = blob(rng, 200, (0.0, 0.0), 5.0)
-    x2, y2 = blob(rng, 200, (6.0, 0.0), 5.0)  # met: 6 m apart, 5 m spreads
-    x3, y3 = blob(rng, 200, (300.0, 0.0), 5.0)
-    x, y = np.concatenate([x1, x2, x3]), np.concatenate([y1, y2, y3])
-    labels = np.repeat(np.arange(3), 200)
-    new = Mixture().recluster(x, y, np.full(600, 1 / 600), labels)
+    # the first two met (6 m apart, 5 m spreads)
+    x, y, weights = blobs(3, (200, 200, 200), ((0.0, 0.0), (6.0, 0.0), (300.0, 0.0)), 5.0)
+    new = Mixture().recluster(x, y, weights, np.repeat(np.arange(3), 200))
     assert (new[:400] == new[0]).all()
     assert (new[400:] != new[0]).all()
     assert new.max() == 1
 
 
 def test_no_split_beyond_max_components():
-    rng = np.random.default_rng(4)
-    x1, y1 = blob(rng, 150, (0.0, 0.0), 2.0)
-    x2, y2 = blob(rng, 150, (200.0, 0.0), 2.0)
-    x, y = np.concatenate([x1, x2]), np.concatenate([y1, y2])
-    weights = np.full(300, 1 / 300)
+    x, y, weights = blobs(4, (150, 150), ((0.0, 0.0), (200.0, 0.0)), 2.0)
     one = Mixture(max_components=1, min_share=0.0)
     assert (one.recluster(x, y, weights, np.zeros(300, dtype=np.int64)) == 0).all()
     assert Mixture().recluster(x, y, weights, np.zeros(300, dtype=np.int64)).max() == 1
