@@ -24,6 +24,8 @@ import numpy as np
 import pandas as pd
 from numba import njit
 
+from hmmtrack.tracking.particles import split_in_two
+
 #: columns of the ambiguity table (:class:`Ambiguity`)
 AMBIGUITY_COLUMNS = ("time", "separation", "minor_weight", "ambiguous")
 #: columns of the clock table (:class:`ClockTrace`)
@@ -124,68 +126,14 @@ AMBIGUITY_BINS = 1024
 
 @njit(cache=True)
 def _ambiguity_kernel(x, y, w, min_separation, n_bins):
-    """:func:`ambiguity` (compiled): weighted moments, principal axis, binned 2-means."""
-    total = mx = my = 0.0
-    for i in range(x.size):
-        total += w[i]
-        mx += w[i] * x[i]
-        my += w[i] * y[i]
-    mx, my = mx / total, my / total
-    sxx = sxy = syy = 0.0
-    for i in range(x.size):
-        dx, dy = x[i] - mx, y[i] - my
-        sxx += w[i] * dx * dx
-        sxy += w[i] * dx * dy
-        syy += w[i] * dy * dy
-    sxx, sxy, syy = sxx / total, sxy / total, syy / total
-    half = 0.5 * (sxx - syy)
-    largest = 0.5 * (sxx + syy) + math.sqrt(half * half + sxy * sxy)
-    if largest < 0.05 * 0.95 * min_separation**2:
-        # two clusters this far apart, the smaller with 5 % of the weight, would spread
-        # the cloud at least this much along the axis joining them
+    """:func:`ambiguity` (compiled): the binned 2-means split of
+    :func:`hmmtrack.tracking.particles.split_in_two` and its criterion."""
+    # two clusters this far apart, the smaller with 5 % of the weight, would spread the
+    # cloud at least this much along the axis joining them
+    split = split_in_two(x, y, w, 0.05 * 0.95 * min_separation**2, n_bins)
+    separation, minor, sd_lo, sd_hi = split[0], split[1], split[2], split[3]
+    if separation == 0.0:
         return 0.0, 0.0, False
-    ax, ay = (
-        (sxy, largest - sxx)
-        if abs(sxy) > 1e-12 * largest
-        else ((1.0, 0.0) if sxx >= syy else (0.0, 1.0))
-    )
-    norm = math.hypot(ax, ay)
-    ax, ay = ax / norm, ay / norm
-    u = np.empty(x.size)
-    low, high = math.inf, -math.inf
-    for i in range(x.size):
-        u[i] = (x[i] - mx) * ax + (y[i] - my) * ay
-        low = min(low, u[i])
-        high = max(high, u[i])
-    width = (high - low) / n_bins
-    bin_w = np.zeros(n_bins)
-    bin_wu = np.zeros(n_bins)
-    bin_wu2 = np.zeros(n_bins)
-    for i in range(u.size):
-        k = min(int((u[i] - low) / width), n_bins - 1)
-        bin_w[k] += w[i]
-        bin_wu[k] += w[i] * u[i]
-        bin_wu2[k] += w[i] * u[i] * u[i]
-    cw, cwu, cwu2 = np.cumsum(bin_w), np.cumsum(bin_wu), np.cumsum(bin_wu2)
-    total_u, total_u2 = cwu[-1], cwu2[-1]
-    # start from the weighted quartiles; each iteration splits at the midpoint of the means
-    lo = low + width * (np.searchsorted(cw, 0.25 * total) + 0.5)
-    hi = low + width * (np.searchsorted(cw, 0.75 * total) + 0.5)
-    k = -1
-    w_lo = w_hi = 0.0
-    for _ in range(50):
-        k_new = min(max(int((0.5 * (lo + hi) - low) / width), 0), n_bins - 1)
-        if k_new == k:
-            break
-        k = k_new
-        w_lo, w_hi = cw[k], total - cw[k]
-        if w_lo <= 0 or w_hi <= 0:
-            return 0.0, 0.0, False
-        lo, hi = cwu[k] / w_lo, (total_u - cwu[k]) / w_hi
-    sd_lo = math.sqrt(max(cwu2[k] / w_lo - lo * lo, 0.0))
-    sd_hi = math.sqrt(max((total_u2 - cwu2[k]) / w_hi - hi * hi, 0.0))
-    separation = hi - lo
-    minor = min(w_lo, w_hi) / total
     split = minor >= 0.05 and separation > max(min_separation, 3.0 * (sd_lo + sd_hi))
     return separation, minor, split
 

@@ -72,6 +72,7 @@ from hmmtrack.tracking.particles import Particles, as_bounds, sqrt_largest_eigen
 from hmmtrack.tracking.resampling import RESAMPLERS, get_resampler
 from hmmtrack.tracking.settings import (
     Settings,
+    boolean,
     fraction,
     number,
     one_of,
@@ -326,6 +327,10 @@ class ParticleFilter:
     collect : sequence of collectors
         Called at fixed points of a run (:mod:`hmmtrack.tracking.diagnostics`); their
         tables are :attr:`FilterResult.collected`.
+    mixture : Mixture or None
+        Mode-preserving resampling (:class:`hmmtrack.tracking.mixture.Mixture`: each
+        component of the cloud resampled on its own, with the ``resampling`` scheme);
+        ``None``: the whole cloud at once (the paper).
     """
 
     def __init__(
@@ -343,6 +348,7 @@ class ParticleFilter:
         threads: int | None = None,
         correction=None,
         collect: Sequence = (),
+        mixture=None,
     ) -> None:
         if int(n_particles) != n_particles or n_particles < 1:
             raise ValueError(f"n_particles must be a positive integer, got {n_particles!r}")
@@ -371,6 +377,7 @@ class ParticleFilter:
         self.threads = threads
         self.correction = Plain() if correction is None else correction
         self.collect = tuple(collect)
+        self.mixture = mixture
         self._every_step = any(c.every_step for c in self.collect)
         self._start = getattr(measurement, "start", None)
         self._as_matrix = getattr(measurement, "as_matrix", None)
@@ -412,6 +419,8 @@ class ParticleFilter:
         estimate = self.estimate()
         if self._start is not None:
             self.measurement_state = self._start(self.particles, self.time, self.dt)
+        if self.mixture is not None:
+            self.mixture.initialised(self)
         self.correction.initialised(self)
         for collector in self.collect:
             collector.start(self)
@@ -598,15 +607,22 @@ class ParticleFilter:
         return True
 
     def resample(self) -> None:
-        """Resample by the normalised weights (:meth:`weights`): equal weights after it and
-        :attr:`last_ancestors` set; the collectors are told the ancestors."""
+        """Resample by the normalised weights (:meth:`weights`): equal weights after it
+        (with a mixture: equal within each component) and :attr:`last_ancestors` set; the
+        collectors are told the ancestors."""
         p = self.particles
         weights, _, origin = self.weights()
-        ancestors = self._resample(self.rng, weights, p.n)
-        self.particles = p.take(ancestors, equal_weights=True)
+        if self.mixture is None:
+            ancestors = self._resample(self.rng, weights, p.n)
+            self.particles = p.take(ancestors, equal_weights=True)
+            # equal weights now; the old weighted mean still lies inside the cloud
+            self._weighed = (self.particles.log_weight, np.full(p.n, 1.0 / p.n), float(p.n), origin)
+        else:
+            ancestors, log_weight = self.mixture.resample(self, weights)
+            self.particles = p.take(ancestors, equal_weights=True)
+            self.particles.log_weight = log_weight
+            self.keep_weights(np.exp(log_weight))
         self.last_ancestors = ancestors
-        # equal weights now; the old weighted mean still lies inside the cloud
-        self._weighed = (self.particles.log_weight, np.full(p.n, 1.0 / p.n), float(p.n), origin)
         for collector in self.collect:
             collector.resampled(self, ancestors)
 
@@ -812,6 +828,10 @@ class FilterSettings(Settings):
         Temper a correction (:class:`hmmtrack.tracking.tempering.Tempered`) that would leave
         fewer than this fraction of the particles, in ``(0, 1)``; ``None``: the
         measurement's own policy (its ``default_correction``).
+    mixture : bool
+        Keep every mode of the posterior: resample each component of the particle cloud on
+        its own (:class:`hmmtrack.tracking.mixture.Mixture`) and report the components
+        (``TrackingResult.modes``); ``False`` (default) resamples the whole cloud.
     """
 
     n_particles: int = setting(
@@ -859,4 +879,9 @@ class FilterSettings(Settings):
         parse=float,
         metavar="FRACTION",
         default_text="the measurement's: none for range-rate, 0.3 for arrival-time",
+    )
+    mixture: bool = setting(
+        False,
+        help="keep every mode: resample each component of the particle cloud on its own",
+        check=boolean,
     )

@@ -14,13 +14,14 @@ weigh them.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, fields
 
 import numpy as np
 import pandas as pd
 from numba import njit
 
-__all__ = ["Bounds", "Particles", "as_bounds", "sqrt_largest_eigenvalue"]
+__all__ = ["Bounds", "Particles", "as_bounds", "split_in_two", "sqrt_largest_eigenvalue"]
 
 Bounds = tuple[float, float, float, float]
 
@@ -288,3 +289,100 @@ def sqrt_largest_eigenvalue(var_x, var_y, cov_xy) -> np.ndarray | float:
     half_sum = 0.5 * (var_x + var_y)
     half_diff = 0.5 * (var_x - var_y)
     return (half_sum + (half_diff * half_diff + cov_xy * cov_xy) ** 0.5) ** 0.5
+
+
+@njit(cache=True)
+def split_in_two(x, y, w, min_variance, n_bins):
+    """Split a weighted particle cloud in two along its principal axis (weighted 1-D 2-means).
+
+    The positions are projected on the axis of the cloud's largest variance and the
+    projection is binned in ``n_bins`` bins (so the split costs time linear in N); 2-means
+    starts from the weighted quartiles and moves the cut to the midpoint of the two means
+    until it stays in its bin. The cut of the projection ``u`` is ``threshold``: a particle
+    belongs to the upper cluster when ``u >= threshold``.
+
+    Parameters
+    ----------
+    x, y : numpy.ndarray, shape (N,)
+        Positions (m).
+    w : numpy.ndarray, shape (N,)
+        Non-negative weights, positive sum.
+    min_variance : float
+        m²: a cloud whose largest variance is below it is not split.
+    n_bins : int
+        Bins of the projection (the cut lies on a bin edge).
+
+    Returns
+    -------
+    separation : float
+        Distance between the two clusters' weighted means along the axis (m); 0 when the
+        cloud is not split (too narrow, or one side empty).
+    minor : float
+        Weight share of the lighter cluster.
+    sd_lo, sd_hi : float
+        Standard deviations of the lower and upper clusters along the axis (m).
+    mean_x, mean_y, axis_x, axis_y : float
+        Weighted mean (m) and unit principal axis; ``u = (x - mean_x) axis_x + (y - mean_y)
+        axis_y``.
+    threshold : float
+        Cut of ``u`` (m); ``inf`` when not split.
+    """
+    total = mx = my = 0.0
+    for i in range(x.size):
+        total += w[i]
+        mx += w[i] * x[i]
+        my += w[i] * y[i]
+    mx, my = mx / total, my / total
+    sxx = sxy = syy = 0.0
+    for i in range(x.size):
+        dx, dy = x[i] - mx, y[i] - my
+        sxx += w[i] * dx * dx
+        sxy += w[i] * dx * dy
+        syy += w[i] * dy * dy
+    sxx, sxy, syy = sxx / total, sxy / total, syy / total
+    half = 0.5 * (sxx - syy)
+    largest = 0.5 * (sxx + syy) + math.sqrt(half * half + sxy * sxy)
+    if largest < min_variance:
+        return 0.0, 0.0, 0.0, 0.0, mx, my, 1.0, 0.0, math.inf
+    ax, ay = (
+        (sxy, largest - sxx)
+        if abs(sxy) > 1e-12 * largest
+        else ((1.0, 0.0) if sxx >= syy else (0.0, 1.0))
+    )
+    norm = math.hypot(ax, ay)
+    ax, ay = ax / norm, ay / norm
+    u = np.empty(x.size)
+    low, high = math.inf, -math.inf
+    for i in range(x.size):
+        u[i] = (x[i] - mx) * ax + (y[i] - my) * ay
+        low = min(low, u[i])
+        high = max(high, u[i])
+    width = (high - low) / n_bins
+    bin_w = np.zeros(n_bins)
+    bin_wu = np.zeros(n_bins)
+    bin_wu2 = np.zeros(n_bins)
+    for i in range(u.size):
+        k = min(int((u[i] - low) / width), n_bins - 1)
+        bin_w[k] += w[i]
+        bin_wu[k] += w[i] * u[i]
+        bin_wu2[k] += w[i] * u[i] * u[i]
+    cw, cwu, cwu2 = np.cumsum(bin_w), np.cumsum(bin_wu), np.cumsum(bin_wu2)
+    total_u, total_u2 = cwu[-1], cwu2[-1]
+    # start from the weighted quartiles; each iteration splits at the midpoint of the means
+    lo = low + width * (np.searchsorted(cw, 0.25 * total) + 0.5)
+    hi = low + width * (np.searchsorted(cw, 0.75 * total) + 0.5)
+    k = -1
+    w_lo = w_hi = 0.0
+    for _ in range(50):
+        k_new = min(max(int((0.5 * (lo + hi) - low) / width), 0), n_bins - 1)
+        if k_new == k:
+            break
+        k = k_new
+        w_lo, w_hi = cw[k], total - cw[k]
+        if w_lo <= 0 or w_hi <= 0:
+            return 0.0, 0.0, 0.0, 0.0, mx, my, ax, ay, math.inf
+        lo, hi = cwu[k] / w_lo, (total_u - cwu[k]) / w_hi
+    sd_lo = math.sqrt(max(cwu2[k] / w_lo - lo * lo, 0.0))
+    sd_hi = math.sqrt(max((total_u2 - cwu2[k]) / w_hi - hi * hi, 0.0))
+    minor = min(w_lo, w_hi) / total
+    return hi - lo, minor, sd_lo, sd_hi, mx, my, ax, ay, low + width * (k + 1)

@@ -36,6 +36,7 @@ from hmmtrack.tracking.config import TrackingConfig
 from hmmtrack.tracking.filter import FilterSettings, ParticleFilter
 from hmmtrack.tracking.measurement import MEASUREMENTS
 from hmmtrack.tracking.measurement.base import EVENT_COLUMNS
+from hmmtrack.tracking.mixture import Mixture, Modes
 from hmmtrack.tracking.receivers import ReceiverTracks
 from hmmtrack.tracking.smoothing import Smoothed
 from hmmtrack.tracking.tempering import Tempered
@@ -176,6 +177,9 @@ class TrackingResult:
     clock : pandas.DataFrame or None
         The estimated emission clock after each correction
         (:data:`hmmtrack.tracking.diagnostics.CLOCK_COLUMNS`; arrival-time measurement).
+    modes : pandas.DataFrame or None
+        The mixture's components after each resampling
+        (:data:`hmmtrack.tracking.mixture.MODE_COLUMNS`), with ``config.filter.mixture``.
     """
 
     estimates: pd.DataFrame
@@ -186,6 +190,7 @@ class TrackingResult:
     smoothed: pd.DataFrame | None = None
     ambiguity: pd.DataFrame | None = None
     clock: pd.DataFrame | None = None
+    modes: pd.DataFrame | None = None
 
 
 def particle_filter(
@@ -212,7 +217,9 @@ def particle_filter(
     -------
     ParticleFilter
         Corrected by the measurement's default policy, or tempered at
-        ``settings.tempering_ess`` when set.
+        ``settings.tempering_ess`` when set; with ``settings.mixture``, resampled by
+        components (:class:`hmmtrack.tracking.mixture.Mixture`) and reporting them
+        (:class:`hmmtrack.tracking.mixture.Modes`).
     """
     correction = (
         measurement.default_correction
@@ -230,7 +237,8 @@ def particle_filter(
         rng=as_generator(seed),
         dt=settings.prediction_step,
         correction=correction,
-        collect=[*measurement.collectors(), *collect],
+        collect=[*measurement.collectors(), *collect, *([Modes()] if settings.mixture else [])],
+        mixture=Mixture() if settings.mixture else None,
     )
 
 

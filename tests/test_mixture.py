@@ -1,0 +1,214 @@
+"""Mixture tracking (hmmtrack.tracking.mixture): no mode lost by resampling drift.
+
+The oracle of the two-mode test is the exact posterior of a toy model on a grid: a tag
+whose distance ``|x|`` from a line is observed every second (so ``x`` and ``−x`` explain
+the data equally), with a first observation that favours ``x > 0`` by 0.7 to 0.3.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from hmmtrack import scenarios
+from hmmtrack.experiments.configs import tracking_config
+from hmmtrack.tracking import pipeline as tracking
+from hmmtrack.tracking.filter import ParticleFilter
+from hmmtrack.tracking.mixture import (
+    MODE_COLUMNS,
+    Mixture,
+    Modes,
+    allocate,
+    component_moments,
+)
+from hmmtrack.tracking.motion.baseline import BaselineMotion
+
+#: the toy model: distance of the modes from the line (m), noise of ``|x|`` and ``y`` (m),
+#: the first observation's odds for ``x > 0``, random-walk spread (m per s), seconds
+DISTANCE, NOISE, FIRST_ODDS, WALK, SECONDS = 100.0, 5.0, 0.7, 1.0, 600
+BOX = (-115.0, 115.0, -10.0, 10.0)
+
+
+class MirrorToy:
+    """``z_t = |x| + N(0, NOISE²)`` and ``0 = y + N(0, NOISE²)``; at ``t = 0`` also
+    ``P(x > 0) = FIRST_ODDS``."""
+
+    columns = ("z",)
+
+    def loglik(self, particles, obs, time=None):
+        z = np.asarray(obs["z"], dtype=float)
+        residual = (np.abs(particles.x)[:, None] - z) / NOISE
+        loglik = -0.5 * (residual**2).sum(axis=1) - 0.5 * z.size * (particles.y / NOISE) ** 2
+        if time == 0.0:
+            loglik += np.log(np.where(particles.x > 0, FIRST_ODDS, 1.0 - FIRST_ODDS))
+        return loglik
+
+
+def toy_observations(seed: int) -> pd.DataFrame:
+    rng = np.random.default_rng(1000 + seed)
+    z = DISTANCE + NOISE * rng.standard_normal(SECONDS)
+    return pd.DataFrame({"time": np.arange(SECONDS, dtype=float), "z": z})
+
+
+def grid_posterior_positive(obs: pd.DataFrame, step: float = 0.25) -> float:
+    """Exact ``P(x > 0 | z_0..z_T)`` of the toy on a grid of ``x`` (the ``y`` part of the
+    likelihood is the same on both sides and cancels)."""
+    x = np.arange(-160.0, 160.0 + step / 2, step)
+    density = ((x >= BOX[0]) & (x <= BOX[1])).astype(float)
+    offsets = np.arange(-6 * WALK, 6 * WALK + step / 2, step)
+    kernel = np.exp(-0.5 * (offsets / WALK) ** 2)
+    kernel /= kernel.sum()
+    for k, z in enumerate(obs["z"].to_numpy()):
+        if k > 0:
+            density = np.convolve(density, kernel, mode="same")
+        density *= np.exp(-0.5 * ((np.abs(x) - z) / NOISE) ** 2)
+        if k == 0:
+            density *= np.where(x > 0, FIRST_ODDS, 1.0 - FIRST_ODDS)
+        density /= density.sum()
+    return float(density[x > 0].sum())
+
+
+def positive_weight(seed: int, mixture: Mixture | None, n_particles: int = 400) -> float:
+    """The filter's posterior weight of ``x > 0`` at the end of the toy run (the paper's
+    multinomial resampling after every correction)."""
+    pf = ParticleFilter(
+        BaselineMotion(WALK),
+        MirrorToy(),
+        n_particles,
+        BOX,
+        rng=seed,
+        resampling="multinomial",
+        mixture=mixture,
+    )
+    pf.run(toy_observations(seed))
+    weights = pf.weights()[0]
+    return float(weights[pf.particles.x > 0].sum())
+
+
+def test_the_toy_posterior_is_two_modes_with_the_first_odds():
+    oracle = [grid_posterior_positive(toy_observations(seed)) for seed in range(3)]
+    np.testing.assert_allclose(oracle, FIRST_ODDS, atol=1e-6)  # mirror symmetry
+
+
+def test_plain_resampling_loses_a_mode_and_the_mixture_keeps_both_with_the_right_weight():
+    seeds = range(16)
+    oracle = np.array([grid_posterior_positive(toy_observations(seed)) for seed in seeds])
+    plain = np.array([positive_weight(seed, None) for seed in seeds])
+    mixed = np.array([positive_weight(seed, Mixture()) for seed in seeds])
+    lost_plain = (plain < 1e-3) | (plain > 1 - 1e-3)
+    lost_mixed = (mixed < 1e-3) | (mixed > 1 - 1e-3)
+    assert lost_plain.mean() >= 0.75  # 15 of 16 when written
+    assert lost_mixed.mean() <= 0.25  # 2 of 16 when written
+    # each weight is a ratio of two particle estimates of a mode's evidence, so single runs
+    # scatter about the oracle (logit spread about 1.5 here); their centre is the oracle's
+    assert abs(mixed.mean() - oracle.mean()) < 0.1
+    assert abs(np.median(mixed) - oracle.mean()) < 0.1
+
+
+def blobs(seed, sizes, centres, sd):
+    """Positions (m) of Gaussian blobs of ``sizes`` particles about ``centres``, in order,
+    and equal weights."""
+    rng = np.random.default_rng(seed)
+    x = np.concatenate([rng.normal(cx, sd, n) for n, (cx, _) in zip(sizes, centres, strict=True)])
+    y = np.concatenate([rng.normal(cy, sd, n) for n, (_, cy) in zip(sizes, centres, strict=True)])
+    return x, y, np.full(x.size, 1.0 / x.size)
+
+
+def test_a_component_that_forms_two_separated_clusters_is_split():
+    x, y, weights = blobs(0, (300, 100), ((0.0, 0.0), (80.0, 60.0)), 3.0)
+    labels = Mixture().recluster(x, y, weights, np.zeros(400, dtype=np.int64))
+    assert len(np.unique(labels[:300])) == 1 and len(np.unique(labels[300:])) == 1
+    assert labels[0] != labels[-1]
+
+
+def test_one_gaussian_cluster_is_not_split():
+    x, y, weights = blobs(1, (1000,), ((500.0, -200.0),), 30.0)
+    labels = Mixture().recluster(x, y, weights, np.zeros(1000, dtype=np.int64))
+    assert (labels == 0).all()
+
+
+def test_a_light_cluster_below_the_split_share_stays_in_its_component():
+    x, y, weights = blobs(2, (400,), ((0.0, 0.0),), 3.0)
+    x[:4] += 200.0  # 1 % of the weight, below split_share = 2 %
+    labels = Mixture().recluster(x, y, weights, np.zeros(400, dtype=np.int64))
+    assert (labels == 0).all()
+
+
+def test_components_whose_means_meet_are_merged_and_far_ones_are_not():
+    # the first two met (6 m apart, 5 m spreads)
+    x, y, weights = blobs(3, (200, 200, 200), ((0.0, 0.0), (6.0, 0.0), (300.0, 0.0)), 5.0)
+    new = Mixture().recluster(x, y, weights, np.repeat(np.arange(3), 200))
+    assert (new[:400] == new[0]).all()
+    assert (new[400:] != new[0]).all()
+    assert new.max() == 1
+
+
+def test_no_split_beyond_max_components():
+    x, y, weights = blobs(4, (150, 150), ((0.0, 0.0), (200.0, 0.0)), 2.0)
+    one = Mixture(max_components=1, min_share=0.0)
+    assert (one.recluster(x, y, weights, np.zeros(300, dtype=np.int64)) == 0).all()
+    assert Mixture().recluster(x, y, weights, np.zeros(300, dtype=np.int64)).max() == 1
+
+
+def test_allocate_gives_each_live_component_its_floor_and_the_rest_by_weight():
+    counts = allocate(np.array([0.7, 0.25, 0.05 - 1e-5, 1e-5]), 1000, 1e-4, 50)
+    assert counts.sum() == 1000
+    assert counts[3] == 0  # pruned
+    assert (counts[:3] >= 50).all()
+    np.testing.assert_allclose(counts[:3] - 50, 850 * np.array([0.7, 0.25, 0.05]), atol=1)
+    # the heaviest always lives, even below the pruning weight
+    np.testing.assert_array_equal(allocate(np.array([1.0]), 10, 2.0, 3), [10])
+
+
+def test_component_moments_match_numpy():
+    rng = np.random.default_rng(5)
+    x, y = rng.normal(1e5, 20.0, 500), rng.normal(-3e4, 5.0, 500)
+    weights = rng.random(500)
+    weights /= weights.sum()
+    labels = rng.integers(0, 3, 500)
+    moments = component_moments(x, y, weights, labels, 4)
+    for k in range(3):
+        w = weights[labels == k]
+        xy = np.vstack([x[labels == k], y[labels == k]])
+        cov = np.cov(xy, aweights=w, bias=True)
+        expected = [w.sum(), *np.average(xy, axis=1, weights=w), cov[0, 0], cov[1, 1], cov[0, 1]]
+        np.testing.assert_allclose(moments[k], expected, rtol=1e-7, atol=1e-6)
+    np.testing.assert_array_equal(moments[3], 0.0)
+
+
+def test_mixture_resampling_keeps_component_weights_and_equal_weights_within():
+    pf = ParticleFilter(
+        BaselineMotion(WALK), MirrorToy(), 400, BOX, rng=7, mixture=Mixture(), collect=[Modes()]
+    )
+    pf.initialise(0.0)
+    pf.correct({"z": [DISTANCE]})
+    weights = pf.weights()[0]
+    positive = weights[pf.particles.x > 0].sum()
+    pf.resample()
+    p = pf.particles
+    after = pf.weights()[0]
+    np.testing.assert_allclose(after.sum(), 1.0)
+    np.testing.assert_allclose(after[p.x > 0].sum(), positive, rtol=1e-9)
+    for k in np.unique(p.component):
+        np.testing.assert_allclose(after[p.component == k], after[p.component == k][0])
+
+
+def test_mixture_settings_are_checked():
+    with pytest.raises(ValueError, match="split_share"):
+        Mixture(split_share=0.6)
+    with pytest.raises(ValueError, match="min_share"):
+        Mixture(max_components=4, min_share=0.3)
+
+
+def test_track_with_the_mixture_reports_the_modes_and_finds_a_stationary_tag():
+    scenario = scenarios.stationary_tag(11)
+    config = tracking_config(scenario, n_particles=1000, mixture=True, motion="velocity")
+    result = tracking.track(scenario.detections, scenario.receivers, config, seed=0)
+    modes = result.modes
+    assert list(modes.columns) == list(MODE_COLUMNS)
+    assert (modes["components"] >= 1).all()
+    np.testing.assert_array_less(modes["mode2_weight"].fillna(0), modes["mode1_weight"] + 1e-12)
+    truth = scenario.truth[["x", "y"]].to_numpy()[-1]
+    last = result.estimates[["x", "y"]].to_numpy()[-1]
+    assert np.hypot(*(last - truth)) < 10.0
