@@ -158,3 +158,26 @@ def test_fit_reads_movebank_lon_lat(track_file, tmp_path):
     model = MovementHMM.load(model_path)
     assert model.dt == 60.0
     np.testing.assert_allclose(model.step.mean, TRUE.step.mean, rtol=0.2)
+
+
+def test_fit_with_a_transition_formula(track_file, tmp_path, capsys):
+    table = pd.read_csv(track_file)
+    hour = pd.to_datetime(table["time"]).dt.hour + pd.to_datetime(table["time"]).dt.minute / 60
+    table.assign(cosT=np.cos(2 * np.pi * hour / 24), sinT=np.sin(2 * np.pi * hour / 24)).to_csv(
+        track_file, index=False
+    )
+    model_path = tmp_path / "model.json"
+    arguments = ["fit", str(track_file), "--starts", "1", "-o", str(model_path)]
+    assert main([*arguments, "--formula", "transition ~ cosT + sinT"]) == 0
+    printed = capsys.readouterr().out
+    assert "transition coefficients (~ cosT + sinT) on the data's scale" in printed
+    block = json.loads(model_path.read_text())["coefficients"]
+    assert block["formula"] == "~ cosT + sinT"
+    assert block["columns"] == ["Intercept", "cosT", "sinT"]
+    assert np.array(block["values_data_scale"]).shape == (2, 3)
+    model_path.unlink()
+    assert main([*arguments, "--covariates", "cosT", "sinT"]) == 0
+    assert json.loads(model_path.read_text())["coefficients"] == block
+    model_path.unlink()
+    assert main([*arguments, "--formula", "step.mean ~ cosT"]) != 0
+    assert "only the transition" in capsys.readouterr().err

@@ -12,6 +12,7 @@ from scipy import stats
 from hmmtrack.hmm import diagnostics
 from hmmtrack.hmm.distributions import Gamma, VonMises
 from hmmtrack.hmm.fit import MovementHMMEstimator
+from hmmtrack.hmm.formula import Design
 from hmmtrack.hmm.inference import forward_backward
 from hmmtrack.hmm.model import MovementHMM
 
@@ -178,8 +179,13 @@ def test_confidence_intervals_of_covariate_coefficients():
         initial=np.array([0.5, 0.5]),
         transition=None,
         coefficients=np.array([[-2.0, 1.0], [-1.5, -0.5]]),
-        covariate_names=("c",),
-        covariate_scaling={"c": (0.0, 1.0)},
+        transition_design=Design.from_dict(
+            {
+                "formula": "~ c",
+                "columns": ["Intercept", "c"],
+                "scaling": {"c": {"centre": 0.0, "sd": 1.0}},
+            }
+        ),
         step=TRUE.step,
         angle=TRUE.angle,
     )
@@ -189,7 +195,7 @@ def test_confidence_intervals_of_covariate_coefficients():
     beta = table.loc["beta.c"]
     assert list(beta.index) == ["1->2", "2->1"]
     # the slope in standardised units: true slope times the sample sd of c
-    sd = model.covariate_scaling["c"][1]
+    sd = model.transition_design.scaling["c"][1]
     for index, slope in zip(["1->2", "2->1"], true.coefficients[:, 1] * sd, strict=True):
         lower, upper, se = beta.loc[index, ["lower", "upper", "se"]]
         assert lower < slope < upper and 0.02 < se < 0.3

@@ -52,7 +52,7 @@ def test_two_states_with_dist_water_reach_the_movehmm_optimum(elk):
     ).fit(elk)
     model = estimator.model_
     assert model.log_likelihood >= -1884.74664 - 1e-3
-    mean, sd = model.covariate_scaling["dist_water"]
+    mean, sd = model.transition_design.scaling["dist_water"]
     assert (mean, sd) == pytest.approx((773.6457279, 791.1607743), abs=1e-6)
 
 
@@ -63,3 +63,11 @@ def test_three_states_with_dist_water_reach_the_movehmm_optimum(elk):
     assert estimator.model_.log_likelihood >= -1798.87480 - 1e-3
     assert len(estimator.starts_) == 3
     assert estimator.model_.log_likelihood >= max(s.log_likelihood for s in estimator.starts_)
+
+
+def test_dist_water_formula_is_the_covariate_fit(elk):
+    options = {"n_starts": 2, "seed": 1, "step_unit": "km"}
+    model = MovementHMMEstimator(2, formula="~ dist_water", **options).fit(elk).model_
+    assert model.log_likelihood >= -1884.74664 - 1e-3
+    same = MovementHMMEstimator(2, covariates=["dist_water"], **options).fit(elk).model_
+    assert model.to_dict() == same.to_dict()

@@ -7,6 +7,7 @@ import pytest
 from hmmtrack.hmm import fit
 from hmmtrack.hmm.distributions import Gamma, VonMises, Weibull, WrappedCauchy
 from hmmtrack.hmm.fit import MovementHMMEstimator, fit_movement_hmm
+from hmmtrack.hmm.formula import Design
 from hmmtrack.hmm.model import MovementHMM, Observations
 
 TRUE = MovementHMM(
@@ -51,7 +52,7 @@ def test_fit_is_a_maximum_and_em_is_monotone(fitted, simulated):
     assert model.score(simulated) == pytest.approx(model.log_likelihood, abs=1e-6)
     # no better point nearby: moving any working parameter lowers the likelihood
     params = fit.parameters_of(model)
-    data = fit.fit_data(Observations.from_frame(simulated), {})
+    data = fit.fit_data(Observations.from_frame(simulated))
     likelihood = fit.WorkingLikelihood(params, data)
     theta = likelihood.pack(params)
     for i in range(theta.size - 1):  # the last entry is the initial distribution (flat)
@@ -72,13 +73,18 @@ def test_working_gradient_matches_finite_differences():
         initial=np.array([0.2, 0.3, 0.5]),
         transition=None,
         coefficients=rng.normal(scale=0.7, size=(6, 2)) - np.array([[1.5, 0.0]]),
-        covariate_names=("c",),
-        covariate_scaling={"c": (0.0, 1.0)},
+        transition_design=Design.from_dict(
+            {
+                "formula": "~ c",
+                "columns": ["Intercept", "c"],
+                "scaling": {"c": {"centre": 0.0, "sd": 1.0}},
+            }
+        ),
         step=Gamma(np.array([1.0, 3.0, 8.0]), np.array([1.0, 2.0, 3.0]), np.full(3, 0.05)),
         angle=VonMises(np.array([3.0, 0.3, 0.0]), np.array([0.5, 2.0, 6.0])),
     )
     frame = true.simulate(rng, n, values).assign(c=values["c"], segment=np.arange(n) // 200)
-    data = fit.fit_data(Observations.from_frame(frame, ("c",)), {"c": (0.0, 1.0)})
+    data = fit.fit_data(Observations.from_frame(frame, true.transition_design))
     params = fit.parameters_of(true)
     likelihood = fit.WorkingLikelihood(params, data)
     theta = likelihood.pack(params)
@@ -105,7 +111,7 @@ def test_accelerated_em_reaches_plain_em_optimum_in_fewer_iterations(monkeypatch
         angle=VonMises(np.array([np.pi, np.pi, 0, 0, 0]), np.array([0.5, 1, 3, 8, 20.0])),
     )
     frame = five.simulate(np.random.default_rng(3), 20_000).assign(segment=0)
-    data = fit.fit_data(Observations.from_frame(frame), {})
+    data = fit.fit_data(Observations.from_frame(frame))
     spec = fit.FitSpec(3, "gamma", "vonmises", True, False, max_iter=1000, tol=1e-9)
     start = fit.initial_parameters(None, data, spec)
     fast, fast_value, fast_monitor = fit.run_em(start, data, 1000, 1e-9)
@@ -127,13 +133,17 @@ def test_covariate_effects_are_recovered():
     rng = np.random.default_rng(21)
     n = 20_000
     water = rng.gamma(2.0, 400.0, size=n)
-    scaling = {"water": (800.0, 560.0)}
     true = MovementHMM(
         initial=np.array([0.5, 0.5]),
         transition=None,
         coefficients=np.array([[-2.0, 0.8], [-1.5, -0.6]]),
-        covariate_names=("water",),
-        covariate_scaling=scaling,
+        transition_design=Design.from_dict(
+            {
+                "formula": "~ water",
+                "columns": ["Intercept", "water"],
+                "scaling": {"water": {"centre": 800.0, "sd": 560.0}},
+            }
+        ),
         step=Gamma(np.array([1.0, 6.0]), np.array([0.8, 3.0])),
         angle=VonMises(np.array([0.0, 0.0]), np.array([0.5, 4.0])),
     )
@@ -141,7 +151,7 @@ def test_covariate_effects_are_recovered():
     estimator = MovementHMMEstimator(2, covariates=["water"], seed=1).fit(frame)
     model = estimator.model_
     # compare on the data's own standardisation
-    mean, sd = model.covariate_scaling["water"]
+    mean, sd = model.transition_design.scaling["water"]
     beta = model.coefficients.copy()
     slope_true = true.coefficients[:, 1] / 560.0 * sd
     intercept_true = true.coefficients[:, 0] + true.coefficients[:, 1] * (mean - 800.0) / 560.0
@@ -221,9 +231,10 @@ def test_bad_options_and_inputs_are_refused(simulated):
         MovementHMMEstimator().fit(np.ones((6, 2)), lengths=[2, 3])
     with pytest.raises(
         ValueError,
-        match=r"covariate column 'water' has missing or non-finite values at rows \[0, 1",
+        match=r"formula '~ water' have missing or non-finite values at rows \[0, 1\]",
     ):
-        MovementHMMEstimator(covariates=["water"]).fit(simulated.assign(water=np.nan))
+        water = np.where(np.arange(len(simulated)) < 2, np.nan, np.arange(len(simulated)))
+        MovementHMMEstimator(covariates=["water"]).fit(simulated.assign(water=water))
 
 
 def test_sample_uses_the_seed(fitted):

@@ -11,6 +11,7 @@ from hypothesis import strategies as st
 
 from hmmtrack.hmm import covariates as cov
 from hmmtrack.hmm.distributions import Gamma, VonMises, Weibull, WrappedCauchy
+from hmmtrack.hmm.formula import Design
 from hmmtrack.hmm.model import MovementHMM, Observations
 
 
@@ -35,8 +36,16 @@ def covariate_model():
         initial=np.array([0.2, 0.5, 0.3]),
         transition=None,
         coefficients=np.arange(18, dtype=float).reshape(6, 3) / 9 - 1,
-        covariate_names=("dist_water", "temp"),
-        covariate_scaling={"dist_water": (773.6457279, 791.1607743), "temp": (12.5, 3.25)},
+        transition_design=Design.from_dict(
+            {
+                "formula": "~ dist_water + temp",
+                "columns": ["Intercept", "dist_water", "temp"],
+                "scaling": {
+                    "dist_water": {"centre": 773.6457279, "sd": 791.1607743},
+                    "temp": {"centre": 12.5, "sd": 3.25},
+                },
+            }
+        ),
         step=Weibull(
             shape=np.array([1.1, 2.0, 3.0]),
             scale=np.array([0.3, 1.0, 4.0]),
@@ -54,8 +63,10 @@ def assert_same_model(a: MovementHMM, b: MovementHMM):
         assert (x is None) == (y is None)
         if x is not None:
             np.testing.assert_array_equal(x, y)
-    assert a.covariate_scaling == b.covariate_scaling
-    assert a.covariate_names == b.covariate_names
+    if a.transition_design is not None:
+        assert a.transition_design.to_dict() == b.transition_design.to_dict()
+    else:
+        assert b.transition_design is None
     assert a.step == b.step and a.angle == b.angle
 
 
@@ -87,7 +98,7 @@ def test_json_document_names_schema_units_and_version(tmp_path):
     two_state_model().save(path)
     document = json.loads(path.read_text())
     assert document["schema"] == "hmmtrack.movement_hmm"
-    assert document["version"] == 1
+    assert document["version"] == 2
     assert document["units"] == {"step": "m", "angle": "rad", "dt": "s"}
     assert document["dt"] == 30.0
     assert "package_version" in document
@@ -101,7 +112,7 @@ def _write(path, document):
 @pytest.mark.parametrize(
     ("change", "field", "words"),
     [
-        (lambda d: d.update(version=2), "version", "version 1 only"),
+        (lambda d: d.update(version=3), "version", "versions (1, 2)"),
         (lambda d: d.update(schema="other"), "schema", "expected 'hmmtrack.movement_hmm'"),
         (lambda d: d.pop("initial"), "initial", "missing"),
         (lambda d: d.update(initial=[0.5, 0.6]), "initial", "summing to 1"),
@@ -214,16 +225,13 @@ def test_expected_log_likelihood_gradient_matches_finite_differences():
     assert np.abs(cov.expected_log_likelihood(fitted, xi, design)[1]).max() < 1e-6
 
 
-def test_covariate_scaling_uses_sample_sd_and_rejects_bad_columns():
-    frame = pd.DataFrame({"c": [1.0, 2.0, 3.0, 6.0]})
-    mean, sd = cov.covariate_scaling(frame, ["c"])["c"]
-    assert mean == 3.0 and sd == pytest.approx(np.std([1, 2, 3, 6], ddof=1))
-    with pytest.raises(ValueError, match=r"'c' has missing .* rows \[1\]"):
-        cov.design_matrix(pd.DataFrame({"c": [1.0, np.nan]}), {"c": (0.0, 1.0)})
-    with pytest.raises(ValueError, match="constant"):
-        cov.covariate_scaling(pd.DataFrame({"c": [1.0, 1.0]}), ["c"])
-    with pytest.raises(ValueError, match="'d' is missing"):
-        cov.covariate_scaling(frame, ["d"])
+def test_covariate_rows_must_be_finite_and_present():
+    model = covariate_model()
+    grid = {"dist_water": [100.0, np.nan], "temp": [10.0, 11.0]}
+    with pytest.raises(ValueError, match=r"missing or non-finite values at rows \[1\]"):
+        model.transition_matrix(grid)
+    with pytest.raises(ValueError, match="temp"):
+        model.transition_matrix({"dist_water": [100.0]})
 
 
 # --- simulation and data -----------------------------------------------------------------

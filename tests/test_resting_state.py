@@ -11,6 +11,7 @@ from scipy import stats
 from hmmtrack.experiments import paper_scenarios
 from hmmtrack.experiments.configs import tracking_config
 from hmmtrack.hmm import Gamma, MovementHMM, VonMises, Weibull, WrappedCauchy
+from hmmtrack.hmm.formula import Design
 from hmmtrack.tracking import pipeline as tracking
 from hmmtrack.tracking.compiled import streams as rs
 from hmmtrack.tracking.motion import (
@@ -141,15 +142,20 @@ def test_covariate_model_contributes_its_matrix_at_the_covariate_means():
         angle=model.angle,
         dt=60.0,
         coefficients=np.array([[-2.0, 0.5], [-1.0, -0.3]]),
-        covariate_names=("temperature",),
-        covariate_scaling={"temperature": (10.0, 2.0)},
+        transition_design=Design.from_dict(
+            {
+                "formula": "~ temperature",
+                "columns": ["Intercept", "temperature"],
+                "scaling": {"temperature": {"centre": 10.0, "sd": 2.0}},
+            }
+        ),
     )
     at_means = covariate_model.transition_matrix()
     rested = covariate_model.with_resting_state(1.0, 2.0, 3.0)
     fixed = MovementHMM(
         initial=model.initial, transition=at_means, step=model.step, angle=model.angle, dt=60.0
     ).with_resting_state(1.0, 2.0, 3.0)
-    assert rested.covariate_names == () and rested.coefficients is None
+    assert rested.transition_design is None and rested.coefficients is None
     np.testing.assert_allclose(rested.transition, fixed.transition, rtol=1e-14)
     np.testing.assert_allclose(
         rested.transition[:2, :2], (1 - probabilities_per_step(1.0, 60.0)) * at_means

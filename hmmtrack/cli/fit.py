@@ -6,9 +6,11 @@ Example::
 
 reads the tracks (plain CSV in metres, or Movebank lon/lat with ``--format movebank``),
 computes steps and turning angles (:func:`hmmtrack.tracks.prepare`), fits
-(:class:`hmmtrack.hmm.MovementHMMEstimator`), prints the parameters with Wald intervals, the
-transition matrix, the log-likelihood and AIC, and writes the model file. The reading options
-defined here are shared with ``hmmtrack decode``.
+(:class:`hmmtrack.hmm.MovementHMMEstimator`, with ``--formula 'transition ~ cosT + sinT'`` or
+``--covariates`` on the transition probabilities), prints the parameters with Wald intervals,
+the transition coefficients on the data's scale, the transition matrix, the log-likelihood
+and AIC, and writes the model file. The reading options defined here are shared with
+``hmmtrack decode``.
 """
 
 from __future__ import annotations
@@ -104,7 +106,15 @@ def register(subparsers) -> None:
         nargs="+",
         default=[],
         metavar="COLUMN",
-        help="columns on the transition probabilities (standardised, multinomial logit)",
+        help="columns on the transition probabilities (standardised, multinomial logit); "
+        "short for --formula 'transition ~ COLUMN + ...'",
+    )
+    parser.add_argument(
+        "--formula",
+        metavar="'transition ~ TERMS'",
+        help="formula of the transition probabilities, e.g. 'transition ~ cosT + sinT' or "
+        "'transition ~ C(season) + cos(2*pi*hour/24)' (columns of the track file; factors "
+        "with C(), any numpy expression; coefficients printed also on the data's scale)",
     )
     parser.add_argument("--starts", type=int, default=5, help="EM starts (default 5)")
     parser.add_argument("--seed", type=int, default=1, help="seed of the starts (default 1)")
@@ -114,8 +124,29 @@ def register(subparsers) -> None:
     parser.set_defaults(func=run)
 
 
+def transition_formula(text: str | None) -> str | None:
+    """The right-hand side ``"~ terms"`` of ``--formula 'transition ~ terms'``.
+
+    Raises
+    ------
+    ValueError
+        For a formula of anything but the transition probabilities (the only parameter with
+        covariates so far), or without ``~``.
+    """
+    if text is None:
+        return None
+    target, tilde, terms = text.partition("~")
+    if not tilde or target.strip() not in ("", "transition"):
+        raise ValueError(
+            f"--formula {text!r}: expected 'transition ~ terms' (only the transition "
+            "probabilities take a formula)"
+        )
+    return "~" + terms
+
+
 def run(args: argparse.Namespace) -> int:
     check_paths({"tracks": args.tracks}, outputs={"-o": args.output})
+    formula = transition_formula(args.formula)
     prepared = read_prepared(args)
     estimator = MovementHMMEstimator(
         n_states=args.states,
@@ -123,6 +154,7 @@ def run(args: argparse.Namespace) -> int:
         angle=args.angle,
         estimate_angle_mean=not args.fix_angle_mean,
         covariates=tuple(args.covariates),
+        formula=formula,
         n_starts=args.starts,
         seed=args.seed,
         n_jobs=args.jobs,

@@ -1,6 +1,7 @@
 """Covariates on the transition probabilities: the multinomial logit of moveHMM's ``formula=~cov``.
 
-For ``K`` states and covariate row ``z_t = (1, c_1, ..., c_p)`` (standardised covariates), the
+For ``K`` states and design row ``z_t`` (the transition formula's standardised design matrix,
+:mod:`hmmtrack.hmm.formula`; ``(1, c_1, ..., c_p)`` for plain covariates), the
 transition matrix at row ``t`` is
 
     Gamma_t[i, j] = exp(eta_t[i, j]) / sum_k exp(eta_t[i, k]),   eta_t[i, i] = 0,
@@ -10,82 +11,16 @@ where ``r(i, j)`` runs over the off-diagonal entries in row-major order (as move
 ``trMatrix_rcpp``). The transition *into* row ``t`` uses the covariates of row ``t``, so a
 sequence of ``T`` rows has ``T - 1`` matrices built from rows ``1 .. T-1``.
 
-This module is for design matrices, logit transition matrices and the weighted M-step of the
-coefficients from expected transition counts. It is not for reading covariates from files
-(see :mod:`hmmtrack.io`) nor for the forward-backward recursions (see
+This module is for logit transition matrices and the weighted M-step of the coefficients from
+expected transition counts. It is not for design matrices (:mod:`hmmtrack.hmm.formula`),
+reading covariates from files (see :mod:`hmmtrack.io`) nor for the forward-backward recursions (see
 :mod:`hmmtrack.hmm.inference`). Products over the ``T`` rows are written with ``np.einsum``,
 not ``@``, to stay on one thread (why: reports/decisions.md, HMM fitting).
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
-
 import numpy as np
-import pandas as pd
-
-CovariateScaling = dict[str, tuple[float, float]]
-
-
-def covariate_scaling(frame: pd.DataFrame, names: Sequence[str]) -> CovariateScaling:
-    """Mean and sample standard deviation (``ddof=1``) of each covariate column.
-
-    Parameters
-    ----------
-    frame : DataFrame
-        Table holding the covariate columns.
-    names : sequence of str
-        Covariate column names.
-
-    Returns
-    -------
-    dict
-        ``{name: (mean, sd)}`` in the covariate's own unit.
-    """
-    scaling = {}
-    for name in names:
-        values = _covariate_column(frame, name)
-        sd = float(np.std(values, ddof=1)) if values.size > 1 else 0.0
-        if not sd > 0:
-            raise ValueError(
-                f"covariate column {name!r} is constant (sd = {sd}); it cannot be standardised"
-            )
-        scaling[name] = (float(np.mean(values)), sd)
-    return scaling
-
-
-def design_matrix(frame: pd.DataFrame | Mapping, scaling: Mapping[str, tuple[float, float]]):
-    """Standardised design matrix ``(1, (c_1 - mean_1) / sd_1, ...)`` for each row.
-
-    Parameters
-    ----------
-    frame : DataFrame or mapping of str to array
-        Holds one column per covariate named in ``scaling``.
-    scaling : mapping
-        ``{name: (mean, sd)}`` as returned by :func:`covariate_scaling`; its order is the
-        column order of the result.
-
-    Returns
-    -------
-    ndarray, shape (T, 1 + p)
-        First column ones (intercept).
-    """
-    n_rows = len(frame) if isinstance(frame, pd.DataFrame) else len(next(iter(frame.values())))
-    columns = [(_covariate_column(frame, name) - mean) / sd for name, (mean, sd) in scaling.items()]
-    return np.column_stack([np.ones(n_rows), *columns])
-
-
-def _covariate_column(frame, name: str) -> np.ndarray:
-    if name not in frame:
-        raise ValueError(f"covariate column {name!r} is missing (columns: {list(frame)})")
-    values = np.asarray(frame[name], dtype=float)
-    bad = np.flatnonzero(~np.isfinite(values))
-    if bad.size:
-        raise ValueError(
-            f"covariate column {name!r} has missing or non-finite values at rows "
-            f"{bad[:10].tolist()}{' ...' if bad.size > 10 else ''}; fill or drop them first"
-        )
-    return values
 
 
 def off_diagonal_index(n_states: int) -> tuple[np.ndarray, np.ndarray]:

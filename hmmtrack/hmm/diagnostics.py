@@ -46,9 +46,9 @@ def pseudo_residuals(model: MovementHMM, data: pd.DataFrame) -> pd.DataFrame:
         Columns ``step_residual`` and ``angle_residual``, one row per data row; NaN where
         the observation is missing.
     """
-    observations = Observations.from_frame(data, model.covariate_names)
+    observations = Observations.from_frame(data, model.transition_design)
     log_lik = model.log_likelihood_matrix(observations.step, observations.angle)
-    log_transition = model.log_transition_for(observations.covariates, len(log_lik))
+    log_transition = model.log_transition_for(observations)
     with np.errstate(divide="ignore"):
         log_initial = np.log(model.initial)
     forecast = forward_backward(
@@ -115,8 +115,8 @@ def working_covariance(model: MovementHMM, data: pd.DataFrame):
         Pseudo-inverse of minus the Hessian of the log-likelihood at ``theta``.
     """
     params = fit.parameters_of(model)
-    observations = Observations.from_frame(data, model.covariate_names)
-    likelihood = fit.WorkingLikelihood(params, fit.fit_data(observations, model.covariate_scaling))
+    observations = Observations.from_frame(data, model.transition_design)
+    likelihood = fit.WorkingLikelihood(params, fit.fit_data(observations))
     theta = likelihood.pack(params)
     return likelihood, theta, np.linalg.pinv(-working_hessian(likelihood, theta))
 
@@ -125,6 +125,12 @@ def natural_parameters(
     params: fit.Parameters, covariate_names=()
 ) -> tuple[list[tuple], np.ndarray]:
     """Names and values of the natural parameters.
+
+    Parameters
+    ----------
+    params : Parameters
+    covariate_names : sequence of str
+        Names of the coefficients' columns (:func:`coefficient_names`).
 
     Returns
     -------
@@ -148,7 +154,7 @@ def natural_parameters(
                 values.append(params.transition[i, j])
     else:
         rows, cols = np.nonzero(~np.eye(k, dtype=bool))
-        for c, covariate in enumerate(("intercept", *covariate_names)):
+        for c, covariate in enumerate(covariate_names):
             for r, (i, j) in enumerate(zip(rows, cols, strict=True)):
                 names.append((f"beta.{covariate}", f"{i + 1}->{j + 1}"))
                 values.append(params.coefficients[r, c])
@@ -156,6 +162,14 @@ def natural_parameters(
         names.append(("initial", str(i + 1)))
         values.append(params.initial[i])
     return names, np.asarray(values, dtype=float)
+
+
+def coefficient_names(model: MovementHMM) -> tuple[str, ...]:
+    """Names of the transition coefficients' columns: the formula's design columns, with
+    ``"intercept"`` for formulaic's ``"Intercept"``; empty without covariates."""
+    if model.transition_design is None:
+        return ()
+    return tuple("intercept" if c == "Intercept" else c for c in model.transition_design.columns)
 
 
 def confidence_intervals(model: MovementHMM, data: pd.DataFrame, level: float = 0.95):
@@ -179,13 +193,14 @@ def confidence_intervals(model: MovementHMM, data: pd.DataFrame, level: float = 
     """
     params = fit.parameters_of(model)
     likelihood, theta, covariance = working_covariance(model, data)
-    names, values = natural_parameters(params, model.covariate_names)
+    columns = coefficient_names(model)
+    names, values = natural_parameters(params, columns)
     jacobian = np.empty((values.size, theta.size))
     for i in range(theta.size):
         shift = np.zeros(theta.size)
         shift[i] = 1e-6
-        up = natural_parameters(likelihood.unpack(theta + shift), model.covariate_names)[1]
-        down = natural_parameters(likelihood.unpack(theta - shift), model.covariate_names)[1]
+        up = natural_parameters(likelihood.unpack(theta + shift), columns)[1]
+        down = natural_parameters(likelihood.unpack(theta - shift), columns)[1]
         jacobian[:, i] = (up - down) / 2e-6
     se = np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", jacobian, covariance, jacobian), 0.0))
     lower, upper = _interval(names, values, se, stats.norm.ppf(0.5 + level / 2))
@@ -239,6 +254,18 @@ def model_selection_table(models: dict[str, MovementHMM]) -> pd.DataFrame:
     return pd.DataFrame(rows).sort_values("aic", ignore_index=True)
 
 
+def data_scale_coefficients(model: MovementHMM) -> pd.DataFrame:
+    """Transition coefficients on the data's scale, one row per transition ``"i->j"``
+    (states from 1), one column per design column
+    (:meth:`~hmmtrack.hmm.model.MovementHMM.coefficients_on_data_scale`)."""
+    rows, cols = np.nonzero(~np.eye(model.n_states, dtype=bool))
+    return pd.DataFrame(
+        model.coefficients_on_data_scale(),
+        index=[f"{i + 1}->{j + 1}" for i, j in zip(rows, cols, strict=True)],
+        columns=list(coefficient_names(model)),
+    )
+
+
 def summary(model: MovementHMM, intervals: pd.DataFrame | None = None) -> str:
     """Readable text: parameters (with intervals), transition matrix, log-likelihood, AIC/BIC.
 
@@ -257,13 +284,28 @@ def summary(model: MovementHMM, intervals: pd.DataFrame | None = None) -> str:
         "",
     ]
     if intervals is None:
-        names, values = natural_parameters(fit.parameters_of(model), model.covariate_names)
+        names, values = natural_parameters(fit.parameters_of(model), coefficient_names(model))
         intervals = pd.DataFrame(
             {"parameter": [n for n, _ in names], "index": [i for _, i in names], "estimate": values}
         )
     lines.append(intervals.to_string(index=False, float_format=lambda v: f"{v:.6g}"))
     lines.append("")
-    lines.append("transition matrix" + (" at the covariate means" if model.covariate_names else ""))
+    if model.transition_design is not None:
+        lines.append("")
+        lines.append(
+            f"transition coefficients ({model.transition_design.formula}) on the data's scale "
+            "(per unit of each column; the intercept at zero)"
+        )
+        lines.append(data_scale_coefficients(model).to_string(float_format=lambda v: f"{v:.6g}"))
+        lines.append("")
+    lines.append(
+        "transition matrix"
+        + (
+            " at the covariate means (factors at their reference levels)"
+            if model.transition_design is not None
+            else ""
+        )
+    )
     gamma = model.transition_matrix()
     labels = [f"state {k + 1}" for k in range(model.n_states)]
     lines.append(pd.DataFrame(gamma, index=labels, columns=labels).to_string(float_format="%.4f"))

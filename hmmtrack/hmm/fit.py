@@ -40,6 +40,7 @@ from scipy.optimize import minimize
 
 from hmmtrack.hmm import covariates as cov
 from hmmtrack.hmm import distributions
+from hmmtrack.hmm import formula as formulas
 from hmmtrack.hmm.inference import forward_backward, load_kernels, log_likelihood
 from hmmtrack.hmm.model import MovementHMM, Observations
 from hmmtrack.random import as_generator, spawn
@@ -67,8 +68,8 @@ class FitData:
     step, angle : ndarray, shape (T,)
         Step lengths and turning angles (NaN = missing).
     lengths : ndarray, shape (n_sequences,)
-    design : ndarray, shape (T, 1 + p) or None
-        Standardised covariate design matrix (None without covariates).
+    design : ndarray, shape (T, p) or None
+        Standardised design matrix of the transition formula (None without covariates).
     prepared_step : PreparedSteps
     prepared_angle : PreparedAngles
         ``step`` and ``angle`` validated once with their transforms (log step, cos and sin
@@ -568,12 +569,9 @@ def run_starts(data: FitData, spec: FitSpec, n_starts: int, seed, n_jobs: int = 
 # ---------------------------------------------------------------------------------------------
 
 
-def fit_data(observations: Observations, scaling: dict | None) -> FitData:
-    """:class:`FitData` of a table's observations, standardising covariates with ``scaling``."""
-    design = None
-    if scaling:
-        design = cov.design_matrix(observations.covariates, scaling)
-    return FitData(observations.step, observations.angle, observations.lengths, design)
+def fit_data(observations: Observations) -> FitData:
+    """:class:`FitData` of a table's observations."""
+    return FitData(observations.step, observations.angle, observations.lengths, observations.design)
 
 
 def parameters_of(model: MovementHMM) -> Parameters:
@@ -656,7 +654,13 @@ class MovementHMMEstimator:
     estimate_angle_mean : bool
         False fixes the angle means at 0.
     covariates : sequence of str
-        Columns of the data on the transition probabilities (standardised, multinomial logit).
+        Columns of the data on the transition probabilities: short for the formula
+        ``"~ a + b"`` (give this or ``formula``). Also the names of an array ``X``'s
+        columns after step and angle.
+    formula : str or None
+        Transition formula (``"~ dist_water"``, ``"~ C(season) + cos(2*pi*hour/24)"``; see
+        :mod:`hmmtrack.hmm.formula`): its design matrix, standardised, is the multinomial
+        logit's (:mod:`~hmmtrack.hmm.covariates`). It must keep the intercept.
     zero_inflation : "auto" or bool
         "auto" switches zero-inflated steps on when a step is exactly 0.
     n_starts : int
@@ -697,6 +701,7 @@ class MovementHMMEstimator:
         angle: str = "vonmises",
         estimate_angle_mean: bool = True,
         covariates=(),
+        formula: str | None = None,
         zero_inflation="auto",
         n_starts: int = 1,
         seed=None,
@@ -712,6 +717,7 @@ class MovementHMMEstimator:
         self.angle = angle
         self.estimate_angle_mean = estimate_angle_mean
         self.covariates = covariates
+        self.formula = formula
         self.zero_inflation = zero_inflation
         self.n_starts = n_starts
         self.seed = seed
@@ -775,6 +781,17 @@ class MovementHMMEstimator:
             tol=float(self.tol),
         )
 
+    def _transition_formula(self) -> str | None:
+        """The transition formula: ``formula``, or that of ``covariates``, or None."""
+        names = tuple(self.covariates)
+        if self.formula is not None and names:
+            raise ValueError(
+                "give the transition covariates either as 'covariates' or in 'formula', not both"
+            )
+        if self.formula is not None:
+            return self.formula
+        return formulas.of_columns(names) if names else None
+
     def fit(self, X, lengths=None) -> MovementHMMEstimator:
         """Fit to a prepared-track table or to an array ``(T, 2 + p)`` with ``lengths``.
 
@@ -782,16 +799,20 @@ class MovementHMMEstimator:
         ----------
         X : DataFrame or ndarray
             Table with ``step`` (``step_unit``), ``angle`` (rad), ``segment`` and the
-            covariate columns; or an array with columns step, angle, covariates.
+            columns the transition formula names; or an array with columns step, angle,
+            ``covariates``.
         lengths : array of int, optional
             Rows per sequence, for an array ``X``.
         """
-        names = tuple(self.covariates)
-        table = as_table(X, lengths, names)
+        rhs = self._transition_formula()
+        table = as_table(X, lengths, tuple(self.covariates))
         warn_if_irregular(table)
-        observations = Observations.from_frame(table, names)
-        scaling = cov.covariate_scaling(observations.covariates, names) if names else {}
-        data = fit_data(observations, scaling)
+        design = None
+        if rhs is not None:
+            design = formulas.design(rhs, table)
+            if not design.has_intercept:
+                raise ValueError(f"transition formula {rhs!r} needs an intercept")
+        data = fit_data(Observations.from_frame(table, design))
         if np.all(np.isnan(data.step)):
             raise ValueError("no observed step in the data")
         spec = self._spec(data)
@@ -817,8 +838,7 @@ class MovementHMMEstimator:
             angle=params.angle,
             dt=self._time_step(table),
             coefficients=params.coefficients,
-            covariate_names=names,
-            covariate_scaling=scaling,
+            transition_design=design,
             step_unit=self.step_unit,
             log_likelihood=log_likelihood,
             n_obs=data.n_obs,
@@ -843,7 +863,7 @@ class MovementHMMEstimator:
     def _table(self, X, lengths):
         if not hasattr(self, "model_"):
             raise ValueError("this estimator is not fitted yet; call fit first")
-        return as_table(X, lengths, self.model_.covariate_names)
+        return as_table(X, lengths, tuple(self.covariates))
 
     def predict(self, X, lengths=None) -> np.ndarray:
         """Viterbi states (T,) of ``X`` (same forms as :meth:`fit`)."""

@@ -31,7 +31,9 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 from formulaic import model_matrix
+from formulaic.errors import FormulaicError
 from formulaic.model_spec import ModelSpec
+from formulaic.parser.types import Factor
 
 _CONTEXT = {
     "np": np,
@@ -47,14 +49,17 @@ _INTERCEPT = "Intercept"
 
 @dataclass(frozen=True)
 class Design:
-    """The design matrix of a formula over a table, and how it was standardised.
+    """A formula's design: how to build its standardised design matrix for any table.
+
+    Built from a table by :func:`design` (which learns the factor levels and the
+    standardisation from it); :meth:`transform` gives the matrix of that or any other table.
+    :meth:`to_dict` / :meth:`from_dict` write and read it as plain JSON types (what a saved
+    model keeps of its formula).
 
     Attributes
     ----------
     formula : str
         The right-hand side as given (``"~ temp * depth"``).
-    matrix : ndarray, shape (T, p)
-        Standardised design matrix, one row per table row.
     columns : tuple of str
         Column names (formulaic's: ``"Intercept"``, ``"temp"``, ``"temp:depth"``,
         ``"C(season)[T.w]"``, ``"cos(2 * pi * hour / 24)"``).
@@ -66,7 +71,6 @@ class Design:
     """
 
     formula: str
-    matrix: np.ndarray
     columns: tuple[str, ...]
     scaling: dict[str, tuple[float, float]]
     spec: ModelSpec = field(repr=False)
@@ -75,17 +79,87 @@ class Design:
     def has_intercept(self) -> bool:
         return _INTERCEPT in self.columns
 
-    def transform(self, table: pd.DataFrame) -> np.ndarray:
-        """Design matrix of new rows (e.g. a covariate grid) with this formula and scaling.
+    @property
+    def levels(self) -> dict[str, list]:
+        """``{factor: levels}`` of each categorical factor (``"C(season)"``), reference first."""
+        return {
+            str(name): list(state[1]["categories"])
+            for name, state in self.spec.encoder_state.items()
+            if state[0].value == "categorical"
+        }
 
-        Factor levels and stateful transforms are those of the table :func:`design` saw.
+    def transform(self, table: pd.DataFrame) -> np.ndarray:
+        """Standardised design matrix of a table: the one fitted to, or new rows (a grid).
+
+        Factor levels and standardisation are those of the table :func:`design` saw.
 
         Returns
         -------
         ndarray, shape (len(table), p)
+            NaN in the rows of missing values.
+
+        Raises
+        ------
+        ValueError
+            When the formula cannot be evaluated on ``table`` (a missing column, an unknown
+            factor level) or gives other columns than :attr:`columns`.
         """
-        raw = self.spec.get_model_matrix(table, context=_CONTEXT, na_action="ignore")
+        try:
+            raw = self.spec.get_model_matrix(table, context=_CONTEXT, na_action="ignore")
+        except FormulaicError as exc:
+            raise ValueError(f"formula {self.formula!r}: {exc}") from exc
+        columns = tuple(str(c) for c in raw.columns)
+        if columns != self.columns:
+            raise ValueError(
+                f"formula {self.formula!r} gives columns {list(columns)} on this table; "
+                f"expected {list(self.columns)}"
+            )
         return _standardised(raw, self.scaling)
+
+    def to_dict(self) -> dict:
+        """The design as JSON types: formula, columns, scaling and factor levels.
+
+        Raises
+        ------
+        ValueError
+            For a formula with a stateful transform (``center(x)``, ``poly(x)``), whose state
+            is not written.
+        """
+        if self.spec.transform_state:
+            raise ValueError(
+                f"formula {self.formula!r} uses a stateful transform; it cannot be saved"
+            )
+        return {
+            "formula": self.formula,
+            "columns": list(self.columns),
+            "scaling": {name: {"centre": c, "sd": s} for name, (c, s) in self.scaling.items()},
+            "levels": {name: [_plain(v) for v in levels] for name, levels in self.levels.items()},
+        }
+
+    @classmethod
+    def from_dict(cls, document: dict) -> Design:
+        """The design of a :meth:`to_dict` document.
+
+        Raises
+        ------
+        KeyError, TypeError, ValueError
+            For a malformed document.
+        """
+        formula = _one_sided(str(document["formula"]))
+        encoder_state = {
+            str(name): (Factor.Kind.CATEGORICAL, {"categories": list(levels)})
+            for name, levels in dict(document.get("levels", {})).items()
+        }
+        spec = ModelSpec(formula=formula, encoder_state=encoder_state, na_action="ignore")
+        scaling = {
+            str(name): (float(value["centre"]), float(value["sd"]))
+            for name, value in dict(document["scaling"]).items()
+        }
+        columns = tuple(str(c) for c in document["columns"])
+        unknown = set(scaling) - set(columns)
+        if unknown:
+            raise ValueError(f"scaling of unknown columns {sorted(unknown)}")
+        return cls(formula, columns, scaling, spec)
 
     def to_data_scale(self, coefficients: np.ndarray) -> np.ndarray:
         """Coefficients of the standardised columns as coefficients of the raw columns.
@@ -131,17 +205,37 @@ def design(formula: str, table: pd.DataFrame, *, standardise: bool = True) -> De
     Returns
     -------
     Design
+        Its :meth:`~Design.transform` of ``table`` is the design matrix, shape (T, p).
     """
+    rhs = _one_sided(formula)
+    try:
+        raw = model_matrix(rhs, table, context=_CONTEXT, na_action="ignore")
+    except FormulaicError as exc:
+        raise ValueError(f"formula {rhs!r}: {exc}") from exc
+    spec = raw.model_spec
+    columns = tuple(str(c) for c in raw.columns)
+    scaling = _scaling(raw, spec, columns) if standardise else {}
+    return Design(rhs, columns, scaling, spec)
+
+
+def of_columns(names) -> str:
+    """The formula ``"~ a + b"`` of plain columns (quoted with backticks where not a name)."""
+    terms = [n if str(n).isidentifier() else f"`{n}`" for n in names]
+    return "~ " + " + ".join(terms)
+
+
+def _one_sided(formula: str) -> str:
     rhs = formula.strip()
     if not rhs.startswith("~"):
         rhs = "~ " + rhs
     if "~" in rhs[1:]:
         raise ValueError(f"design takes a one-sided formula '~ terms', got {formula!r}")
-    raw = model_matrix(rhs, table, context=_CONTEXT, na_action="ignore")
-    spec = raw.model_spec
-    columns = tuple(str(c) for c in raw.columns)
-    scaling = _scaling(raw, spec, columns) if standardise else {}
-    return Design(rhs, _standardised(raw, scaling), columns, scaling, spec)
+    return rhs
+
+
+def _plain(value):
+    """A factor level as a JSON type (numpy scalars to Python ones)."""
+    return value.item() if isinstance(value, np.generic) else value
 
 
 def _scaling(raw: pd.DataFrame, spec: ModelSpec, columns: tuple[str, ...]) -> dict:

@@ -122,7 +122,7 @@ def fit_imputed(tables, n_states: int = 2, *, seed=None, **options) -> ImputedFi
     for table in tables:
         model = MovementHMMEstimator(n_states=n_states, seed=seed, **options).fit(table).model_
         likelihood, theta, covariance = working_covariance(model, table)
-        if models and model.covariate_scaling != models[0].covariate_scaling:
+        if models and _standardisation(model) != _standardisation(models[0]):
             raise ValueError(
                 "the imputed tracks standardise their covariates differently; pool only fits "
                 "whose covariates are the same in every imputed track"
@@ -140,8 +140,7 @@ def fit_imputed(tables, n_states: int = 2, *, seed=None, **options) -> ImputedFi
         angle=params.angle,
         dt=first.dt,
         coefficients=params.coefficients,
-        covariate_names=first.covariate_names,
-        covariate_scaling=first.covariate_scaling,
+        transition_design=first.transition_design,
         step_unit=first.step_unit,
         n_obs=first.n_obs,
     )
@@ -173,3 +172,9 @@ def pooled_table(result: ImputedFit) -> pd.DataFrame:
             "fraction_missing": np.divide(extra, total, out=np.zeros_like(total), where=total > 0),
         }
     )
+
+
+def _standardisation(model: MovementHMM):
+    """The transition design's columns and scaling (None without covariates)."""
+    design = model.transition_design
+    return None if design is None else (design.columns, design.scaling)

@@ -2,13 +2,15 @@
 
 :class:`MovementHMM` holds everything a user of a fitted model needs -- the initial
 distribution, the transition matrix (or the logit coefficients of covariates on it), the
-state-dependent step and angle distributions, the time step of the data it was fitted on -- and
-answers questions about it: transition matrices, the stationary distribution, state
+state-dependent step and angle distributions, the time step of the data it was fitted on, the
+transition formula's design (:class:`hmmtrack.hmm.formula.Design`) -- and answers questions
+about it: transition matrices, the stationary distribution, state
 probabilities and Viterbi paths for data, simulation -- and builds the model with a
 resting state added for tracking (:meth:`MovementHMM.with_resting_state`).
 :meth:`MovementHMM.save` / :meth:`MovementHMM.load` write and read the JSON schema
-``"hmmtrack.movement_hmm"``, version 1; loading validates every field and refuses anything
-it does not understand. There is no pickle.
+``"hmmtrack.movement_hmm"``, version 2 (version 1 files, whose covariates were plain columns,
+still load); loading validates every field and refuses anything it does not understand. There
+is no pickle.
 
 This module is not for fitting (see :mod:`hmmtrack.hmm.fit`) nor for the recursions (see
 :mod:`hmmtrack.hmm.inference`).
@@ -18,7 +20,7 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -27,10 +29,12 @@ import pandas as pd
 from hmmtrack import __version__
 from hmmtrack.hmm import covariates as cov
 from hmmtrack.hmm import distributions
+from hmmtrack.hmm.formula import Design, of_columns
 from hmmtrack.hmm.inference import forward_backward, viterbi
 
 SCHEMA = "hmmtrack.movement_hmm"
-VERSION = 1
+VERSION = 2
+_READABLE_VERSIONS = (1, 2)
 
 
 @dataclass(frozen=True)
@@ -45,31 +49,35 @@ class Observations:
         Turning angles (rad); NaN where missing.
     lengths : ndarray, shape (n_sequences,)
         Rows per sequence (track segment), in table order; sums to ``T``.
-    covariates : DataFrame
-        The covariate columns asked for (raw values), ``T`` rows; no columns if none.
+    design : ndarray, shape (T, p) or None
+        The transition formula's standardised design matrix; None without a formula.
     """
 
     step: np.ndarray
     angle: np.ndarray
     lengths: np.ndarray
-    covariates: pd.DataFrame
+    design: np.ndarray | None = None
 
     @classmethod
-    def from_frame(cls, frame: pd.DataFrame, covariate_names=(), source: str | None = None):
-        """Read ``step``, ``angle``, ``segment`` (and covariates) from a prepared-track table.
+    def from_frame(
+        cls, frame: pd.DataFrame, design: Design | None = None, source: str | None = None
+    ):
+        """Read ``step``, ``angle``, ``segment`` (and the design) from a prepared-track table.
 
         Parameters
         ----------
         frame : DataFrame
             Prepared track (see :func:`hmmtrack.tracks.prepare`). Without a ``segment``
             column the table is one sequence. Each segment's rows must be contiguous.
-        covariate_names : sequence of str
+        design : Design, optional
+            The transition formula's design, evaluated on ``frame``; its columns must be
+            finite in every row.
         source : str, optional
             Name of the table's origin used in error messages; by default the file name that
             :mod:`hmmtrack.io` keeps in ``frame.attrs["source"]``, else ``"table"``.
         """
         source = source or frame.attrs.get("source", "table")
-        missing = [c for c in ("step", "angle", *covariate_names) if c not in frame.columns]
+        missing = [c for c in ("step", "angle") if c not in frame.columns]
         if missing:
             raise ValueError(
                 f"{source}: missing column(s) {missing}; a prepared track needs 'step' (m) and "
@@ -109,8 +117,30 @@ class Observations:
             step=values["step"],
             angle=values["angle"],
             lengths=lengths.astype(np.int64),
-            covariates=frame.loc[:, list(covariate_names)].reset_index(drop=True),
+            design=None if design is None else design_rows(design, frame, source),
         )
+
+
+def design_rows(design: Design, table: pd.DataFrame | dict, source: str = "table") -> np.ndarray:
+    """``design.transform(table)``, refusing rows with missing or non-finite values.
+
+    Returns
+    -------
+    ndarray, shape (len(table), p)
+    """
+    table = table if isinstance(table, pd.DataFrame) else pd.DataFrame(table)
+    try:
+        matrix = design.transform(table)
+    except ValueError as exc:
+        raise ValueError(f"{source}: {exc}") from exc
+    bad = np.flatnonzero(~np.all(np.isfinite(matrix), axis=1))
+    if bad.size:
+        raise ValueError(
+            f"{source}: the covariates of formula {design.formula!r} have missing or non-finite "
+            f"values at rows {bad[:10].tolist()}{' ...' if bad.size > 10 else ''}; fill or "
+            "drop them first"
+        )
+    return matrix
 
 
 @dataclass(frozen=True, eq=False)
@@ -127,11 +157,12 @@ class MovementHMM:
         State-dependent distributions of step length (m) and turning angle (rad).
     dt : float
         Time step of the data fitted (s); NaN when the data had no times.
-    coefficients : ndarray, shape (K*(K-1), 1 + p) or None
-        Logit coefficients of the standardised covariates (see :mod:`~hmmtrack.hmm.covariates`).
-    covariate_names : tuple of str
-    covariate_scaling : dict
-        ``{name: (mean, sd)}`` used to standardise each covariate.
+    coefficients : ndarray, shape (K*(K-1), p) or None
+        Logit coefficients of the standardised design columns (see
+        :mod:`~hmmtrack.hmm.covariates`), one row per off-diagonal entry.
+    transition_design : Design or None
+        The transition formula (``"~ dist_water"``) with its columns, standardisation and
+        factor levels; rebuilds the design of new data. Given exactly with ``coefficients``.
     step_unit : str
         Unit of the steps (``"m"``; ``"km"`` if the user fitted kilometres).
     log_likelihood : float
@@ -147,8 +178,7 @@ class MovementHMM:
     angle: distributions.StateDistribution
     dt: float = math.nan
     coefficients: np.ndarray | None = None
-    covariate_names: tuple[str, ...] = ()
-    covariate_scaling: dict = field(default_factory=dict)
+    transition_design: Design | None = None
     step_unit: str = "m"
     log_likelihood: float = math.nan
     n_obs: int = 0
@@ -161,15 +191,20 @@ class MovementHMM:
         if (self.transition is None) == (self.coefficients is None):
             raise ValueError("give exactly one of 'transition' and 'coefficients'")
         if self.transition is not None:
+            if self.transition_design is not None:
+                raise ValueError("a 'transition_design' goes with 'coefficients'")
             object.__setattr__(self, "transition", np.asarray(self.transition, dtype=float))
         else:
             coefficients = np.asarray(self.coefficients, dtype=float)
             object.__setattr__(self, "coefficients", coefficients)
-            if coefficients.shape[1] != 1 + len(self.covariate_names):
+            design = self.transition_design
+            if design is None or coefficients.shape[1] != len(design.columns):
                 raise ValueError(
-                    f"coefficients have {coefficients.shape[1]} columns; expected 1 + "
-                    f"{len(self.covariate_names)} covariates"
+                    f"coefficients have {coefficients.shape[1]} columns; expected one per "
+                    "column of 'transition_design'"
                 )
+            if not design.has_intercept:
+                raise ValueError(f"transition formula {design.formula!r} needs an intercept")
         k = initial.shape[0] if initial.ndim == 1 else -1
         shapes = {
             "initial": (initial.shape, (k,)),
@@ -183,12 +218,6 @@ class MovementHMM:
         for name, (shape, expected) in shapes.items():
             if shape != expected:
                 raise ValueError(f"{name} has shape {shape}; expected {expected} for K = {k}")
-        object.__setattr__(self, "covariate_names", tuple(self.covariate_names))
-        object.__setattr__(
-            self,
-            "covariate_scaling",
-            {k: (float(m), float(s)) for k, (m, s) in dict(self.covariate_scaling).items()},
-        )
 
     @property
     def n_states(self) -> int:
@@ -203,8 +232,9 @@ class MovementHMM:
         Parameters
         ----------
         covariates : DataFrame or mapping of str to array, optional
-            Raw (unstandardised) covariate values, one column per ``covariate_names``.
-            Without it a covariate model is evaluated at the covariate means.
+            Raw (unstandardised) values of the columns the transition formula names.
+            Without it a covariate model is evaluated at its intercept: numeric covariates
+            at their means, factors at their reference levels.
 
         Returns
         -------
@@ -212,12 +242,13 @@ class MovementHMM:
             Entry ``t`` of the 3-d result is the matrix *into* row ``t``.
         """
         if self.coefficients is None:
-            if covariates is not None and len(self.covariate_names) == 0:
+            if covariates is not None:
                 raise ValueError("this model has no covariates")
             return self.transition.copy()
         if covariates is None:
-            return np.exp(cov.log_transition_matrices(self.coefficients[:, :1], np.ones((1, 1))))[0]
-        design = cov.design_matrix(covariates, self.covariate_scaling)
+            intercept = self.coefficients[:, [self.transition_design.columns.index("Intercept")]]
+            return np.exp(cov.log_transition_matrices(intercept, np.ones((1, 1))))[0]
+        design = design_rows(self.transition_design, covariates, "covariates")
         return np.exp(cov.log_transition_matrices(self.coefficients, design))
 
     def stationary(self, covariates: pd.DataFrame | dict | None = None) -> np.ndarray:
@@ -232,19 +263,30 @@ class MovementHMM:
         system = np.swapaxes(np.eye(k) - gamma + 1.0, -1, -2)
         return np.linalg.solve(system, np.ones(gamma.shape[:-1])[..., None])[..., 0]
 
-    def log_transition_for(self, covariates: pd.DataFrame, n_rows: int) -> np.ndarray:
+    def log_transition_for(self, observations: Observations) -> np.ndarray:
         """Log transition argument for the recursions: ``(K, K)`` or ``(T-1, K, K)``.
 
-        Entry ``t`` of the time-varying form is the transition from row ``t`` to ``t + 1``,
-        built from the covariates of row ``t + 1``.
+        ``observations`` are read with this model's ``transition_design``. Entry ``t`` of the
+        time-varying form is the transition from row ``t`` to ``t + 1``, built from the
+        design row ``t + 1``.
         """
         if self.coefficients is None:
             with np.errstate(divide="ignore"):
                 return np.log(self.transition)
-        design = cov.design_matrix(covariates, self.covariate_scaling)
-        if design.shape[0] != n_rows:
-            raise ValueError(f"covariates have {design.shape[0]} rows; expected {n_rows}")
-        return cov.log_transition_matrices(self.coefficients, design[1:])
+        return cov.log_transition_matrices(self.coefficients, observations.design[1:])
+
+    def coefficients_on_data_scale(self) -> np.ndarray | None:
+        """The logit coefficients per unit of each design column as the data have it.
+
+        Returns
+        -------
+        ndarray, shape (K*(K-1), p) or None
+            :meth:`hmmtrack.hmm.formula.Design.to_data_scale` of ``coefficients``: slopes
+            per raw unit, intercept at raw zero. None without covariates.
+        """
+        if self.coefficients is None:
+            return None
+        return self.transition_design.to_data_scale(self.coefficients)
 
     def with_resting_state(
         self, enter_per_hour: float, leave_per_hour: float, resting_step: float
@@ -340,12 +382,12 @@ class MovementHMM:
         )
 
     def _recursion_inputs(self, data: pd.DataFrame):
-        obs = Observations.from_frame(data, self.covariate_names)
+        obs = Observations.from_frame(data, self.transition_design)
         with np.errstate(divide="ignore"):
             log_initial = np.log(self.initial)
         return (
             log_initial,
-            self.log_transition_for(obs.covariates, len(obs.step)),
+            self.log_transition_for(obs),
             self.log_likelihood_matrix(obs.step, obs.angle),
             obs.lengths,
         )
@@ -417,13 +459,12 @@ class MovementHMM:
             "coefficients": None
             if self.coefficients is None
             else {
-                "covariates": list(self.covariate_names),
-                "scaling": {
-                    name: {"mean": m, "sd": s} for name, (m, s) in self.covariate_scaling.items()
-                },
+                **self.transition_design.to_dict(),
                 "values": self.coefficients.tolist(),
-                "layout": "rows: off-diagonal entries (i, j) row-major; columns: intercept, "
-                "covariates (standardised)",
+                "values_data_scale": self.coefficients_on_data_scale().tolist(),
+                "layout": "rows: off-diagonal entries (i, j) row-major; columns: 'columns' of "
+                "the formula's design, standardised ('scaling': (raw - centre) / sd) in "
+                "'values', raw in 'values_data_scale' (not read back)",
             },
             "step": self.step.to_dict(),
             "angle": self.angle.to_dict(),
@@ -434,7 +475,7 @@ class MovementHMM:
         }
 
     def save(self, path: str | Path) -> None:
-        """Write the model as JSON (schema ``hmmtrack.movement_hmm``, version 1)."""
+        """Write the model as JSON (schema ``hmmtrack.movement_hmm``, version 2)."""
         Path(path).write_text(json.dumps(self.to_dict(), indent=2) + "\n", encoding="utf-8")
 
     @classmethod
@@ -464,8 +505,10 @@ class MovementHMM:
         if schema != SCHEMA:
             reader.fail("schema", f"is {schema!r}; expected {SCHEMA!r}")
         version = reader.get("version", int)
-        if version != VERSION:
-            reader.fail("version", f"is {version}; this hmmtrack reads version {VERSION} only")
+        if version not in _READABLE_VERSIONS:
+            reader.fail(
+                "version", f"is {version}; this hmmtrack reads versions {_READABLE_VERSIONS}"
+            )
         n_states = reader.get("n_states", int)
         if n_states < 1:
             reader.fail("n_states", f"is {n_states}; expected a positive integer")
@@ -476,26 +519,21 @@ class MovementHMM:
         initial = reader.probabilities("initial", (n_states,))
         step = reader.distribution("step", n_states)
         angle = reader.distribution("angle", n_states)
-        transition = coefficients = None
-        names, scaling = (), {}
+        transition = coefficients = design = None
         if document.get("transition") is not None:
             transition = reader.probabilities("transition", (n_states, n_states))
         else:
             if document.get("coefficients") is None:
                 reader.fail("coefficients", "is missing; a model needs 'transition' or it")
             block = reader.get("coefficients", dict)
-            names = tuple(block.get("covariates", ()))
-            if not all(isinstance(n, str) for n in names):
-                reader.fail("coefficients.covariates", "expected a list of names")
             try:
-                scaling = {
-                    n: (float(block["scaling"][n]["mean"]), float(block["scaling"][n]["sd"]))
-                    for n in names
-                }
+                design = Design.from_dict(block if version > 1 else _version_1_design(block))
                 coefficients = np.array(block["values"], dtype=float)
             except (KeyError, TypeError, ValueError) as exc:
                 reader.fail("coefficients", f"malformed ({exc!r})")
-            expected = (n_states * (n_states - 1), 1 + len(names))
+            if not design.has_intercept:
+                reader.fail("coefficients.formula", f"{design.formula!r} has no intercept")
+            expected = (n_states * (n_states - 1), len(design.columns))
             if coefficients.shape != expected or not np.all(np.isfinite(coefficients)):
                 reader.fail(
                     "coefficients.values",
@@ -511,14 +549,26 @@ class MovementHMM:
             angle=angle,
             dt=math.nan if dt is None else float(dt),
             coefficients=coefficients,
-            covariate_names=names,
-            covariate_scaling=scaling,
+            transition_design=design,
             step_unit=step_unit,
             log_likelihood=reader.number("log_likelihood"),
             n_obs=reader.get("n_obs", int),
             aic=reader.number("aic"),
             bic=reader.number("bic"),
         )
+
+
+def _version_1_design(block: dict) -> dict:
+    """The design document of a version 1 coefficients block (plain covariate columns)."""
+    names = list(block["covariates"])
+    if not all(isinstance(n, str) for n in names):
+        raise ValueError("'covariates' must be a list of names")
+    scaling = block["scaling"]
+    return {
+        "formula": of_columns(names),
+        "columns": ["Intercept", *names],
+        "scaling": {n: {"centre": scaling[n]["mean"], "sd": scaling[n]["sd"]} for n in names},
+    }
 
 
 def _appended(distribution, extra: dict) -> dict:
