@@ -57,15 +57,13 @@ def drifting_clocks(receivers, first: float, last: float) -> ReceiverClocks:
 def logged(detections: pd.DataFrame, clocks: ReceiverClocks) -> pd.DataFrame:
     """``detections`` (common times) as the receivers' drifting clocks logged them: the
     receiver time ``t`` with ``clocks.to_common(receiver, t)`` the common time."""
-    out = detections.copy()
     common = detections["time"].to_numpy(dtype=float)
-    times = common.copy()
     names = detections["receiver"].to_numpy()
-    for name in pd.unique(names):
-        rows = names == name
-        for _ in range(4):  # fixed point: the correction changes by ppm of its own size
-            times[rows] = common[rows] + clocks.correction(name, times[rows])
-    return out.assign(time=times)
+    times = common
+    for _ in range(4):  # fixed point: the correction changes by ppm of its own size
+        correction = [clocks.correction(name, t) for name, t in zip(names, times, strict=True)]
+        times = common + np.array(correction, dtype=float)
+    return detections.assign(time=times)
 
 
 @dataclasses.dataclass(frozen=True)
