@@ -10,7 +10,8 @@ Two measurement models (``--measurement``), both run by
 :func:`hmmtrack.tracking.pipeline.track`: ``range-rate``, the paper's ranges and range-rates
 from the tag period and known initial ranges ``--r0``; ``arrival-time``, the tag's emission
 clock carried in the particle state, no initial range needed, optionally smoothed with a fixed
-lag (its detection times must be on one common time base).
+lag (its detection times must be on one common time base: ``--clocks``, the clock file of
+``hmmtrack sync``, moves each receiver's logged times to it).
 
 Settings come, in increasing precedence, from ``--preset`` (a bundled set of settings
 for one kind of deployment, e.g. ``two-moving-receivers``), ``--config`` (a JSON file, see
@@ -332,6 +333,7 @@ def run(args: argparse.Namespace) -> int:
     config = build_config(args)
     inputs = {"--detections": args.detections, "--receivers": args.receivers}
     inputs |= {"--config": args.config, "--model": args.model, "--truth": args.truth}
+    inputs |= {"--clocks": config.clocks}
     check_paths(inputs, outputs={"-o": args.output, "--plot": args.plot})
     seed = args.seed
     if seed is None:
@@ -347,7 +349,7 @@ def run(args: argparse.Namespace) -> int:
     if args.plot:
         from hmmtrack.plots.tracking import snapshot_times as choose_snapshots
 
-        tracked = tracking.select_transmitter(detections, config.transmitter)
+        tracked = tracking.tracked_detections(detections, config)
         snapshot_times = choose_snapshots(*tracking.time_window(tracked["time"], config))
     with warnings.catch_warnings():
         # the filter warns of each event as it happens; they are logged once below

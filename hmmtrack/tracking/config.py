@@ -17,8 +17,9 @@ its own keys. A configuration file is the same shape in JSON, e.g.::
      "smoothing_lag": 60}
 
 where a section may leave out any key with a default (``name`` too: ``"range-rate"`` and
-``"hmm"``), a relative ``model`` path is relative to the file, and an unknown key is an
-error that names the file, the section and the valid keys.
+``"hmm"``), a relative ``model`` path (and ``clocks``, a clock file of ``hmmtrack sync``) is
+relative to the file, and an unknown key is an error that names the file, the section and
+the valid keys.
 
 A *preset* is a bundled file of settings only, without the keys that describe one data set
 (period, ``r0``, transmitter, bounds, start, end), for one kind of deployment; read by name
@@ -118,6 +119,11 @@ class TrackingConfig(Settings):
     start, end : float, str or None
         Time window of the run: UTC epoch seconds or ISO 8601 text with a UTC offset
         (stored as seconds); ``None``: the first and last detection.
+    clocks : str or None
+        Clock file (:func:`hmmtrack.sync.write_clocks`; a relative path in a configuration
+        file is relative to that file): the tracked transmitter's detections are moved to
+        the common time base (:func:`hmmtrack.sync.apply_clocks`) before the measurement
+        builds its observations. ``None``: the logged times are taken as common.
     smoothing_lag : int or None
         Steps of a fixed-lag smoother (:class:`hmmtrack.tracking.smoothing.Smoothed`; s at the
         default 1 s prediction step), whose estimates a run then also returns.
@@ -164,6 +170,17 @@ class TrackingConfig(Settings):
         check=instant,
         data=True,
         default_text="the last detection",
+    )
+    clocks: str | None = setting(
+        None,
+        help=(
+            "clock file of hmmtrack sync: each receiver's logged times are moved to the "
+            "common time base before any measurement model sees them"
+        ),
+        check=text,
+        metavar="PATH",
+        data=True,
+        default_text="the logged times are on one time base",
     )
     smoothing_lag: int | None = setting(
         None,
@@ -312,7 +329,8 @@ def setting_sections() -> dict[str, str | None]:
 
 def read_settings(path: str | Path) -> dict:
     """The JSON object of settings in ``path`` (keys unchecked: :meth:`TrackingConfig.from_dict`
-    checks them), a relative motion ``model`` path made relative to the file's folder."""
+    checks them), a relative motion ``model`` path and ``clocks`` path made relative to the
+    file's folder."""
     path = Path(path)
     try:
         data = json.loads(path.read_text())
@@ -323,6 +341,8 @@ def read_settings(path: str | Path) -> dict:
     motion = data.get("motion")
     if isinstance(motion, dict) and isinstance(motion.get("model"), str):
         data["motion"] = motion | {"model": str(path.parent / motion["model"])}
+    if isinstance(data.get("clocks"), str):
+        data["clocks"] = str(path.parent / data["clocks"])
     return data
 
 

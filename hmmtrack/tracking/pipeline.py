@@ -18,8 +18,12 @@ measurements behind them are in reports/decisions.md ("Tracking defaults", "Moti
 algorithm stays reachable: ``config.override(resampling="multinomial",
 resample_when="always", variant="paper")`` (the HMM motion model in the paper's variant).
 
-This module reads no files and computes no metrics (see :mod:`hmmtrack.io`,
-:mod:`hmmtrack.analysis.metrics`).
+Detections logged by receivers with unsynchronised clocks are moved to the common time base
+of the configuration's ``clocks`` file (:mod:`hmmtrack.sync`) before the measurement sees
+them (:func:`tracked_detections`).
+
+This module reads only the files the configuration names (motion model, clock file) and
+computes no metrics (see :mod:`hmmtrack.io`, :mod:`hmmtrack.analysis.metrics`).
 """
 
 from __future__ import annotations
@@ -27,11 +31,14 @@ from __future__ import annotations
 import logging
 from collections.abc import Sequence
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
+from hmmtrack.io.times import format_times
 from hmmtrack.random import SeedLike, as_generator
+from hmmtrack.sync import apply_clocks, read_clocks
 from hmmtrack.tracking.config import TrackingConfig
 from hmmtrack.tracking.filter import FilterSettings, ParticleFilter
 from hmmtrack.tracking.measurement import MEASUREMENTS
@@ -44,10 +51,12 @@ from hmmtrack.tracking.tempering import Tempered
 __all__ = [
     "TrackingResult",
     "build_observations",
+    "on_common_time",
     "particle_filter",
     "select_transmitter",
     "time_window",
     "track",
+    "tracked_detections",
 ]
 
 logger = logging.getLogger(__name__)
@@ -99,6 +108,61 @@ def select_transmitter(detections: pd.DataFrame, transmitter: str | None) -> pd.
     return detections.loc[keep]
 
 
+def on_common_time(detections: pd.DataFrame, clocks: str | Path) -> pd.DataFrame:
+    """Detections moved from each receiver's clock to the common time base of a clock file.
+
+    Parameters
+    ----------
+    detections : pandas.DataFrame
+        Detections table (``time`` s on each receiver's own clock, ``receiver``).
+    clocks : str or Path
+        Clock file of ``hmmtrack sync`` (:func:`hmmtrack.sync.read_clocks`).
+
+    Returns
+    -------
+    pandas.DataFrame
+        :func:`hmmtrack.sync.apply_clocks`: ``time`` common, ``receiver_time`` as logged,
+        sorted by time.
+
+    Raises
+    ------
+    ValueError
+        For an unreadable clock file or one of another schema or version (naming the file
+        and field), a receiver of the detections without a clock (naming it), or detections
+        outside the time span the clocks were fitted over (saying by how much: a clock is
+        not extrapolated).
+    """
+    fitted = read_clocks(clocks)
+    try:
+        synchronised = apply_clocks(detections, fitted)
+    except ValueError as exc:
+        raise ValueError(f"{clocks}: {exc}") from None
+    first, last = float(fitted.segment_starts[0]), float(fitted.segment_ends[-1])
+    times = synchronised["time"].to_numpy(dtype=float)
+    before, after = times < first, times > last
+    if before.any() or after.any():
+        parts = []
+        if before.any():
+            parts.append(f"{int(before.sum())} up to {first - times.min():.1f} s before its start")
+        if after.any():
+            parts.append(f"{int(after.sum())} up to {times.max() - last:.1f} s after its end")
+        window = " to ".join(format_times(np.array([first, last])))
+        raise ValueError(
+            f"{clocks}: {' and '.join(parts)} of the {len(times)} detections lie outside the "
+            f"clock file's time span ({window}); fit the clocks over the whole deployment "
+            "(hmmtrack sync on detections covering the tracked tag's)"
+        )
+    return synchronised
+
+
+def tracked_detections(detections: pd.DataFrame, config: TrackingConfig) -> pd.DataFrame:
+    """The detections of ``config.transmitter`` (:func:`select_transmitter`), on the common
+    time base of ``config.clocks`` when set (:func:`on_common_time`): what the measurement
+    builds its observations from."""
+    chosen = select_transmitter(detections, config.transmitter)
+    return chosen if config.clocks is None else on_common_time(chosen, config.clocks)
+
+
 def time_window(
     times, config: TrackingConfig, start: float | None = None, end: float | None = None
 ) -> tuple[float, float]:
@@ -124,7 +188,8 @@ def time_window(
 def build_observations(
     detections: pd.DataFrame, receivers: pd.DataFrame | ReceiverTracks, config: TrackingConfig
 ) -> pd.DataFrame:
-    """The filter's observations of ``config.transmitter``, as the configuration's measurement
+    """The filter's observations of ``config.transmitter`` (:func:`tracked_detections`: on
+    the common time base of ``config.clocks`` when set), as the configuration's measurement
     builds them (its ``observations``: :meth:`RangeRateMeasurement.observations
     <hmmtrack.tracking.measurement.range_rate.RangeRateMeasurement.observations>`,
     :func:`hmmtrack.tracking.measurement.clocked.arrival_observations`).
@@ -141,10 +206,11 @@ def build_observations(
     Raises
     ------
     ValueError
-        When the transmitter is ambiguous or the measurement cannot build its observations
-        (messages name what and where).
+        When the transmitter is ambiguous, the clock file does not fit the detections
+        (:func:`on_common_time`) or the measurement cannot build its observations (messages
+        name what and where).
     """
-    chosen = select_transmitter(detections, config.transmitter)
+    chosen = tracked_detections(detections, config)
     settings = config.measurement
     return MEASUREMENTS[settings.name].observations(chosen, receivers, settings)
 
@@ -262,6 +328,7 @@ def track(
     detections, receivers, config
         See :func:`build_observations`; the configuration's sections name the measurement,
         the motion model (its model file, variant, resting state), the filter's settings,
+        its ``clocks`` a clock file mapping the receivers' times to the common time base,
         and its ``smoothing_lag`` a fixed-lag smoother.
     motion : motion model, optional
         The motion model to run instead of the one the ``motion`` section builds.
