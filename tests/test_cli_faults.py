@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import errno
 import hashlib
+import json
 import os
 import shutil
 import subprocess
@@ -45,6 +46,11 @@ def world(tmp_path_factory) -> Path:
     tracks = pd.read_csv(EXAMPLE_TRACKS)
     tracks[tracks["id"] == tracks["id"].iloc[0]].head(150).to_csv(root / "tracks.csv", index=False)
     load_white_shark_hmm().save(root / "model.json")
+    document = json.loads((root / "model.json").read_text())
+    (root / "model_misspelt.json").write_text(
+        json.dumps({("trasition" if k == "transition" else k): v for k, v in document.items()})
+    )
+    (root / "model_aic.json").write_text(json.dumps(document | {"aic": document["aic"] + 5}))
     (root / "folder").mkdir()
     (root / "reports").mkdir()
     (root / "reports" / "summary.md").write_text(PREVIOUS)

@@ -25,7 +25,7 @@ def two_state_model(**changes):
         log_likelihood=-1234.5678901234567,
         n_obs=1000,
         aic=2491.1357802469134,
-        bic=2545.1234,
+        bic=2545.121088315717,  # -2 logL + 11 log(1000): AIC implies 11 parameters
     )
     fields.update(changes)
     return MovementHMM(**fields)
@@ -290,3 +290,82 @@ def test_constructor_checks_shapes():
         two_state_model(angle=VonMises(np.zeros(3), np.ones(3)))
     with pytest.raises(ValueError, match="exactly one of 'transition' and 'coefficients'"):
         two_state_model(coefficients=np.zeros((2, 1)))
+
+
+# --- strict loading and plausibility of a model -------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("change", "words"),
+    [
+        (lambda d: d.update(trasition=d.pop("transition")), ["'trasition'", "'transition'"]),
+        (lambda d: d.update(extra=1), ["unknown field(s) ['extra']", "valid fields", "'n_obs'"]),
+        (lambda d: d["units"].update(time="s"), ["'units.time'", "'units.step'"]),
+    ],
+)
+def test_load_refuses_unknown_or_misspelt_fields_naming_the_valid_ones(tmp_path, change, words):
+    document = two_state_model().to_dict()
+    change(document)
+    with pytest.raises(ValueError) as info:
+        MovementHMM.load(_write(tmp_path / "bad.json", document))
+    assert str(tmp_path / "bad.json") in str(info.value)
+    for word in words:
+        assert word in str(info.value)
+
+
+def test_load_refuses_unknown_coefficient_fields_and_units(tmp_path):
+    document = covariate_model().to_dict()
+    document["coefficients"]["scale"] = document["coefficients"].pop("scaling")
+    with pytest.raises(ValueError, match=r"'coefficients.scale'.*did you mean 'scaling'"):
+        MovementHMM.load(_write(tmp_path / "c.json", document))
+    document = two_state_model().to_dict()
+    document["units"]["angle"] = "deg"
+    with pytest.raises(ValueError, match=r"'units.angle' is 'deg'; expected 'rad'"):
+        MovementHMM.load(_write(tmp_path / "u.json", document))
+
+
+@pytest.mark.parametrize(
+    ("fields", "words"),
+    [
+        ({"n_obs": -5}, "n_obs is -5"),
+        ({"n_obs": 0}, "n_obs is 0 but a log-likelihood"),
+        ({"log_likelihood": -1200.0}, "is not 2 times a positive whole number"),
+        ({"aic": 2491.6}, "does not follow from log_likelihood"),
+        ({"bic": 2545.2}, "bic = 2545.2 contradicts log_likelihood"),
+        ({"n_obs": 2000}, "the 11 parameters implied by aic"),
+        ({"log_likelihood": np.nan}, "aic and bic given without the log-likelihood"),
+    ],
+)
+def test_contradictory_fit_summary_is_refused_on_load_and_construction(tmp_path, fields, words):
+    with pytest.raises(ValueError, match=words.replace("(", r"\(")):
+        two_state_model(**fields)
+    document = two_state_model().to_dict()
+    document.update({k: None if v is np.nan else v for k, v in fields.items()})
+    with pytest.raises(ValueError) as info:
+        MovementHMM.load(_write(tmp_path / "bad.json", document))
+    assert str(tmp_path / "bad.json") in str(info.value) and words in str(info.value)
+
+
+def test_fit_summary_rules_accept_consistent_and_partial_summaries():
+    """AIC alone, BIC alone, neither, and a one-row fit (BIC says nothing about p)."""
+    two_state_model(bic=np.nan)
+    two_state_model(aic=np.nan)
+    two_state_model(aic=np.nan, bic=np.nan, log_likelihood=np.nan, n_obs=0)
+    two_state_model(n_obs=1, bic=2469.1357802469134)
+    with pytest.raises(ValueError, match="bic = 2470.0 contradicts"):
+        two_state_model(n_obs=1, bic=2470.0)
+
+
+def test_constructor_refuses_a_transition_matrix_that_is_not_stochastic():
+    for bad in ([[0.9, 0.2], [0.25, 0.75]], [[1.1, -0.1], [0.25, 0.75]], [[np.nan, 1], [0, 1]]):
+        with pytest.raises(ValueError, match="transition must hold finite non-negative"):
+            two_state_model(transition=np.array(bad))
+    with pytest.raises(ValueError, match="initial must hold"):
+        two_state_model(initial=np.array([0.5, 0.6]))
+
+
+def test_bundled_models_load():
+    from hmmtrack.scenarios.white_shark_hmm import load_white_shark_hmm
+
+    model = load_white_shark_hmm()
+    assert model.n_obs == 162976 and model.n_states == 2

@@ -18,6 +18,7 @@ This module is not for fitting (see :mod:`hmmtrack.hmm.fit`) nor for the recursi
 
 from __future__ import annotations
 
+import difflib
 import json
 import math
 from dataclasses import dataclass
@@ -35,6 +36,17 @@ from hmmtrack.hmm.inference import forward_backward, viterbi
 SCHEMA = "hmmtrack.movement_hmm"
 VERSION = 2
 _READABLE_VERSIONS = (1, 2)
+# The fields of a model document (see MovementHMM.to_dict), in file order; no others are read.
+_FIELDS = (
+    "schema", "version", "package_version", "units", "n_states", "dt", "initial", "transition",
+    "coefficients", "step", "angle", "log_likelihood", "n_obs", "aic", "bic",
+)  # fmt: skip
+_UNITS = {"step": "m", "angle": "rad", "dt": "s"}
+# the fields of the coefficients block, by file version
+_COEFFICIENT_FIELDS = {
+    1: ("covariates", "scaling", "values", "layout"),
+    2: ("formula", "columns", "scaling", "levels", "values", "values_data_scale", "layout"),
+}
 
 
 @dataclass(frozen=True)
@@ -168,8 +180,16 @@ class MovementHMM:
     log_likelihood : float
         Maximised log-likelihood (NaN if unknown).
     n_obs : int
-        Number of rows (time points) fitted.
+        Number of rows (time points) fitted; positive when ``log_likelihood`` is known.
     aic, bic : float
+        ``-2 logL + 2 p`` and ``-2 logL + p log(n_obs)`` for ``p`` free parameters (NaN if
+        unknown); the constructor refuses values that do not follow from ``log_likelihood``.
+
+    Raises
+    ------
+    ValueError
+        When constructed with shapes that disagree, an ``initial`` or ``transition`` that is not
+        row-stochastic, or a contradictory fit summary.
     """
 
     initial: np.ndarray
@@ -218,6 +238,14 @@ class MovementHMM:
         for name, (shape, expected) in shapes.items():
             if shape != expected:
                 raise ValueError(f"{name} has shape {shape}; expected {expected} for K = {k}")
+        for name in ("initial", "transition"):
+            values = getattr(self, name)
+            if values is not None and not _is_stochastic(values):
+                raise ValueError(
+                    f"{name} must hold finite non-negative numbers with each row summing to 1, "
+                    f"got {values.tolist()}"
+                )
+        _check_fit_summary(self.log_likelihood, self.n_obs, self.aic, self.bic)
 
     @property
     def n_states(self) -> int:
@@ -485,8 +513,10 @@ class MovementHMM:
         Raises
         ------
         ValueError
-            Naming the file and the field, for an unknown schema or version, a missing or
-            malformed field, or probabilities that are not probabilities.
+            Naming the file and the field, for an unknown schema or version, an unknown
+            (e.g. misspelt) field, a missing or malformed field, probabilities that are not
+            probabilities, or a log-likelihood, ``n_obs``, AIC and BIC that contradict each
+            other.
         """
         path = Path(path)
         try:
@@ -509,13 +539,18 @@ class MovementHMM:
             reader.fail(
                 "version", f"is {version}; this hmmtrack reads versions {_READABLE_VERSIONS}"
             )
+        reader.known_keys("", document, _FIELDS)
         n_states = reader.get("n_states", int)
         if n_states < 1:
             reader.fail("n_states", f"is {n_states}; expected a positive integer")
         units = reader.get("units", dict)
+        reader.known_keys("units.", units, _UNITS)
         step_unit = units.get("step")
         if not isinstance(step_unit, str):
             reader.fail("units.step", "missing or not a string")
+        for name in ("angle", "dt"):
+            if units.get(name, _UNITS[name]) != _UNITS[name]:
+                reader.fail(f"units.{name}", f"is {units[name]!r}; expected {_UNITS[name]!r}")
         initial = reader.probabilities("initial", (n_states,))
         step = reader.distribution("step", n_states)
         angle = reader.distribution("angle", n_states)
@@ -526,6 +561,7 @@ class MovementHMM:
             if document.get("coefficients") is None:
                 reader.fail("coefficients", "is missing; a model needs 'transition' or it")
             block = reader.get("coefficients", dict)
+            reader.known_keys("coefficients.", block, _COEFFICIENT_FIELDS[version])
             try:
                 design = Design.from_dict(block if version > 1 else _version_1_design(block))
                 coefficients = np.array(block["values"], dtype=float)
@@ -542,20 +578,23 @@ class MovementHMM:
         dt = document.get("dt")
         if dt is not None and not (isinstance(dt, int | float) and dt > 0):
             reader.fail("dt", f"is {dt!r}; expected a positive number of seconds or null")
-        return cls(
-            initial=initial,
-            transition=transition,
-            step=step,
-            angle=angle,
-            dt=math.nan if dt is None else float(dt),
-            coefficients=coefficients,
-            transition_design=design,
-            step_unit=step_unit,
-            log_likelihood=reader.number("log_likelihood"),
-            n_obs=reader.get("n_obs", int),
-            aic=reader.number("aic"),
-            bic=reader.number("bic"),
-        )
+        try:
+            return cls(
+                initial=initial,
+                transition=transition,
+                step=step,
+                angle=angle,
+                dt=math.nan if dt is None else float(dt),
+                coefficients=coefficients,
+                transition_design=design,
+                step_unit=step_unit,
+                log_likelihood=reader.number("log_likelihood"),
+                n_obs=reader.get("n_obs", int),
+                aic=reader.number("aic"),
+                bic=reader.number("bic"),
+            )
+        except ValueError as exc:
+            raise ValueError(f"{source}: {exc}") from exc
 
 
 def _version_1_design(block: dict) -> dict:
@@ -585,6 +624,58 @@ def _float_or_none(value: float) -> float | None:
     return None if value is None or math.isnan(value) else float(value)
 
 
+def _is_stochastic(values: np.ndarray) -> bool:
+    """True for finite non-negative numbers whose last axis sums to 1 (to 1e-6)."""
+    return bool(
+        np.all(np.isfinite(values))
+        and np.all(values >= 0)
+        and np.all(np.abs(values.sum(axis=-1) - 1) <= 1e-6)
+    )
+
+
+def _check_fit_summary(log_likelihood: float, n_obs, aic: float, bic: float) -> None:
+    """Refuse a fit summary whose numbers contradict each other.
+
+    ``n_obs`` is a non-negative integer, positive once a log-likelihood is known. AIC and BIC
+    are what :func:`hmmtrack.hmm.fit.information_criteria` makes of the log-likelihood:
+    ``AIC = -2 logL + 2 p`` and ``BIC = -2 logL + p log n_obs`` for one whole number ``p`` of
+    free parameters. The file does not store ``p`` (it depends on fitting options such as
+    fixed angle means), so ``p`` is recovered from one criterion and the other must agree.
+    """
+    if isinstance(n_obs, bool) or not isinstance(n_obs, int | np.integer) or n_obs < 0:
+        raise ValueError(f"n_obs is {n_obs!r}; expected a non-negative integer (rows fitted)")
+    if math.isnan(log_likelihood):
+        given = [name for name, value in (("aic", aic), ("bic", bic)) if not math.isnan(value)]
+        if given:
+            raise ValueError(f"{' and '.join(given)} given without the log-likelihood")
+        return
+    if n_obs == 0:
+        raise ValueError("n_obs is 0 but a log-likelihood is given; expected the rows fitted")
+    deviance = -2.0 * log_likelihood
+    per_parameter = {"aic": 2.0, "bic": math.log(n_obs)}
+    values = {name: value for name, value in (("aic", aic), ("bic", bic)) if not math.isnan(value)}
+    first = next(iter(values), None)
+    if first is None or per_parameter[first] == 0:  # no criterion, or BIC of a single row
+        return
+    n_parameters = (values[first] - deviance) / per_parameter[first]
+    tolerance = 1e-6 * max(1.0, abs(deviance))
+    if n_parameters < 0.5 or abs(n_parameters - round(n_parameters)) * 2.0 > tolerance:
+        raise ValueError(
+            f"{first} = {values[first]!r} does not follow from log_likelihood = "
+            f"{log_likelihood!r}: {first} - (-2 logL) = {values[first] - deviance:.6g} is not "
+            f"{per_parameter[first]:.6g} times a positive whole number of parameters"
+        )
+    n_parameters = round(n_parameters)
+    for name, value in values.items():
+        expected = deviance + per_parameter[name] * n_parameters
+        if abs(value - expected) > tolerance:
+            raise ValueError(
+                f"{name} = {value!r} contradicts log_likelihood = {log_likelihood!r}, "
+                f"n_obs = {n_obs} and the {n_parameters} parameters implied by {first}: "
+                f"expected {expected!r}"
+            )
+
+
 class _Reader:
     """Field access on a model document with errors naming the source and field."""
 
@@ -596,6 +687,18 @@ class _Reader:
 
     def fail(self, name: str, message: str):
         raise ValueError(f"{self.source}: field {name!r} {message}")
+
+    def known_keys(self, prefix: str, block: dict, valid) -> None:
+        """Refuse keys of ``block`` outside ``valid``, naming them, a likely intended key and
+        the valid ones (a misspelt field would otherwise be silently ignored)."""
+        unknown = sorted(set(block) - set(valid))
+        if unknown:
+            guesses = {u: difflib.get_close_matches(u, list(valid), n=1) for u in unknown}
+            hints = "".join(f" ({u!r}: did you mean {g[0]!r}?)" for u, g in guesses.items() if g)
+            raise ValueError(
+                f"{self.source}: unknown field(s) {[prefix + u for u in unknown]}{hints}; "
+                f"valid fields: {[prefix + v for v in valid]}"
+            )
 
     def get(self, name: str, kind: type):
         if name not in self.document:
@@ -621,11 +724,7 @@ class _Reader:
             self.fail(name, "is not an array of numbers")
         if values.shape != shape:
             self.fail(name, f"has shape {values.shape}; expected {shape}")
-        if (
-            np.any(~np.isfinite(values))
-            or np.any(values < 0)
-            or np.any(np.abs(values.sum(axis=-1) - 1) > 1e-6)
-        ):
+        if not _is_stochastic(values):
             self.fail(name, "must hold non-negative numbers with each row summing to 1")
         return values
 
