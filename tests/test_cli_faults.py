@@ -20,7 +20,7 @@ import os
 import shutil
 import subprocess
 import sys
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import pandas as pd
@@ -45,7 +45,14 @@ def world(tmp_path_factory) -> Path:
     write_scenario(scenario, root / "sim", scenario_settings(scenario))
     tracks = pd.read_csv(EXAMPLE_TRACKS)
     tracks[tracks["id"] == tracks["id"].iloc[0]].head(150).to_csv(root / "tracks.csv", index=False)
-    load_white_shark_hmm().save(root / "model.json")
+    # a model fitted at the tracks' 120 s step; tracks at 1 s and 1,200 s for decode to refuse
+    replace(load_white_shark_hmm(), dt=120.0).save(root / "model.json")
+    for step in (1, 1200):
+        other = pd.read_csv(root / "tracks.csv")
+        start = pd.Timestamp(other["time"].iloc[0])
+        other["time"] = [f"{start + pd.Timedelta(seconds=step * i):%Y-%m-%dT%H:%M:%SZ}"
+                         for i in range(len(other))]  # fmt: skip
+        other.to_csv(root / f"tracks_{step}s.csv", index=False)
     document = json.loads((root / "model.json").read_text())
     (root / "model_misspelt.json").write_text(
         json.dumps({("trasition" if k == "transition" else k): v for k, v in document.items()})

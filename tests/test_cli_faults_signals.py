@@ -16,6 +16,7 @@ import signal
 import subprocess
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -38,7 +39,7 @@ def inputs(tmp_path_factory) -> Path:
     root = tmp_path_factory.mktemp("inputs")
     scenario = stationary_tag(11)
     write_scenario(scenario, root / "sim", scenario_settings(scenario))
-    load_white_shark_hmm().save(root / "model.json")
+    replace(load_white_shark_hmm(), dt=120.0).save(root / "model.json")  # the tracks' step
     return root
 
 

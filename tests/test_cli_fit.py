@@ -1,12 +1,13 @@
 """End-to-end tests of ``hmmtrack fit`` and ``hmmtrack decode`` on a small track file."""
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pandas as pd
 import pytest
 
-from hmmtrack import tracks
+from hmmtrack import io, tracks
 from hmmtrack.cli import main
 from hmmtrack.hmm import Gamma, MovementHMM, VonMises
 
@@ -84,9 +85,7 @@ def test_fit_then_decode(track_file, tmp_path, capsys):
     } <= set(decoded.columns)
     assert decoded["time"].iloc[0] == "2024-06-01T00:00:00.000Z"
     np.testing.assert_allclose(decoded[["p_state1", "p_state2"]].sum(axis=1), 1.0)
-    raw = pd.read_csv(track_file)
-    raw["time"] = pd.to_datetime(raw["time"]).astype("int64") / 1e9
-    expected = model.viterbi(tracks.prepare(raw)) + 1
+    expected = model.viterbi(tracks.prepare(io.read_tracks(track_file))) + 1
     np.testing.assert_array_equal(decoded["state"], expected)
 
 
@@ -181,3 +180,52 @@ def test_fit_with_a_transition_formula(track_file, tmp_path, capsys):
     model_path.unlink()
     assert main([*arguments, "--formula", "step.mean ~ cosT"]) != 0
     assert "only the transition" in capsys.readouterr().err
+
+
+def test_decode_refuses_another_time_step_unless_regularised_or_allowed(track_file, tmp_path):
+    """A model fitted at 60 s decodes 20 s tracks only after --regularise 60 or with
+    --allow-other-step; the regularised track is the 60 s grid (states equal to decoding
+    the original 60 s fixes, which the grid interpolates exactly)."""
+    model_path = tmp_path / "m.json"
+    replace(TRUE, dt=60.0).save(model_path)
+    table = pd.read_csv(track_file)
+    fine = []
+    for _, animal in table.groupby("id", sort=False):
+        times = pd.to_datetime(animal["time"])
+        grid = pd.date_range(times.iloc[0], times.iloc[-1], freq="20s")
+        seconds = (grid - times.iloc[0]).total_seconds()
+        given = (times - times.iloc[0]).dt.total_seconds()
+        fine.append(
+            pd.DataFrame(
+                {
+                    "id": animal["id"].iloc[0],
+                    "time": grid.strftime("%Y-%m-%dT%H:%M:%SZ"),
+                    "x": np.interp(seconds, given, animal["x"]),
+                    "y": np.interp(seconds, given, animal["y"]),
+                }
+            )
+        )
+    fine_path = tmp_path / "fine.csv"
+    pd.concat(fine).to_csv(fine_path, index=False)
+    decode = ["decode", str(fine_path), "--model", str(model_path), "-o"]
+    assert main([*decode, str(tmp_path / "refused.csv")]) == 2
+    assert not (tmp_path / "refused.csv").exists()
+    assert main([*decode, str(tmp_path / "allowed.csv"), "--allow-other-step"]) == 0
+    assert len(pd.read_csv(tmp_path / "allowed.csv")) == 2 * (3 * 399 + 1)
+    assert main([*decode, str(tmp_path / "grid.csv"), "--regularise", "60"]) == 0
+    direct = ["decode", str(track_file), "--model", str(model_path), "-o"]
+    assert main([*direct, str(tmp_path / "direct.csv")]) == 0
+    on_grid, original = pd.read_csv(tmp_path / "grid.csv"), pd.read_csv(tmp_path / "direct.csv")
+    assert len(on_grid) == len(original) == 800
+    np.testing.assert_allclose(on_grid[["x", "y"]], original[["x", "y"]], atol=1e-6)
+    np.testing.assert_array_equal(on_grid["state"], original["state"])
+
+
+def test_library_decoding_checks_the_time_step(track_file):
+    model = replace(TRUE, dt=120.0)
+    prepared = tracks.prepare(io.read_tracks(track_file))
+    for method in (model.viterbi, model.state_probabilities, model.score):
+        with pytest.raises(ValueError, match=r"time step 60 s .* model's 120 s"):
+            method(prepared)
+        method(prepared, allow_other_step=True)
+    TRUE.viterbi(prepared)  # a model without a time step checks nothing

@@ -5,10 +5,11 @@ Example::
     hmmtrack decode data/example_tracks.csv --model model.json -o states.csv
 
 reads and prepares the tracks with the same options as ``hmmtrack fit``, loads the model file,
-and writes one row per fix: the track columns, ``segment``, ``step``, ``angle``, the Viterbi
-``state`` (1 = the state with the smallest mean step, as moveHMM numbers them) and
-``p_state1`` ... ``p_stateK`` (posterior probabilities). Times are written as ISO 8601 UTC;
-lengths (``x``, ``y``, ``step``) are in the unit set by ``--scale`` (metres by default), as the
+refuses tracks whose time step is not the model's (``--regularise`` the tracks to it, or pass
+``--allow-other-step``) and writes one row per fix: the track columns, ``segment``, ``step``,
+``angle``, the Viterbi ``state`` (1 = the state with the smallest mean step, as moveHMM numbers
+them) and ``p_state1`` ... ``p_stateK`` (posterior probabilities). Times are written as ISO 8601
+UTC; lengths (``x``, ``y``, ``step``) are in the unit set by ``--scale`` (metres by default), as the
 model was fitted.
 """
 
@@ -32,6 +33,12 @@ def register(subparsers) -> None:
     )
     add_track_arguments(parser)
     parser.add_argument("--model", required=True, help="model JSON file (hmmtrack fit -o)")
+    parser.add_argument(
+        "--allow-other-step",
+        action="store_true",
+        help="decode tracks whose time step differs from the model's by more than 10 %% "
+        "(refused by default: steps over another duration are other quantities)",
+    )
     parser.add_argument("-o", "--output", required=True, help="CSV file to write")
     parser.set_defaults(func=run)
 
@@ -45,8 +52,8 @@ def run(args: argparse.Namespace) -> int:
             f"{step_unit(args.scale)} (pass the --scale used with hmmtrack fit)"
         )
     prepared = read_prepared(args)
-    states = model.viterbi(prepared)
-    probabilities = model.state_probabilities(prepared)
+    states = model.viterbi(prepared, allow_other_step=args.allow_other_step)
+    probabilities = model.state_probabilities(prepared, allow_other_step=True)
     out = prepared.copy()
     out["state"] = states + 1
     for k in range(model.n_states):

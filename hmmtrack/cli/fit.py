@@ -16,6 +16,7 @@ and AIC, and writes the model file. The reading options defined here are shared 
 from __future__ import annotations
 
 import argparse
+import math
 
 import pandas as pd
 
@@ -45,6 +46,13 @@ def add_track_arguments(parser: argparse.ArgumentParser) -> None:
     group.add_argument("--tz", help="time zone of times written without an offset")
     group.add_argument(
         "--max-gap", type=float, help="split tracks at gaps longer than this many seconds"
+    )
+    group.add_argument(
+        "--regularise",
+        type=float,
+        metavar="SECONDS",
+        help="resample each track to this time step by linear interpolation "
+        "(hmmtrack.tracks.regularise; gaps over --max-gap stay missing)",
     )
     group.add_argument(
         "--scale",
@@ -85,6 +93,12 @@ def read_prepared(args: argparse.Namespace) -> pd.DataFrame:
             y_col=args.y_col,
             tz=args.tz,
         )
+    if args.regularise is not None:
+        if not (math.isfinite(args.regularise) and args.regularise > 0):
+            raise ValueError(
+                f"--regularise must be a positive number of seconds, got {args.regularise}"
+            )
+        table = tracks.regularise(table, args.regularise, max_gap=args.max_gap)
     return tracks.prepare(table, scale=args.scale, max_gap=args.max_gap)
 
 

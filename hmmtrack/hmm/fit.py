@@ -42,14 +42,13 @@ from hmmtrack.hmm import covariates as cov
 from hmmtrack.hmm import distributions
 from hmmtrack.hmm import formula as formulas
 from hmmtrack.hmm.inference import forward_backward, load_kernels, log_likelihood
-from hmmtrack.hmm.model import MovementHMM, Observations
+from hmmtrack.hmm.model import DT_TOLERANCE, MovementHMM, Observations
 from hmmtrack.random import as_generator, spawn
 
 logger = logging.getLogger(__name__)
 
 _TINY = 1e-12  # floor of probabilities whose log is a working parameter
 _POLISH_GTOL = 1e-6  # polish stops when no gradient entry of the per-row log-lik exceeds this
-_DT_TOLERANCE = 0.1  # fit warns when a time step differs from the median by more than 10 %
 #: EM iterations before run_em accelerates (SQUAREM); common fits have converged by then
 ACCELERATE_AFTER = 20
 
@@ -608,7 +607,7 @@ def warn_if_irregular(table: pd.DataFrame) -> None:
     tell apart.
 
     The warning counts the rows whose ``dt`` differs from the median by more than
-    ``_DT_TOLERANCE`` (10 %) of it and names the functions that regularise a track.
+    ``DT_TOLERANCE`` (10 %) of it and names the functions that regularise a track.
     """
     if "dt" not in table.columns:
         return
@@ -617,12 +616,13 @@ def warn_if_irregular(table: pd.DataFrame) -> None:
     if dt.size == 0:
         return
     median = float(np.median(dt))
-    irregular = np.abs(dt - median) > _DT_TOLERANCE * median
+    irregular = np.abs(dt - median) > DT_TOLERANCE * median
     if irregular.any():
         warnings.warn(
             f"time steps vary: {int(irregular.sum())} of {dt.size} differ from the median "
-            f"{median:g} s by more than {_DT_TOLERANCE:.0%}; regularise the track before "
-            "preparing it: hmmtrack.hmm.crw.regularise(tracks, step) (continuous-time "
+            f"{median:g} s by more than {DT_TOLERANCE:.0%}; regularise the track before "
+            "preparing it (hmmtrack fit --regularise STEP): hmmtrack.hmm.crw.regularise(tracks, "
+            "step) (continuous-time "
             "correlated random walk; crw.impute with imputation.fit_imputed for multiple "
             "imputation) or hmmtrack.tracks.regularise(tracks, step) (linear interpolation)",
             UserWarning,

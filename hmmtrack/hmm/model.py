@@ -42,6 +42,7 @@ _FIELDS = (
     "coefficients", "step", "angle", "log_likelihood", "n_obs", "aic", "bic",
 )  # fmt: skip
 _UNITS = {"step": "m", "angle": "rad", "dt": "s"}
+DT_TOLERANCE = 0.1  # a time step more than 10 % from the reference one is another step
 # the fields of the coefficients block, by file version
 _COEFFICIENT_FIELDS = {
     1: ("covariates", "scaling", "values", "layout"),
@@ -409,7 +410,41 @@ class MovementHMM:
             np.asarray(angle, float)
         )
 
-    def _recursion_inputs(self, data: pd.DataFrame):
+    def check_time_step(self, data: pd.DataFrame) -> None:
+        """Refuse a prepared track whose time step is not the model's.
+
+        Steps and turning angles over another duration are other quantities (a 1 s step is not
+        a 120 s step), so states decoded from them are meaningless. The track's step is the
+        median of its ``dt`` column (s); it must be within ``DT_TOLERANCE`` (10 %) of
+        :attr:`dt`. Nothing is checked when the model or the track has no time step.
+
+        Raises
+        ------
+        ValueError
+            Naming both steps and the functions that regularise a track to the model's step.
+        """
+        if not math.isfinite(self.dt) or "dt" not in data.columns:
+            return
+        dt = np.asarray(data["dt"], dtype=float)
+        dt = dt[np.isfinite(dt)]
+        if dt.size == 0:
+            return
+        median = float(np.median(dt))
+        if abs(median - self.dt) > DT_TOLERANCE * self.dt:
+            source = data.attrs.get("source", "the track")
+            raise ValueError(
+                f"{source}: time step {median:g} s (median of 'dt') is not the model's "
+                f"{self.dt:g} s (model.dt); steps and turning angles over another duration are "
+                f"other quantities. Regularise the track to {self.dt:g} s first (hmmtrack "
+                f"fit/decode --regularise {self.dt:g}; in Python "
+                f"hmmtrack.tracks.regularise(tracks, {self.dt:g}) or "
+                f"hmmtrack.hmm.crw.regularise(tracks, {self.dt:g})), or accept the difference"
+                " (--allow-other-step; allow_other_step=True)"
+            )
+
+    def _recursion_inputs(self, data: pd.DataFrame, allow_other_step: bool):
+        if not allow_other_step:
+            self.check_time_step(data)
         obs = Observations.from_frame(data, self.transition_design)
         with np.errstate(divide="ignore"):
             log_initial = np.log(self.initial)
@@ -420,17 +455,24 @@ class MovementHMM:
             obs.lengths,
         )
 
-    def state_probabilities(self, data: pd.DataFrame) -> np.ndarray:
-        """Posterior state probabilities of each row of a prepared track, shape ``(T, K)``."""
-        return forward_backward(*self._recursion_inputs(data)).posterior
+    def state_probabilities(
+        self, data: pd.DataFrame, *, allow_other_step: bool = False
+    ) -> np.ndarray:
+        """Posterior state probabilities of each row of a prepared track, shape ``(T, K)``.
 
-    def score(self, data: pd.DataFrame) -> float:
+        A track at another time step than the model's is refused (:meth:`check_time_step`)
+        unless ``allow_other_step``; so in :meth:`score` and :meth:`viterbi`.
+        """
+        return forward_backward(*self._recursion_inputs(data, allow_other_step)).posterior
+
+    def score(self, data: pd.DataFrame, *, allow_other_step: bool = False) -> float:
         """Log-likelihood of a prepared track under this model."""
-        return float(forward_backward(*self._recursion_inputs(data)).log_likelihood)
+        inputs = self._recursion_inputs(data, allow_other_step)
+        return float(forward_backward(*inputs).log_likelihood)
 
-    def viterbi(self, data: pd.DataFrame) -> np.ndarray:
+    def viterbi(self, data: pd.DataFrame, *, allow_other_step: bool = False) -> np.ndarray:
         """Most probable state sequence of a prepared track, shape ``(T,)``, states 0..K-1."""
-        return viterbi(*self._recursion_inputs(data))
+        return viterbi(*self._recursion_inputs(data, allow_other_step))
 
     def simulate(
         self, rng: np.random.Generator, n: int, covariates: pd.DataFrame | dict | None = None
