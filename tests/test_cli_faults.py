@@ -58,6 +58,10 @@ def world(tmp_path_factory) -> Path:
         json.dumps({("trasition" if k == "transition" else k): v for k, v in document.items()})
     )
     (root / "model_aic.json").write_text(json.dumps(document | {"aic": document["aic"] + 5}))
+    two = pd.read_csv(root / "sim" / "detections.csv")  # ID part 1234 in two code spaces
+    pd.concat([two, two.assign(transmitter="A69-9001-1234")]).to_csv(
+        root / "det_two_1234.csv", index=False
+    )
     (root / "folder").mkdir()
     (root / "reports").mkdir()
     (root / "reports" / "summary.md").write_text(PREVIOUS)

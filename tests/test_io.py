@@ -394,3 +394,27 @@ def test_write_estimates_round_trip(tmp_path):
         .replace("+00:00", "Z")
     )
     assert back["time"].iloc[2] == forward
+
+
+def test_an_id_part_shared_by_two_code_spaces_is_refused(tmp_path):
+    """``42`` names two tags here; merging them would track two animals as one."""
+    from hmmtrack.tracking.pipeline import select_transmitter
+
+    path = tmp_path / "d.csv"
+    path.write_text(
+        "time,receiver,transmitter\n"
+        "2024-01-01T00:00:00Z,a,A69-1602-42\n"
+        "2024-01-01T00:00:05Z,a,A69-9001-42\n"
+        "2024-01-01T00:00:09Z,b,A69-1602-42\n"
+        "2024-01-01T00:00:12Z,b,A69-1602-7\n"
+    )
+    with pytest.raises(ValueError, match=r"'42' is ambiguous.*\['A69-1602-42', 'A69-9001-42'\]"):
+        io.read_detections(path, transmitter="42")
+    table = io.read_detections(path)
+    with pytest.raises(ValueError, match=r"d.csv.*full ID, e.g. --transmitter A69-1602-42"):
+        io.read_detections(path, transmitter=["7", "42"])
+    with pytest.raises(ValueError, match="ambiguous.*A69-9001-42"):
+        select_transmitter(table, "42")
+    assert select_transmitter(table, "A69-9001-42")["receiver"].tolist() == ["a"]
+    assert select_transmitter(table, "7")["transmitter"].tolist() == ["A69-1602-7"]
+    assert len(io.read_detections(path, transmitter="A69-1602-42")) == 2

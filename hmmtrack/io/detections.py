@@ -122,9 +122,12 @@ def read_detections(
         table["transmitter_id"] = parts[1]
     if transmitter is not None:
         wanted = {transmitter} if isinstance(transmitter, str) else set(transmitter)
-        keep = table["transmitter"].isin(wanted).to_numpy()
-        if "transmitter_id" in table.columns:
-            keep = keep | table["transmitter_id"].isin(wanted).to_numpy()
+        keep = np.zeros(len(table), dtype=bool)
+        for name in sorted(wanted):
+            try:
+                keep |= transmitter_rows(table, name)
+            except ValueError as exc:
+                raise ValueError(f"{path}: {exc}") from exc
         if not keep.any():
             raise ValueError(
                 f"{path}: no detections of transmitter(s) {sorted(wanted)}; the file has "
@@ -144,6 +147,35 @@ def read_detections(
     table = table.iloc[np.argsort(table["time"].to_numpy(), kind="stable")]
     table.attrs["format"] = fmt
     return table
+
+
+def transmitter_rows(table: pd.DataFrame, transmitter: str) -> np.ndarray:
+    """Which rows of a detections table are of one transmitter, shape ``(n_rows,)`` bool.
+
+    ``transmitter`` is a full id (``A69-1602-15266``), or, when no full id equals it and the
+    table has a ``transmitter_id`` column, an ID part (``15266``). An ID part is only a name
+    within its code space: when it is the ID part of tags in more than one code space
+    (``A69-1602-42`` and ``A69-9001-42``), merging them would track two animals as one, so it
+    is refused.
+
+    Raises
+    ------
+    ValueError
+        For an ID part shared by several full ids, listing them.
+    """
+    full = table["transmitter"].astype(str)
+    keep = (full == transmitter).to_numpy()
+    if keep.any() or "transmitter_id" not in table.columns:
+        return keep
+    keep = (table["transmitter_id"].astype(str) == transmitter).to_numpy()
+    matched = sorted(full[keep].unique())
+    if len(matched) > 1:
+        raise ValueError(
+            f"transmitter {transmitter!r} is ambiguous: it is the ID part of {matched} (one ID "
+            "in different code spaces, different tags); give the full ID, e.g. --transmitter "
+            f"{matched[0]}"
+        )
+    return keep
 
 
 def _split_receiver(receiver: pd.Series) -> tuple[pd.Series, pd.Series]:

@@ -36,6 +36,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from hmmtrack.io.detections import transmitter_rows
 from hmmtrack.io.times import format_times
 from hmmtrack.random import SeedLike, as_generator
 from hmmtrack.sync import apply_clocks, read_clocks
@@ -71,13 +72,20 @@ def select_transmitter(detections: pd.DataFrame, transmitter: str | None) -> pd.
         Detections table.
     transmitter : str or None
         Transmitter to keep: full id (``A69-1602-15266``) or, when the table has a
-        ``transmitter_id`` column (VUE and Fathom logs), its ID part (``15266``); ``None``
-        requires the table to hold exactly one (or no ``transmitter`` column).
+        ``transmitter_id`` column (every log read by :func:`hmmtrack.io.read_detections`),
+        its ID part (``15266``) if that names one tag; ``None`` requires the table to hold
+        exactly one (or no ``transmitter`` column).
 
     Returns
     -------
     pandas.DataFrame
         The rows of that transmitter (the others are counted in a log message).
+
+    Raises
+    ------
+    ValueError
+        For no such transmitter, or an ID part shared by tags in different code spaces
+        (:func:`hmmtrack.io.detections.transmitter_rows`).
     """
     if "transmitter" not in detections.columns:
         if transmitter is None:  # (arrival-time detections of one tag may carry no id)
@@ -91,12 +99,14 @@ def select_transmitter(detections: pd.DataFrame, transmitter: str | None) -> pd.
                 "(configuration key 'transmitter' or --transmitter)"
             )
         return detections
-    keep = (detections["transmitter"].astype(str) == transmitter).to_numpy()
-    if not keep.any() and "transmitter_id" in detections.columns:  # "15266" of "A69-1602-15266"
-        keep = (detections["transmitter_id"].astype(str) == transmitter).to_numpy()
+    source = detections.attrs.get("source", "detections")
+    try:
+        keep = transmitter_rows(detections, transmitter)
+    except ValueError as exc:
+        raise ValueError(f"{source}: {exc}") from exc
     if not keep.any():
         raise ValueError(
-            f"no detections of transmitter {transmitter!r}; the table has {found[:20]}"
+            f"{source}: no detections of transmitter {transmitter!r}; the table has {found[:20]}"
         )
     if not keep.all():
         logger.info(
