@@ -198,3 +198,18 @@ def test_track_runs_every_measurement_to_the_tag(built):
     last = estimates.iloc[-1]
     x, y = (float(v[0]) for v in truth_at(case.truth, np.array([last["time"]])))
     assert np.hypot(last["x"] - x, last["y"] - y) < 25.0
+
+
+def test_exact_duplicate_detections_are_dropped_once_for_every_measurement(built, caplog):
+    """The same detection logged twice is used once, whatever the measurement (the
+    range-rate ranging refuses a pair at one time; arrival time would count it twice)."""
+    _, case, observations, _ = built
+    repeated = case.detections.iloc[[3, 7, 7, 20]]
+    doubled = pd.concat([case.detections, repeated]).sort_values("time", kind="stable")
+    with caplog.at_level("WARNING", logger="hmmtrack.tracking.pipeline"):
+        rebuilt = pipeline.build_observations(doubled, case.receivers, case.config)
+    pd.testing.assert_frame_equal(rebuilt, observations)
+    assert "dropped 4 exact duplicate detection(s)" in caplog.text
+    near = case.detections.iloc[[3]].assign(time=case.detections["time"].iloc[3] + 1e-3)
+    with_near = pd.concat([case.detections, near]).sort_values("time", kind="stable")
+    assert len(pipeline.drop_duplicate_detections(with_near)) == len(case.detections) + 1

@@ -52,6 +52,7 @@ from hmmtrack.tracking.tempering import Tempered
 __all__ = [
     "TrackingResult",
     "build_observations",
+    "drop_duplicate_detections",
     "on_common_time",
     "particle_filter",
     "select_transmitter",
@@ -168,8 +169,9 @@ def on_common_time(detections: pd.DataFrame, clocks: str | Path) -> pd.DataFrame
 def tracked_detections(detections: pd.DataFrame, config: TrackingConfig) -> pd.DataFrame:
     """The detections of ``config.transmitter`` (:func:`select_transmitter`), on the common
     time base of ``config.clocks`` when set (:func:`on_common_time`): what the measurement
-    builds its observations from."""
-    chosen = select_transmitter(detections, config.transmitter)
+    builds its observations from. Exact duplicate detections are dropped first
+    (:func:`drop_duplicate_detections`), in the receivers' own clocks as logged."""
+    chosen = drop_duplicate_detections(select_transmitter(detections, config.transmitter))
     return chosen if config.clocks is None else on_common_time(chosen, config.clocks)
 
 
@@ -193,6 +195,30 @@ def time_window(
     start = float(np.floor(times.min())) if start is None else float(start)
     end = float(np.ceil(times.max())) if end is None else float(end)
     return start, end
+
+
+def drop_duplicate_detections(detections: pd.DataFrame) -> pd.DataFrame:
+    """The detections without exact repeats: one row per (time, receiver, transmitter).
+
+    A receiver hears a tag's ping once; a second row with the same time, receiver and
+    transmitter is the same detection logged twice (an offload read twice, logs merged),
+    carrying no information. Every measurement gets each detection once: counting it twice
+    would double its weight (arrival time), and a pair at one time has no range rate. The
+    first row is kept and the number dropped is logged as a warning.
+    """
+    key = [c for c in ("time", "receiver", "transmitter") if c in detections.columns]
+    repeated = detections.duplicated(subset=key, keep="first").to_numpy()
+    if not repeated.any():
+        return detections
+    source = detections.attrs.get("source", "detections")
+    logger.warning(
+        "%s: dropped %d exact duplicate detection(s) (same %s as an earlier row), e.g. rows %s",
+        source,
+        int(repeated.sum()),
+        ", ".join(key),
+        detections.index[repeated][:5].tolist(),
+    )
+    return detections.loc[~repeated]
 
 
 def build_observations(
