@@ -42,7 +42,7 @@ from hmmtrack.hmm import covariates as cov
 from hmmtrack.hmm import distributions
 from hmmtrack.hmm import formula as formulas
 from hmmtrack.hmm.inference import forward_backward, load_kernels, log_likelihood
-from hmmtrack.hmm.model import DT_TOLERANCE, MovementHMM, Observations
+from hmmtrack.hmm.model import DT_TOLERANCE, MovementHMM, Observations, time_steps
 from hmmtrack.random import as_generator, spawn
 
 logger = logging.getLogger(__name__)
@@ -609,10 +609,7 @@ def warn_if_irregular(table: pd.DataFrame) -> None:
     The warning counts the rows whose ``dt`` differs from the median by more than
     ``DT_TOLERANCE`` (10 %) of it and names the functions that regularise a track.
     """
-    if "dt" not in table.columns:
-        return
-    dt = np.asarray(table["dt"], dtype=float)
-    dt = dt[np.isfinite(dt)]
+    dt = time_steps(table)
     if dt.size == 0:
         return
     median = float(np.median(dt))

@@ -423,11 +423,8 @@ class MovementHMM:
         ValueError
             Naming both steps and the functions that regularise a track to the model's step.
         """
-        if not math.isfinite(self.dt) or "dt" not in data.columns:
-            return
-        dt = np.asarray(data["dt"], dtype=float)
-        dt = dt[np.isfinite(dt)]
-        if dt.size == 0:
+        dt = time_steps(data)
+        if not math.isfinite(self.dt) or dt.size == 0:
             return
         median = float(np.median(dt))
         if abs(median - self.dt) > DT_TOLERANCE * self.dt:
@@ -650,6 +647,14 @@ def _version_1_design(block: dict) -> dict:
         "columns": ["Intercept", *names],
         "scaling": {n: {"centre": scaling[n]["mean"], "sd": scaling[n]["sd"]} for n in names},
     }
+
+
+def time_steps(table: pd.DataFrame) -> np.ndarray:
+    """The finite entries of a prepared track's ``dt`` column (s); empty without one."""
+    if "dt" not in table.columns:
+        return np.empty(0)
+    dt = np.asarray(table["dt"], dtype=float)
+    return dt[np.isfinite(dt)]
 
 
 def _appended(distribution, extra: dict) -> dict:
