@@ -14,11 +14,8 @@ from __future__ import annotations
 from pathlib import Path
 
 from hmmtrack.io import read_tracks
-from hmmtrack.scenarios.white_shark_hmm import (
-    BUNDLED_MODEL,
-    compare_with_ground_truth,
-    fit_white_shark_hmm,
-)
+from hmmtrack.scenarios.white_shark_hmm import compare_with_ground_truth, fit_white_shark_hmm
+from hmmtrack.tracking.motion.registry import BUNDLED_MODEL
 
 ROOT = Path(__file__).resolve().parents[1]
 TRACKS = ROOT / "data" / "white_shark_tracks.csv.gz"

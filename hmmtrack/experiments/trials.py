@@ -29,10 +29,11 @@ from hmmtrack.scenarios import Scenario
 from hmmtrack.tracking import pipeline as tracking
 from hmmtrack.tracking.filter import ParticleFilter
 from hmmtrack.tracking.measurement.range_rate import OBSERVATION_COLUMNS, RangeRateMeasurement
+from hmmtrack.tracking.motion import MOTIONS as MOTION_FACTORIES
 from hmmtrack.tracking.motion import motion_model
 
-#: the paper's three motion models, in its order
-MOTIONS = ("baseline", "velocity", "hmm")
+#: the paper's three motion models, in its order (the names of the motion registry)
+MOTIONS = tuple(MOTION_FACTORIES)
 
 #: how the HMM motion model runs a model fitted at a time step other than the filter's 1 s
 #: (see :class:`hmmtrack.tracking.motion.HMMMotion`): the bundled white-shark HMM is fitted on a 60

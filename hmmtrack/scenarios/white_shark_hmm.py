@@ -21,8 +21,6 @@ This module prepares and fits; the fitter itself is :mod:`hmmtrack.hmm`, the tra
 
 from __future__ import annotations
 
-from importlib import resources
-
 import numpy as np
 import pandas as pd
 
@@ -30,13 +28,12 @@ from hmmtrack import tracks as track_maths
 from hmmtrack.hmm import MovementHMM, fit_movement_hmm
 from hmmtrack.random import SeedLike
 from hmmtrack.scenarios.shark_motion import WHITE_SHARK_GROUND_TRUTH, SharkMotionModel
+from hmmtrack.tracking.motion import bundled_model_path
 
 #: the paper's segment rule: consecutive fixes at most 3 min apart (s)
 MAX_GAP = 180.0
 #: time step (s) of the regular grid the model is fitted on
 GRID_STEP = 60.0
-#: file name of the bundled model in the package data
-BUNDLED_MODEL = "white_shark_hmm.json"
 
 
 def prepare_white_shark_tracks(
@@ -99,8 +96,7 @@ def fit_white_shark_hmm(
 
 def load_white_shark_hmm() -> MovementHMM:
     """The bundled white-shark motion model (package data ``white_shark_hmm.json``)."""
-    with resources.as_file(resources.files("hmmtrack") / "data" / BUNDLED_MODEL) as path:
-        return MovementHMM.load(path)
+    return MovementHMM.load(bundled_model_path())
 
 
 def compare_with_ground_truth(

@@ -76,9 +76,13 @@ class RestingState:
 HMM_RESTING = RestingState(enter_per_hour=0.5, leave_per_hour=2.0, drift_speed=0.05)
 
 
+#: file name of the bundled white-shark model in the package data
+BUNDLED_MODEL = "white_shark_hmm.json"
+
+
 def bundled_model_path() -> Path:
     """Path of the bundled white-shark movement HMM (``hmmtrack/data/white_shark_hmm.json``)."""
-    path = Path(str(resources.files("hmmtrack") / "data" / "white_shark_hmm.json"))
+    path = Path(str(resources.files("hmmtrack") / "data" / BUNDLED_MODEL))
     if not path.is_file():
         raise FileNotFoundError(f"the bundled white-shark model is missing: {path}")
     return path
