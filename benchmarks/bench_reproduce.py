@@ -91,12 +91,13 @@ def scaled(trials: int, particles: int, workers: int) -> None:
     )
     full = (
         t_start
-        + t_comparison * FULL.n_trials / trials
+        + t_comparison * FULL.n_datasets * FULL.n_trials / trials
         + t_loss * FULL.loss_trials
         + t_depth * FULL.depth_trials
     )
     print(
-        f"EXTRAPOLATED paper-scale run ({9 * FULL.n_trials} comparison trials + "
+        f"EXTRAPOLATED paper-scale run ({9 * FULL.n_datasets * FULL.n_trials} comparison "
+        "trials + "
         f"{len(FULL.loss_fractions) * FULL.loss_trials} loss-sweep trials + "
         f"{2 * FULL.depth_trials} diving-shark trials), pool start + trials: {full:.0f} s "
         f"= {full / 60:.1f} min (budget 10 min)"

@@ -146,6 +146,54 @@ def test_same_seed_same_table_serial_equals_processes(small_scenarios):
     assert other["mean_error_after_convergence"].iloc[0] != first["mean_error_after_convergence"]
 
 
+def test_paper_datasets_extend_paper_scenarios_with_other_draws():
+    datasets = ex.paper_datasets(11, 3, names=("swimmer",))["swimmer"]
+    first = ex.paper_scenarios(11, names=("swimmer",))["swimmer"]
+    pd.testing.assert_frame_equal(datasets[0].detections, first.detections)
+    truths = [d.truth[["x", "y"]].to_numpy() for d in datasets]
+    assert not np.array_equal(truths[0][:50], truths[1][:50])
+    assert not np.array_equal(truths[1][:50], truths[2][:50])
+    again = ex.paper_datasets(11, 3, names=("swimmer",))["swimmer"][2]
+    pd.testing.assert_frame_equal(again.truth, datasets[2].truth)
+    with pytest.raises(ValueError, match="n_datasets"):
+        ex.paper_datasets(11, 0)
+
+
+def test_several_datasets_keep_dataset_zero_trials_and_add_their_own(small_scenarios):
+    swimmer = small_scenarios[0]
+    other = ex.paper_datasets(11, 2, names=("swimmer",))["swimmer"][1]
+    options = {"motions": ("velocity",), "n_trials": 2, "seed": 3, "n_particles": N_PARTICLES}
+    alone = ex.compare_motion_models([swimmer], **options)
+    both = ex.compare_motion_models([[swimmer, other]], **options)
+    assert both["dataset"].tolist() == [0, 0, 1, 1]
+    pd.testing.assert_frame_equal(
+        _without_runtime(alone), _without_runtime(both[both["dataset"] == 0])
+    )
+    # the other dataset's trials are their own draws, not dataset 0's again
+    errors = both["mean_error_after_convergence"].to_numpy()
+    assert len(set(errors)) == 4
+
+
+def test_dataset_spread_separates_datasets_from_runs():
+    table = pd.DataFrame(
+        {
+            "scenario": ["s"] * 6,
+            "motion": ["hmm"] * 6,
+            "dataset": [0, 0, 0, 1, 1, 1],
+            "mean_error_after_convergence": [1.0, 2.0, 3.0, 10.0, 12.0, 200.0],
+        }
+    )
+    row = ex.dataset_spread(table).iloc[0]
+    means = np.array([2.0, 74.0])
+    within = np.array([np.var([1.0, 2.0, 3.0], ddof=1), np.var([10.0, 12.0, 200.0], ddof=1)])
+    assert row["n_datasets"] == 2 and row["runs_per_dataset"] == 3
+    assert row["mean"] == pytest.approx(38.0)
+    assert row["between_datasets"] == pytest.approx(np.std(means, ddof=1))
+    assert row["between_runs"] == pytest.approx(np.sqrt(within.mean()))
+    assert row["worst_dataset"] == pytest.approx(74.0)
+    assert row["share_above_100m"] == pytest.approx(1 / 6)
+
+
 def test_run_options_run_one_worker_serially_and_more_in_processes():
     assert ex.run_options(1, 50) == {
         "executor": "serial",

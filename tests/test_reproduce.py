@@ -56,8 +56,10 @@ def test_quick_run_writes_every_figure(quick_run):
 
 def test_quick_run_tables_hold_every_trial(quick_run):
     comparison = pd.read_csv(quick_run / "motion_model_trials.csv")
-    assert len(comparison) == 3 * len(MOTIONS)  # one trial per model per dataset
+    # one filter run per model on each of the quick run's synthetic datasets per scenario
+    assert len(comparison) == 3 * QUICK.n_datasets * len(MOTIONS)
     assert set(comparison["scenario"]) == set(PAPER["datasets"])
+    assert sorted(set(comparison["dataset"])) == list(range(QUICK.n_datasets))
     assert (comparison["n_particles"] == 60).all()
     loss = pd.read_csv(quick_run / "loss_sweep_trials.csv")
     assert sorted(loss["loss_fraction"]) == sorted(QUICK.loss_fractions)
@@ -80,6 +82,7 @@ def test_summary_puts_our_numbers_beside_the_papers(quick_run):
     for name in FIGURES:
         assert f"]({name})" in text
     assert "The paper's findings on our analogues" in text
+    assert "## Spread between datasets and between filter runs" in text
 
 
 def test_bad_arguments_are_reported_without_traceback(capsys):

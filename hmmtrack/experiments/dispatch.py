@@ -25,7 +25,8 @@ from hmmtrack.scenarios import Scenario
 class Cell:
     """One cell of an experiment: a scenario, a motion model and a treatment, with its seed.
 
-    Trial ``k`` of the cell is seeded with ``SeedSequence`` child ``k`` of ``seed``.
+    Trial ``k`` of the cell is seeded with ``SeedSequence`` child ``k`` of ``seed``;
+    ``dataset`` says which synthetic dataset of its scenario ``scenario`` is.
     """
 
     scenario: Scenario
@@ -33,6 +34,7 @@ class Cell:
     seed: np.random.SeedSequence
     loss_fraction: float = 0.0
     depth_correction: bool = False
+    dataset: int = 0
 
 
 @dataclass(frozen=True)
@@ -53,6 +55,7 @@ def _run_batch(batch: _Batch) -> list[TrialResult]:
             child_seed(cell.seed, k),
             batch.n_particles,
             trial=k,
+            dataset=cell.dataset,
             loss_fraction=cell.loss_fraction,
             depth_correction=cell.depth_correction,
         )

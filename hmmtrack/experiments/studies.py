@@ -1,14 +1,16 @@
 """The paper's studies: datasets, motion-model comparison, loss sweep, depth analysis.
 
 * :func:`paper_scenarios` — the synthetic analogues of the paper's three datasets, each
-  from its own child seed (and :func:`truncate` for short runs);
+  from its own child seed (and :func:`truncate` for short runs); :func:`paper_datasets`
+  — several synthetic datasets of each;
 * :func:`compare_motion_models` — ``n_trials`` filter runs per motion model per dataset;
 * :func:`loss_sweep` — detections thinned evenly, HMM model, on the shark pursuit;
 * :func:`depth_analysis` — the percent-error curve of ignoring depth, and a diving shark
   tracked with and without the depth correction.
 
-Seed layout (children of the experiment seed): comparison trials ``(0, i, j, k)``, loss
-sweep ``(1, i, k)``, diving shark ``(2, correction, k)``, datasets ``(3, i)``.
+Seed layout (children of the experiment seed): comparison trials ``(0, i, j, k)`` on
+dataset 0 and ``(4, i, j, d, k)`` on dataset ``d > 0``, loss sweep ``(1, i, k)``, diving
+shark ``(2, correction, k)``, datasets ``(3, i)`` (dataset 0) and ``(5, i, d)``.
 """
 
 from __future__ import annotations
@@ -118,6 +120,48 @@ def paper_scenarios(
     return {name: truncate(scenario, duration) for name, scenario in built.items()}
 
 
+def paper_datasets(
+    seed: SeedLike, n_datasets: int, names: Sequence[str] = PAPER_SCENARIOS
+) -> dict[str, list[Scenario]]:
+    """``n_datasets`` synthetic datasets of each of the paper's scenarios.
+
+    One dataset per scenario makes a table of filter runs say how the filter varies on
+    that dataset, not how it does on the scenario; several datasets separate the two.
+
+    Parameters
+    ----------
+    seed : int or SeedSequence
+        Experiment seed; dataset 0 of scenario ``i`` is :func:`paper_scenarios`'s (child
+        ``(3, i)``), dataset ``d > 0`` is drawn from child ``(5, i, d)``.
+    n_datasets : int
+        Datasets per scenario (at least 1).
+    names : sequence of str
+        Which of :data:`PAPER_SCENARIOS`.
+
+    Returns
+    -------
+    dict of str to list of Scenario
+        ``n_datasets`` scenarios per name, dataset 0 first.
+    """
+    if int(n_datasets) != n_datasets or n_datasets < 1:
+        raise ValueError(f"n_datasets must be a positive integer, got {n_datasets!r}")
+    root = experiment_seed(seed)
+    first = paper_scenarios(root, names)
+    return {
+        name: [first[name]]
+        + [
+            getattr(scenarios, name)(child_seed(root, 5, PAPER_SCENARIOS.index(name), d))
+            for d in range(1, int(n_datasets))
+        ]
+        for name in names
+    }
+
+
+def _datasets(entry: Scenario | Sequence[Scenario]) -> list[Scenario]:
+    """One entry of :func:`compare_motion_models`'s ``scenario_list`` as a list of datasets."""
+    return [entry] if isinstance(entry, Scenario) else list(entry)
+
+
 def _trials_table(
     cells: Sequence[Cell],
     n_trials: int,
@@ -155,15 +199,17 @@ def compare_motion_models(
 
     Parameters
     ----------
-    scenario_list : sequence of Scenario
-        E.g. ``paper_scenarios(seed).values()``.
+    scenario_list : sequence of Scenario, or of sequences of Scenario
+        E.g. ``paper_scenarios(seed).values()``; an entry that is a sequence holds several
+        datasets of one scenario (``paper_datasets(seed, 20).values()``), each tracked
+        ``n_trials`` times.
     motions : sequence of str
         Motion models, of :data:`MOTIONS`.
     n_trials : int
-        Trials per model per scenario (100 in the paper).
+        Trials per model per dataset (100 in the paper, which had one dataset per scenario).
     seed : int or SeedSequence
         Experiment seed; trial ``k`` of model ``j`` on scenario ``i`` is seeded with child
-        ``(0, i, j, k)``.
+        ``(0, i, j, k)`` on its dataset 0 and ``(4, i, j, d, k)`` on dataset ``d > 0``.
     executor, max_workers, progress
         See :func:`run_trials`.
     n_particles : int
@@ -178,8 +224,14 @@ def compare_motion_models(
         raise ValueError(f"unknown motion model(s) {unknown}; expected some of {MOTIONS}")
     root = experiment_seed(seed)
     cells = [
-        Cell(scenario, motion, child_seed(root, 0, i, j))
-        for i, scenario in enumerate(scenario_list)
+        Cell(
+            scenario,
+            motion,
+            child_seed(root, 0, i, j) if d == 0 else child_seed(root, 4, i, j, d),
+            dataset=d,
+        )
+        for i, entry in enumerate(scenario_list)
+        for d, scenario in enumerate(_datasets(entry))
         for j, motion in enumerate(motions)
     ]
     return _trials_table(

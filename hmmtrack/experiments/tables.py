@@ -21,14 +21,20 @@ LOSS_BAND_EDGES = (0.2, 0.8)
 def trials_table(results: Iterable[TrialResult]) -> pd.DataFrame:
     """Tidy table of trials: one row per trial, columns :data:`TRIAL_COLUMNS`.
 
-    Rows are sorted by scenario order of appearance, motion, loss fraction, depth
+    Rows are sorted by scenario order of appearance, dataset, motion, loss fraction, depth
     correction and trial, so the table does not depend on the order trials finished in.
     """
     table = pd.DataFrame([r.row() for r in results], columns=list(TRIAL_COLUMNS))
     table = table.astype(
-        {"trial": int, "n_particles": int, "converged": bool, "depth_correction": bool}
+        {
+            "trial": int,
+            "dataset": int,
+            "n_particles": int,
+            "converged": bool,
+            "depth_correction": bool,
+        }
     )
-    keys = ["scenario", "motion", "loss_fraction", "depth_correction", "trial"]
+    keys = ["scenario", "dataset", "motion", "loss_fraction", "depth_correction", "trial"]
     order = {name: i for i, name in enumerate(pd.unique(table["scenario"]))}
     motion_order = {name: i for i, name in enumerate(MOTIONS)}
     return table.sort_values(
@@ -83,6 +89,50 @@ def summarise_trials(
         }
     )
     return summary.reset_index()
+
+
+def dataset_spread(
+    table: pd.DataFrame,
+    column: str = "mean_error_after_convergence",
+    by: Sequence[str] = ("scenario", "motion"),
+) -> pd.DataFrame:
+    """How much of a trials table's spread comes from the datasets, how much from the filter.
+
+    Parameters
+    ----------
+    table : pandas.DataFrame
+        A trials table with a ``dataset`` column (:func:`trials_table`).
+    column : str
+        The per-trial figure (default the paper's error after convergence, m).
+    by : sequence of str
+        Grouping columns.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per group: ``n_datasets``, ``runs_per_dataset`` (the smallest),
+        ``mean`` (over all trials), ``between_datasets`` (standard deviation of the
+        datasets' means; NaN with one dataset), ``between_runs`` (root mean of the
+        datasets' within-dataset variances; NaN with one run per dataset),
+        ``worst_dataset`` (the largest dataset mean) and ``share_above_100m`` (share of
+        trials whose figure exceeds 100 m).
+    """
+    keys = [*by, "dataset"]
+    per_dataset = table.groupby(keys, sort=False)[column].agg(["mean", "var", "size"])
+    groups = per_dataset.groupby(level=list(range(len(by))), sort=False)
+    trials = table.groupby(list(by), sort=False)[column]
+    spread = pd.DataFrame(
+        {
+            "n_datasets": groups.size(),
+            "runs_per_dataset": groups["size"].min(),
+            "mean": trials.mean(),
+            "between_datasets": groups["mean"].std(ddof=1),
+            "between_runs": np.sqrt(groups["var"].mean()),
+            "worst_dataset": groups["mean"].max(),
+            "share_above_100m": trials.apply(lambda v: float(np.mean(v > 100.0))),
+        }
+    )
+    return spread.reset_index()
 
 
 def loss_bands(table: pd.DataFrame) -> pd.DataFrame:

@@ -59,6 +59,7 @@ ERROR_CURVE_SPACING = 10.0
 #: per-trial columns of every trials table, in order
 TRIAL_COLUMNS = (
     "scenario",
+    "dataset",
     "motion",
     "trial",
     "loss_fraction",
@@ -101,6 +102,10 @@ class TrialResult:
         :data:`ERROR_CURVE_SPACING` s.
     error : numpy.ndarray, shape (n,)
         Position error at those times (m).
+    dataset : int
+        Which synthetic dataset of the scenario (0 is the one :func:`paper_scenarios`
+        builds; several datasets separate the spread between datasets from that between
+        filter runs).
     """
 
     scenario: str
@@ -116,6 +121,7 @@ class TrialResult:
     runtime: float
     error_time: np.ndarray = field(repr=False)
     error: np.ndarray = field(repr=False)
+    dataset: int = 0
 
     def row(self) -> dict[str, Any]:
         """The scalar fields, as one row of a trials table."""
@@ -275,6 +281,7 @@ def run_trial(
     n_particles: int = DEFAULT_PARTICLES,
     *,
     trial: int = 0,
+    dataset: int = 0,
     loss_fraction: float = 0.0,
     depth_correction: bool = False,
 ) -> TrialResult:
@@ -288,8 +295,8 @@ def run_trial(
     seed : int, SeedSequence or Generator
         Seed of the filter's random draws.
     n_particles : int
-    trial : int
-        Index recorded in the result.
+    trial, dataset : int
+        Indices recorded in the result (filter run, synthetic dataset).
     loss_fraction : float
         Fraction (0–1) of detections dropped evenly before tracking.
     depth_correction : bool
@@ -328,4 +335,5 @@ def run_trial(
         runtime=runtime,
         error_time=elapsed[keep],
         error=errors[keep],
+        dataset=int(dataset),
     )

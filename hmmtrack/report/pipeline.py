@@ -28,7 +28,7 @@ from hmmtrack.experiments import (
     depth_analysis,
     example_run,
     loss_sweep,
-    paper_scenarios,
+    paper_datasets,
 )
 from hmmtrack.experiments.executors import default_workers, get_executor
 from hmmtrack.io.outputs import staged_folder
@@ -48,7 +48,7 @@ class RunSize:
     Attributes
     ----------
     n_trials : int
-        Trials per motion model per dataset (the paper's 100).
+        Filter runs per motion model per synthetic dataset.
     loss_fractions : tuple of float
         Fractions of detections dropped in the loss sweep (0–1).
     loss_trials : int
@@ -59,6 +59,10 @@ class RunSize:
     shark_tracks_sharks : int or None
         Sharks of the bundled synthetic white-shark tracks drawn under the HMM's densities
         (``None``: all 22).
+    n_datasets : int
+        Synthetic datasets per scenario in the motion-model comparison
+        (:func:`hmmtrack.experiments.paper_datasets`); the loss sweep, the diving shark and
+        the example runs use dataset 0.
     """
 
     n_trials: int
@@ -67,12 +71,15 @@ class RunSize:
     depth_trials: int
     n_particles: int
     shark_tracks_sharks: int | None = None
+    n_datasets: int = 1
 
 
-#: the paper-scale run (900 comparison trials plus the loss sweep and the diving shark)
-FULL = RunSize(100, LOSS_FRACTIONS, 5, 10, DEFAULT_PARTICLES)
+#: the paper-scale run: the paper's 100 trials per model per scenario, spread over 20
+#: synthetic datasets × 5 filter runs (900 comparison trials), plus the loss sweep and the
+#: diving shark
+FULL = RunSize(5, LOSS_FRACTIONS, 5, 10, DEFAULT_PARTICLES, n_datasets=20)
 #: a first try: a few trials of everything, under a minute on two cores
-QUICK = RunSize(2, (0.0, 0.25, 0.5, 0.75, 0.9, 1.0), 1, 1, 300, shark_tracks_sharks=3)
+QUICK = RunSize(1, (0.0, 0.25, 0.5, 0.75, 0.9, 1.0), 1, 1, 300, shark_tracks_sharks=3, n_datasets=2)
 
 FIGURE_DPI = 100
 
@@ -169,6 +176,7 @@ def reproduce(
     quick: bool = False,
     n_trials: int | None = None,
     n_particles: int | None = None,
+    n_datasets: int | None = None,
     seed: int = 0,
     executor: Any = "processes",
     max_workers: int | None = None,
@@ -185,8 +193,9 @@ def reproduce(
         interrupted run leaves ``out`` as it was.
     quick : bool
         :data:`QUICK` instead of :data:`FULL`.
-    n_trials, n_particles : int, optional
-        Override the run size's trials per model per dataset and particles.
+    n_trials, n_particles, n_datasets : int, optional
+        Override the run size's filter runs per model per dataset, particles and synthetic
+        datasets per scenario.
     seed : int
         Experiment seed (datasets and trials derive from it).
     executor, max_workers, progress
@@ -200,7 +209,10 @@ def reproduce(
     """
     size = QUICK if quick else FULL
     size = replace(
-        size, n_trials=n_trials or size.n_trials, n_particles=n_particles or size.n_particles
+        size,
+        n_trials=n_trials or size.n_trials,
+        n_particles=n_particles or size.n_particles,
+        n_datasets=n_datasets or size.n_datasets,
     )
     out = Path(out)
     with staged_folder(out, last="summary.md") as stage:
@@ -228,15 +240,17 @@ def _run(
 ) -> None:
     """The run of :func:`reproduce` at ``size``, its files written into ``out``."""
     clock = time.perf_counter()
-    datasets = paper_scenarios(seed)
+    all_datasets = paper_datasets(seed, size.n_datasets)
+    datasets = {name: versions[0] for name, versions in all_datasets.items()}
     common = {"seed": seed, "n_particles": size.n_particles, "progress": progress}
     pool = get_executor(executor, max_workers)
     try:
         logger.info(
-            "motion-model comparison: %d trials", len(datasets) * len(MOTIONS) * size.n_trials
+            "motion-model comparison: %d trials",
+            len(datasets) * size.n_datasets * len(MOTIONS) * size.n_trials,
         )
         comparison = compare_motion_models(
-            list(datasets.values()), n_trials=size.n_trials, executor=pool, **common
+            list(all_datasets.values()), n_trials=size.n_trials, executor=pool, **common
         )
         logger.info("loss sweep: %d trials", len(size.loss_fractions) * size.loss_trials)
         loss = loss_sweep(
@@ -271,7 +285,8 @@ def _run(
     run = {
         "seed": seed,
         "size": "quick" if quick else "paper scale",
-        "trials per model per dataset": size.n_trials,
+        "synthetic datasets per scenario": size.n_datasets,
+        "filter runs per model per dataset": size.n_trials,
         "particles": size.n_particles,
         "loss fractions": len(size.loss_fractions),
         "trials per loss fraction": size.loss_trials,

@@ -13,7 +13,14 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from hmmtrack.experiments import HMM_VARIANT, LOSS_BANDS, MOTIONS, loss_bands, summarise_trials
+from hmmtrack.experiments import (
+    HMM_VARIANT,
+    LOSS_BANDS,
+    MOTIONS,
+    dataset_spread,
+    loss_bands,
+    summarise_trials,
+)
 from hmmtrack.report.findings import DIVERGED_ERROR, check_findings, share_above
 from hmmtrack.report.markdown import fmt, markdown_table, paper_number
 from hmmtrack.report.paper import PAPER
@@ -57,6 +64,45 @@ def _comparison_section(comparison: pd.DataFrame) -> str:
         "end), the true root-mean-square error over the same span, and the time until "
         "√λ₁ < 10 m. Table: means over trials (time to convergence over converged trials; "
         "a trial that never converges is scored over its whole run, as the paper does).\n\n"
+        + markdown_table(headers, rows)
+        + "\n"
+    )
+
+
+def _spread_section(comparison: pd.DataFrame) -> str:
+    """Spread of the error after convergence between datasets and between filter runs."""
+    spread = dataset_spread(comparison)
+    if not (spread["n_datasets"] > 1).any():
+        return ""
+    rows = [
+        [
+            PAPER["datasets"].get(cell["scenario"], cell["scenario"]),
+            cell["motion"],
+            f"{int(cell['n_datasets'])} × {int(cell['runs_per_dataset'])}",
+            fmt(cell["mean"]),
+            fmt(cell["between_datasets"]),
+            fmt(cell["between_runs"]),
+            fmt(cell["worst_dataset"]),
+            f"{100 * cell['share_above_100m']:.0f} %",
+        ]
+        for _, cell in spread.iterrows()
+    ]
+    headers = [
+        "dataset",
+        "motion model",
+        "datasets × runs",
+        "mean error after conv. (m)",
+        "sd between datasets (m)",
+        "sd between runs (m)",
+        "worst dataset (m)",
+        "trials > 100 m",
+    ]
+    return (
+        "## Spread between datasets and between filter runs\n\n"
+        "Each scenario is drawn as several synthetic datasets and each dataset is tracked "
+        "several times. The standard deviation of the datasets' mean errors says how much "
+        "a conclusion depends on the one dataset the paper had; the root mean within-dataset "
+        "variance says how much the filter's own randomness moves a result.\n\n"
         + markdown_table(headers, rows)
         + "\n"
     )
@@ -240,6 +286,7 @@ def write_summary(
     )
     if comparison is not None and len(comparison):
         parts.append(_comparison_section(comparison))
+        parts.extend(filter(None, [_spread_section(comparison)]))
         parts.append(_differences_section(comparison))
     if loss is not None and len(loss):
         parts.append(_loss_section(loss))
