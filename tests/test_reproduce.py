@@ -141,17 +141,42 @@ def test_loss_findings_use_the_paper_bands():
     assert "20–80 % 400 m" in findings[2].evidence
 
 
-def test_depth_finding_needs_a_difference_beyond_the_trial_spread():
+def test_depth_finding_needs_a_paired_difference_beyond_the_trial_spread():
     from hmmtrack.report import check_findings
 
     def table(without, with_correction):
-        rows = [(False, e) for e in without] + [(True, e) for e in with_correction]
-        return pd.DataFrame(rows, columns=["depth_correction", "mean_error_after_convergence"])
+        rows = [(k, False, e) for k, e in enumerate(without)]
+        rows += [(k, True, e) for k, e in enumerate(with_correction)]
+        columns = ["trial", "depth_correction", "mean_error_after_convergence"]
+        return pd.DataFrame(rows, columns=columns)
 
     bimodal = [9.0, 81.0, 78.0, 9.1, 81.2, 80.9, 78.5, 9.2, 81.1, 9.0]
-    # the same two modes, one trial moved from the far to the near mode: noise, not an effect
+    # pair by pair, the trials swap modes both ways: noise, not an effect
     shuffled = [9.2, 80.8, 9.3, 9.4, 76.7, 81.4, 9.3, 80.8, 9.3, 79.8]
     (noise,) = check_findings(None, None, table(bimodal, shuffled))
     assert noise.holds is False and "p = " in noise.evidence
-    clear = check_findings(None, None, table([60.0, 62.0, 58.0, 61.0], [40.0, 41.0, 39.0, 42.0]))
-    assert clear[0].holds is True
+    assert "paired trials" in noise.evidence
+    # a small shift that every pair shows is an effect, although the modes swamp it unpaired
+    shifted = [e - 1.0 for e in bimodal]
+    (clear,) = check_findings(None, None, table(bimodal, shifted))
+    assert clear.holds is True and "in 10 of 10 paired trials" in clear.evidence
+
+
+def test_paired_p_value_equals_the_exact_sign_flip_distribution():
+    from itertools import product
+
+    from hmmtrack.report.findings import paired_lower_p_value
+
+    rng = np.random.default_rng(4)
+    a = rng.normal(0.0, 1.0, 9)
+    b = a + rng.normal(0.4, 1.0, 9)
+    d = a - b
+    ranks = pd.Series(np.abs(d)).rank().to_numpy()
+    observed = ranks[d > 0].sum()
+    # under the null every sign pattern is equally likely: W+ at most the observed one
+    flips = [ranks[np.array(signs, dtype=bool)].sum() for signs in product((0, 1), repeat=9)]
+    exact = np.mean(np.array(flips) <= observed)
+    assert paired_lower_p_value(a, b) == pytest.approx(exact, rel=1e-12)
+    assert paired_lower_p_value(a, a) == 1.0
+    with pytest.raises(ValueError, match="one shape"):
+        paired_lower_p_value(a, b[:5])

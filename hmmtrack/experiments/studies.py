@@ -10,7 +10,7 @@
 
 Seed layout (children of the experiment seed): comparison trials ``(0, i, j, k)`` on
 dataset 0 and ``(4, i, j, d, k)`` on dataset ``d > 0``, loss sweep ``(1, i, k)``, diving
-shark ``(2, correction, k)``, datasets ``(3, i)`` (dataset 0) and ``(5, i, d)``.
+shark ``(2, 0, k)`` (both variants), datasets ``(3, i)`` (dataset 0) and ``(5, i, d)``.
 """
 
 from __future__ import annotations
@@ -341,8 +341,9 @@ def depth_analysis(
     n_trials : int
         Trials of the diving shark per variant (0 skips the filter runs).
     seed : int or SeedSequence
-        The diving shark is ``paper_scenarios(seed, dive=True)``; trial ``k`` without / with
-        correction is seeded with child ``(2, 0, k)`` / ``(2, 1, k)``.
+        The diving shark is ``paper_scenarios(seed, dive=True)``; trial ``k`` is seeded with
+        child ``(2, 0, k)`` both without and with the correction, so the two variants are
+        paired: same detections, same filter draws.
     executor, max_workers, progress, n_particles
         See :func:`run_trials`.
     depth : float
@@ -367,7 +368,7 @@ def depth_analysis(
     root = experiment_seed(seed)
     diving = paper_scenarios(root, dive=True, duration=duration)["shark_pursuit"]
     cells = [
-        Cell(diving, motion, child_seed(root, 2, int(correct)), depth_correction=correct)
+        Cell(diving, motion, child_seed(root, 2, 0), depth_correction=correct)
         for correct in (False, True)
     ]
     trials = _trials_table(

@@ -75,9 +75,9 @@ class RunSize:
 
 
 #: the paper-scale run: the paper's 100 trials per model per scenario, spread over 20
-#: synthetic datasets × 5 filter runs (900 comparison trials), plus the loss sweep and the
-#: diving shark
-FULL = RunSize(5, LOSS_FRACTIONS, 5, 10, DEFAULT_PARTICLES, n_datasets=20)
+#: synthetic datasets × 5 filter runs (900 comparison trials), plus the loss sweep and 50
+#: paired trials of the diving shark
+FULL = RunSize(5, LOSS_FRACTIONS, 5, 50, DEFAULT_PARTICLES, n_datasets=20)
 #: a first try: a few trials of everything, under a minute on two cores
 QUICK = RunSize(1, (0.0, 0.25, 0.5, 0.75, 0.9, 1.0), 1, 1, 300, shark_tracks_sharks=3, n_datasets=2)
 
