@@ -24,6 +24,7 @@ from hmmtrack.analysis.crb import (
     static_tag_crb,
     static_tag_fisher_information,
     static_tag_fit,
+    tdoa_bound,
 )
 from hmmtrack.tracking.measurement.clock import EmissionClockModel
 from hmmtrack.tracking.measurement.detection import LogisticDetection
@@ -509,3 +510,74 @@ def test_static_fit_is_the_grid_minimum_of_the_weighted_cost():
     i, j = np.unravel_index(costs.argmin(), costs.shape)
     assert chi2 <= costs.min() + 1e-9  # no grid point beats the fit
     np.testing.assert_allclose(position, tag + [grid[i], grid[j]], atol=0.05 + 1e-9)
+
+
+TRIANGLE = {"a": (0.0, 0.0), "b": (300.0, 20.0), "c": (120.0, 260.0)}
+
+
+def tdoa(truth, receivers, heard, emissions, emission, **options):
+    options = {"acceleration_psd": 0.0, "sigma": 2e-4, "sound_speed": C} | options
+    return tdoa_bound(truth, receivers, heard, emissions, emission=emission, **options)
+
+
+def test_tdoa_bound_of_a_static_tag_is_the_closed_form_information_of_time_differences():
+    """Static tag, three moored receivers, every ping heard by all: the bound after K pings
+    is the inverse of K times Jᵀ (Σ⁻¹ − Σ⁻¹ 1 1ᵀ Σ⁻¹ / 1ᵀ Σ⁻¹ 1) J (flat prior)."""
+    n_pings, sigma, jitter = 40, 2e-4, 1e-4
+    truth, emissions = straight_truth(n_pings)
+    prior = BoundPrior(position_sd=1e5, velocity_sd=1e-9)
+    table = tdoa(
+        truth, moored(TRIANGLE), all_heard(n_pings, "abc"), emissions, "random",
+        sigma=sigma, jitter_sd=jitter, prior=prior,
+    )  # fmt: skip
+    tag = np.array([100.0, 50.0])
+    offset = tag - np.array(list(TRIANGLE.values()))
+    jacobian = offset / (np.hypot(*offset.T)[:, None] * C)
+    covariance = sigma**2 * np.eye(3) + jitter**2 * np.ones((3, 3))
+    precision = np.linalg.inv(covariance)
+    ones = np.ones(3)
+    projected = precision - np.outer(precision @ ones, ones @ precision) / (ones @ precision @ ones)
+    information = jacobian.T @ projected @ jacobian
+    expected = np.sqrt(np.trace(np.linalg.inv(n_pings * information)))
+    assert table["filter_position_m"].iloc[-1] == pytest.approx(expected, rel=1e-6)
+    # a static tag: the smoother knows at every ping what the filter knows at the last
+    np.testing.assert_allclose(table["smoother_position_m"], expected, rtol=1e-6)
+    # the emission time drops out: jitter does not change the random-interval bound
+    plain = tdoa(
+        truth, moored(TRIANGLE), all_heard(n_pings, "abc"), emissions, "random",
+        sigma=sigma, prior=prior,
+    )  # fmt: skip
+    np.testing.assert_allclose(plain["filter_position_m"], table["filter_position_m"], rtol=1e-9)
+    # one receiver per ping is no information at all
+    still = BoundPrior(position_sd=200.0, velocity_sd=1e-9)
+    alone = tdoa(truth, moored(TRIANGLE), all_heard(n_pings, "a"), emissions, "random", prior=still)
+    np.testing.assert_allclose(alone["filter_position_m"], np.sqrt(2) * 200.0, rtol=1e-9)
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_known_sequence_bound_is_at_most_the_random_interval_bound(seed):
+    truth, receivers, heard, emissions = pursuit_like(seed)
+    options = {"acceleration_psd": 0.01, "jitter_sd": 1e-4}
+    random = tdoa(truth, receivers, heard, emissions, "random", **options)
+    known = tdoa(truth, receivers, heard, emissions, "sequence", **options)
+    for column in COLUMNS:
+        assert np.all(known[column] <= random[column] * (1 + 1e-9))
+    # pings heard by one receiver inform the sequence's position only: it is far better
+    assert known["smoother_position_m"].mean() < 0.5 * random["smoother_position_m"].mean()
+
+
+def test_known_sequence_with_a_known_offset_and_drift_is_the_known_clock_bound():
+    truth, receivers, heard, emissions = pursuit_like(3)
+    known = tdoa(
+        truth, receivers, heard, emissions, "sequence",
+        acceleration_psd=2e-3, sigma=1e-3, offset_sd=1e-9, drift_sd=1e-12,
+    )  # fmt: skip
+    clock = bound(truth, receivers, heard, emissions, None)
+    for column in COLUMNS:
+        np.testing.assert_allclose(known[column], clock[column], rtol=1e-6)
+
+
+def test_tdoa_bound_refuses_an_unknown_emission_model():
+    truth, emissions = straight_truth(5)
+    with pytest.raises(ValueError, match=r"emission must be one of \('random', 'sequence'\)"):
+        tdoa(truth, moored(TRIANGLE), all_heard(5, "abc"), emissions, "periodic")

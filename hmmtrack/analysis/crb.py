@@ -2,7 +2,7 @@
 
 A bound answers a planning question ("with these receivers, moving like this, and a tag
 clock that wanders like this, what position error can no estimator beat?") and a
-diagnostic one (is a tracker's error the method's fault or the geometry's?). Two bounds:
+diagnostic one (is a tracker's error the method's fault or the geometry's?). Three bounds:
 
 * **a fixed tag from (range, range-rate) observations** (the paper's measurement):
   :func:`static_tag_fisher_information` and its inverse :func:`static_tag_crb`, with the
@@ -29,7 +29,11 @@ diagnostic one (is a tracker's error the method's fault or the geometry's?). Two
   position, ``u_j`` the unit vector from the receiver to the tag; 1 for ``e``) is evaluated
   at the true states, so the filtering bound is that covariance and the smoothing bound
   (the best any offline method could do) is its Rauch–Tung–Striebel smoothed covariance.
-  With ``clock=None`` the emission times are known and the clock states are dropped.
+  With ``clock=None`` the emission times are known and the clock states are dropped;
+* **a moving tag from the time differences of each ping** (:func:`tdoa_bound`): the same
+  tag prior and recursions, each ping's emission time a nuisance: independent per ping for
+  a random burst interval (information from the differences between receivers only), or
+  known up to an offset and a drift for a known interval sequence.
 
 A bound holds only under its own priors: a smaller ``q`` or clock noise than the truth
 really has gives a number that is *not* a bound for the truth. Heavy-tailed multipath
@@ -362,30 +366,12 @@ def arrival_time_bound(
         clock, ``filter_emission_s`` and ``smoother_emission_s`` (standard-deviation
         bound on the emission time, s).
     """
-    emissions = _validated_emissions(emission_times, truth)
-    for name, value in (("acceleration_psd", acceleration_psd), ("sigma", sigma)):
-        if not (np.isfinite(value) and value >= 0):
-            raise ValueError(f"{name} must be finite and >= 0, got {value}")
-    if not sigma > 0:
-        raise ValueError(f"sigma must be positive (s), got {sigma}")
-    if not (np.isfinite(sound_speed) and sound_speed > 0):
-        raise ValueError(f"sound_speed must be positive (m/s), got {sound_speed}")
-    ping, names = _validated_heard(heard, emissions.size)
-    prior = prior or BoundPrior()
-    t_truth = truth["time"].to_numpy(dtype=float)
-    tag = np.column_stack(
-        [np.interp(emissions, t_truth, truth[c].to_numpy(dtype=float)) for c in ("x", "y")]
+    geometry = _heard_geometry(
+        truth, receivers, heard, emission_times, acceleration_psd, sigma, sound_speed
     )
-    tag_xy = tag[ping]
-    tracks = ReceiverTracks.from_frame(receivers)
-    receiver_xy = _receiver_positions(tracks, names, tag_xy, emissions[ping], sound_speed)
-    distance = np.hypot(*(tag_xy - receiver_xy).T)
-    if np.any(distance < 1e-3):
-        bad = np.flatnonzero(distance < 1e-3)[:5].tolist()
-        raise ValueError(
-            f"heard rows {bad}: the tag is within 1 mm of the receiver; the arrival-time "
-            "Jacobian needs a direction"
-        )
+    emissions, ping, tag = geometry.emissions, geometry.ping, geometry.tag
+    tag_xy, receiver_xy, tracks = geometry.tag_xy, geometry.receiver_xy, geometry.tracks
+    prior = prior or BoundPrior()
     d = clock_dimension(clock)
     transitions, noises = joint_transitions(emissions, clock, acceleration_psd)
     jacobians = arrival_jacobians(tag_xy, receiver_xy, ping, emissions.size, d, sound_speed)
@@ -409,6 +395,171 @@ def arrival_time_bound(
     if d:
         out["filter_emission_s"] = np.sqrt(filtered[:, EMISSION, EMISSION])
         out["smoother_emission_s"] = np.sqrt(smoothed[:, EMISSION, EMISSION])
+    return out
+
+
+@dataclass(frozen=True)
+class _Geometry:
+    """The validated inputs of a bound: emissions (K,), each detection's ping (M,), the tag
+    at every emission (K, 2), the tag (M, 2) and receiver (M, 2) of every detection, and the
+    receivers' tracks."""
+
+    emissions: np.ndarray
+    ping: np.ndarray
+    tag: np.ndarray
+    tag_xy: np.ndarray
+    receiver_xy: np.ndarray
+    tracks: ReceiverTracks
+
+
+def _heard_geometry(
+    truth, receivers, heard, emission_times, acceleration_psd, sigma, sound_speed
+) -> _Geometry:
+    """Check a bound's inputs and place the tag and the receivers at every detection."""
+    emissions = _validated_emissions(emission_times, truth)
+    for name, value in (("acceleration_psd", acceleration_psd), ("sigma", sigma)):
+        if not (np.isfinite(value) and value >= 0):
+            raise ValueError(f"{name} must be finite and >= 0, got {value}")
+    if not sigma > 0:
+        raise ValueError(f"sigma must be positive (s), got {sigma}")
+    if not (np.isfinite(sound_speed) and sound_speed > 0):
+        raise ValueError(f"sound_speed must be positive (m/s), got {sound_speed}")
+    ping, names = _validated_heard(heard, emissions.size)
+    t_truth = truth["time"].to_numpy(dtype=float)
+    tag = np.column_stack(
+        [np.interp(emissions, t_truth, truth[c].to_numpy(dtype=float)) for c in ("x", "y")]
+    )
+    tag_xy = tag[ping]
+    tracks = ReceiverTracks.from_frame(receivers)
+    receiver_xy = _receiver_positions(tracks, names, tag_xy, emissions[ping], sound_speed)
+    distance = np.hypot(*(tag_xy - receiver_xy).T)
+    if np.any(distance < 1e-3):
+        bad = np.flatnonzero(distance < 1e-3)[:5].tolist()
+        raise ValueError(
+            f"heard rows {bad}: the tag is within 1 mm of the receiver; the arrival-time "
+            "Jacobian needs a direction"
+        )
+    return _Geometry(emissions, ping, tag, tag_xy, receiver_xy, tracks)
+
+
+#: emission models of :func:`tdoa_bound`
+EMISSION_MODELS = ("random", "sequence")
+
+
+def tdoa_bound(
+    truth: pd.DataFrame,
+    receivers: pd.DataFrame,
+    heard: pd.DataFrame,
+    emission_times,
+    *,
+    emission: str,
+    acceleration_psd: float,
+    sigma: float,
+    sound_speed: float,
+    jitter_sd: float = 0.0,
+    offset_sd: float = 1.0,
+    drift_sd: float = 1e-4,
+    prior: BoundPrior | None = None,
+) -> pd.DataFrame:
+    """Posterior Cramér–Rao bounds, per ping, for a tag whose emission times are nuisances.
+
+    The tag ``(x, y, vx, vy)`` moves as in :func:`arrival_time_bound`; ping ``k``'s arrival
+    at receiver ``j`` is ``t = e_k + |tag(e_k) − receiver_j| / c + noise``, the noise of the
+    ping's ``m_k`` arrivals Gaussian with covariance ``Σ_k = σ² I + jitter_sd² 1 1ᵀ``
+    (independent timing errors, plus the emission's own jitter, common to every receiver).
+
+    * ``emission="random"``: a random burst interval; each ``e_k`` is an independent unknown
+      with a flat prior (an interval uniform over tens of seconds says nothing at the
+      millisecond scale of the arrivals). Eliminating it leaves the information of the
+      time differences only, ``Jᵀ (Σ⁻¹ − Σ⁻¹ 1 1ᵀ Σ⁻¹ / 1ᵀ Σ⁻¹ 1) J`` per ping (``J`` the
+      ``m_k × 4`` Jacobian of the travel times, rows ``u_jᵀ / c``); a ping heard by one
+      receiver tells nothing, and the jitter drops out.
+    * ``emission="sequence"``: a known interval sequence; ``e_k = a + (1 + b) s_k`` with
+      ``s_k = e_k − e_0`` the known schedule, ``a`` (s) and the crystal's relative drift
+      ``b`` two unknown constants (prior sds ``offset_sd``, ``drift_sd``) joined to the
+      state, so every ping's arrivals inform the position directly.
+
+    The filtering bound is the Kalman covariance at the truth, the smoothing bound its
+    Rauch–Tung–Striebel smoothed covariance (:func:`kalman_covariances`,
+    :func:`rts_covariances`). Unheard pings are no information here.
+
+    Parameters
+    ----------
+    truth, receivers, heard, emission_times, acceleration_psd, sigma, sound_speed
+        As :func:`arrival_time_bound`.
+    emission : {"random", "sequence"}
+    jitter_sd : float
+        Standard deviation of each emission's jitter (s).
+    offset_sd, drift_sd : float
+        Prior standard deviations of ``a`` (s) and ``b`` (dimensionless), for
+        ``emission="sequence"``.
+    prior : BoundPrior, optional
+        Spread of the tag's position and velocity at the first ping.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per ping: ``time``, ``ping``, ``detections``, ``filter_position_m``,
+        ``smoother_position_m`` (m, bounds on the RMS position error).
+    """
+    if emission not in EMISSION_MODELS:
+        raise ValueError(f"emission must be one of {EMISSION_MODELS}, got {emission!r}")
+    for name, value in (("jitter_sd", jitter_sd), ("offset_sd", offset_sd), ("drift_sd", drift_sd)):
+        if not (np.isfinite(value) and value >= 0):
+            raise ValueError(f"{name} must be finite and >= 0, got {value}")
+    geometry = _heard_geometry(
+        truth, receivers, heard, emission_times, acceleration_psd, sigma, sound_speed
+    )
+    emissions, ping = geometry.emissions, geometry.ping
+    known = emission == "sequence"
+    rows = arrival_jacobians(
+        geometry.tag_xy, geometry.receiver_xy, ping, emissions.size, 2 * known, sound_speed
+    )
+    schedule = emissions - emissions[0]
+    jacobians = []
+    for k, block in enumerate(rows):
+        if known:
+            block[:, EMISSION + 1] = schedule[k]
+        jacobians.append(_whitened_ping(block, sigma, jitter_sd, eliminate=not known))
+    transitions, noises = joint_transitions(emissions, None, acceleration_psd)
+    initial = (prior or BoundPrior()).covariance(None)
+    if known:
+        transitions, noises = _with_constants(transitions), _with_constants(noises, 0.0)
+        initial = np.pad(initial, (0, 2))
+        initial[4, 4], initial[5, 5] = offset_sd**2, drift_sd**2
+    filtered, predicted = kalman_covariances(initial, transitions, noises, jacobians)
+    smoothed = rts_covariances(filtered, predicted, transitions)
+    return pd.DataFrame(
+        {
+            "time": emissions,
+            "ping": np.arange(emissions.size),
+            "detections": np.bincount(ping, minlength=emissions.size),
+            "filter_position_m": _position_bound(filtered),
+            "smoother_position_m": _position_bound(smoothed),
+        }
+    )
+
+
+def _whitened_ping(rows: np.ndarray, sigma: float, jitter_sd: float, eliminate: bool):
+    """Whitened Jacobian ``H`` (m, n) of one ping's arrivals with covariance
+    ``σ² I + jitter² 1 1ᵀ``: ``HᵀH = Jᵀ Σ⁻¹ J``, or with the emission time eliminated
+    (``eliminate``) ``Jᵀ (Σ⁻¹ − Σ⁻¹ 1 1ᵀ Σ⁻¹ / 1ᵀ Σ⁻¹ 1) J``."""
+    m = rows.shape[0]
+    if m == 0:
+        return rows
+    lower = np.linalg.cholesky(sigma**2 * np.eye(m) + jitter_sd**2 * np.ones((m, m)))
+    whitened = np.linalg.solve(lower, rows)
+    if eliminate:  # project out the whitened direction of the common emission time
+        w = np.linalg.solve(lower, np.ones(m))
+        whitened = whitened - np.outer(w, w @ whitened) / (w @ w)
+    return whitened
+
+
+def _with_constants(blocks: np.ndarray, value: float = 1.0) -> np.ndarray:
+    """(K, 4, 4) blocks padded to (K, 6, 6) with two constant states (``value`` on their
+    diagonal: 1 for transitions, 0 for process noise)."""
+    out = np.pad(blocks, ((0, 0), (0, 2), (0, 2)))
+    out[:, 4, 4] = out[:, 5, 5] = value
     return out
 
 

@@ -4,6 +4,11 @@ Writes ``detections.csv``, ``receivers.csv``, ``truth.csv`` and ``scenario.json`
 tracker's settings of the scenario: period, r0, bounds, sound speed, time window; a
 ``--config`` file of ``hmmtrack track``) into a directory, the inputs ``hmmtrack track``
 reads, so that the tracker can be tried on our analogues of the paper's datasets.
+
+``hmmtrack simulate moored-array --burst-interval 20 40 -o DIR`` writes a moored array with
+unsynchronised receiver clocks, sync tags and a tag on a pseudo-random burst interval, the
+inputs of ``hmmtrack sync`` and of tracking with its clock file
+(:func:`hmmtrack.scenarios.export.write_tagged_array`).
 """
 
 from __future__ import annotations
@@ -14,7 +19,16 @@ from pathlib import Path
 from hmmtrack.experiments.configs import scenario_settings
 from hmmtrack.io.outputs import check_paths, staged_folder
 from hmmtrack.scenarios import GENERATORS
-from hmmtrack.scenarios.export import FILE_NAMES, write_scenario
+from hmmtrack.scenarios.array import tagged_array
+from hmmtrack.scenarios.export import (
+    ARRAY_FILE_NAMES,
+    FILE_NAMES,
+    write_scenario,
+    write_tagged_array,
+)
+
+#: the moored array with sync tags and a random-interval tag (:func:`tagged_array`)
+ARRAY = "moored-array"
 
 
 def register(subparsers) -> None:
@@ -23,10 +37,13 @@ def register(subparsers) -> None:
         help="write a synthetic dataset (detections, receivers, truth, settings)",
         description=(
             "Simulate one of the paper's three datasets (synthetic analogues) and write "
-            "detections.csv, receivers.csv, truth.csv and scenario.json into a directory."
+            "detections.csv, receivers.csv, truth.csv and scenario.json into a directory; "
+            f"or '{ARRAY}': a moored array with unsynchronised clocks, sync tags and a tag on "
+            "a pseudo-random burst interval (also receivers_truth.csv, emissions.csv and "
+            "burst_sequence.csv)."
         ),
     )
-    parser.add_argument("scenario", choices=sorted(GENERATORS), help="which dataset")
+    parser.add_argument("scenario", choices=[*sorted(GENERATORS), ARRAY], help="which dataset")
     parser.add_argument("--seed", type=int, required=True, help="random seed (int)")
     parser.add_argument("-o", "--out", required=True, help="output directory")
     parser.add_argument(
@@ -37,12 +54,23 @@ def register(subparsers) -> None:
     parser.add_argument(
         "--plot", action="store_true", help="also write overview.png (paths seen from above)"
     )
+    parser.add_argument(
+        "--burst-interval",
+        type=float,
+        nargs=2,
+        metavar=("MIN", "MAX"),
+        help=f"{ARRAY} only: the tag's burst interval range (s; default 20 40, equal: fixed)",
+    )
     parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     if args.dive and args.scenario != "shark-pursuit":
         raise ValueError("--dive applies to shark-pursuit only")
+    if args.scenario == ARRAY:
+        return run_array(args)
+    if args.burst_interval is not None:
+        raise ValueError(f"--burst-interval applies to {ARRAY} only")
     check_paths(folders={"-o": args.out})
     generator = GENERATORS[args.scenario]
     scenario = generator(args.seed, dive=True) if args.dive else generator(args.seed)
@@ -68,4 +96,28 @@ def run(args: argparse.Namespace) -> int:
     )
     for path in paths.values():
         print(f"  wrote {path}")
+    return 0
+
+
+def run_array(args: argparse.Namespace) -> int:
+    """``hmmtrack simulate moored-array``: a 4 x 4 array over 12 h, the tag tracked 2 h."""
+    if args.plot:
+        raise ValueError(f"--plot does not apply to {ARRAY}")
+    check_paths(folders={"-o": args.out})
+    case = tagged_array(
+        args.seed,
+        burst_interval=tuple(args.burst_interval or (20.0, 40.0)),
+        duration=43200.0,
+        echo_fraction=0.01,
+    )
+    with staged_folder(args.out, last=ARRAY_FILE_NAMES["metadata"]) as stage:
+        names = {key: path.name for key, path in write_tagged_array(case, stage).items()}
+    heard = int(case.pings["detected"].sum())
+    print(
+        f"{ARRAY}: {len(case.detections)} detections at {len(case.array.receivers)} receivers "
+        f"over {case.array.end - case.array.start:.0f} s; tag {case.transmitter}: "
+        f"{case.emission_times.size} pings, {heard} heard"
+    )
+    for name in names.values():
+        print(f"  wrote {Path(args.out) / name}")
     return 0

@@ -6,7 +6,12 @@ intervals and are heard by their neighbours with a range-dependent probability, 
 timing jitter, and now and then by a late multipath path instead of the direct one. The
 receivers file holds the surveyed positions: exact for receivers marked ``fixed``, off by
 a few metres for the others. :func:`hmmtrack.sync.fit_clocks` should recover every clock,
-the sound speed and the positions from the detections alone.
+the sound speed and the positions from the detections alone. Echoes (a second detection of
+a ping at one receiver, late by a fraction of a second to seconds) may be added.
+
+:func:`tagged_array` adds a tag moving inside the array on a pseudo-random burst interval
+(a known interval sequence, or a random interval to a tracker not told it), heard the same
+way: the truth for synchronising and then tracking from every ping.
 
 Reuses the detection simulation of :mod:`hmmtrack.scenarios.detection` (acoustic paths,
 detection probability, receiver clocks).
@@ -60,6 +65,85 @@ class DriftingClock:
 
 
 @dataclass(frozen=True)
+class Listening:
+    """How the array's receivers hear a transmitter: paths, detection curves, clocks, errors.
+
+    Attributes
+    ----------
+    paths : dict of str to Trajectory
+        True receiver positions.
+    curves : dict of str to LogisticDetection
+        Detection probability by range of each receiver.
+    clocks : dict of str to DriftingClock
+        Each receiver's clock, in which it logs.
+    sound_speed : float
+        m/s.
+    timing_sd, multipath_fraction, multipath_delay, echo_fraction, echo_delay
+        See :func:`moored_sync_array`.
+    """
+
+    paths: dict[str, Trajectory]
+    curves: dict[str, LogisticDetection]
+    clocks: dict[str, DriftingClock]
+    sound_speed: float
+    timing_sd: float
+    multipath_fraction: float
+    multipath_delay: float
+    echo_fraction: float
+    echo_delay: tuple[float, float]
+
+    def hear(
+        self, rng: np.random.Generator, source: Trajectory, emission: np.ndarray, transmitter: str
+    ) -> tuple[pd.DataFrame, pd.DataFrame]:
+        """Every receiver's hearing of the pings emitted at ``emission`` (true s) from ``source``.
+
+        Draws, in order: detections (:func:`~hmmtrack.scenarios.detection.simulate_pings`),
+        multipath, jitter, then echoes (only when ``echo_fraction > 0``).
+
+        Returns
+        -------
+        pings : DataFrame
+            As :attr:`SyncArray.pings`, for this transmitter.
+        detections : DataFrame
+            ``time`` (each receiver's clock, s), ``receiver``, ``transmitter``: the detected
+            pings and their echoes, sorted by time.
+        """
+        pings = simulate_pings(
+            rng,
+            source,
+            self.paths,
+            emission,
+            self.curves,
+            sound_speed=self.sound_speed,
+            receiver_clocks=self.clocks,
+        )
+        n = len(pings)
+        late = rng.random(n) < self.multipath_fraction
+        delay = np.where(late, rng.exponential(self.multipath_delay, n), 0.0)
+        jitter = rng.normal(0.0, self.timing_sd, n)
+        pings["logged_time"] = pings["logged_time"] + jitter + delay
+        pings["transmitter"] = transmitter
+        pings["multipath"] = delay
+        pings["echo"] = np.nan
+        if self.echo_fraction > 0:
+            echoed = pings["detected"].to_numpy() & (rng.random(n) < self.echo_fraction)
+            pings.loc[echoed, "echo"] = rng.uniform(*self.echo_delay, int(echoed.sum()))
+        detections = detections_from_pings(pings, transmitter)
+        echoes = pings[pings["echo"].notna()]
+        if len(echoes):
+            late_copies = pd.DataFrame(
+                {
+                    "time": (echoes["logged_time"] + echoes["echo"]).to_numpy(),
+                    "receiver": echoes["receiver"].to_numpy(),
+                    "transmitter": transmitter,
+                }
+            )
+            detections = pd.concat([detections, late_copies], ignore_index=True)
+            detections = detections.sort_values(["time", "receiver"], kind="stable")
+        return pings, detections.reset_index(drop=True)
+
+
+@dataclass(frozen=True)
 class SyncArray:
     """A simulated moored array (see the module docstring).
 
@@ -78,9 +162,12 @@ class SyncArray:
         m/s.
     pings : DataFrame
         Every sync emission at every receiver (:data:`hmmtrack.scenarios.detection.PING_COLUMNS`
-        plus ``transmitter`` and ``multipath``, the late path's delay in s, 0 for direct).
+        plus ``transmitter``, ``multipath``, the late path's delay in s, 0 for direct, and
+        ``echo``, the delay of the echo logged after it, NaN for none).
     start, end : float
         Deployment (true UTC s).
+    listening : Listening
+        How the receivers hear any transmitter in the array (for tags added to it).
     """
 
     detections: pd.DataFrame
@@ -91,6 +178,7 @@ class SyncArray:
     pings: pd.DataFrame
     start: float
     end: float
+    listening: Listening
 
 
 def moored_sync_array(
@@ -109,6 +197,8 @@ def moored_sync_array(
     timing_sd: float = 2e-4,
     multipath_fraction: float = 0.02,
     multipath_delay: float = 0.02,
+    echo_fraction: float = 0.0,
+    echo_delay: tuple[float, float] = (0.3, 1.5),
     sound_speed: float = 1500.0,
     detection: LogisticDetection | None = None,
     start: float = 1.6e9,
@@ -137,6 +227,10 @@ def moored_sync_array(
     multipath_fraction, multipath_delay : float
         Share of detections logged from a late path instead, late by an exponential delay
         of this mean (s).
+    echo_fraction, echo_delay : float, (float, float)
+        Share of detections followed by an echo, a second detection of the same ping at
+        the same receiver late by a uniform delay in ``echo_delay`` (s): a reflection
+        decoded after the receiver's blanking interval.
     sound_speed : float
         m/s.
     detection : LogisticDetection, optional
@@ -185,29 +279,25 @@ def moored_sync_array(
         )
         for row in truth.itertuples()
     }
-    curves = dict.fromkeys(names, detection)
+    listening = Listening(
+        paths=paths,
+        curves=dict.fromkeys(names, detection),
+        clocks=clocks,
+        sound_speed=sound_speed,
+        timing_sd=timing_sd,
+        multipath_fraction=multipath_fraction,
+        multipath_delay=multipath_delay,
+        echo_fraction=echo_fraction,
+        echo_delay=echo_delay,
+    )
     frames, detections = [], []
     for home, transmitter in tags.items():
         gaps = rng.uniform(*sync_interval, int(duration / sync_interval[0]) + 2)
         emission = start + rng.uniform(0, sync_interval[0]) + np.cumsum(gaps)
         emission = emission[emission < start + duration]
-        pings = simulate_pings(
-            rng,
-            paths[home],
-            paths,
-            emission,
-            curves,
-            sound_speed=sound_speed,
-            receiver_clocks=clocks,
-        )
-        late = rng.random(len(pings)) < multipath_fraction
-        delay = np.where(late, rng.exponential(multipath_delay, len(pings)), 0.0)
-        jitter = rng.normal(0.0, timing_sd, len(pings))
-        pings["logged_time"] = pings["logged_time"] + jitter + delay
-        pings["transmitter"] = transmitter
-        pings["multipath"] = delay
+        pings, heard = listening.hear(rng, paths[home], emission, transmitter)
         frames.append(pings)
-        detections.append(detections_from_pings(pings, transmitter))
+        detections.append(heard)
     table = pd.concat(detections, ignore_index=True)
     table = table.sort_values(["time", "receiver"], kind="stable").reset_index(drop=True)
     return SyncArray(
@@ -219,4 +309,136 @@ def moored_sync_array(
         pings=pd.concat(frames, ignore_index=True),
         start=start,
         end=start + duration,
+        listening=listening,
     )
+
+
+@dataclass(frozen=True)
+class TaggedArray:
+    """A moored sync array with a moving tag on a pseudo-random burst interval.
+
+    Attributes
+    ----------
+    array : SyncArray
+        The array, its clocks and its sync tags (its ``detections`` are the sync tags' only).
+    detections : DataFrame
+        Everything the receivers logged, sync tags and the tag: ``time`` (each receiver's
+        clock, s), ``receiver``, ``transmitter``.
+    transmitter : str
+        The tag's id.
+    truth : DataFrame
+        The tag's true path every second: ``time`` (true UTC s), ``x``, ``y`` (m).
+    emission_times : numpy.ndarray, shape (n_pings,)
+        True emission times (s).
+    sequence : numpy.ndarray, shape (L,)
+        The tag's interval sequence (s), used in a cycle: the interval after ping ``k`` is
+        ``sequence[(first_index + k) % L]``.
+    first_index : int
+        Index in ``sequence`` of the interval after the first ping.
+    burst_interval : (float, float)
+        Smallest and largest interval (s) the sequence was drawn from.
+    pings : DataFrame
+        Every tag emission at every receiver (as :attr:`SyncArray.pings`).
+    """
+
+    array: SyncArray
+    detections: pd.DataFrame
+    transmitter: str
+    truth: pd.DataFrame
+    emission_times: np.ndarray
+    sequence: np.ndarray
+    first_index: int
+    burst_interval: tuple[float, float]
+    pings: pd.DataFrame
+
+
+def tagged_array(
+    seed: int,
+    *,
+    burst_interval: tuple[float, float] = (20.0, 40.0),
+    sequence_length: int = 256,
+    tag_duration: float = 7200.0,
+    tag_speed: float = 0.5,
+    transmitter: str = "A69-1602-1000",
+    **array_options,
+) -> TaggedArray:
+    """A tag moving inside a simulated moored array, heard as the sync tags are.
+
+    The array is ``moored_sync_array(seed, **array_options)`` (the same for the same seed
+    and options); the tag is drawn from a second stream of the seed. It travels at
+    ``tag_speed`` between waypoints drawn uniformly inside the receiver grid (a tag towed
+    or a fish cruising about the array) for ``tag_duration`` seconds from the middle of the
+    deployment minus half that duration. Its burst intervals follow a pseudo-random
+    sequence drawn uniformly in ``burst_interval`` and used in a cycle, entered at a random
+    index, as a tag with a known interval sequence (YAPS's "pbi"); tracked without the
+    sequence the same pings are a random-interval tag, whose intervals look independent
+    and uniform in ``burst_interval`` whenever the track is shorter than a cycle. Equal
+    bounds give a fixed-period tag. Heard by every receiver with the array's detection
+    curve, timing jitter, multipath and echoes (:meth:`Listening.hear`).
+
+    Parameters
+    ----------
+    seed : int
+    burst_interval : (float, float)
+        Smallest and largest interval between pings (s).
+    sequence_length : int
+        Intervals in the sequence.
+    tag_duration : float
+        How long the tag is tracked (s), within the deployment.
+    tag_speed : float
+        m/s.
+    transmitter : str
+    **array_options
+        Of :func:`moored_sync_array`.
+
+    Returns
+    -------
+    TaggedArray
+    """
+    low, high = burst_interval
+    if not 0 < low <= high:
+        raise ValueError(f"burst_interval must be 0 < MIN <= MAX (s), got {burst_interval}")
+    array = moored_sync_array(seed, **array_options)
+    if not 0 < tag_duration <= array.end - array.start:
+        raise ValueError(f"tag_duration must be in (0, {array.end - array.start}] s")
+    rng = np.random.default_rng([seed, 1])
+    start = 0.5 * (array.start + array.end - tag_duration)
+    path = _waypoint_path(rng, array.receivers_truth, tag_speed, start, start + tag_duration)
+    sequence = rng.uniform(low, high, sequence_length)
+    first = int(rng.integers(sequence_length))
+    n = int(tag_duration / low) + 2
+    gaps = sequence[(first + np.arange(n)) % sequence_length]
+    emission = start + rng.uniform(0.0, high) + np.concatenate([[0.0], np.cumsum(gaps)])
+    emission = emission[emission < start + tag_duration]
+    pings, heard = array.listening.hear(rng, path, emission, transmitter)
+    detections = pd.concat([array.detections, heard], ignore_index=True)
+    detections = detections.sort_values(["time", "receiver"], kind="stable")
+    seconds = start + np.arange(int(tag_duration) + 1, dtype=float)
+    x, y, _ = path.position(seconds)
+    return TaggedArray(
+        array=array,
+        detections=detections.reset_index(drop=True),
+        transmitter=transmitter,
+        truth=pd.DataFrame({"time": seconds, "x": x, "y": y}),
+        emission_times=emission,
+        sequence=sequence,
+        first_index=first,
+        burst_interval=(float(low), float(high)),
+        pings=pings,
+    )
+
+
+def _waypoint_path(
+    rng: np.random.Generator, receivers: pd.DataFrame, speed: float, start: float, end: float
+) -> Trajectory:
+    """Straight legs at ``speed`` (m/s) between waypoints uniform in the receivers' box,
+    inset by a tenth of its size, from ``start`` to at least ``end`` (s)."""
+    low = receivers[["x", "y"]].min().to_numpy(dtype=float)
+    high = receivers[["x", "y"]].max().to_numpy(dtype=float)
+    inset = 0.1 * (high - low)
+    points, times = [rng.uniform(low + inset, high - inset)], [start]
+    while times[-1] < end:
+        points.append(rng.uniform(low + inset, high - inset))
+        times.append(times[-1] + max(np.hypot(*(points[-1] - points[-2])), 1.0) / speed)
+    xy = np.array(points)
+    return Trajectory(np.array(times), xy[:, 0], xy[:, 1])

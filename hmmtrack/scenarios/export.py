@@ -1,4 +1,6 @@
-"""Write a :class:`~hmmtrack.scenarios.Scenario` as the files ``hmmtrack track`` reads.
+"""Write a simulated dataset as the files ``hmmtrack track`` and ``hmmtrack sync`` read.
+
+:func:`write_scenario` writes a :class:`~hmmtrack.scenarios.Scenario`:
 
 ``detections.csv`` (``time`` ISO 8601 UTC with milliseconds, ``receiver``, ``transmitter``,
 ``depth`` for a depth tag), ``receivers.csv`` (``receiver``, ``time`` — empty for a moored
@@ -8,6 +10,10 @@ names); metres to the millimetre.
 Times are printed by :func:`hmmtrack.io.format_times`; milliseconds are what real receivers
 log, so the files carry up to 0.5 ms (0.73 m of range) of rounding that the in-memory
 scenario does not.
+
+:func:`write_tagged_array` writes a :class:`~hmmtrack.scenarios.array.TaggedArray` (a moored
+array with unsynchronised clocks, sync tags and a pseudo-random-interval tag): the files of
+:data:`ARRAY_FILE_NAMES`.
 """
 
 from __future__ import annotations
@@ -20,6 +26,7 @@ import numpy as np
 import pandas as pd
 
 from hmmtrack.io import format_times
+from hmmtrack.scenarios.array import TaggedArray
 from hmmtrack.scenarios.scenario import Scenario
 
 #: file names written by :func:`write_scenario`, by table
@@ -65,6 +72,88 @@ def write_scenario(scenario: Scenario, directory: str | Path, settings: Mapping)
         _with_iso_times(getattr(scenario, key)).to_csv(paths[key], index=False, float_format="%.3f")
     metadata = {"name": scenario.name, "description": scenario.description, **settings} | {
         "files": {key: name for key, name in FILE_NAMES.items() if key != "metadata"},
+        "synthetic": True,
+    }
+    paths["metadata"].write_text(json.dumps(metadata, indent=2) + "\n")
+    return paths
+
+
+#: file names written by :func:`write_tagged_array`, by table
+ARRAY_FILE_NAMES = {
+    "detections": "detections.csv",
+    "receivers": "receivers.csv",
+    "truth": "truth.csv",
+    "receivers_truth": "receivers_truth.csv",
+    "emissions": "emissions.csv",
+    "burst_sequence": "burst_sequence.csv",
+    "metadata": "scenario.json",
+}
+
+
+def write_tagged_array(case: TaggedArray, directory: str | Path) -> dict[str, Path]:
+    """Write a moored array with a tag into ``directory`` (created if needed).
+
+    * ``detections.csv`` - ``time`` (ISO 8601 UTC to the millisecond, as receivers log it,
+      each receiver's own clock), ``receiver``, ``transmitter``: the sync tags and the tag,
+      echoes included;
+    * ``receivers.csv`` - the receivers file of ``hmmtrack sync``: ``receiver``, ``x``,
+      ``y``, ``z`` (m, surveyed), ``sync_tag``, ``fixed``;
+    * ``truth.csv`` - the tag's path every second: ``time`` (ISO, true UTC), ``x``, ``y``;
+    * ``receivers_truth.csv`` - true ``x``, ``y``, ``z`` and clock of every receiver:
+      ``clock_offset_s``, ``clock_drift_ppm``, ``clock_drift_rate_ppm_per_day``,
+      ``clock_reference_time`` (epoch s; :class:`~hmmtrack.scenarios.array.DriftingClock`);
+    * ``emissions.csv`` - ``ping``, true ``emission_time`` (epoch s to the microsecond),
+      ``sequence_index`` (the index in the burst sequence of the interval after it);
+    * ``burst_sequence.csv`` - ``interval`` (s): the tag's interval sequence, in the order
+      it uses them, cyclically;
+    * ``scenario.json`` - name, description, the files and the tag's ``transmitter`` (a
+      ``--config`` file of ``hmmtrack track``).
+
+    Returns
+    -------
+    dict of str to Path
+        The files written, keyed like :data:`ARRAY_FILE_NAMES`.
+    """
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    paths = {key: directory / name for key, name in ARRAY_FILE_NAMES.items()}
+    array = case.array
+    _with_iso_times(case.detections).to_csv(paths["detections"], index=False)
+    receivers = array.receivers[["receiver", "x", "y", "z", "sync_tag", "fixed"]]
+    receivers.to_csv(paths["receivers"], index=False, float_format="%.3f")
+    _with_iso_times(case.truth).to_csv(paths["truth"], index=False, float_format="%.3f")
+    truth = array.receivers_truth.copy()
+    for column, field in (
+        ("clock_offset_s", "offset"),
+        ("clock_drift_ppm", "drift_ppm"),
+        ("clock_drift_rate_ppm_per_day", "drift_rate_ppm_per_day"),
+        ("clock_reference_time", "reference_time"),
+    ):
+        truth[column] = [getattr(array.clocks[name], field) for name in truth["receiver"]]
+    truth.to_csv(paths["receivers_truth"], index=False)
+    n = case.emission_times.size
+    pd.DataFrame(
+        {
+            "ping": np.arange(n),
+            "emission_time": case.emission_times,
+            "sequence_index": (case.first_index + np.arange(n)) % case.sequence.size,
+        }
+    ).to_csv(paths["emissions"], index=False, float_format="%.6f")
+    pd.DataFrame({"interval": case.sequence}).to_csv(
+        paths["burst_sequence"], index=False, float_format="%.6f"
+    )
+    low, high = case.burst_interval
+    metadata = {
+        "name": "moored-array",
+        "description": (
+            f"Synthetic: a tag moving inside a moored array of {len(receivers)} receivers "
+            f"with unsynchronised clocks and sync tags, pinging at a pseudo-random burst "
+            f"interval in [{low:g}, {high:g}] s (its sequence in burst_sequence.csv); detections "
+            "in each receiver's clock, with multipath and echoes. truth.csv is in true UTC: "
+            "receivers_truth.csv holds the clocks that map it to a time keeper's."
+        ),
+        "transmitter": case.transmitter,
+        "files": {key: name for key, name in ARRAY_FILE_NAMES.items() if key != "metadata"},
         "synthetic": True,
     }
     paths["metadata"].write_text(json.dumps(metadata, indent=2) + "\n")

@@ -496,9 +496,10 @@ class _Problem:
         residual = self._residuals(x, gain)
         jacobian = self._jacobian(x, gain)
         norm = np.sqrt(np.asarray(jacobian.multiply(jacobian).sum(axis=0)).ravel())
-        norm[norm == 0] = 1.0
+        idle = norm == 0  # e.g. an emission whose detections are all rejected: it stays put
+        norm[idle] = 1.0
         scaled = jacobian @ sparse.diags(1.0 / norm)
-        normal = (scaled.T @ scaled).tocsc()
+        normal = (scaled.T @ scaled + sparse.diags(idle.astype(float))).tocsc()
         step = spsolve(normal, scaled.T @ residual) / norm
         cost = residual @ residual
         for _ in range(20):
