@@ -12,6 +12,7 @@ import pytest
 
 from hmmtrack import io
 from hmmtrack.cli import main
+from hmmtrack.experiments.array_runs import array_bound_ratios
 from hmmtrack.scenarios.array import DriftingClock, tagged_array
 from hmmtrack.sync import read_clocks
 
@@ -82,3 +83,23 @@ def test_sync_on_the_written_files_recovers_the_true_clocks(simulated):
     print("largest position error (m):", moved.max())
     assert moved.max() <= 0.5
     assert clocks.echoes_dropped > 0
+
+
+def test_error_against_bound_for_the_arrival_time_filter_on_a_fixed_period_tag():
+    """The experiment a random-interval measurement will be judged by, run now with the
+    arrival-time filter on a fixed-period tag (measured, dataset 2: clocks 0.04 ms, error
+    at the pings 1.01 m against a 0.22 m bound, smoothed 1.00 m against 0.22 m)."""
+    table = array_bound_ratios(
+        "arrival-time",
+        datasets=(2,),
+        seeds=(1,),
+        burst_interval=(20.0, 20.0),
+        n_particles=1000,
+        settings={"period": 20.0, "smoothing_lag": 30},
+    )
+    row = table.iloc[0]
+    assert row["pings"] == 90 and row["clock_error_ms"] < 0.2
+    assert 0.1 < row["bound_m"] < 0.5  # nine receivers at 0.2 ms each, 0.3 m of range
+    assert row["ratio"] == pytest.approx(row["rms_error_m"] / row["bound_m"])
+    # the filter's 3 ms arrival sd keeps it a few times above the bound, never below it
+    assert 1.0 < row["ratio"] < 10.0 and 1.0 < row["smoothed_ratio"] < 10.0

@@ -24,7 +24,9 @@ Submodules: :mod:`~hmmtrack.experiments.trials` (one trial, its seed and score),
 The studies behind ``hmmtrack study`` (not imported here): :mod:`~hmmtrack.experiments.stationary`,
 :mod:`~hmmtrack.experiments.arrival`, :mod:`~hmmtrack.experiments.clock_bound`,
 :mod:`~hmmtrack.experiments.two_auv_plan` and :mod:`~hmmtrack.experiments.closed_loop_study`,
-with the clock studies' shared runs in :mod:`~hmmtrack.experiments.clock_runs`.
+with the clock studies' shared runs in :mod:`~hmmtrack.experiments.clock_runs`; any
+measurement against its Cramér–Rao bound on a simulated moored array with sync tags:
+:mod:`~hmmtrack.experiments.array_runs`.
 
 Trials are dispatched through :mod:`hmmtrack.experiments.executors` (serial, local processes or a
 Dask

@@ -1,0 +1,196 @@
+"""Tracking a tag in a simulated moored array against its Cramér–Rao bound, for any measurement.
+
+:func:`array_bound_ratios` runs one measurement (a name of
+:data:`hmmtrack.tracking.measurement.MEASUREMENTS`, e.g. ``"arrival-time"`` for a
+fixed-period tag, or a measurement for random-interval tags once one is registered) on
+:func:`hmmtrack.scenarios.array.tagged_array` datasets the way a user would: the receivers'
+clocks fitted from the sync tags (:func:`hmmtrack.sync.fit_clocks`, positions of the
+unfixed receivers refined), the tag's detections moved to the time keeper's time base
+(:func:`hmmtrack.sync.apply_clocks`), then :func:`hmmtrack.tracking.pipeline.track` with the
+velocity motion model and the fitted sound speed. Each run's RMS position error at the pings (the
+estimates interpolated at the emission times, the truth moved to the time keeper's clock)
+is set beside the posterior Cramér–Rao bound of the same
+pings (:func:`hmmtrack.analysis.crb.tdoa_bound`, emission times unknown per ping or known
+up to offset and drift), as a ratio: how far the method is from what any tracker could do
+from these pings. This module runs and scores; it writes nothing.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+import pandas as pd
+
+from hmmtrack.analysis.crb import acceleration_psd_from_path, tdoa_bound
+from hmmtrack.analysis.metrics import position_error
+from hmmtrack.scenarios.array import TaggedArray, tagged_array
+from hmmtrack.sync import apply_clocks, fit_clocks
+from hmmtrack.tracking.config import TrackingConfig, section_classes
+from hmmtrack.tracking.pipeline import track
+
+#: the time keeper of every run (the array's first receiver)
+KEEPER = "rx-01"
+#: errors and bounds are taken from this many seconds after the tag's first ping (s)
+SKIP = 300.0
+#: the array of the runs: 3 x 3 receivers 100 m apart, 12 h of sync tags, 1 % echoes
+ARRAY = {"rows": 3, "columns": 3, "duration": 43200.0, "echo_fraction": 0.01}
+#: the search box's margin around the receivers (m)
+MARGIN = 100.0
+
+
+def array_bound_ratios(
+    measurement: str,
+    *,
+    datasets: Sequence[int] = (1, 2),
+    seeds: Sequence[int] = (1, 2),
+    burst_interval: tuple[float, float] = (20.0, 40.0),
+    tag_duration: float = 1800.0,
+    n_particles: int = 2000,
+    settings: Mapping | None = None,
+    bound_emission: str = "random",
+) -> pd.DataFrame:
+    """Error and bound of ``measurement`` on simulated moored arrays, per dataset and seed.
+
+    Parameters
+    ----------
+    measurement : str
+        The measurement's name in a configuration.
+    datasets : sequence of int
+        Scenario seeds of :func:`~hmmtrack.scenarios.array.tagged_array` (with :data:`ARRAY`).
+    seeds : sequence of int
+        Filter seeds, each run on every dataset.
+    burst_interval : (float, float)
+        The tag's interval range (s); equal values: a fixed-period tag.
+    tag_duration : float
+        Length of the tracked window (s).
+    n_particles : int
+    settings : mapping, optional
+        More settings by key (:meth:`~hmmtrack.tracking.config.TrackingConfig.from_keys`),
+        e.g. ``{"period": 30.0}`` for ``"arrival-time"``; they win over the run's own.
+    bound_emission : {"random", "sequence"}
+        The bound's emission model (:func:`~hmmtrack.analysis.crb.tdoa_bound`).
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per dataset and seed: ``measurement``, ``dataset``, ``seed``, ``pings``,
+        ``detections`` (the tag's), ``clock_error_ms`` (largest error of the fitted clocks
+        over the tag's window), ``rms_error_m`` (at the pings from :data:`SKIP` s on),
+        ``bound_m`` (RMS of the filtering bound over the same pings), ``ratio`` (their
+        quotient), and when the
+        configuration smooths ``smoothed_rms_error_m``, ``smoother_bound_m`` and
+        ``smoothed_ratio``; ``seconds`` (wall time of the filter).
+    """
+    rows = []
+    for dataset in datasets:
+        case = tagged_array(
+            dataset, burst_interval=burst_interval, tag_duration=tag_duration, **ARRAY
+        )
+        fit = fit_clocks(
+            case.detections, case.array.receivers, time_keeper=KEEPER, refine_positions=3.0
+        )
+        clocks = fit.clocks
+        tag = case.detections[case.detections["transmitter"] == case.transmitter]
+        detections = apply_clocks(tag, clocks)
+        receivers = pd.DataFrame(
+            {
+                "receiver": clocks.receivers,
+                "time": np.nan,
+                "x": clocks.positions[:, 0],
+                "y": clocks.positions[:, 1],
+            }
+        )
+        keeper = case.array.clocks[KEEPER]
+        truth = case.truth.assign(time=keeper(case.truth["time"].to_numpy()))
+        bound = _bound(case, bound_emission)
+        late = (bound["time"] >= case.emission_times[0] + SKIP).to_numpy()
+        pings = keeper(case.emission_times)
+        config = _config(measurement, case, clocks, receivers, n_particles, settings or {})
+        for seed in seeds:
+            began = time.perf_counter()
+            result = track(detections, receivers, config, seed=seed)
+            seconds = time.perf_counter() - began
+            row = {
+                "measurement": measurement,
+                "dataset": dataset,
+                "seed": seed,
+                "pings": case.emission_times.size,
+                "detections": len(detections),
+                "clock_error_ms": 1e3 * _clock_error(case, clocks),
+                "rms_error_m": _rms_at(result.estimates, truth, pings[late]),
+                "bound_m": _rms(bound.loc[late, "filter_position_m"]),
+            }
+            row["ratio"] = row["rms_error_m"] / row["bound_m"]
+            if result.smoothed is not None:
+                smoothed = _rms_at(result.smoothed, truth, pings[late])
+                row["smoothed_rms_error_m"] = smoothed
+                row["smoother_bound_m"] = _rms(bound.loc[late, "smoother_position_m"])
+                row["smoothed_ratio"] = smoothed / row["smoother_bound_m"]
+            rows.append(row | {"seconds": seconds})
+    return pd.DataFrame(rows)
+
+
+def _config(measurement, case: TaggedArray, clocks, receivers, n_particles, settings):
+    """The run's configuration: the tag, its window on the keeper's clock, a box around the
+    receivers, the fitted sound speed (when the measurement has one), velocity motion."""
+    keeper = case.array.clocks[KEEPER]
+    keys = {
+        "measurement": measurement,
+        "motion": "velocity",
+        "transmitter": case.transmitter,
+        "n_particles": n_particles,
+        "start": float(np.floor(keeper(case.emission_times[0]))),
+        "end": float(np.floor(keeper(case.truth["time"].iloc[-1]))),
+        "bounds": (
+            receivers["x"].min() - MARGIN,
+            receivers["x"].max() + MARGIN,
+            receivers["y"].min() - MARGIN,
+            receivers["y"].max() + MARGIN,
+        ),
+    }
+    if "sound_speed" in section_classes("measurement")[measurement].keys():
+        keys["sound_speed"] = float(np.mean(clocks.sound_speed))
+    return TrackingConfig.from_keys(**(keys | dict(settings)))
+
+
+def _bound(case: TaggedArray, emission: str) -> pd.DataFrame:
+    """The bound of the tag's heard pings (true receivers, sound speed, time)."""
+    array = case.array
+    heard = case.pings.loc[case.pings["detected"], ["ping", "receiver"]]
+    receivers = array.receivers_truth.assign(time=np.nan)
+    window = float(np.mean(case.burst_interval))
+    return tdoa_bound(
+        case.truth,
+        receivers,
+        heard.reset_index(drop=True),
+        case.emission_times,
+        emission=emission,
+        acceleration_psd=acceleration_psd_from_path(case.truth, window),
+        sigma=array.listening.timing_sd,
+        sound_speed=array.sound_speed,
+    )
+
+
+def _clock_error(case: TaggedArray, clocks) -> float:
+    """Largest error (s) of the fitted clocks over the tag's window."""
+    grid = case.truth["time"].to_numpy()[::60]
+    keeper = case.array.clocks[KEEPER]
+    return max(
+        float(np.max(np.abs(clocks.to_common(name, clock(grid)) - keeper(grid))))
+        for name, clock in case.array.clocks.items()
+    )
+
+
+def _rms(values: pd.Series) -> float:
+    return float(np.sqrt(np.mean(np.square(values.to_numpy(dtype=float)))))
+
+
+def _rms_at(estimates: pd.DataFrame, truth: pd.DataFrame, times: np.ndarray) -> float:
+    """RMS error (m) of the estimates interpolated linearly at ``times`` (s), the pings."""
+    t = estimates["time"].to_numpy(dtype=float)
+    at = pd.DataFrame(
+        {"time": times} | {c: np.interp(times, t, estimates[c].to_numpy(dtype=float)) for c in "xy"}
+    )
+    return float(np.sqrt(np.mean(position_error(at, truth) ** 2)))
