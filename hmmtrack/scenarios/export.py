@@ -38,6 +38,13 @@ FILE_NAMES = {
 }
 
 
+def _file_paths(directory: str | Path, names: Mapping[str, str]) -> dict[str, Path]:
+    """The paths of ``names`` (key -> file name) in ``directory``, created if needed."""
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    return {key: directory / name for key, name in names.items()}
+
+
 def _with_iso_times(table: pd.DataFrame) -> pd.DataFrame:
     out = table.copy()
     times = out["time"].to_numpy(dtype=float)
@@ -65,9 +72,7 @@ def write_scenario(scenario: Scenario, directory: str | Path, settings: Mapping)
     dict of str to Path
         The files written, keyed like :data:`FILE_NAMES`.
     """
-    directory = Path(directory)
-    directory.mkdir(parents=True, exist_ok=True)
-    paths = {key: directory / name for key, name in FILE_NAMES.items()}
+    paths = _file_paths(directory, FILE_NAMES)
     for key in ("detections", "receivers", "truth"):
         _with_iso_times(getattr(scenario, key)).to_csv(paths[key], index=False, float_format="%.3f")
     metadata = {"name": scenario.name, "description": scenario.description, **settings} | {
@@ -106,17 +111,15 @@ def write_tagged_array(case: TaggedArray, directory: str | Path) -> dict[str, Pa
       ``sequence_index`` (the index in the burst sequence of the interval after it);
     * ``burst_sequence.csv`` - ``interval`` (s): the tag's interval sequence, in the order
       it uses them, cyclically;
-    * ``scenario.json`` - name, description, the files and the tag's ``transmitter`` (a
-      ``--config`` file of ``hmmtrack track``).
+    * ``scenario.json`` - name, description, the files and the tag's ``transmitter`` (no
+      measurement: a ``--config`` layer under ``hmmtrack track``'s options).
 
     Returns
     -------
     dict of str to Path
         The files written, keyed like :data:`ARRAY_FILE_NAMES`.
     """
-    directory = Path(directory)
-    directory.mkdir(parents=True, exist_ok=True)
-    paths = {key: directory / name for key, name in ARRAY_FILE_NAMES.items()}
+    paths = _file_paths(directory, ARRAY_FILE_NAMES)
     array = case.array
     _with_iso_times(case.detections).to_csv(paths["detections"], index=False)
     receivers = array.receivers[["receiver", "x", "y", "z", "sync_tag", "fixed"]]
