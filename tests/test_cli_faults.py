@@ -85,6 +85,9 @@ def world(tmp_path_factory) -> Path:
         "tracks_text.csv": b"id,time,x,y\na,2024-01-01T00:00:00Z,one,2\n",
         "tracks_nox.csv": b"id,time,east,y\na,2024-01-01T00:00:00Z,1,2\n",
         "tracks_latin1.csv": "id,time,x,y\nr\xe9,2024-01-01T00:00:00Z,1,2\n".encode("latin-1"),
+        "movebank_gap.csv": b"individual-local-identifier,timestamp,location-long,location-lat\n"
+        b"a,2024-01-01 00:00:00,-114.0,51.0\na,2024-01-01 00:02:00,,\n"
+        b"a,2024-01-01 00:04:00,-114.001,51.001\na,2024-01-01 00:06:00,-114.002,51.0005\n",
         "truth_cols.csv": b"time,east,north\n2022-06-08T17:00:00Z,0,0\n",
         "truth_latin1.csv": "time,x,y\n2022-06-08T17:00:00Z,0\xb0,0\n".encode("latin-1"),
         "not_json.json": b"{period: 8}",
@@ -151,6 +154,7 @@ BASES = {
     "track_hmm": TRACK_NO_CONFIG.replace("baseline", "hmm"),
     "fit": FIT,
     "decode": DECODE,
+    "plot": "plot {w}/model.json {w}/tracks.csv",
 }
 
 
@@ -241,6 +245,18 @@ def test_fit_fault_while_saving_keeps_the_previous_model(
 
     monkeypatch.setattr(MovementHMM, "save", _failing(exception))
     argv = expand(Case("", FIT + " -o {w}/previous.json", 0, ()), world)
+    assert_refused(world, capsys, argv, code, (says,))
+
+
+@pytest.mark.parametrize(("name", "exception", "code", "says"), FAULTS, ids=[f[0] for f in FAULTS])
+def test_fit_fault_while_plotting_keeps_the_previous_model(
+    world, capsys, monkeypatch, name, exception, code, says
+):
+    """The model and its figures are one set: a fault drawing a figure leaves neither."""
+    import matplotlib.figure
+
+    monkeypatch.setattr(matplotlib.figure.Figure, "savefig", _failing(exception))
+    argv = expand(Case("", FIT + " -o {w}/previous.json --plot {w}/figs", 0, ()), world)
     assert_refused(world, capsys, argv, code, (says,))
 
 

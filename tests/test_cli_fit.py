@@ -229,3 +229,57 @@ def test_library_decoding_checks_the_time_step(track_file):
             method(prepared)
         method(prepared, allow_other_step=True)
     TRUE.viterbi(prepared)  # a model without a time step checks nothing
+
+
+def test_movebank_export_with_empty_fixes_crs_and_figures(track_file, tmp_path, capsys):
+    """A Movebank export with rows without a fix: refused naming --missing, read with
+    --missing drop (the decoded rows then align to the file, empty states at those lines),
+    projected by --crs, with the figures from fit --plot and from hmmtrack plot."""
+    table = pd.read_csv(track_file)
+    lat0 = 51.0
+    movebank = pd.DataFrame(
+        {
+            "timestamp": pd.to_datetime(table["time"]).dt.strftime("%Y-%m-%d %H:%M:%S.000"),
+            "location-long": -114.0 + table["x"] / (111_320.0 * np.cos(np.radians(lat0))),
+            "location-lat": lat0 + table["y"] / 110_574.0,
+            "individual-local-identifier": table["id"],
+        }
+    )
+    movebank.loc[[10, 500], ["location-long", "location-lat"]] = np.nan
+    path = tmp_path / "movebank.csv"
+    movebank.to_csv(path, index=False)
+    model_path = tmp_path / "m.json"
+    fit = ["fit", str(path), "--format", "movebank", "--starts", "1", "-o", str(model_path)]
+    assert main(fit) == 2
+    err = capsys.readouterr().err
+    assert "lines 12, 502" in err and "--missing drop" in err and "--missing keep" in err
+    assert main(fit + ["--crs", "EPSG:4326", "--missing", "drop"]) == 2
+    assert "not a projected CRS in metres" in capsys.readouterr().err
+    figures = tmp_path / "figures"
+    names = ["--state-names", "slow,fast"]
+    options = ["--missing", "drop", "--crs", "EPSG:32611"]
+    assert main(fit + options + names + ["--plot", str(figures)]) == 0
+    printed = capsys.readouterr().out
+    assert "states: 1 = slow, 2 = fast" in printed
+    written = sorted(p.name for p in figures.iterdir())
+    assert written == ["densities.png", "residuals.png", "tracks.png"]
+    model = MovementHMM.load(model_path)
+    np.testing.assert_allclose(model.step.mean, TRUE.step.mean, rtol=0.2)
+
+    states = tmp_path / "states.csv"
+    decode = ["decode", str(path), "--format", "movebank", "--model", str(model_path)]
+    assert main(decode + options + names + ["-o", str(states)]) == 0
+    decoded = pd.read_csv(states)
+    assert decoded["line"].tolist() == list(range(2, 802))  # one row per file row, in order
+    assert decoded["state"].isna().tolist() == [i in (10, 500) for i in range(800)]
+    assert set(decoded["state"].dropna()) == {1, 2}
+    assert set(decoded["state_name"].dropna()) == {"slow", "fast"}
+    assert decoded["time"].iloc[0] == "2024-06-01T00:00:00.000Z"
+    assert "(slow)" in capsys.readouterr().out
+
+    again = tmp_path / "again"
+    plot = ["plot", str(model_path), str(path), "--format", "movebank", *options, "-o"]
+    assert main(plot + [str(again)]) == 0
+    assert sorted(p.name for p in again.iterdir()) == written
+    assert main(plot + [str(again), "--state-names", "a,b,c"]) == 2
+    assert "--state-names" in capsys.readouterr().err

@@ -4,13 +4,16 @@ Example::
 
     hmmtrack fit data/example_tracks.csv --states 2 --starts 5 --seed 1 -o model.json
 
-reads the tracks (plain CSV in metres, or Movebank lon/lat with ``--format movebank``),
+reads the tracks (plain CSV in metres, or Movebank lon/lat with ``--format movebank``,
+projected by ``--crs``; rows without a fix refused, dropped or kept by ``--missing``),
 computes steps and turning angles (:func:`hmmtrack.tracks.prepare`), fits
 (:class:`hmmtrack.hmm.MovementHMMEstimator`, with ``--formula 'transition ~ cosT + sinT'`` or
 ``--covariates`` on the transition probabilities), prints the parameters with Wald intervals,
 the transition coefficients on the data's scale, the transition matrix, the log-likelihood
-and AIC, and writes the model file. The reading options defined here are shared with
-``hmmtrack decode``.
+and AIC, and writes the model file; ``--plot DIR`` also writes the standard figures
+(:func:`hmmtrack.plots.hmm.hmm_figures`). States are numbered from 1 (the smallest mean step);
+``--state-names`` labels them in the output. The reading options defined here are shared with
+``hmmtrack decode`` and ``hmmtrack plot``.
 """
 
 from __future__ import annotations
@@ -22,7 +25,9 @@ import pandas as pd
 
 from hmmtrack import io, tracks
 from hmmtrack.hmm import MovementHMMEstimator, diagnostics, distributions
-from hmmtrack.io.outputs import atomic_files, check_paths
+from hmmtrack.hmm.decoding import check_state_names
+from hmmtrack.io.geo import Projection
+from hmmtrack.io.outputs import atomic_files, check_paths, staged_folder
 
 
 def add_track_arguments(parser: argparse.ArgumentParser) -> None:
@@ -44,6 +49,22 @@ def add_track_arguments(parser: argparse.ArgumentParser) -> None:
     group.add_argument("--lon-col", default="location-long", help="longitude column (movebank)")
     group.add_argument("--lat-col", default="location-lat", help="latitude column (movebank)")
     group.add_argument("--tz", help="time zone of times written without an offset")
+    group.add_argument(
+        "--crs",
+        default="utm",
+        metavar="{utm,local,EPSG:NNNN}",
+        help="projection of movebank lon/lat to metres: the UTM zone of the data's centre "
+        "(default), 'local' (azimuthal equidistant about it) or the EPSG code of a projected "
+        "CRS in metres (e.g. EPSG:32611)",
+    )
+    group.add_argument(
+        "--missing",
+        choices=("error", "drop", "keep"),
+        default="error",
+        help="rows with empty coordinates (Movebank exports hold many): refuse naming them "
+        "(default), drop them (listed in the log; --regularise then interpolates across "
+        "them), or keep them as missing fixes (their steps and angles missing)",
+    )
     group.add_argument(
         "--max-gap", type=float, help="split tracks at gaps longer than this many seconds"
     )
@@ -68,14 +89,15 @@ def _column(value: str | None, default: str | None) -> str | None:
     return None if value.lower() == "none" else value
 
 
-def step_unit(scale: float) -> str:
-    """Name of the length unit of ``--scale`` metres (``"m"``, ``"km"`` or ``"<scale> m"``)."""
-    return {1.0: "m", 1000.0: "km"}.get(scale, f"{scale:g} m")
-
-
 def read_prepared(args: argparse.Namespace) -> pd.DataFrame:
     """Read and prepare the tracks named by :func:`add_track_arguments` options."""
     if args.format == "movebank":
+        projection = args.crs
+        if projection not in ("utm", "local"):
+            try:
+                projection = Projection.from_epsg(projection)
+            except ValueError as exc:
+                raise ValueError(f"--crs {args.crs}: {exc}") from None
         table = io.read_movebank(
             args.tracks,
             id_col=_column(args.id_col, "individual-local-identifier"),
@@ -83,8 +105,12 @@ def read_prepared(args: argparse.Namespace) -> pd.DataFrame:
             lon_col=args.lon_col,
             lat_col=args.lat_col,
             tz=args.tz or "UTC",
+            projection=projection,
+            missing_coordinates=args.missing,
         )
     else:
+        if args.crs != "utm":
+            raise ValueError("--crs projects lon/lat; it needs --format movebank")
         table = io.read_tracks(
             args.tracks,
             id_col=_column(args.id_col, "id"),
@@ -92,6 +118,7 @@ def read_prepared(args: argparse.Namespace) -> pd.DataFrame:
             x_col=args.x_col,
             y_col=args.y_col,
             tz=args.tz,
+            missing_coordinates=args.missing,
         )
     if args.regularise is not None:
         if not (math.isfinite(args.regularise) and args.regularise > 0):
@@ -134,8 +161,53 @@ def register(subparsers) -> None:
     parser.add_argument("--seed", type=int, default=1, help="seed of the starts (default 1)")
     parser.add_argument("--jobs", type=int, default=1, help="processes for the starts")
     parser.add_argument("--level", type=float, default=0.95, help="confidence level")
+    add_state_names_argument(parser)
     parser.add_argument("-o", "--output", required=True, help="model JSON file to write")
+    parser.add_argument(
+        "--plot",
+        metavar="DIR",
+        help="folder to write the standard figures in (densities, pseudo-residuals, decoded "
+        "tracks per animal, transition and stationary probabilities against each covariate); "
+        "created if absent",
+    )
     parser.set_defaults(func=run)
+
+
+def add_state_names_argument(parser: argparse.ArgumentParser) -> None:
+    """``--state-names`` (shared by ``fit``, ``decode`` and ``plot``)."""
+    parser.add_argument(
+        "--state-names",
+        type=lambda text: [name.strip() for name in text.split(",")],
+        metavar="NAME,NAME",
+        help="names of the states in order, state 1 (the smallest mean step) first, e.g. "
+        "encamped,exploratory: shown in tables and figures (the model file keeps numbers)",
+    )
+
+
+def check_state_names_option(n_states: int, names: list[str] | None) -> None:
+    """Refuse ``--state-names`` that are not one distinct name per state."""
+    try:
+        check_state_names(n_states, names)
+    except ValueError as exc:
+        raise ValueError(f"--state-names: {exc}") from None
+
+
+def write_figures(folder: str, model, prepared: pd.DataFrame, states, state_names) -> list[str]:
+    """Draw :func:`hmmtrack.plots.hmm.hmm_figures` and write them into ``folder`` (created,
+    written as one set: a failure leaves the previous set)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from hmmtrack.plots.hmm import hmm_figures
+
+    figures = hmm_figures(model, prepared, states, state_names)
+    with staged_folder(folder, "densities.png") as stage:
+        for name, figure in figures.items():
+            figure.savefig(stage / name, dpi=110)
+            plt.close(figure)
+    return sorted(figures)
 
 
 def transition_formula(text: str | None) -> str | None:
@@ -159,8 +231,9 @@ def transition_formula(text: str | None) -> str | None:
 
 
 def run(args: argparse.Namespace) -> int:
-    check_paths({"tracks": args.tracks}, outputs={"-o": args.output})
+    check_paths({"tracks": args.tracks}, outputs={"-o": args.output}, folders={"--plot": args.plot})
     formula = transition_formula(args.formula)
+    check_state_names_option(args.states, args.state_names)
     prepared = read_prepared(args)
     estimator = MovementHMMEstimator(
         n_states=args.states,
@@ -172,15 +245,22 @@ def run(args: argparse.Namespace) -> int:
         n_starts=args.starts,
         seed=args.seed,
         n_jobs=args.jobs,
-        step_unit=step_unit(args.scale),
+        step_unit=tracks.length_unit(args.scale),
     ).fit(prepared)
     model = estimator.model_
     intervals = diagnostics.confidence_intervals(model, prepared, level=args.level)
     with atomic_files(args.output) as (written,):
         model.save(written)
+        if args.plot:
+            states = model.viterbi(prepared, allow_other_step=True)
+            figures = write_figures(args.plot, model, prepared, states, args.state_names)
     print(f"{args.tracks}: {len(prepared)} rows, {prepared['segment'].nunique()} segments")
     print(diagnostics.summary(model, intervals))
+    if args.state_names:
+        print("states: " + ", ".join(f"{k + 1} = {n}" for k, n in enumerate(args.state_names)))
     starts = ", ".join(f"{s.log_likelihood:.4f}" for s in estimator.starts_)
     print(f"starts (log-likelihood after EM): {starts}")
     print(f"wrote {args.output}")
+    if args.plot:
+        print(f"wrote {', '.join(figures)} in {args.plot}")
     return 0
