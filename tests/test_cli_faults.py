@@ -85,6 +85,7 @@ def world(tmp_path_factory) -> Path:
         "tracks_text.csv": b"id,time,x,y\na,2024-01-01T00:00:00Z,one,2\n",
         "tracks_nox.csv": b"id,time,east,y\na,2024-01-01T00:00:00Z,1,2\n",
         "tracks_latin1.csv": "id,time,x,y\nr\xe9,2024-01-01T00:00:00Z,1,2\n".encode("latin-1"),
+        "tracks_notime.csv": b"id,x,y\na,0,0\na,1,1\na,2,3\n",
         "movebank_gap.csv": b"individual-local-identifier,timestamp,location-long,location-lat\n"
         b"a,2024-01-01 00:00:00,-114.0,51.0\na,2024-01-01 00:02:00,,\n"
         b"a,2024-01-01 00:04:00,-114.001,51.001\na,2024-01-01 00:06:00,-114.002,51.0005\n",

@@ -9,7 +9,7 @@ import pytest
 
 from hmmtrack import io, tracks
 from hmmtrack.cli import main
-from hmmtrack.hmm import Gamma, MovementHMM, VonMises
+from hmmtrack.hmm import Gamma, MovementHMM, VonMises, crw, imputation
 
 TRUE = MovementHMM(
     initial=np.array([0.5, 0.5]),
@@ -283,3 +283,38 @@ def test_movebank_export_with_empty_fixes_crs_and_figures(track_file, tmp_path, 
     assert sorted(p.name for p in again.iterdir()) == written
     assert main(plot + [str(again), "--state-names", "a,b,c"]) == 2
     assert "--state-names" in capsys.readouterr().err
+
+
+def test_irregular_fixes_warn_and_the_named_cli_fixes_work(track_file, tmp_path, capsys, caplog):
+    """Fixes up to 20 s off a 60 s schedule: fit warns naming the CLI options; the CRW
+    regularisation and the multiple imputation that it names run from the CLI."""
+    table = pd.read_csv(track_file)
+    table = table[table["id"] == "a"].head(200).copy()
+    jitter = np.random.default_rng(2).uniform(-20.0, 20.0, len(table))
+    times = pd.to_datetime(table["time"]) + pd.to_timedelta(jitter, unit="s")
+    table["time"] = times.dt.strftime("%Y-%m-%dT%H:%M:%S.%fZ")
+    path = tmp_path / "irregular.csv"
+    table.to_csv(path, index=False)
+    model_path = tmp_path / "m.json"
+    fit = ["fit", str(path), "--starts", "1", "-o", str(model_path)]
+    assert main(fit) == 0
+    warned = " ".join(r.getMessage() for r in caplog.records)
+    for option in ("--regularise STEP", "--regularise-method crw", "--impute M"):
+        assert option in warned
+    caplog.clear()
+    assert main([*fit, "--regularise", "60", "--regularise-method", "crw"]) == 0
+    assert "time steps vary" not in " ".join(r.getMessage() for r in caplog.records)
+    assert MovementHMM.load(model_path).dt == 60.0
+    capsys.readouterr()
+    assert main([*fit, "--regularise", "60", "--impute", "2"]) == 0
+    printed = capsys.readouterr().out
+    assert "2 tracks imputed on a 60 s grid" in printed and "fraction_missing" in printed
+    pooled = MovementHMM.load(model_path)
+    assert np.isnan(pooled.log_likelihood) and pooled.dt == 60.0
+    # the library's multiple imputation with the same seed (the CLI adds nothing)
+    draws = crw.impute(io.read_tracks(path), 60.0, 2, np.random.default_rng(1))
+    imputed = [tracks.prepare(draw) for draw in draws]
+    direct = imputation.fit_imputed(imputed, 2, seed=1, n_starts=1).model
+    np.testing.assert_allclose(pooled.step.mean, direct.step.mean, rtol=1e-9)
+    np.testing.assert_allclose(pooled.transition, direct.transition, rtol=1e-9)
+    assert pooled.step.mean[0] < TRUE.step.mean[1] < pooled.step.mean[1] * 1.3

@@ -21,10 +21,11 @@ from __future__ import annotations
 import argparse
 import math
 
+import numpy as np
 import pandas as pd
 
 from hmmtrack import io, tracks
-from hmmtrack.hmm import MovementHMMEstimator, diagnostics, distributions
+from hmmtrack.hmm import MovementHMMEstimator, crw, diagnostics, distributions, imputation
 from hmmtrack.hmm.decoding import check_state_names
 from hmmtrack.io.geo import Projection
 from hmmtrack.io.outputs import atomic_files, check_paths, staged_folder
@@ -72,8 +73,16 @@ def add_track_arguments(parser: argparse.ArgumentParser) -> None:
         "--regularise",
         type=float,
         metavar="SECONDS",
-        help="resample each track to this time step by linear interpolation "
-        "(hmmtrack.tracks.regularise; gaps over --max-gap stay missing)",
+        help="resample each track to this time step (--regularise-method; tracks are split "
+        "at gaps over --max-gap first)",
+    )
+    group.add_argument(
+        "--regularise-method",
+        choices=("linear", "crw"),
+        default="linear",
+        help="linear interpolation between fixes (hmmtrack.tracks.regularise; default) or the "
+        "positions predicted by a continuous-time correlated random walk fitted to each "
+        "track (hmmtrack.hmm.crw.regularise, R's crawl; adds sd_x, sd_y in m)",
     )
     group.add_argument(
         "--scale",
@@ -90,7 +99,21 @@ def _column(value: str | None, default: str | None) -> str | None:
 
 
 def read_prepared(args: argparse.Namespace) -> pd.DataFrame:
-    """Read and prepare the tracks named by :func:`add_track_arguments` options."""
+    """Read, regularise (``--regularise``) and prepare the tracks named by
+    :func:`add_track_arguments` options."""
+    table = read_table(args)
+    if args.regularise is not None:
+        if args.regularise_method == "crw":
+            table = crw.regularise(table, args.regularise)
+        else:
+            table = tracks.regularise(table, args.regularise, max_gap=args.max_gap)
+    return tracks.prepare(table, scale=args.scale, max_gap=args.max_gap)
+
+
+def read_table(args: argparse.Namespace) -> pd.DataFrame:
+    """The tracks table of the file (:mod:`hmmtrack.io` readers), split at gaps over
+    ``--max-gap`` when it is to be regularised (a ``segment`` column); ``--regularise``
+    checked."""
     if args.format == "movebank":
         projection = args.crs
         if projection not in ("utm", "local"):
@@ -120,13 +143,19 @@ def read_prepared(args: argparse.Namespace) -> pd.DataFrame:
             tz=args.tz,
             missing_coordinates=args.missing,
         )
-    if args.regularise is not None:
-        if not (math.isfinite(args.regularise) and args.regularise > 0):
-            raise ValueError(
-                f"--regularise must be a positive number of seconds, got {args.regularise}"
-            )
-        table = tracks.regularise(table, args.regularise, max_gap=args.max_gap)
-    return tracks.prepare(table, scale=args.scale, max_gap=args.max_gap)
+    if args.regularise is None:
+        if args.regularise_method != "linear":
+            raise ValueError("--regularise-method needs --regularise SECONDS (the time step)")
+        return table
+    if not (math.isfinite(args.regularise) and args.regularise > 0):
+        raise ValueError(
+            f"--regularise must be a positive number of seconds, got {args.regularise}"
+        )
+    if "time" not in table.columns:
+        raise ValueError("--regularise needs the fixes' times; the tracks have none (--time-col)")
+    if args.max_gap is not None and args.regularise_method == "crw":
+        table = tracks.split_at_gaps(table, args.max_gap)
+    return table
 
 
 def register(subparsers) -> None:
@@ -156,6 +185,15 @@ def register(subparsers) -> None:
         help="formula of the transition probabilities, e.g. 'transition ~ cosT + sinT' or "
         "'transition ~ C(season) + cos(2*pi*hour/24)' (columns of the track file; factors "
         "with C(), any numpy expression; coefficients printed also on the data's scale)",
+    )
+    parser.add_argument(
+        "--impute",
+        type=int,
+        metavar="M",
+        help="multiple imputation: fit to M tracks drawn from each track's continuous-time "
+        "correlated random walk on the --regularise grid (hmmtrack.hmm.crw.impute) and pool "
+        "the fits by Rubin's rules (hmmtrack.hmm.imputation.fit_imputed); the model saved is "
+        "the pooled one (no log-likelihood)",
     )
     parser.add_argument("--starts", type=int, default=5, help="EM starts (default 5)")
     parser.add_argument("--seed", type=int, default=1, help="seed of the starts (default 1)")
@@ -234,20 +272,21 @@ def run(args: argparse.Namespace) -> int:
     check_paths({"tracks": args.tracks}, outputs={"-o": args.output}, folders={"--plot": args.plot})
     formula = transition_formula(args.formula)
     check_state_names_option(args.states, args.state_names)
+    options = {
+        "step": args.step,
+        "angle": args.angle,
+        "estimate_angle_mean": not args.fix_angle_mean,
+        "covariates": tuple(args.covariates),
+        "formula": formula,
+        "n_starts": args.starts,
+        "n_jobs": args.jobs,
+        "step_unit": tracks.length_unit(args.scale),
+    }
+    if args.impute is not None:
+        return run_imputed(args, options)
     prepared = read_prepared(args)
-    estimator = MovementHMMEstimator(
-        n_states=args.states,
-        step=args.step,
-        angle=args.angle,
-        estimate_angle_mean=not args.fix_angle_mean,
-        covariates=tuple(args.covariates),
-        formula=formula,
-        n_starts=args.starts,
-        seed=args.seed,
-        n_jobs=args.jobs,
-        step_unit=tracks.length_unit(args.scale),
-    ).fit(prepared)
-    model = estimator.model_
+    estimator = MovementHMMEstimator(n_states=args.states, seed=args.seed, **options)
+    model = estimator.fit(prepared).model_
     intervals = diagnostics.confidence_intervals(model, prepared, level=args.level)
     with atomic_files(args.output) as (written,):
         model.save(written)
@@ -263,4 +302,32 @@ def run(args: argparse.Namespace) -> int:
     print(f"wrote {args.output}")
     if args.plot:
         print(f"wrote {', '.join(figures)} in {args.plot}")
+    return 0
+
+
+def run_imputed(args: argparse.Namespace, options: dict) -> int:
+    """``fit --impute M``: fit to M imputed tracks, pool by Rubin's rules, save the pool."""
+    if args.impute < 1:
+        raise ValueError(f"--impute must be a positive number of imputed tracks, got {args.impute}")
+    if args.regularise is None:
+        raise ValueError("--impute M draws tracks on a regular grid: give --regularise SECONDS")
+    if args.plot:
+        raise ValueError(
+            "--plot with --impute: the figures' bands would ignore the imputation; fit without "
+            "--impute (e.g. --regularise-method crw) or draw with hmmtrack plot"
+        )
+    table = read_table(args)
+    draws = crw.impute(table, args.regularise, args.impute, np.random.default_rng(args.seed))
+    imputed = [tracks.prepare(draw, scale=args.scale) for draw in draws]
+    result = imputation.fit_imputed(imputed, args.states, seed=args.seed, **options)
+    with atomic_files(args.output) as (written,):
+        result.model.save(written)
+    print(
+        f"{args.tracks}: {args.impute} tracks imputed on a {args.regularise:g} s grid, "
+        f"{len(imputed[0])} rows each"
+    )
+    print(diagnostics.summary(result.model))
+    print("pooled working-scale estimates (Rubin's rules):")
+    print(imputation.pooled_table(result).to_string(float_format=lambda v: f"{v:.6g}"))
+    print(f"wrote {args.output}")
     return 0
