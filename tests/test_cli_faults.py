@@ -226,15 +226,24 @@ FAULTS = [
 ]
 
 
+#: commands whose main output and figures are one set
+WITH_FIGURES = {
+    "track": TRACK + " -o {w}/previous.csv --plot {w}/previous.png",
+    "fit": FIT + " -o {w}/previous.json --plot {w}/figs",
+}
+
+
+@pytest.mark.parametrize("command", sorted(WITH_FIGURES))
 @pytest.mark.parametrize(("name", "exception", "code", "says"), FAULTS, ids=[f[0] for f in FAULTS])
-def test_track_fault_while_writing_keeps_the_previous_output(
-    world, capsys, monkeypatch, name, exception, code, says
+def test_fault_while_drawing_keeps_the_previous_output(
+    world, capsys, monkeypatch, command, name, exception, code, says
 ):
-    """The estimates and the plot are one set: a fault writing the plot leaves neither."""
+    """The output (estimates, model) and its figures are one set: a fault writing a figure
+    leaves neither."""
     import matplotlib.figure
 
     monkeypatch.setattr(matplotlib.figure.Figure, "savefig", _failing(exception))
-    argv = expand(Case("", TRACK + " -o {w}/previous.csv --plot {w}/previous.png", 0, ()), world)
+    argv = expand(Case("", WITH_FIGURES[command], 0, ()), world)
     assert_refused(world, capsys, argv, code, (says,))
 
 
@@ -246,18 +255,6 @@ def test_fit_fault_while_saving_keeps_the_previous_model(
 
     monkeypatch.setattr(MovementHMM, "save", _failing(exception))
     argv = expand(Case("", FIT + " -o {w}/previous.json", 0, ()), world)
-    assert_refused(world, capsys, argv, code, (says,))
-
-
-@pytest.mark.parametrize(("name", "exception", "code", "says"), FAULTS, ids=[f[0] for f in FAULTS])
-def test_fit_fault_while_plotting_keeps_the_previous_model(
-    world, capsys, monkeypatch, name, exception, code, says
-):
-    """The model and its figures are one set: a fault drawing a figure leaves neither."""
-    import matplotlib.figure
-
-    monkeypatch.setattr(matplotlib.figure.Figure, "savefig", _failing(exception))
-    argv = expand(Case("", FIT + " -o {w}/previous.json --plot {w}/figs", 0, ()), world)
     assert_refused(world, capsys, argv, code, (says,))
 
 

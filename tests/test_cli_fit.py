@@ -138,19 +138,22 @@ def test_errors_are_reported_without_traceback(track_file, tmp_path, capsys):
     assert "fitted to steps in km; --scale 1 gives m" in capsys.readouterr().err
 
 
-def test_fit_reads_movebank_lon_lat(track_file, tmp_path):
+def as_movebank(track_file, lon0: float, lat0: float) -> pd.DataFrame:
+    """The track file as a Movebank export: metres about (lon0, lat0) turned to degrees."""
     table = pd.read_csv(track_file)
-    lat0 = 33.7
-    movebank = pd.DataFrame(
+    return pd.DataFrame(
         {
             "timestamp": pd.to_datetime(table["time"]).dt.strftime("%Y-%m-%d %H:%M:%S.000"),
-            "location-long": -118.2 + table["x"] / (111_320.0 * np.cos(np.radians(lat0))),
+            "location-long": lon0 + table["x"] / (111_320.0 * np.cos(np.radians(lat0))),
             "location-lat": lat0 + table["y"] / 110_574.0,
             "individual-local-identifier": table["id"],
         }
     )
+
+
+def test_fit_reads_movebank_lon_lat(track_file, tmp_path):
     path = tmp_path / "movebank.csv"
-    movebank.to_csv(path, index=False)
+    as_movebank(track_file, -118.2, 33.7).to_csv(path, index=False)
     model_path = tmp_path / "m.json"
     code = main(["fit", str(path), "--format", "movebank", "--starts", "1", "-o", str(model_path)])
     assert code == 0
@@ -235,16 +238,7 @@ def test_movebank_export_with_empty_fixes_crs_and_figures(track_file, tmp_path, 
     """A Movebank export with rows without a fix: refused naming --missing, read with
     --missing drop (the decoded rows then align to the file, empty states at those lines),
     projected by --crs, with the figures from fit --plot and from hmmtrack plot."""
-    table = pd.read_csv(track_file)
-    lat0 = 51.0
-    movebank = pd.DataFrame(
-        {
-            "timestamp": pd.to_datetime(table["time"]).dt.strftime("%Y-%m-%d %H:%M:%S.000"),
-            "location-long": -114.0 + table["x"] / (111_320.0 * np.cos(np.radians(lat0))),
-            "location-lat": lat0 + table["y"] / 110_574.0,
-            "individual-local-identifier": table["id"],
-        }
-    )
+    movebank = as_movebank(track_file, -114.0, 51.0)
     movebank.loc[[10, 500], ["location-long", "location-lat"]] = np.nan
     path = tmp_path / "movebank.csv"
     movebank.to_csv(path, index=False)
