@@ -304,6 +304,15 @@ def _fix_at_or_before(
     return left
 
 
+def length_unit(scale: float) -> str:
+    """Name of a length unit of ``scale`` metres: ``"m"``, ``"km"`` or ``"<scale> m"``.
+
+    ``scale`` is what :func:`prepare` divides lengths by (``attrs["length_unit_m"]`` of a
+    prepared track); the name labels steps in model files, tables and figures.
+    """
+    return {1.0: "m", 1000.0: "km"}.get(float(scale), f"{scale:g} m")
+
+
 def prepare(
     tracks: pd.DataFrame,
     *,

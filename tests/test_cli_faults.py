@@ -85,6 +85,10 @@ def world(tmp_path_factory) -> Path:
         "tracks_text.csv": b"id,time,x,y\na,2024-01-01T00:00:00Z,one,2\n",
         "tracks_nox.csv": b"id,time,east,y\na,2024-01-01T00:00:00Z,1,2\n",
         "tracks_latin1.csv": "id,time,x,y\nr\xe9,2024-01-01T00:00:00Z,1,2\n".encode("latin-1"),
+        "tracks_notime.csv": b"id,x,y\na,0,0\na,1,1\na,2,3\n",
+        "movebank_gap.csv": b"individual-local-identifier,timestamp,location-long,location-lat\n"
+        b"a,2024-01-01 00:00:00,-114.0,51.0\na,2024-01-01 00:02:00,,\n"
+        b"a,2024-01-01 00:04:00,-114.001,51.001\na,2024-01-01 00:06:00,-114.002,51.0005\n",
         "truth_cols.csv": b"time,east,north\n2022-06-08T17:00:00Z,0,0\n",
         "truth_latin1.csv": "time,x,y\n2022-06-08T17:00:00Z,0\xb0,0\n".encode("latin-1"),
         "not_json.json": b"{period: 8}",
@@ -151,6 +155,7 @@ BASES = {
     "track_hmm": TRACK_NO_CONFIG.replace("baseline", "hmm"),
     "fit": FIT,
     "decode": DECODE,
+    "plot": "plot {w}/model.json {w}/tracks.csv",
 }
 
 
@@ -221,15 +226,24 @@ FAULTS = [
 ]
 
 
+#: commands whose main output and figures are one set
+WITH_FIGURES = {
+    "track": TRACK + " -o {w}/previous.csv --plot {w}/previous.png",
+    "fit": FIT + " -o {w}/previous.json --plot {w}/figs",
+}
+
+
+@pytest.mark.parametrize("command", sorted(WITH_FIGURES))
 @pytest.mark.parametrize(("name", "exception", "code", "says"), FAULTS, ids=[f[0] for f in FAULTS])
-def test_track_fault_while_writing_keeps_the_previous_output(
-    world, capsys, monkeypatch, name, exception, code, says
+def test_fault_while_drawing_keeps_the_previous_output(
+    world, capsys, monkeypatch, command, name, exception, code, says
 ):
-    """The estimates and the plot are one set: a fault writing the plot leaves neither."""
+    """The output (estimates, model) and its figures are one set: a fault writing a figure
+    leaves neither."""
     import matplotlib.figure
 
     monkeypatch.setattr(matplotlib.figure.Figure, "savefig", _failing(exception))
-    argv = expand(Case("", TRACK + " -o {w}/previous.csv --plot {w}/previous.png", 0, ()), world)
+    argv = expand(Case("", WITH_FIGURES[command], 0, ()), world)
     assert_refused(world, capsys, argv, code, (says,))
 
 

@@ -9,7 +9,7 @@ import pytest
 
 from hmmtrack import io, tracks
 from hmmtrack.cli import main
-from hmmtrack.hmm import Gamma, MovementHMM, VonMises
+from hmmtrack.hmm import Gamma, MovementHMM, VonMises, crw, imputation
 
 TRUE = MovementHMM(
     initial=np.array([0.5, 0.5]),
@@ -138,19 +138,22 @@ def test_errors_are_reported_without_traceback(track_file, tmp_path, capsys):
     assert "fitted to steps in km; --scale 1 gives m" in capsys.readouterr().err
 
 
-def test_fit_reads_movebank_lon_lat(track_file, tmp_path):
+def as_movebank(track_file, lon0: float, lat0: float) -> pd.DataFrame:
+    """The track file as a Movebank export: metres about (lon0, lat0) turned to degrees."""
     table = pd.read_csv(track_file)
-    lat0 = 33.7
-    movebank = pd.DataFrame(
+    return pd.DataFrame(
         {
             "timestamp": pd.to_datetime(table["time"]).dt.strftime("%Y-%m-%d %H:%M:%S.000"),
-            "location-long": -118.2 + table["x"] / (111_320.0 * np.cos(np.radians(lat0))),
+            "location-long": lon0 + table["x"] / (111_320.0 * np.cos(np.radians(lat0))),
             "location-lat": lat0 + table["y"] / 110_574.0,
             "individual-local-identifier": table["id"],
         }
     )
+
+
+def test_fit_reads_movebank_lon_lat(track_file, tmp_path):
     path = tmp_path / "movebank.csv"
-    movebank.to_csv(path, index=False)
+    as_movebank(track_file, -118.2, 33.7).to_csv(path, index=False)
     model_path = tmp_path / "m.json"
     code = main(["fit", str(path), "--format", "movebank", "--starts", "1", "-o", str(model_path)])
     assert code == 0
@@ -229,3 +232,83 @@ def test_library_decoding_checks_the_time_step(track_file):
             method(prepared)
         method(prepared, allow_other_step=True)
     TRUE.viterbi(prepared)  # a model without a time step checks nothing
+
+
+def test_movebank_export_with_empty_fixes_crs_and_figures(track_file, tmp_path, capsys):
+    """A Movebank export with rows without a fix: refused naming --missing, read with
+    --missing drop (the decoded rows then align to the file, empty states at those lines),
+    projected by --crs, with the figures from fit --plot and from hmmtrack plot."""
+    movebank = as_movebank(track_file, -114.0, 51.0)
+    movebank.loc[[10, 500], ["location-long", "location-lat"]] = np.nan
+    path = tmp_path / "movebank.csv"
+    movebank.to_csv(path, index=False)
+    model_path = tmp_path / "m.json"
+    fit = ["fit", str(path), "--format", "movebank", "--starts", "1", "-o", str(model_path)]
+    assert main(fit) == 2
+    err = capsys.readouterr().err
+    assert "lines 12, 502" in err and "--missing drop" in err and "--missing keep" in err
+    assert main(fit + ["--crs", "EPSG:4326", "--missing", "drop"]) == 2
+    assert "not a projected CRS in metres" in capsys.readouterr().err
+    figures = tmp_path / "figures"
+    names = ["--state-names", "slow,fast"]
+    options = ["--missing", "drop", "--crs", "EPSG:32611"]
+    assert main(fit + options + names + ["--plot", str(figures)]) == 0
+    printed = capsys.readouterr().out
+    assert "states: 1 = slow, 2 = fast" in printed
+    written = sorted(p.name for p in figures.iterdir())
+    assert written == ["densities.png", "residuals.png", "tracks.png"]
+    model = MovementHMM.load(model_path)
+    np.testing.assert_allclose(model.step.mean, TRUE.step.mean, rtol=0.2)
+
+    states = tmp_path / "states.csv"
+    decode = ["decode", str(path), "--format", "movebank", "--model", str(model_path)]
+    assert main(decode + options + names + ["-o", str(states)]) == 0
+    decoded = pd.read_csv(states)
+    assert decoded["line"].tolist() == list(range(2, 802))  # one row per file row, in order
+    assert decoded["state"].isna().tolist() == [i in (10, 500) for i in range(800)]
+    assert set(decoded["state"].dropna()) == {1, 2}
+    assert set(decoded["state_name"].dropna()) == {"slow", "fast"}
+    assert decoded["time"].iloc[0] == "2024-06-01T00:00:00.000Z"
+    assert "(slow)" in capsys.readouterr().out
+
+    again = tmp_path / "again"
+    plot = ["plot", str(model_path), str(path), "--format", "movebank", *options, "-o"]
+    assert main(plot + [str(again)]) == 0
+    assert sorted(p.name for p in again.iterdir()) == written
+    assert main(plot + [str(again), "--state-names", "a,b,c"]) == 2
+    assert "--state-names" in capsys.readouterr().err
+
+
+def test_irregular_fixes_warn_and_the_named_cli_fixes_work(track_file, tmp_path, capsys, caplog):
+    """Fixes up to 20 s off a 60 s schedule: fit warns naming the CLI options; the CRW
+    regularisation and the multiple imputation that it names run from the CLI."""
+    table = pd.read_csv(track_file)
+    table = table[table["id"] == "a"].head(200).copy()
+    jitter = np.random.default_rng(2).uniform(-20.0, 20.0, len(table))
+    times = pd.to_datetime(table["time"]) + pd.to_timedelta(jitter, unit="s")
+    table["time"] = times.dt.strftime("%Y-%m-%dT%H:%M:%S.%fZ")
+    path = tmp_path / "irregular.csv"
+    table.to_csv(path, index=False)
+    model_path = tmp_path / "m.json"
+    fit = ["fit", str(path), "--starts", "1", "-o", str(model_path)]
+    assert main(fit) == 0
+    warned = " ".join(r.getMessage() for r in caplog.records)
+    for option in ("--regularise STEP", "--regularise-method crw", "--impute M"):
+        assert option in warned
+    caplog.clear()
+    assert main([*fit, "--regularise", "60", "--regularise-method", "crw"]) == 0
+    assert "time steps vary" not in " ".join(r.getMessage() for r in caplog.records)
+    assert MovementHMM.load(model_path).dt == 60.0
+    capsys.readouterr()
+    assert main([*fit, "--regularise", "60", "--impute", "2"]) == 0
+    printed = capsys.readouterr().out
+    assert "2 tracks imputed on a 60 s grid" in printed and "fraction_missing" in printed
+    pooled = MovementHMM.load(model_path)
+    assert np.isnan(pooled.log_likelihood) and pooled.dt == 60.0
+    # the library's multiple imputation with the same seed (the CLI adds nothing)
+    draws = crw.impute(io.read_tracks(path), 60.0, 2, np.random.default_rng(1))
+    imputed = [tracks.prepare(draw) for draw in draws]
+    direct = imputation.fit_imputed(imputed, 2, seed=1, n_starts=1).model
+    np.testing.assert_allclose(pooled.step.mean, direct.step.mean, rtol=1e-9)
+    np.testing.assert_allclose(pooled.transition, direct.transition, rtol=1e-9)
+    assert pooled.step.mean[0] < TRUE.step.mean[1] < pooled.step.mean[1] * 1.3

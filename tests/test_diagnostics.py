@@ -137,6 +137,8 @@ def test_qq_points_and_autocorrelation():
 
 def test_plots_draw_the_diagnostics_and_densities():
     matplotlib.use("Agg")
+    from matplotlib.collections import LineCollection
+
     from hmmtrack.plots import hmm as plots
 
     data = simulate(TRUE, 2, 800, seed=2)
@@ -167,7 +169,11 @@ def test_plots_draw_the_diagnostics_and_densities():
         y=np.cumsum(data["step"].fillna(0) * np.sin(heading)),
     )
     ax = plots.decoded_track_plot(track, data["state"].to_numpy())
-    assert sum(len(c.get_segments()) for c in ax.collections) == len(data) - 2
+    lines = [c for c in ax.collections if isinstance(c, LineCollection)]
+    assert sum(len(c.get_segments()) for c in lines) == len(data) - 2
+    dots = [c for c in ax.collections if not isinstance(c, LineCollection)]
+    assert sum(len(c.get_offsets()) for c in dots) == len(data)  # every fix, short steps too
+    assert dots[-1].get_label() == "state 1" and dots[-1].get_zorder() > dots[0].get_zorder()
     matplotlib.pyplot.close("all")
 
 

@@ -44,6 +44,10 @@ CASES = {
         {"seed": 1, "duration": 1200.0, "n_particles": 800},
         ["tag_clock.png", "clock_aware_tracking.png"],
     ),
+    "06_movement_hmm_workflow.py": (
+        {"seed": 1, "n_steps": 720, "n_draws": 2, "n_starts": 1},
+        ["densities.png", "residuals.png", "tracks.png", "transition_hour.png"],
+    ),
 }
 
 

@@ -49,7 +49,7 @@ from concurrent.futures.process import BrokenProcessPool
 from hmmtrack import __version__
 
 #: command modules, in the order ``hmmtrack --help`` lists them
-COMMANDS = ("fit", "decode", "track", "sync", "simulate", "reproduce", "study")
+COMMANDS = ("fit", "decode", "plot", "track", "sync", "simulate", "reproduce", "study")
 
 #: exit codes (see the module docstring)
 EXIT_FAILURE = 1

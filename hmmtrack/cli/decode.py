@@ -6,11 +6,14 @@ Example::
 
 reads and prepares the tracks with the same options as ``hmmtrack fit``, loads the model file,
 refuses tracks whose time step is not the model's (``--regularise`` the tracks to it, or pass
-``--allow-other-step``) and writes one row per fix: the track columns, ``segment``, ``step``,
-``angle``, the Viterbi ``state`` (1 = the state with the smallest mean step, as moveHMM numbers
-them) and ``p_state1`` ... ``p_stateK`` (posterior probabilities). Times are written as ISO 8601
-UTC; lengths (``x``, ``y``, ``step``) are in the unit set by ``--scale`` (metres by default), as the
-model was fitted.
+``--allow-other-step``) and writes :func:`hmmtrack.hmm.decoding.decode_table`: one row per row
+of the track file, in file order (``line`` = its line in the file), the track columns,
+``segment``, ``step``, ``angle``, the Viterbi ``state`` (1 = the state with the smallest mean
+step, as moveHMM numbers them; empty for rows without a fix removed by ``--missing drop``),
+``state_name`` (with ``--state-names``) and ``p_state1`` ... ``p_stateK`` (posterior
+probabilities). With ``--regularise`` the rows are the regular grid's instead. Times are written
+as ISO 8601 UTC; lengths (``x``, ``y``, ``step``) are in the unit set by ``--scale`` (metres by
+default), as the model was fitted.
 """
 
 from __future__ import annotations
@@ -19,9 +22,15 @@ import argparse
 
 import numpy as np
 
-from hmmtrack import io
-from hmmtrack.cli.fit import add_track_arguments, read_prepared, step_unit
+from hmmtrack import io, tracks
+from hmmtrack.cli.fit import (
+    add_state_names_argument,
+    add_track_arguments,
+    check_state_names_option,
+    read_prepared,
+)
 from hmmtrack.hmm import MovementHMM
+from hmmtrack.hmm.decoding import decode_table
 from hmmtrack.io.outputs import atomic_files, check_paths
 
 
@@ -33,37 +42,57 @@ def register(subparsers) -> None:
     )
     add_track_arguments(parser)
     parser.add_argument("--model", required=True, help="model JSON file (hmmtrack fit -o)")
+    add_other_step_argument(parser)
+    add_state_names_argument(parser)
+    parser.add_argument("-o", "--output", required=True, help="CSV file to write")
+    parser.set_defaults(func=run)
+
+
+def add_other_step_argument(parser: argparse.ArgumentParser) -> None:
+    """``--allow-other-step`` (shared by ``decode`` and ``plot``)."""
     parser.add_argument(
         "--allow-other-step",
         action="store_true",
         help="decode tracks whose time step differs from the model's by more than 10 %% "
         "(refused by default: steps over another duration are other quantities)",
     )
-    parser.add_argument("-o", "--output", required=True, help="CSV file to write")
-    parser.set_defaults(func=run)
+
+
+def load_model_for(args: argparse.Namespace) -> MovementHMM:
+    """The ``--model`` file, refused when fitted to steps in another unit than ``--scale``."""
+    model = MovementHMM.load(args.model)
+    if model.step_unit != tracks.length_unit(args.scale):
+        raise ValueError(
+            f"{args.model} was fitted to steps in {model.step_unit}; --scale {args.scale:g} gives "
+            f"{tracks.length_unit(args.scale)} (pass the --scale used with hmmtrack fit)"
+        )
+    return model
+
+
+def calendar_times(seconds: np.ndarray) -> np.ndarray:
+    """ISO 8601 UTC text of epoch seconds (shape (n,)); empty (None) where a time is NaN."""
+    text = np.full(seconds.size, None, dtype=object)
+    known = np.isfinite(seconds)
+    text[known] = io.format_times(seconds[known])
+    return text
 
 
 def run(args: argparse.Namespace) -> int:
     check_paths({"tracks": args.tracks, "--model": args.model}, outputs={"-o": args.output})
-    model = MovementHMM.load(args.model)
-    if model.step_unit != step_unit(args.scale):
-        raise ValueError(
-            f"{args.model} was fitted to steps in {model.step_unit}; --scale {args.scale:g} gives "
-            f"{step_unit(args.scale)} (pass the --scale used with hmmtrack fit)"
-        )
+    model = load_model_for(args)
+    check_state_names_option(model.n_states, args.state_names)
     prepared = read_prepared(args)
-    states = model.viterbi(prepared, allow_other_step=args.allow_other_step)
-    probabilities = model.state_probabilities(prepared, allow_other_step=True)
-    out = prepared.copy()
-    out["state"] = states + 1
-    for k in range(model.n_states):
-        out[f"p_state{k + 1}"] = probabilities[:, k]
-    if "time" in out.columns:
-        out["time"] = io.format_times(out["time"].to_numpy())
-    with atomic_files(args.output) as (written,):
-        out.to_csv(written, index=False)
-    counts = ", ".join(
-        f"state {k + 1}: {n}" for k, n in enumerate(np.bincount(states, minlength=model.n_states))
+    out = decode_table(
+        model, prepared, state_names=args.state_names, allow_other_step=args.allow_other_step
     )
-    print(f"{args.tracks}: {len(out)} rows decoded ({counts}); wrote {args.output}")
+    if "time" in out.columns:
+        out["time"] = calendar_times(out["time"].to_numpy(dtype=float))
+    with atomic_files(args.output) as (written,):
+        out.to_csv(written, index=out.index.name == "line")
+    counts = out["state"].value_counts().sort_index()
+    listed = ", ".join(
+        f"state {k}" + (f" ({args.state_names[k - 1]})" if args.state_names else "") + f": {n}"
+        for k, n in counts.items()
+    )
+    print(f"{args.tracks}: {len(out)} rows decoded ({listed}); wrote {args.output}")
     return 0

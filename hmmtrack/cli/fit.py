@@ -4,13 +4,16 @@ Example::
 
     hmmtrack fit data/example_tracks.csv --states 2 --starts 5 --seed 1 -o model.json
 
-reads the tracks (plain CSV in metres, or Movebank lon/lat with ``--format movebank``),
+reads the tracks (plain CSV in metres, or Movebank lon/lat with ``--format movebank``,
+projected by ``--crs``; rows without a fix refused, dropped or kept by ``--missing``),
 computes steps and turning angles (:func:`hmmtrack.tracks.prepare`), fits
 (:class:`hmmtrack.hmm.MovementHMMEstimator`, with ``--formula 'transition ~ cosT + sinT'`` or
 ``--covariates`` on the transition probabilities), prints the parameters with Wald intervals,
 the transition coefficients on the data's scale, the transition matrix, the log-likelihood
-and AIC, and writes the model file. The reading options defined here are shared with
-``hmmtrack decode``.
+and AIC, and writes the model file; ``--plot DIR`` also writes the standard figures
+(:func:`hmmtrack.plots.hmm.hmm_figures`). States are numbered from 1 (the smallest mean step);
+``--state-names`` labels them in the output. The reading options defined here are shared with
+``hmmtrack decode`` and ``hmmtrack plot``.
 """
 
 from __future__ import annotations
@@ -18,11 +21,14 @@ from __future__ import annotations
 import argparse
 import math
 
+import numpy as np
 import pandas as pd
 
 from hmmtrack import io, tracks
-from hmmtrack.hmm import MovementHMMEstimator, diagnostics, distributions
-from hmmtrack.io.outputs import atomic_files, check_paths
+from hmmtrack.hmm import MovementHMMEstimator, crw, diagnostics, distributions, imputation
+from hmmtrack.hmm.decoding import check_state_names
+from hmmtrack.io.geo import Projection
+from hmmtrack.io.outputs import atomic_files, check_paths, staged_folder
 
 
 def add_track_arguments(parser: argparse.ArgumentParser) -> None:
@@ -45,14 +51,38 @@ def add_track_arguments(parser: argparse.ArgumentParser) -> None:
     group.add_argument("--lat-col", default="location-lat", help="latitude column (movebank)")
     group.add_argument("--tz", help="time zone of times written without an offset")
     group.add_argument(
+        "--crs",
+        default="utm",
+        metavar="{utm,local,EPSG:NNNN}",
+        help="projection of movebank lon/lat to metres: the UTM zone of the data's centre "
+        "(default), 'local' (azimuthal equidistant about it) or the EPSG code of a projected "
+        "CRS in metres (e.g. EPSG:32611)",
+    )
+    group.add_argument(
+        "--missing",
+        choices=("error", "drop", "keep"),
+        default="error",
+        help="rows with empty coordinates (Movebank exports hold many): refuse naming them "
+        "(default), drop them (listed in the log; --regularise then interpolates across "
+        "them), or keep them as missing fixes (their steps and angles missing)",
+    )
+    group.add_argument(
         "--max-gap", type=float, help="split tracks at gaps longer than this many seconds"
     )
     group.add_argument(
         "--regularise",
         type=float,
         metavar="SECONDS",
-        help="resample each track to this time step by linear interpolation "
-        "(hmmtrack.tracks.regularise; gaps over --max-gap stay missing)",
+        help="resample each track to this time step (--regularise-method; tracks are split "
+        "at gaps over --max-gap first)",
+    )
+    group.add_argument(
+        "--regularise-method",
+        choices=("linear", "crw"),
+        default="linear",
+        help="linear interpolation between fixes (hmmtrack.tracks.regularise; default) or the "
+        "positions predicted by a continuous-time correlated random walk fitted to each "
+        "track (hmmtrack.hmm.crw.regularise, R's crawl; adds sd_x, sd_y in m)",
     )
     group.add_argument(
         "--scale",
@@ -68,14 +98,29 @@ def _column(value: str | None, default: str | None) -> str | None:
     return None if value.lower() == "none" else value
 
 
-def step_unit(scale: float) -> str:
-    """Name of the length unit of ``--scale`` metres (``"m"``, ``"km"`` or ``"<scale> m"``)."""
-    return {1.0: "m", 1000.0: "km"}.get(scale, f"{scale:g} m")
-
-
 def read_prepared(args: argparse.Namespace) -> pd.DataFrame:
-    """Read and prepare the tracks named by :func:`add_track_arguments` options."""
+    """Read, regularise (``--regularise``) and prepare the tracks named by
+    :func:`add_track_arguments` options."""
+    table = read_table(args)
+    if args.regularise is not None:
+        if args.regularise_method == "crw":
+            table = crw.regularise(table, args.regularise)
+        else:
+            table = tracks.regularise(table, args.regularise, max_gap=args.max_gap)
+    return tracks.prepare(table, scale=args.scale, max_gap=args.max_gap)
+
+
+def read_table(args: argparse.Namespace) -> pd.DataFrame:
+    """The tracks table of the file (:mod:`hmmtrack.io` readers), split at gaps over
+    ``--max-gap`` when it is to be regularised (a ``segment`` column); ``--regularise``
+    checked."""
     if args.format == "movebank":
+        projection = args.crs
+        if projection not in ("utm", "local"):
+            try:
+                projection = Projection.from_epsg(projection)
+            except ValueError as exc:
+                raise ValueError(f"--crs {args.crs}: {exc}") from None
         table = io.read_movebank(
             args.tracks,
             id_col=_column(args.id_col, "individual-local-identifier"),
@@ -83,8 +128,12 @@ def read_prepared(args: argparse.Namespace) -> pd.DataFrame:
             lon_col=args.lon_col,
             lat_col=args.lat_col,
             tz=args.tz or "UTC",
+            projection=projection,
+            missing_coordinates=args.missing,
         )
     else:
+        if args.crs != "utm":
+            raise ValueError("--crs projects lon/lat; it needs --format movebank")
         table = io.read_tracks(
             args.tracks,
             id_col=_column(args.id_col, "id"),
@@ -92,14 +141,21 @@ def read_prepared(args: argparse.Namespace) -> pd.DataFrame:
             x_col=args.x_col,
             y_col=args.y_col,
             tz=args.tz,
+            missing_coordinates=args.missing,
         )
-    if args.regularise is not None:
-        if not (math.isfinite(args.regularise) and args.regularise > 0):
-            raise ValueError(
-                f"--regularise must be a positive number of seconds, got {args.regularise}"
-            )
-        table = tracks.regularise(table, args.regularise, max_gap=args.max_gap)
-    return tracks.prepare(table, scale=args.scale, max_gap=args.max_gap)
+    if args.regularise is None:
+        if args.regularise_method != "linear":
+            raise ValueError("--regularise-method needs --regularise SECONDS (the time step)")
+        return table
+    if not (math.isfinite(args.regularise) and args.regularise > 0):
+        raise ValueError(
+            f"--regularise must be a positive number of seconds, got {args.regularise}"
+        )
+    if "time" not in table.columns:
+        raise ValueError("--regularise needs the fixes' times; the tracks have none (--time-col)")
+    if args.max_gap is not None and args.regularise_method == "crw":
+        table = tracks.split_at_gaps(table, args.max_gap)
+    return table
 
 
 def register(subparsers) -> None:
@@ -130,12 +186,66 @@ def register(subparsers) -> None:
         "'transition ~ C(season) + cos(2*pi*hour/24)' (columns of the track file; factors "
         "with C(), any numpy expression; coefficients printed also on the data's scale)",
     )
+    parser.add_argument(
+        "--impute",
+        type=int,
+        metavar="M",
+        help="multiple imputation: fit to M tracks drawn from each track's continuous-time "
+        "correlated random walk on the --regularise grid (hmmtrack.hmm.crw.impute) and pool "
+        "the fits by Rubin's rules (hmmtrack.hmm.imputation.fit_imputed); the model saved is "
+        "the pooled one (no log-likelihood)",
+    )
     parser.add_argument("--starts", type=int, default=5, help="EM starts (default 5)")
     parser.add_argument("--seed", type=int, default=1, help="seed of the starts (default 1)")
     parser.add_argument("--jobs", type=int, default=1, help="processes for the starts")
     parser.add_argument("--level", type=float, default=0.95, help="confidence level")
+    add_state_names_argument(parser)
     parser.add_argument("-o", "--output", required=True, help="model JSON file to write")
+    parser.add_argument(
+        "--plot",
+        metavar="DIR",
+        help="folder to write the standard figures in (densities, pseudo-residuals, decoded "
+        "tracks per animal, transition and stationary probabilities against each covariate); "
+        "created if absent",
+    )
     parser.set_defaults(func=run)
+
+
+def add_state_names_argument(parser: argparse.ArgumentParser) -> None:
+    """``--state-names`` (shared by ``fit``, ``decode`` and ``plot``)."""
+    parser.add_argument(
+        "--state-names",
+        type=lambda text: [name.strip() for name in text.split(",")],
+        metavar="NAME,NAME",
+        help="names of the states in order, state 1 (the smallest mean step) first, e.g. "
+        "encamped,exploratory: shown in tables and figures (the model file keeps numbers)",
+    )
+
+
+def check_state_names_option(n_states: int, names: list[str] | None) -> None:
+    """Refuse ``--state-names`` that are not one distinct name per state."""
+    try:
+        check_state_names(n_states, names)
+    except ValueError as exc:
+        raise ValueError(f"--state-names: {exc}") from None
+
+
+def write_figures(folder: str, model, prepared: pd.DataFrame, states, state_names) -> list[str]:
+    """Draw :func:`hmmtrack.plots.hmm.hmm_figures` and write them into ``folder`` (created,
+    written as one set: a failure leaves the previous set)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from hmmtrack.plots.hmm import hmm_figures
+
+    figures = hmm_figures(model, prepared, states, state_names)
+    with staged_folder(folder, "densities.png") as stage:
+        for name, figure in figures.items():
+            figure.savefig(stage / name, dpi=110)
+            plt.close(figure)
+    return sorted(figures)
 
 
 def transition_formula(text: str | None) -> str | None:
@@ -159,28 +269,65 @@ def transition_formula(text: str | None) -> str | None:
 
 
 def run(args: argparse.Namespace) -> int:
-    check_paths({"tracks": args.tracks}, outputs={"-o": args.output})
+    check_paths({"tracks": args.tracks}, outputs={"-o": args.output}, folders={"--plot": args.plot})
     formula = transition_formula(args.formula)
+    check_state_names_option(args.states, args.state_names)
+    options = {
+        "step": args.step,
+        "angle": args.angle,
+        "estimate_angle_mean": not args.fix_angle_mean,
+        "covariates": tuple(args.covariates),
+        "formula": formula,
+        "n_starts": args.starts,
+        "n_jobs": args.jobs,
+        "step_unit": tracks.length_unit(args.scale),
+    }
+    if args.impute is not None:
+        return run_imputed(args, options)
     prepared = read_prepared(args)
-    estimator = MovementHMMEstimator(
-        n_states=args.states,
-        step=args.step,
-        angle=args.angle,
-        estimate_angle_mean=not args.fix_angle_mean,
-        covariates=tuple(args.covariates),
-        formula=formula,
-        n_starts=args.starts,
-        seed=args.seed,
-        n_jobs=args.jobs,
-        step_unit=step_unit(args.scale),
-    ).fit(prepared)
-    model = estimator.model_
+    estimator = MovementHMMEstimator(n_states=args.states, seed=args.seed, **options)
+    model = estimator.fit(prepared).model_
     intervals = diagnostics.confidence_intervals(model, prepared, level=args.level)
     with atomic_files(args.output) as (written,):
         model.save(written)
+        if args.plot:
+            states = model.viterbi(prepared, allow_other_step=True)
+            figures = write_figures(args.plot, model, prepared, states, args.state_names)
     print(f"{args.tracks}: {len(prepared)} rows, {prepared['segment'].nunique()} segments")
     print(diagnostics.summary(model, intervals))
+    if args.state_names:
+        print("states: " + ", ".join(f"{k + 1} = {n}" for k, n in enumerate(args.state_names)))
     starts = ", ".join(f"{s.log_likelihood:.4f}" for s in estimator.starts_)
     print(f"starts (log-likelihood after EM): {starts}")
+    print(f"wrote {args.output}")
+    if args.plot:
+        print(f"wrote {', '.join(figures)} in {args.plot}")
+    return 0
+
+
+def run_imputed(args: argparse.Namespace, options: dict) -> int:
+    """``fit --impute M``: fit to M imputed tracks, pool by Rubin's rules, save the pool."""
+    if args.impute < 1:
+        raise ValueError(f"--impute must be a positive number of imputed tracks, got {args.impute}")
+    if args.regularise is None:
+        raise ValueError("--impute M draws tracks on a regular grid: give --regularise SECONDS")
+    if args.plot:
+        raise ValueError(
+            "--plot with --impute: the figures' bands would ignore the imputation; fit without "
+            "--impute (e.g. --regularise-method crw) or draw with hmmtrack plot"
+        )
+    table = read_table(args)
+    draws = crw.impute(table, args.regularise, args.impute, np.random.default_rng(args.seed))
+    imputed = [tracks.prepare(draw, scale=args.scale) for draw in draws]
+    result = imputation.fit_imputed(imputed, args.states, seed=args.seed, **options)
+    with atomic_files(args.output) as (written,):
+        result.model.save(written)
+    print(
+        f"{args.tracks}: {args.impute} tracks imputed on a {args.regularise:g} s grid, "
+        f"{len(imputed[0])} rows each"
+    )
+    print(diagnostics.summary(result.model))
+    print("pooled working-scale estimates (Rubin's rules):")
+    print(imputation.pooled_table(result).to_string(float_format=lambda v: f"{v:.6g}"))
     print(f"wrote {args.output}")
     return 0

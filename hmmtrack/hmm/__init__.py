@@ -18,7 +18,8 @@ Submodules: :mod:`~hmmtrack.hmm.distributions` (emission families),
 :mod:`~hmmtrack.hmm.diagnostics` (pseudo-residuals, Wald intervals, AIC/BIC),
 :mod:`~hmmtrack.hmm.crw` (irregular tracks: continuous-time correlated random walk,
 regularisation and imputed tracks), :mod:`~hmmtrack.hmm.imputation` (fits to imputed tracks
-pooled by Rubin's rules), :mod:`~hmmtrack.hmm.formula` (formula design matrices).
+pooled by Rubin's rules), :mod:`~hmmtrack.hmm.formula` (formula design matrices),
+:mod:`~hmmtrack.hmm.decoding` (decoded states as a table aligned to the input rows).
 """
 
 from hmmtrack.hmm.distributions import (

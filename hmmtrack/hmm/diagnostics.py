@@ -10,11 +10,15 @@
   by the delta method, limits on the logit / log scale for probabilities / positive
   parameters so that they stay in range.
 * :func:`model_selection_table` -- log-likelihood, parameters, AIC and BIC of several models.
+* :func:`covariate_effects` -- transition and stationary probabilities against a covariate
+  of the transition formula, with delta-method bands (on :func:`covariate_grid`).
 
 Not for fitting (:mod:`hmmtrack.hmm.fit`) or drawing (:mod:`hmmtrack.plots.hmm`).
 """
 
 from __future__ import annotations
+
+from dataclasses import replace
 
 import numpy as np
 import pandas as pd
@@ -195,14 +199,9 @@ def confidence_intervals(model: MovementHMM, data: pd.DataFrame, level: float = 
     likelihood, theta, covariance = working_covariance(model, data)
     columns = coefficient_names(model)
     names, values = natural_parameters(params, columns)
-    jacobian = np.empty((values.size, theta.size))
-    for i in range(theta.size):
-        shift = np.zeros(theta.size)
-        shift[i] = 1e-6
-        up = natural_parameters(likelihood.unpack(theta + shift), columns)[1]
-        down = natural_parameters(likelihood.unpack(theta - shift), columns)[1]
-        jacobian[:, i] = (up - down) / 2e-6
-    se = np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", jacobian, covariance, jacobian), 0.0))
+    se = _delta_method_se(
+        lambda t: natural_parameters(likelihood.unpack(t), columns)[1], theta, covariance
+    )
     lower, upper = _interval(names, values, se, stats.norm.ppf(0.5 + level / 2))
     return pd.DataFrame(
         {
@@ -214,6 +213,18 @@ def confidence_intervals(model: MovementHMM, data: pd.DataFrame, level: float = 
             "upper": upper,
         }
     )
+
+
+def _delta_method_se(function, theta: np.ndarray, covariance: np.ndarray) -> np.ndarray:
+    """Standard errors of ``function(theta)`` (shape (n,)) by the delta method: its Jacobian
+    by central differences (step 1e-6) through the working covariance, shape (n,)."""
+    columns = []
+    for i in range(theta.size):
+        shift = np.zeros(theta.size)
+        shift[i] = 1e-6
+        columns.append((function(theta + shift) - function(theta - shift)) / 2e-6)
+    jacobian = np.stack(columns, axis=-1)
+    return np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", jacobian, covariance, jacobian), 0.0))
 
 
 def _interval(names, values, se, z):
@@ -312,3 +323,119 @@ def summary(model: MovementHMM, intervals: pd.DataFrame | None = None) -> str:
     stationary = "  ".join(f"{p:.4f}" for p in model.stationary())
     lines.append(f"stationary distribution: {stationary}")
     return "\n".join(lines)
+
+
+# ---------------------------------------------------------------------------------------------
+# Transition and stationary probabilities against a covariate
+# ---------------------------------------------------------------------------------------------
+
+
+def covariate_grid(
+    model: MovementHMM, data: pd.DataFrame, variable: str, n_points: int = 101
+) -> pd.DataFrame:
+    """Rows of raw covariate values along one variable of the transition formula.
+
+    ``variable`` runs over its range in ``data`` (``n_points`` evenly spaced values) or over
+    its levels (a text column); every other variable of the formula is held at its mean in
+    ``data`` (text columns: at the first level in sorted order, the formula's reference).
+
+    Returns
+    -------
+    DataFrame
+        One column per variable of the formula, ``n_points`` (or the number of levels) rows.
+    """
+    if model.transition_design is None:
+        raise ValueError("the model has no transition formula; nothing depends on a covariate")
+    variables = sorted(model.transition_design.spec.required_variables)
+    if variable not in variables:
+        raise ValueError(
+            f"{variable!r} is not a variable of the transition formula "
+            f"{model.transition_design.formula!r}; its variables: {variables}"
+        )
+    missing = [v for v in variables if v not in data.columns]
+    if missing:
+        raise ValueError(f"the data lack the formula's column(s) {missing}")
+
+    def numeric(name):
+        return pd.api.types.is_numeric_dtype(data[name]) and not pd.api.types.is_bool_dtype(
+            data[name]
+        )
+
+    column = data[variable].dropna()
+    if numeric(variable):
+        values = np.linspace(column.min(), column.max(), n_points)
+    else:
+        values = np.array(sorted(column.unique()), dtype=object)
+    grid = {variable: values}
+    for name in variables:
+        if name != variable:
+            value = data[name].mean() if numeric(name) else sorted(data[name].dropna().unique())[0]
+            grid[name] = np.full(len(values), value, dtype=object if not numeric(name) else float)
+    return pd.DataFrame(grid)
+
+
+def covariate_effects(
+    model: MovementHMM,
+    data: pd.DataFrame,
+    variable: str,
+    *,
+    n_points: int = 101,
+    level: float = 0.95,
+) -> pd.DataFrame:
+    """Transition and stationary probabilities against one covariate, with Wald bands.
+
+    The probabilities are evaluated on :func:`covariate_grid`; their confidence bands come
+    from the working-scale covariance of the fit (:func:`working_covariance`, inverse
+    observed information) by the delta method on the logit scale, mapped back, so that they
+    stay inside (0, 1) -- momentuHMM's ``plot(..., plotCI=TRUE)``.
+
+    Parameters
+    ----------
+    model : MovementHMM
+        A fit with a transition formula, at the maximum of the likelihood of ``data``.
+    data : DataFrame
+        The prepared track it was fitted to.
+    variable : str
+        A variable (column) the transition formula names.
+    n_points : int
+        Grid size of a numeric variable.
+    level : float
+        Coverage of the bands.
+
+    Returns
+    -------
+    DataFrame
+        Long table: ``value`` (the variable), ``kind`` (``"transition"`` or
+        ``"stationary"``), ``from_state`` (1-based; 0 for stationary rows), ``to_state``
+        (1-based), ``estimate``, ``lower``, ``upper``; one row per grid value and
+        probability (``K * K`` transitions and ``K`` stationary ones per value).
+    """
+    grid = covariate_grid(model, data, variable, n_points)
+    likelihood, theta, covariance = working_covariance(model, data)
+    k = model.n_states
+
+    def probabilities(working: np.ndarray) -> np.ndarray:
+        coefficients = likelihood.unpack(working).coefficients
+        candidate = replace(model, coefficients=coefficients)
+        gamma = candidate.transition_matrix(grid).reshape(len(grid), k * k)
+        return np.concatenate([gamma, candidate.stationary(grid)], axis=1).ravel()
+
+    def logit(working: np.ndarray) -> np.ndarray:
+        return special.logit(np.clip(probabilities(working), 1e-12, 1 - 1e-12))
+
+    centre = logit(theta)
+    spread = stats.norm.ppf(0.5 + level / 2) * _delta_method_se(logit, theta, covariance)
+    rows, cols = np.divmod(np.arange(k * k), k)
+    per_value = pd.DataFrame(
+        {
+            "kind": ["transition"] * (k * k) + ["stationary"] * k,
+            "from_state": np.r_[rows + 1, np.zeros(k, dtype=int)],
+            "to_state": np.r_[cols + 1, np.arange(1, k + 1)],
+        }
+    )
+    out = pd.concat([per_value] * len(grid), ignore_index=True)
+    out.insert(0, "value", np.repeat(grid[variable].to_numpy(), len(per_value)))
+    out["estimate"] = special.expit(centre)
+    out["lower"] = special.expit(centre - spread)
+    out["upper"] = special.expit(centre + spread)
+    return out

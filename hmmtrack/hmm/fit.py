@@ -618,10 +618,10 @@ def warn_if_irregular(table: pd.DataFrame) -> None:
         warnings.warn(
             f"time steps vary: {int(irregular.sum())} of {dt.size} differ from the median "
             f"{median:g} s by more than {DT_TOLERANCE:.0%}; regularise the track before "
-            "preparing it (hmmtrack fit --regularise STEP): hmmtrack.hmm.crw.regularise(tracks, "
-            "step) (continuous-time "
-            "correlated random walk; crw.impute with imputation.fit_imputed for multiple "
-            "imputation) or hmmtrack.tracks.regularise(tracks, step) (linear interpolation)",
+            "preparing it: hmmtrack.hmm.crw.regularise(tracks, step) (continuous-time "
+            "correlated random walk; hmmtrack fit --regularise STEP --regularise-method crw), "
+            "crw.impute with imputation.fit_imputed for multiple imputation (--impute M) or "
+            "hmmtrack.tracks.regularise(tracks, step) (linear interpolation; --regularise STEP)",
             UserWarning,
             stacklevel=3,
         )

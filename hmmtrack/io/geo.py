@@ -17,6 +17,7 @@ import pandas as pd
 from pyproj import CRS, Transformer
 from pyproj.aoi import AreaOfInterest
 from pyproj.database import query_utm_crs_info
+from pyproj.exceptions import CRSError
 
 from hmmtrack.tracks import describe_rows
 
@@ -30,8 +31,8 @@ class Projection:
     crs : str
         The projected CRS as WKT (what ``attrs["crs"]`` stores).
 
-    Use :meth:`utm` or :meth:`local` to choose one for data, :meth:`from_frame` to recover the
-    one a table was projected with.
+    Use :meth:`utm` or :meth:`local` to choose one for data, :meth:`from_epsg` for a named
+    CRS, :meth:`from_frame` to recover the one a table was projected with.
     """
 
     crs: str
@@ -58,6 +59,35 @@ class Projection:
                 f"+proj=aeqd +lat_0={lat0} +lon_0={lon0} +datum=WGS84 +units=m +no_defs"
             ).to_wkt()
         )
+
+    @classmethod
+    def from_epsg(cls, code: str | int) -> Projection:
+        """The projected CRS in metres of an EPSG code (``"EPSG:32612"``, ``"32612"``, 32612).
+
+        Raises
+        ------
+        ValueError
+            For text that is not an EPSG code, an unknown code, or a CRS that is not projected
+            in metres (e.g. EPSG:4326, lon/lat degrees).
+        """
+        text = str(code).strip()
+        number = text.upper().removeprefix("EPSG:")
+        if not number.isdigit():
+            raise ValueError(
+                f"projection must be 'utm', 'local' or an EPSG code such as 'EPSG:32612', "
+                f"got {code!r}"
+            )
+        try:
+            crs = CRS.from_epsg(int(number))
+        except CRSError as exc:
+            raise ValueError(f"EPSG:{number} is not a known coordinate reference system") from exc
+        units = {axis.unit_name for axis in crs.axis_info}
+        if not crs.is_projected or units != {"metre"}:
+            raise ValueError(
+                f"EPSG:{number} ({crs.name}) is not a projected CRS in metres (axis units "
+                f"{sorted(units)}); give one in metres, e.g. the UTM zone's EPSG:326NN, or 'utm'"
+            )
+        return cls(crs.to_wkt())
 
     @classmethod
     def from_frame(cls, table: pd.DataFrame) -> Projection | None:
@@ -95,13 +125,14 @@ def _centre(lon: np.ndarray, lat: np.ndarray) -> tuple[float, float]:
 
 
 def choose_projection(
-    lon: np.ndarray, lat: np.ndarray, projection: Projection | str = "utm"
+    lon: np.ndarray, lat: np.ndarray, projection: Projection | str | int = "utm"
 ) -> Projection:
     """Projection for lon/lat data (degrees, shape (n,)).
 
     ``projection`` is a :class:`Projection` (returned as it is, e.g. one shared with the
-    receivers), ``"utm"`` (the UTM zone of the data's centre) or ``"local"`` (azimuthal
-    equidistant about the centre).
+    receivers), ``"utm"`` (the UTM zone of the data's centre), ``"local"`` (azimuthal
+    equidistant about the centre) or an EPSG code (``"EPSG:32612"``, ``"32612"`` or the
+    integer) of a projected CRS in metres, such as the one a study area's maps use.
     """
     if isinstance(projection, Projection):
         return projection
@@ -109,7 +140,7 @@ def choose_projection(
         return Projection.utm(lon, lat)
     if projection == "local":
         return Projection.local(lon, lat)
-    raise ValueError(f"projection must be 'utm' or 'local', got {projection!r}")
+    return Projection.from_epsg(projection)
 
 
 def check_lonlat(table: pd.DataFrame, lon: str, lat: str) -> None:

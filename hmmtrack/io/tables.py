@@ -148,8 +148,14 @@ def rename(table: pd.DataFrame, mapping: dict[str, str | None]) -> pd.DataFrame:
     return table.rename(columns=mapping)
 
 
-def handle_missing(table: pd.DataFrame, columns: list[str], policy: str) -> pd.DataFrame:
-    """Apply the missing-coordinates policy (``error``, ``drop``, ``keep``)."""
+def handle_missing(
+    table: pd.DataFrame, columns: list[str], policy: str, remedy: str = ""
+) -> pd.DataFrame:
+    """Apply the missing-coordinates policy (``error``, ``drop``, ``keep``).
+
+    ``remedy`` is appended to the ``error`` policy's message: how the caller's user can
+    choose another policy (empty where there is none, e.g. receivers).
+    """
     if policy not in _MISSING_CHOICES:
         raise ValueError(f"missing_coordinates must be one of {_MISSING_CHOICES}, got {policy!r}")
     empty = table[columns].isna().any(axis=1).to_numpy()
@@ -158,8 +164,7 @@ def handle_missing(table: pd.DataFrame, columns: list[str], policy: str) -> pd.D
     if policy == "error":
         raise ValueError(
             f"{describe_rows(table, np.flatnonzero(empty))}: empty coordinates in column(s) "
-            f"{columns}; pass missing_coordinates='drop' to remove these rows (they are "
-            "reported) or 'keep' to keep them as missing fixes"
+            f"{columns}{'; ' + remedy if remedy else ''}"
         )
     dropped = [{"rows": table.index[empty].tolist(), "reason": f"empty coordinates in {columns}"}]
     kept = table.loc[~empty].copy()

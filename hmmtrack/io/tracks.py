@@ -17,6 +17,12 @@ from hmmtrack.io.tables import handle_missing, numeric, numeric_columns, read_cs
 from hmmtrack.io.times import parse_times
 from hmmtrack.tracks import describe_rows, validate_tracks
 
+#: what a user of a track reader can do about empty coordinates (library and CLI spelling)
+_MISSING_REMEDY = (
+    "remove these rows (they are reported) with missing_coordinates='drop' (hmmtrack "
+    "fit/decode/plot --missing drop), or keep them as missing fixes with 'keep' (--missing keep)"
+)
+
 
 def read_tracks(
     path: str | Path,
@@ -79,7 +85,7 @@ def _finish_tracks(
 ) -> pd.DataFrame:
     table["x"] = numeric(table, "x", "metres")
     table["y"] = numeric(table, "y", "metres")
-    table = handle_missing(table, ["x", "y"], missing)
+    table = handle_missing(table, ["x", "y"], missing, _MISSING_REMEDY)
     if has_time:
         table["time"] = parse_times(table, "time", tz)
     numeric_columns(table, skip=("id", "time", "x", "y"))
@@ -103,7 +109,7 @@ def read_movebank(
     lon_col: str = "location-long",
     lat_col: str = "location-lat",
     tz: str | None = "UTC",
-    projection: Projection | str = "utm",
+    projection: Projection | str | int = "utm",
     missing_coordinates: str = "error",
     min_fixes: int = 2,
 ) -> pd.DataFrame:
@@ -117,9 +123,11 @@ def read_movebank(
         Columns of animal id, time, longitude and latitude (degrees, WGS 84).
     tz : str or None
         Zone of naive times; Movebank timestamps are UTC, hence the default.
-    projection : Projection or {"utm", "local"}
-        A projection to use (e.g. shared with receivers), or how to choose one from the data's
-        centre: its UTM zone, or an azimuthal equidistant projection about it.
+    projection : Projection, {"utm", "local"} or EPSG code
+        A projection to use (e.g. shared with receivers), how to choose one from the data's
+        centre (its UTM zone, or an azimuthal equidistant projection about it), or the EPSG
+        code of a projected CRS in metres (``"EPSG:32611"``); see
+        :func:`hmmtrack.io.geo.choose_projection`.
     missing_coordinates : {"error", "drop", "keep"}
         As in :func:`read_tracks` (Movebank files often hold rows without a fix).
     min_fixes : int
@@ -139,7 +147,7 @@ def read_movebank(
     table = rename(table, {"id": id_col, "time": time_col, "lon": lon_col, "lat": lat_col})
     table["lon"] = numeric(table, "lon", "degrees")
     table["lat"] = numeric(table, "lat", "degrees")
-    table = handle_missing(table, ["lon", "lat"], missing_coordinates)
+    table = handle_missing(table, ["lon", "lat"], missing_coordinates, _MISSING_REMEDY)
     check_lonlat(table, "lon", "lat")
     proj = choose_projection(table["lon"], table["lat"], projection)
     x, y = proj.to_xy(table["lon"], table["lat"])
