@@ -39,7 +39,7 @@ import pandas as pd
 from scipy.optimize import minimize
 
 from hmmtrack.hmm import covariates as cov
-from hmmtrack.hmm import distributions
+from hmmtrack.hmm import distributions, em_kernels
 from hmmtrack.hmm import formula as formulas
 from hmmtrack.hmm.inference import forward_backward, load_kernels, log_likelihood
 from hmmtrack.hmm.model import DT_TOLERANCE, MovementHMM, Observations, time_steps
@@ -352,6 +352,23 @@ def m_step(params: Parameters, data: FitData, post) -> Parameters:
     )
 
 
+def _em_steps(params: Parameters, data: FitData):
+    """The E-step ``params -> result with .log_likelihood`` and M-step ``(params, result) ->
+    params`` of a fit: the fused kernel of :mod:`~hmmtrack.hmm.em_kernels` when the model
+    allows it (gamma / von Mises, no covariates), else forward-backward and :func:`m_step`."""
+    fused = em_kernels.fused_em(params, data)
+    if fused is not None:
+        return fused.expectation, fused.maximisation
+
+    def expectation(params):
+        return _posterior(params, data)
+
+    def maximisation(params, post):
+        return m_step(params, data, post)
+
+    return expectation, maximisation
+
+
 def run_em(params: Parameters, data: FitData, max_iter: int, tol: float):
     """Baum-Welch from ``params`` until the gain per observation is below ``tol``.
 
@@ -360,7 +377,8 @@ def run_em(params: Parameters, data: FitData, max_iter: int, tol: float):
     scheme S3) on the working parameters (:class:`WorkingLikelihood`): two EM steps ``r``
     and ``v`` give the extrapolation ``theta0 - 2 alpha r + alpha^2 v``, kept only when its
     log-likelihood is at least that of the second EM step, so that every value in the
-    history is at least the one before. Each E-step counts as one iteration.
+    history is at least the one before. Each E-step counts as one iteration. The E- and
+    M-steps are the fused kernel's where the model allows (see :func:`_em_steps`).
 
     Returns
     -------
@@ -371,13 +389,14 @@ def run_em(params: Parameters, data: FitData, max_iter: int, tol: float):
     monitor : ConvergenceMonitor
     """
     history = []
-    post = _posterior(params, data)
+    expectation, maximisation = _em_steps(params, data)
+    post = expectation(params)
 
     def step(params, post):
         """EM step; ``None`` for a gain below ``tol`` or the end of ``max_iter``."""
         history.append(post.log_likelihood)
-        params = m_step(params, data, post)
-        post = _posterior(params, data)
+        params = maximisation(params, post)
+        post = expectation(params)
         done = post.log_likelihood - history[-1] < tol * data.n_obs
         return params, post, done or len(history) >= max_iter
 
@@ -407,7 +426,7 @@ def run_em(params: Parameters, data: FitData, max_iter: int, tol: float):
             continue
         candidate = working.unpack(start - 2.0 * alpha * r + alpha * alpha * v)
         try:
-            candidate_post = _posterior(candidate, data)
+            candidate_post = expectation(candidate)
         except ValueError:  # some observation impossible under every state path
             continue
         if candidate_post.log_likelihood >= second_post.log_likelihood:
