@@ -30,6 +30,7 @@ Not for: Viterbi, state probabilities or residuals of a fitted model
 from __future__ import annotations
 
 import dataclasses
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
@@ -39,7 +40,7 @@ from scipy import special
 from hmmtrack.hmm.distributions import Gamma, PreparedAngles, PreparedSteps, VonMises
 from hmmtrack.hmm.distributions.base import _LOG_2PI
 
-__all__ = ["KERNELS", "FusedEM", "Statistics", "fused_em"]
+__all__ = ["FEATURES", "KERNELS", "FusedEM", "Statistics", "features_of", "fused_em"]
 
 #: features of the gamma / von Mises model, in column order before identical ones are merged
 FEATURES = ("positive", "step", "log_step", "zero", "observed", "cos", "sin")
@@ -193,6 +194,48 @@ def _compile_pass(n_states: int):
 KERNELS = {n_states: _compile_pass(n_states) for n_states in (2, 3)}
 
 
+#: the features of prepared steps, built once for all the starts of a fit: steps -> (angles,
+#: features, column); entries go with the prepared steps
+_FEATURE_CACHE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def features_of(steps: PreparedSteps, angles: PreparedAngles) -> tuple[np.ndarray, dict]:
+    """The ``(T, m)`` features of :data:`FEATURES` and the column of each name.
+
+    Indicator features that are equal (no missing value and no zero step: "positive" and
+    "observed" are both all ones) share one column; an indicator that is 0 on every row has
+    none (column None: its sums are 0). Built once per pair of prepared observations (every
+    start of a multi-start fit shares them; read-only).
+    """
+    cached = _FEATURE_CACHE.get(steps)
+    if cached is not None and cached[0] is angles:
+        return cached[1], cached[2]
+    columns = {
+        "positive": steps.positive.astype(float),
+        "step": np.where(steps.positive, steps.safe, 0.0),
+        "log_step": np.where(steps.positive, steps.log_safe, 0.0),
+        "zero": steps.zero.astype(float),
+        "observed": (~angles.missing).astype(float),
+        "cos": angles.cos,
+        "sin": angles.sin,
+    }
+    kept: list[np.ndarray] = []
+    column: dict[str, int | None] = {}
+    for name in FEATURES:
+        same = [i for i, c in enumerate(kept) if np.array_equal(c, columns[name])]
+        if name in ("positive", "zero", "observed") and not columns[name].any():
+            column[name] = None
+        elif name in ("positive", "zero", "observed") and same:
+            column[name] = same[0]
+        else:
+            column[name] = len(kept)
+            kept.append(columns[name])
+    features = np.ascontiguousarray(np.column_stack(kept))
+    features.setflags(write=False)
+    _FEATURE_CACHE[steps] = (angles, features, column)
+    return features, column
+
+
 class FusedEM:
     """The fused E-step and closed-form M-step of one fit (gamma steps, von Mises angles).
 
@@ -214,28 +257,7 @@ class FusedEM:
     """
 
     def __init__(self, steps: PreparedSteps, angles: PreparedAngles, lengths, n_states: int):
-        positive = steps.positive.astype(float)
-        columns = {
-            "positive": positive,
-            "step": np.where(steps.positive, steps.safe, 0.0),
-            "log_step": np.where(steps.positive, steps.log_safe, 0.0),
-            "zero": steps.zero.astype(float),
-            "observed": (~angles.missing).astype(float),
-            "cos": angles.cos,
-            "sin": angles.sin,
-        }
-        kept: list[np.ndarray] = []
-        self.column: dict[str, int | None] = {}
-        for name in FEATURES:
-            same = [i for i, c in enumerate(kept) if np.array_equal(c, columns[name])]
-            if name in ("positive", "zero", "observed") and not columns[name].any():
-                self.column[name] = None
-            elif name in ("positive", "zero", "observed") and same:
-                self.column[name] = same[0]
-            else:
-                self.column[name] = len(kept)
-                kept.append(columns[name])
-        self.features = np.ascontiguousarray(np.column_stack(kept))
+        self.features, self.column = features_of(steps, angles)
         lengths = np.asarray(lengths, dtype=np.int64)
         self.ends = np.cumsum(lengths)
         self.starts = self.ends - lengths

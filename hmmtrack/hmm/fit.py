@@ -11,8 +11,11 @@
    E-step is :func:`hmmtrack.hmm.inference.forward_backward`, the M-step the weighted
    maximum-likelihood fits of the emission families, the initial distribution and the
    transition matrix (closed form) or its logit coefficients (:mod:`~hmmtrack.hmm.covariates`);
+   2-3 state gamma / von Mises models without covariates take one fused compiled pass per
+   iteration instead (:mod:`~hmmtrack.hmm.em_kernels`, the same estimates);
    an EM still crawling after :data:`ACCELERATE_AFTER` iterations continues with SQUAREM;
-2. the best start is *polished*: BFGS on the full log-likelihood over the working
+2. the best start is *polished* when its EM stopped at ``max_iter`` before converging
+   (``polish="auto"``; ``True`` always polishes): BFGS on the full log-likelihood over the working
    parameters (the scale moveHMM's ``nlm`` maximises on), with the gradient from Fisher's
    identity (one forward-backward pass plus the emission scores), so that the optimum is
    the same one moveHMM reaches;
@@ -689,8 +692,10 @@ class MovementHMMEstimator:
         EM iterations per start.
     tol : float
         EM stops when an iteration gains less than ``tol`` log-likelihood per row.
-    polish : bool
-        Maximise the full likelihood with BFGS from the best EM result.
+    polish : "auto" or bool
+        Maximise the full likelihood with BFGS from the best EM result: "auto" when that EM
+        stopped at ``max_iter`` before converging (a converged EM is within a few 1e-6 nats of
+        the optimum; reports/decisions.md, HMM fitting), True always, False never.
     dt : float or None
         Time step of the data (s); None takes the median of the table's ``dt`` column (NaN
         if it has none).
@@ -724,7 +729,7 @@ class MovementHMMEstimator:
         n_jobs: int = 1,
         max_iter: int = 1000,
         tol: float = 1e-9,
-        polish: bool = True,
+        polish="auto",
         dt: float | None = None,
         step_unit: str = "m",
     ):
@@ -778,6 +783,8 @@ class MovementHMMEstimator:
         ):
             if name not in known:
                 raise ValueError(f"{kind} family {name!r} unknown; choose from {list(known)}")
+        if not (self.polish is True or self.polish is False or self.polish == "auto"):
+            raise ValueError(f"polish must be 'auto', True or False, got {self.polish!r}")
         if int(self.n_states) < 1 or int(self.n_starts) < 1 or int(self.n_jobs) < 1:
             raise ValueError("n_states, n_starts and n_jobs must be positive integers")
         has_zero = bool(np.any(data.step == 0))
@@ -841,7 +848,7 @@ class MovementHMMEstimator:
             logger.warning("EM start %d failed and is left out: %s", s.index, s.error)
         best = max(starts, key=lambda s: (s.log_likelihood, -s.index))
         params, log_likelihood = best.parameters, best.log_likelihood
-        if self.polish:
+        if self.polish is True or (self.polish == "auto" and not best.monitor.converged):
             params, log_likelihood = polish(params, data)
             params = order_by_mean_step(params)
             best = replace(best, parameters=params, log_likelihood=log_likelihood, polished=True)
