@@ -99,7 +99,10 @@ def test_fused_e_step_equals_forward_backward(case):
     for a, b in ((fast.step, general.step), (fast.angle, general.angle)):
         for key, value in a.to_dict().items():
             if isinstance(value, list):
-                np.testing.assert_allclose(value, b.to_dict()[key], rtol=1e-8, err_msg=key)
+                # rtol: the gamma shape solves log k - digamma(k) = log(mean) - mean(log x),
+                # a difference that cancels for a state on nearly equal steps (sums equal to
+                # 1e-10 gave sds equal to 3e-8 on 10 rows)
+                np.testing.assert_allclose(value, b.to_dict()[key], rtol=1e-6, err_msg=key)
             else:
                 assert value == b.to_dict()[key]
 

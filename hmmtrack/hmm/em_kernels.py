@@ -40,7 +40,15 @@ from scipy import special
 from hmmtrack.hmm.distributions import Gamma, PreparedAngles, PreparedSteps, VonMises
 from hmmtrack.hmm.distributions.base import _LOG_2PI
 
-__all__ = ["FEATURES", "KERNELS", "FusedEM", "Statistics", "features_of", "fused_em"]
+__all__ = [
+    "FEATURES",
+    "KERNELS",
+    "FusedEM",
+    "Statistics",
+    "features_of",
+    "fused_em",
+    "load_kernel",
+]
 
 #: features of the gamma / von Mises model, in column order before identical ones are merged
 FEATURES = ("positive", "step", "log_step", "zero", "observed", "cos", "sin")
@@ -68,6 +76,10 @@ class Statistics:
     first: np.ndarray
 
 
+_TINY_NORMALISER = 1e-100  # a forward normaliser this small goes to the log at once
+_TINY_PRODUCT = 1e-200  # the running product of normalisers goes to the log below this
+
+
 def _compile_pass(n_states: int):
     """The fused E-step kernel for ``n_states`` states (a compile-time constant, so that
     LLVM unrolls every loop over the states and keeps the per-state values in registers).
@@ -91,7 +103,7 @@ def _compile_pass(n_states: int):
         Workspace, overwritten: emission likelihoods scaled by their row maximum (1 in the
         most likely state, so K - 1 exponentials per row), filtered state probabilities.
     scale : ndarray, shape (T,)
-        Workspace, overwritten: the forward normalisers.
+        Workspace, overwritten: the inverse forward normalisers.
     careful : bool
         Some coefficient is -inf (the log of a zero probability): a feature of 0 then adds
         nothing rather than ``-inf * 0 = NaN``.
@@ -111,7 +123,6 @@ def _compile_pass(n_states: int):
         -1, or the first row with probability 0 under every state path.
     """
 
-    @njit(cache=True, nogil=True)
     def fused_pass(
         features, coefficients, initial, transition, starts, ends, lik, filtered, scale, careful
     ):
@@ -124,6 +135,7 @@ def _compile_pass(n_states: int):
         posterior = np.empty(n_states)
         log_density = np.empty(n_states)
         log_likelihood = 0.0
+        product = 1.0  # normalisers (<= 1) not yet in log_likelihood: one log per ~100 rows
         for track in range(starts.size):
             for t in range(starts[track], ends[track]):
                 top, arg = -np.inf, 0
@@ -153,11 +165,19 @@ def _compile_pass(n_states: int):
                     total += filtered[t, k]
                 if not total > 0.0:
                     return log_likelihood, sums, counts, first, -1, t
-                scale[t] = total
                 inverse = 1.0 / total
+                scale[t] = inverse
                 for k in range(n_states):
                     filtered[t, k] *= inverse
-                log_likelihood += top + np.log(total)
+                log_likelihood += top
+                if total < _TINY_NORMALISER:
+                    log_likelihood += np.log(total)
+                else:
+                    product *= total
+                    if product < _TINY_PRODUCT:
+                        log_likelihood += np.log(product)
+                        product = 1.0
+        log_likelihood += np.log(product)
         for track in range(starts.size):
             last = ends[track] - 1
             for k in range(n_states):
@@ -171,7 +191,7 @@ def _compile_pass(n_states: int):
                 if t == starts[track]:
                     break
                 t -= 1
-                inverse = 1.0 / scale[t + 1]
+                inverse = scale[t + 1]
                 for j in range(n_states):
                     weighted[j] = lik[t + 1, j] * beta[j] * inverse
                 for i in range(n_states):
@@ -187,11 +207,40 @@ def _compile_pass(n_states: int):
                 first[k] += posterior[k]
         return log_likelihood, sums, counts, first, -1, -1
 
-    return fused_pass
+    # numba names a function's on-disk cache after its qualified name: one name per number
+    # of states, so that processes compiling different ones never share (and race on) a file
+    fused_pass.__qualname__ = fused_pass.__name__ = f"fused_pass_{n_states}_states"
+    return njit(cache=True, nogil=True)(fused_pass)
 
 
 #: the fused E-step kernel of each number of states the fused path takes
 KERNELS = {n_states: _compile_pass(n_states) for n_states in (2, 3)}
+
+
+def load_kernel(n_states: int) -> None:
+    """Load the fused kernel of ``n_states`` states (if there is one) into this process now.
+
+    As :func:`hmmtrack.hmm.inference.load_kernels`: a process about to fork workers calls it
+    so that they inherit the loaded kernel. The arguments have the types of a fit's call
+    (read-only features), so that no other specialisation is compiled.
+    """
+    if n_states not in KERNELS:
+        return
+    features = np.zeros((1, 1))
+    features.setflags(write=False)
+    uniform = np.full((n_states, n_states), 1.0 / n_states)
+    KERNELS[n_states](
+        features,
+        np.zeros((n_states, 1)),
+        uniform[0].copy(),
+        uniform,
+        np.zeros(1, dtype=np.int64),
+        np.ones(1, dtype=np.int64),
+        np.empty((1, n_states)),
+        np.empty((1, n_states)),
+        np.empty(1),
+        False,
+    )
 
 
 #: the features of prepared steps, built once for all the starts of a fit: steps -> (angles,
@@ -302,8 +351,8 @@ class FusedEM:
         log_likelihood, sums, counts, first, bad_row, impossible_row = KERNELS[params.n_states](
             self.features,
             coefficients,
-            np.asarray(params.initial, dtype=float),
-            np.asarray(params.transition, dtype=float),
+            np.array(params.initial, dtype=float),  # writable C copies: one specialisation
+            np.array(params.transition, dtype=float),
             self.starts,
             self.ends,
             self.lik,

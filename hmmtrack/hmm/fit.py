@@ -579,6 +579,7 @@ def run_starts(data: FitData, spec: FitSpec, n_starts: int, seed, n_jobs: int = 
     methods = multiprocessing.get_all_start_methods()
     context = multiprocessing.get_context("fork" if "fork" in methods else None)
     load_kernels()
+    em_kernels.load_kernel(spec.n_states)
     with concurrent.futures.ProcessPoolExecutor(
         min(n_jobs, n_starts), mp_context=context, initializer=_set_worker_data, initargs=(data,)
     ) as pool:
