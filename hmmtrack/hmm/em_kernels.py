@@ -3,8 +3,9 @@
 The general EM of :mod:`hmmtrack.hmm.fit` evaluates the emission log densities into a
 ``(T, K)`` matrix, runs :func:`~hmmtrack.hmm.inference.forward_backward` (which returns
 ``(T, K)`` posterior, filtered and predicted arrays) and then each family's weighted M-step
-reads the posterior back. For gamma steps and von Mises angles (the default model,
-zero-inflation and missing values included) with a constant transition matrix, every
+reads the posterior back. For 2 or 3 states with gamma steps and von Mises angles (the
+default model, zero-inflation and missing values included) and a constant transition
+matrix, every
 emission log density is linear in a few per-row features,
 
     log f_k(row t) = sum_j coefficients[k, j] * features[t, j],
@@ -15,9 +16,9 @@ the posterior-weighted sums of the same features per state (the sufficient stati
 total weight, sum of w x, w log x, w cos, w sin, the weight on zero steps). So one EM
 iteration here is one compiled call: the scaled forward pass computes the densities from the
 features as it goes, and the backward pass accumulates the sums and the expected transition
-counts instead of storing the posterior. The M-step is then closed form per state
+counts instead of storing the posterior. The M-step then works on (K,) sums only
 (:meth:`Gamma._fit_positive_sums`, :meth:`VonMises._fit_angle_sums`, the zero-inflation
-share), the same formulas as the families' ``fit_weighted``.
+share): the same estimates, by the same code, as the families' ``fit_weighted``.
 
 :func:`fused_em` decides whether a fit can take this path (:func:`hmmtrack.hmm.fit.run_em`
 asks it first); models with other families or covariates use the general one.
