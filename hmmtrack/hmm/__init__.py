@@ -14,6 +14,7 @@ The public workflow (moveHMM's ``prepData`` -> ``fitHMM`` -> ``viterbi`` / ``pse
 Submodules: :mod:`~hmmtrack.hmm.distributions` (emission families),
 :mod:`~hmmtrack.hmm.inference` (forward-backward, Viterbi), :mod:`~hmmtrack.hmm.covariates`
 (logit transition matrices), :mod:`~hmmtrack.hmm.fit` (EM, multi-start),
+:mod:`~hmmtrack.hmm.em_kernels` (the fused EM iteration of the common 2-3 state model),
 :mod:`~hmmtrack.hmm.model` (the fitted model and its JSON file),
 :mod:`~hmmtrack.hmm.diagnostics` (pseudo-residuals, Wald intervals, AIC/BIC),
 :mod:`~hmmtrack.hmm.crw` (irregular tracks: continuous-time correlated random walk,

@@ -11,8 +11,11 @@
    E-step is :func:`hmmtrack.hmm.inference.forward_backward`, the M-step the weighted
    maximum-likelihood fits of the emission families, the initial distribution and the
    transition matrix (closed form) or its logit coefficients (:mod:`~hmmtrack.hmm.covariates`);
+   2-3 state gamma / von Mises models without covariates take one fused compiled pass per
+   iteration instead (:mod:`~hmmtrack.hmm.em_kernels`, the same estimates);
    an EM still crawling after :data:`ACCELERATE_AFTER` iterations continues with SQUAREM;
-2. the best start is *polished*: BFGS on the full log-likelihood over the working
+2. the best start is *polished* when its EM stopped at ``max_iter`` before converging
+   (``polish="auto"``; ``True`` always polishes): BFGS on the full log-likelihood over the working
    parameters (the scale moveHMM's ``nlm`` maximises on), with the gradient from Fisher's
    identity (one forward-backward pass plus the emission scores), so that the optimum is
    the same one moveHMM reaches;
@@ -39,7 +42,7 @@ import pandas as pd
 from scipy.optimize import minimize
 
 from hmmtrack.hmm import covariates as cov
-from hmmtrack.hmm import distributions
+from hmmtrack.hmm import distributions, em_kernels
 from hmmtrack.hmm import formula as formulas
 from hmmtrack.hmm.inference import forward_backward, load_kernels, log_likelihood
 from hmmtrack.hmm.model import DT_TOLERANCE, MovementHMM, Observations, time_steps
@@ -352,6 +355,23 @@ def m_step(params: Parameters, data: FitData, post) -> Parameters:
     )
 
 
+def _em_steps(params: Parameters, data: FitData):
+    """The E-step ``params -> result with .log_likelihood`` and M-step ``(params, result) ->
+    params`` of a fit: the fused kernel of :mod:`~hmmtrack.hmm.em_kernels` when the model
+    allows it (gamma / von Mises, no covariates), else forward-backward and :func:`m_step`."""
+    fused = em_kernels.fused_em(params, data)
+    if fused is not None:
+        return fused.expectation, fused.maximisation
+
+    def expectation(params):
+        return _posterior(params, data)
+
+    def maximisation(params, post):
+        return m_step(params, data, post)
+
+    return expectation, maximisation
+
+
 def run_em(params: Parameters, data: FitData, max_iter: int, tol: float):
     """Baum-Welch from ``params`` until the gain per observation is below ``tol``.
 
@@ -360,7 +380,8 @@ def run_em(params: Parameters, data: FitData, max_iter: int, tol: float):
     scheme S3) on the working parameters (:class:`WorkingLikelihood`): two EM steps ``r``
     and ``v`` give the extrapolation ``theta0 - 2 alpha r + alpha^2 v``, kept only when its
     log-likelihood is at least that of the second EM step, so that every value in the
-    history is at least the one before. Each E-step counts as one iteration.
+    history is at least the one before. Each E-step counts as one iteration. The E- and
+    M-steps are the fused kernel's where the model allows (see :func:`_em_steps`).
 
     Returns
     -------
@@ -371,13 +392,14 @@ def run_em(params: Parameters, data: FitData, max_iter: int, tol: float):
     monitor : ConvergenceMonitor
     """
     history = []
-    post = _posterior(params, data)
+    expectation, maximisation = _em_steps(params, data)
+    post = expectation(params)
 
     def step(params, post):
         """EM step; ``None`` for a gain below ``tol`` or the end of ``max_iter``."""
         history.append(post.log_likelihood)
-        params = m_step(params, data, post)
-        post = _posterior(params, data)
+        params = maximisation(params, post)
+        post = expectation(params)
         done = post.log_likelihood - history[-1] < tol * data.n_obs
         return params, post, done or len(history) >= max_iter
 
@@ -407,7 +429,7 @@ def run_em(params: Parameters, data: FitData, max_iter: int, tol: float):
             continue
         candidate = working.unpack(start - 2.0 * alpha * r + alpha * alpha * v)
         try:
-            candidate_post = _posterior(candidate, data)
+            candidate_post = expectation(candidate)
         except ValueError:  # some observation impossible under every state path
             continue
         if candidate_post.log_likelihood >= second_post.log_likelihood:
@@ -557,6 +579,7 @@ def run_starts(data: FitData, spec: FitSpec, n_starts: int, seed, n_jobs: int = 
     methods = multiprocessing.get_all_start_methods()
     context = multiprocessing.get_context("fork" if "fork" in methods else None)
     load_kernels()
+    em_kernels.load_kernel(spec.n_states)
     with concurrent.futures.ProcessPoolExecutor(
         min(n_jobs, n_starts), mp_context=context, initializer=_set_worker_data, initargs=(data,)
     ) as pool:
@@ -670,8 +693,10 @@ class MovementHMMEstimator:
         EM iterations per start.
     tol : float
         EM stops when an iteration gains less than ``tol`` log-likelihood per row.
-    polish : bool
-        Maximise the full likelihood with BFGS from the best EM result.
+    polish : "auto" or bool
+        Maximise the full likelihood with BFGS from the best EM result: "auto" when that EM
+        stopped at ``max_iter`` before converging (a converged EM is within a few 1e-6 nats of
+        the optimum; reports/decisions.md, HMM fitting), True always, False never.
     dt : float or None
         Time step of the data (s); None takes the median of the table's ``dt`` column (NaN
         if it has none).
@@ -705,7 +730,7 @@ class MovementHMMEstimator:
         n_jobs: int = 1,
         max_iter: int = 1000,
         tol: float = 1e-9,
-        polish: bool = True,
+        polish="auto",
         dt: float | None = None,
         step_unit: str = "m",
     ):
@@ -759,6 +784,8 @@ class MovementHMMEstimator:
         ):
             if name not in known:
                 raise ValueError(f"{kind} family {name!r} unknown; choose from {list(known)}")
+        if not (self.polish is True or self.polish is False or self.polish == "auto"):
+            raise ValueError(f"polish must be 'auto', True or False, got {self.polish!r}")
         if int(self.n_states) < 1 or int(self.n_starts) < 1 or int(self.n_jobs) < 1:
             raise ValueError("n_states, n_starts and n_jobs must be positive integers")
         has_zero = bool(np.any(data.step == 0))
@@ -822,7 +849,7 @@ class MovementHMMEstimator:
             logger.warning("EM start %d failed and is left out: %s", s.index, s.error)
         best = max(starts, key=lambda s: (s.log_likelihood, -s.index))
         params, log_likelihood = best.parameters, best.log_likelihood
-        if self.polish:
+        if self.polish is True or (self.polish == "auto" and not best.monitor.converged):
             params, log_likelihood = polish(params, data)
             params = order_by_mean_step(params)
             best = replace(best, parameters=params, log_likelihood=log_likelihood, polished=True)

@@ -29,7 +29,6 @@ from hmmtrack.hmm.distributions.base import (
     _Family,
     _rows_where,
     _split_working,
-    _weighted_means,
     _weighted_sums,
     prepare_angles,
 )
@@ -160,10 +159,11 @@ class _AngleFamily(_Family):
         """Mean direction per state (K,), rad."""
         return self.mean.copy()
 
-    def _trigonometric_moments(self, cos_x, sin_x, w) -> tuple[np.ndarray, np.ndarray]:
-        """Weighted mean direction (0 if fixed) and E[cos(x - direction)] per state, (K,)."""
-        total = _column_sums(w)
-        c, s = _weighted_means(cos_x, w, total), _weighted_means(sin_x, w, total)
+    def _trigonometric_moments(self, total, sum_cos, sum_sin) -> tuple[np.ndarray, np.ndarray]:
+        """Weighted mean direction (0 if fixed) and E[cos(x - direction)] per state, (K,), from
+        the total weight and the weighted sums of cos and sin per state, (K,) each."""
+        tiny = np.finfo(float).tiny
+        c, s = sum_cos / np.maximum(total, tiny), sum_sin / np.maximum(total, tiny)
         if self.estimate_mean:
             return np.arctan2(s, c), np.hypot(c, s)
         return np.zeros_like(c), c
@@ -276,7 +276,14 @@ class VonMises(_AngleFamily):
         return kappa * cos_dev - (_LOG_2PI + np.log(special.i0e(kappa)) + kappa)
 
     def _fit_angles(self, cos_x, sin_x, w):
-        mean, resultant = self._trigonometric_moments(cos_x, sin_x, w)
+        return self._fit_angle_sums(
+            _column_sums(w), _weighted_sums(cos_x, w), _weighted_sums(sin_x, w)
+        )
+
+    def _fit_angle_sums(self, total, sum_cos, sum_sin) -> dict:
+        """Weighted MLE from the sufficient statistics (K,): total weight of the observed
+        angles and the weighted sums of their cos and sin."""
+        mean, resultant = self._trigonometric_moments(total, sum_cos, sum_sin)
         return {"mean": mean, "concentration": _a1_inverse(resultant)}
 
     def _polar_score(self, cos_x, sin_x, w) -> tuple[np.ndarray, np.ndarray]:

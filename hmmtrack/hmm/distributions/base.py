@@ -373,7 +373,22 @@ class _Family:
         usable = _column_sums(w) > _MIN_STATE_WEIGHT
         if not usable.any():
             return {}
-        fitted = fit(*data, w if usable.all() else w[:, usable])
+        return self._fill_states(usable, fit(*data, w if usable.all() else w[:, usable]))
+
+    def _fit_sums(self, fit, total: np.ndarray, *sums: np.ndarray) -> dict[str, np.ndarray]:
+        """:meth:`_fit_states` from per-state weighted sums instead of rows and weights.
+
+        ``fit(total, *sums)`` takes the usable states' total weights and sums (each
+        ``(K_usable,)``) and returns ``{parameter: (K_usable,) array}``; the fused EM of
+        :mod:`hmmtrack.hmm.em_kernels` accumulates those sums without a ``(T, K)`` array.
+        """
+        usable = total > _MIN_STATE_WEIGHT
+        if not usable.any():
+            return {}
+        return self._fill_states(usable, fit(total[usable], *(s[usable] for s in sums)))
+
+    def _fill_states(self, usable: np.ndarray, fitted: dict) -> dict[str, np.ndarray]:
+        """Full ``(K,)`` parameters: ``fitted`` on the ``usable`` states, current elsewhere."""
         out = {}
         for field, value in fitted.items():
             full = np.array(getattr(self, field), dtype=float)

@@ -148,15 +148,21 @@ class _StepFamily(_Family):
         w = _check_weights(w, data.n_obs, self.n_states, type(self).__name__)
         changes: dict[str, Any] = {}
         if self.zero_mass is not None:
-            total = _weighted_sums((~data.missing).astype(float), w)
-            zeros = _weighted_sums(data.zero.astype(float), w)
-            share = zeros / np.maximum(total, np.finfo(float).tiny)
-            changes["zero_mass"] = np.where(total > _MIN_STATE_WEIGHT, share, self.zero_mass)
+            changes["zero_mass"] = self._zero_mass_of_sums(
+                _weighted_sums((~data.missing).astype(float), w),
+                _weighted_sums(data.zero.astype(float), w),
+            )
         wp = w if data.positive_x is data.safe else _rows_where(data.positive, w)
         changes.update(
             self._fit_states(self._fit_positive, wp, data.positive_x, data.positive_log_x)
         )
         return self._replace(**changes)
+
+    def _zero_mass_of_sums(self, total: np.ndarray, zeros: np.ndarray) -> np.ndarray:
+        """Weighted share of exact zeros per state from the weights of the observed rows
+        ``total`` and of the zero rows ``zeros`` (K,); a state without weight keeps its own."""
+        share = zeros / np.maximum(total, np.finfo(float).tiny)
+        return np.where(total > _MIN_STATE_WEIGHT, share, self.zero_mass)
 
     def sample(self, rng: np.random.Generator, states: np.ndarray) -> np.ndarray:
         """Draw one step per entry of ``states`` (n,) ints in [0, K) -> (n,)."""
@@ -285,9 +291,17 @@ class Gamma(_StepFamily):
         return (shape - 1.0) * log_x - rate * x + (shape * np.log(rate) - special.gammaln(shape))
 
     def _fit_positive(self, x: np.ndarray, log_x: np.ndarray, w: np.ndarray) -> dict:
-        total = _column_sums(w)
-        mean = _weighted_means(x, w, total)
-        mean_log = _weighted_means(log_x, w, total)
+        return self._fit_positive_sums(
+            _column_sums(w), _weighted_sums(x, w), _weighted_sums(log_x, w)
+        )
+
+    @staticmethod
+    def _fit_positive_sums(total: np.ndarray, sum_x: np.ndarray, sum_log_x: np.ndarray) -> dict:
+        """Weighted MLE from the sufficient statistics (K,): total weight, sum of w x and of
+        w log x over the positive steps."""
+        tiny = np.finfo(float).tiny
+        mean = sum_x / np.maximum(total, tiny)
+        mean_log = sum_log_x / np.maximum(total, tiny)
         k = _gamma_shape_mle(np.log(mean) - mean_log)
         return {"mean": mean, "sd": mean / np.sqrt(k)}
 
