@@ -20,6 +20,7 @@ from hmmtrack.analysis.metrics import truth_at
 from hmmtrack.experiments.configs import tracking_config
 from hmmtrack.scenarios.realistic import moored_array
 from hmmtrack.tracking import pipeline
+from hmmtrack.tracking.acquisition import Acquisition, grid_loglik
 from hmmtrack.tracking.config import TrackingConfig
 from hmmtrack.tracking.measurement import MEASUREMENTS
 from hmmtrack.tracking.measurement.base import EVENT_COLUMNS, Measurement, Score
@@ -171,6 +172,32 @@ def test_loglik_and_score_give_finite_floats_per_particle(built):
             result.commit(p)
         np.testing.assert_array_equal(p.x, x)
         np.testing.assert_array_equal(p.log_weight, log_weight)
+
+
+def test_acquisition_grid_scores_the_first_corrections_through_the_protocol(built):
+    """The acquisition's grid (the measurement's own ``score`` or ``loglik`` on points at
+    rest) is highest near the tag, and the particles it draws start around it."""
+    _, case, observations, measurement = built
+    pf, scored = started_filter(case, measurement, observations)
+    ticks = np.rint(scored["time"].to_numpy() - pf.time).astype(int)
+    pf.acquisition = acquisition = Acquisition()
+    pf._acquire(pf.time, ticks, scored, getattr(measurement, "as_matrix", None))
+    assert [e["kind"] for e in pf.events] == ["acquired"]
+    corrections = [(pf.time + t, scored[ticks == t]) for t in np.unique(ticks)[:4]]
+    if getattr(measurement, "as_matrix", None) is not None:
+        corrections = [(t, measurement.as_matrix(rows)) for t, rows in corrections]
+    grid, loglik = grid_loglik(measurement, pf.bounds, acquisition.cells, corrections, pf.dt)
+    x, y = (float(v[0]) for v in truth_at(case.truth, np.array([pf.time])))
+    best = int(np.argmax(loglik))
+    cell = max(pf.bounds[1] - pf.bounds[0], pf.bounds[3] - pf.bounds[2]) / acquisition.cells
+    assert np.hypot(grid.x[best] - x, grid.y[best] - y) < 3 * cell
+    weights = pf.weights()[0]
+    near = np.hypot(pf.particles.x - x, pf.particles.y - y) < 5 * cell
+    # drawn where the likelihood is (a uniform start puts a small share there) ...
+    area = np.pi * (5 * cell) ** 2 / ((pf.bounds[1] - pf.bounds[0]) * (pf.bounds[3] - pf.bounds[2]))
+    assert near.mean() > 5 * area
+    # ... and weighted back to the uniform prior (weights ∝ 1 / proposal)
+    assert weights[near].sum() < 3 * area + 0.05
 
 
 def test_collectors_are_fresh_each_run(built):

@@ -331,6 +331,13 @@ class ParticleFilter:
         Mode-preserving resampling (:class:`hmmtrack.tracking.mixture.Mixture`: each
         component of the cloud resampled on its own, with the ``resampling`` scheme);
         ``None``: the whole cloud at once (the paper).
+    acquisition : Acquisition or None
+        Draw the initial particles of :meth:`iterate` from the likelihood of the first
+        corrections (:class:`hmmtrack.tracking.acquisition.Acquisition`); ``None``:
+        uniformly in the bounds (the paper).
+    monitor : Monitor or None
+        Test every correction's predictive likelihood and re-acquire a lost tag
+        (:class:`hmmtrack.tracking.monitor.Monitor`); ``None``: no test.
     """
 
     def __init__(
@@ -349,6 +356,8 @@ class ParticleFilter:
         correction=None,
         collect: Sequence = (),
         mixture=None,
+        acquisition=None,
+        monitor=None,
     ) -> None:
         if int(n_particles) != n_particles or n_particles < 1:
             raise ValueError(f"n_particles must be a positive integer, got {n_particles!r}")
@@ -378,6 +387,8 @@ class ParticleFilter:
         self.correction = Plain() if correction is None else correction
         self.collect = tuple(collect)
         self.mixture = mixture
+        self.acquisition = acquisition
+        self.monitor = monitor
         self._every_step = any(c.every_step for c in self.collect)
         self._start = getattr(measurement, "start", None)
         self._as_matrix = getattr(measurement, "as_matrix", None)
@@ -421,6 +432,8 @@ class ParticleFilter:
             self.measurement_state = self._start(self.particles, self.time, self.dt)
         if self.mixture is not None:
             self.mixture.initialised(self)
+        if self.monitor is not None:
+            self.monitor.start(self)
         self.correction.initialised(self)
         for collector in self.collect:
             collector.start(self)
@@ -525,9 +538,12 @@ class ParticleFilter:
             score = self._score(p, rows, time, self.measurement_state, self.weights()[0])
         for kind, detail in score.events:
             self._record(kind, detail)
+        prior = None if self.monitor is None else self.weights()[0]
         estimate = self.correction.correct(self, score, table)
         if score.commit is not None:
             score.commit(self.particles)
+        if self.monitor is not None and self.monitor.corrected(self, score.loglik, prior, rows):
+            estimate = self.estimate()
         for collector in self.collect:
             collector.corrected(self)
         return estimate
@@ -573,6 +589,21 @@ class ParticleFilter:
                 setattr(p, name, getattr(fresh, name))
             p.log_weight = np.full(p.n, -np.log(p.n))
         self._record("degenerate_weights", action)
+
+    def alarm(self, kind: str, detail: str) -> None:
+        """Record an event of a monitor (:meth:`_record`)."""
+        self._record(kind, detail)
+
+    def restarted(self, detail: str) -> None:
+        """The particles were re-placed now (a re-acquisition): record a ``reacquired``
+        event, start the measurement's run state afresh (its ``start`` hook) and put every
+        particle in one mixture component."""
+        p = self.particles
+        if self._start is not None:
+            self.measurement_state = self._start(p, self.time, self.dt)
+        if self.mixture is not None:
+            self.mixture.initialised(self)
+        self._record("reacquired", detail)
 
     def _record(self, kind: str, detail: str) -> None:
         """Warn (``RuntimeWarning``) and append the event to :attr:`events`."""
@@ -708,6 +739,8 @@ class ParticleFilter:
         ticks = np.rint((times - start) / self.dt).astype(np.int64)
         inside = (ticks >= 0) & (ticks <= n_ticks)
         self.initialise(start)
+        if self.acquisition is not None:
+            self._acquire(start, ticks[inside], obs[inside], matrix_of=self._as_matrix)
         if not inside.all():
             self._record(
                 "observations_outside_window",
@@ -743,6 +776,20 @@ class ParticleFilter:
                 self.resample_if_due()
             yield estimate
             current = stop
+
+    def _acquire(self, start: float, ticks: np.ndarray, obs, matrix_of) -> None:
+        """Run the acquisition on the first corrections (ticks ``(M,)`` of the rows of
+        ``obs``, sorted or not) and record an ``acquired`` event (no warning)."""
+        first = np.unique(ticks)[: self.acquisition.corrections]
+        corrections = []
+        for tick in first.tolist():
+            rows = obs[ticks == tick]
+            corrections.append(
+                (start + tick * self.dt, rows if matrix_of is None else matrix_of(rows))
+            )
+        detail = self.acquisition.acquire(self, corrections)
+        if detail is not None:
+            self.events.append({"time": self.time, "kind": "acquired", "detail": detail})
 
     def _snapshot_ticks(self, snapshot_times, start: float, n_ticks: int) -> np.ndarray:
         snap = np.asarray(snapshot_times, dtype=np.float64)
@@ -832,6 +879,14 @@ class FilterSettings(Settings):
         Keep every mode of the posterior: resample each component of the particle cloud on
         its own (:class:`hmmtrack.tracking.mixture.Mixture`) and report the components
         (``TrackingResult.modes``); ``False`` (default) resamples the whole cloud.
+    acquisition : bool
+        Draw the initial particles from the likelihood of the first corrections on a grid
+        over the search box (:class:`hmmtrack.tracking.acquisition.Acquisition`);
+        ``False`` (default, the paper): uniformly in the box.
+    monitor : bool
+        Test each correction's predictive likelihood; after a long gap or when the tag is
+        lost, record an event and re-acquire (:class:`hmmtrack.tracking.monitor.Monitor`);
+        ``False`` (default): no test.
     """
 
     n_particles: int = setting(
@@ -883,5 +938,15 @@ class FilterSettings(Settings):
     mixture: bool = setting(
         False,
         help="keep every mode: resample each component of the particle cloud on its own",
+        check=boolean,
+    )
+    acquisition: bool = setting(
+        False,
+        help="draw the initial particles from the likelihood of the first corrections",
+        check=boolean,
+    )
+    monitor: bool = setting(
+        False,
+        help="notice a lost tag or a long gap from the predictive likelihood and re-acquire",
         check=boolean,
     )

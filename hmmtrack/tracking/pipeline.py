@@ -40,11 +40,13 @@ from hmmtrack.io.detections import transmitter_rows
 from hmmtrack.io.times import format_times
 from hmmtrack.random import SeedLike, as_generator
 from hmmtrack.sync import apply_clocks, read_clocks
+from hmmtrack.tracking.acquisition import Acquisition
 from hmmtrack.tracking.config import TrackingConfig
 from hmmtrack.tracking.filter import FilterSettings, ParticleFilter
 from hmmtrack.tracking.measurement import MEASUREMENTS
 from hmmtrack.tracking.measurement.base import EVENT_COLUMNS
 from hmmtrack.tracking.mixture import Mixture, Modes
+from hmmtrack.tracking.monitor import Monitor
 from hmmtrack.tracking.receivers import ReceiverTracks
 from hmmtrack.tracking.smoothing import Smoothed
 from hmmtrack.tracking.tempering import Tempered
@@ -321,7 +323,10 @@ def particle_filter(
         Corrected by the measurement's default policy, or tempered at
         ``settings.tempering_ess`` when set; with ``settings.mixture``, resampled by
         components (:class:`hmmtrack.tracking.mixture.Mixture`) and reporting them
-        (:class:`hmmtrack.tracking.mixture.Modes`).
+        (:class:`hmmtrack.tracking.mixture.Modes`); with ``settings.acquisition``, started
+        from the first corrections' likelihood
+        (:class:`hmmtrack.tracking.acquisition.Acquisition`); with ``settings.monitor``,
+        watched and re-acquired (:class:`hmmtrack.tracking.monitor.Monitor`).
     """
     correction = (
         measurement.default_correction
@@ -341,6 +346,8 @@ def particle_filter(
         correction=correction,
         collect=[*measurement.collectors(), *collect, *([Modes()] if settings.mixture else [])],
         mixture=Mixture() if settings.mixture else None,
+        acquisition=Acquisition() if settings.acquisition else None,
+        monitor=Monitor() if settings.monitor else None,
     )
 
 
