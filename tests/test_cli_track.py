@@ -37,6 +37,7 @@ from hmmtrack.tracking.config import (
 )
 from hmmtrack.tracking.measurement.detection import LogisticDetection
 from hmmtrack.tracking.measurement.range_rate import search_bounds
+from hmmtrack.tracking.mixture import ESTIMATE_MODE_COLUMNS
 from hmmtrack.tracking.motion import VelocityMotion, bundled_model_path, motion_model
 
 ESTIMATE_COLUMNS = ["time", "x", "y", "var_x", "var_y", "cov_xy", "sqrt_lambda1"]
@@ -131,6 +132,19 @@ def test_track_writes_one_row_per_second_and_prints_the_metrics(scenario_files, 
         scores.rmse_after_convergence, abs=0.006
     )
     assert scores.converged and scores.mean_error_after_convergence < 10.0
+
+
+def test_track_writes_the_modes_and_acquires_and_monitors(scenario_files, tmp_path):
+    """``--modes`` adds the second mode and ``converged`` to the written estimates;
+    ``--acquisition --monitor`` run through the command line."""
+    _, paths = scenario_files
+    output = tmp_path / "modes.csv"
+    extra = ("--motion", "velocity", "--modes", "--acquisition", "--monitor")
+    assert main(track_args(paths, output, *extra)) == 0
+    table = pd.read_csv(output)
+    assert list(table.columns[-5:]) == list(ESTIMATE_MODE_COLUMNS)
+    converged = table["converged"].to_numpy(dtype=bool)
+    assert converged[-1] and (table.loc[converged, "sqrt_lambda1"] < 10.0).all()
 
 
 def to_lonlat(table: pd.DataFrame) -> pd.DataFrame:

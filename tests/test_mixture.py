@@ -16,11 +16,13 @@ from hmmtrack.experiments.configs import tracking_config
 from hmmtrack.tracking import pipeline as tracking
 from hmmtrack.tracking.filter import ParticleFilter
 from hmmtrack.tracking.mixture import (
+    ESTIMATE_MODE_COLUMNS,
     MODE_COLUMNS,
     Mixture,
     Modes,
     allocate,
     component_moments,
+    with_modes,
 )
 from hmmtrack.tracking.motion.baseline import BaselineMotion
 
@@ -212,3 +214,44 @@ def test_track_with_the_mixture_reports_the_modes_and_finds_a_stationary_tag():
     truth = scenario.truth[["x", "y"]].to_numpy()[-1]
     last = result.estimates[["x", "y"]].to_numpy()[-1]
     assert np.hypot(*(last - truth)) < 10.0
+    estimates = result.estimates
+    assert set(ESTIMATE_MODE_COLUMNS) <= set(estimates.columns)
+    converged = estimates["converged"].to_numpy()
+    assert converged[-1] and (estimates.loc[converged, "sqrt_lambda1"] < 10.0).all()
+    assert (estimates.loc[converged, "mode1_weight"] >= 0.95).all()
+
+
+def test_modes_without_a_mixture_are_the_clusters_of_the_cloud():
+    """The plain filter's cloud after the toy's first observation is two clusters at
+    ``x = ±DISTANCE`` weighted 0.7 : 0.3; ``Modes`` reports them, heaviest first."""
+    pf = ParticleFilter(BaselineMotion(WALK), MirrorToy(), 4000, BOX, rng=3, collect=[Modes()])
+    pf.initialise(0.0)
+    pf.correct({"z": [DISTANCE]})
+    pf.resample()
+    (row,) = pf.collect[0].result()["modes"].itertuples(index=False)
+    assert row.components == 2
+    assert row.mode1_x == pytest.approx(DISTANCE, abs=3.0)
+    assert row.mode2_x == pytest.approx(-DISTANCE, abs=3.0)
+    assert row.mode1_weight == pytest.approx(FIRST_ODDS, abs=0.05)
+    assert row.mode1_weight + row.mode2_weight == pytest.approx(1.0)
+
+
+def test_convergence_is_declared_only_when_one_mode_holds_almost_all_the_weight():
+    """Each estimate takes the latest modes at or before it; a narrow cloud split between
+    two modes is not converged, nor an estimate before the first modes."""
+    estimates = pd.DataFrame(
+        {"time": [0.0, 1.0, 2.0, 3.0, 4.0], "sqrt_lambda1": [50.0, 5.0, 5.0, 5.0, 20.0]}
+    )
+    nan = np.nan
+    modes = pd.DataFrame(
+        [
+            [1.0, 2, 0.6, 0.0, 0.0, 3.0, 0.4, 8.0, 0.0, 3.0],
+            [3.0, 1, 1.0, 0.0, 0.0, 3.0, nan, nan, nan, nan],
+        ],
+        columns=list(MODE_COLUMNS),
+    )
+    merged = with_modes(estimates, modes)
+    assert list(merged.columns) == [*estimates.columns, *ESTIMATE_MODE_COLUMNS]
+    assert merged["converged"].tolist() == [False, False, False, True, False]
+    np.testing.assert_array_equal(merged["mode2_weight"], [nan, 0.4, 0.4, 0.0, 0.0])
+    np.testing.assert_array_equal(merged["mode2_x"], [nan, 8.0, 8.0, nan, nan])

@@ -25,8 +25,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 import pandas as pd
 
-#: the paper's convergence threshold on √λ₁ (m)
-CONVERGENCE_THRESHOLD = 10.0
+from hmmtrack.tracking.mixture import CONVERGENCE_THRESHOLD
 
 
 @dataclass(frozen=True)

@@ -887,6 +887,10 @@ class FilterSettings(Settings):
         Test each correction's predictive likelihood; after a long gap or when the tag is
         lost, record an event and re-acquire (:class:`hmmtrack.tracking.monitor.Monitor`);
         ``False`` (default): no test.
+    modes : bool
+        Report the cloud's modes (``TrackingResult.modes``) and put the two heaviest beside
+        each estimate, with ``converged`` declared only when one mode holds almost all the
+        weight (:func:`hmmtrack.tracking.mixture.with_modes`); always on with ``mixture``.
     """
 
     n_particles: int = setting(
@@ -948,5 +952,10 @@ class FilterSettings(Settings):
     monitor: bool = setting(
         False,
         help="notice a lost tag or a long gap from the predictive likelihood and re-acquire",
+        check=boolean,
+    )
+    modes: bool = setting(
+        False,
+        help="report the cloud's modes beside each estimate (always on with the mixture)",
         check=boolean,
     )

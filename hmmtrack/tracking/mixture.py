@@ -42,7 +42,22 @@ from numba import njit
 from hmmtrack.tracking.particles import split_in_two, sqrt_largest_eigenvalue
 from hmmtrack.tracking.resampling import get_resampler
 
-__all__ = ["MODE_COLUMNS", "Mixture", "Modes", "allocate", "component_moments"]
+__all__ = [
+    "CONVERGENCE_THRESHOLD",
+    "ESTIMATE_MODE_COLUMNS",
+    "MODE_COLUMNS",
+    "ONE_MODE_WEIGHT",
+    "Mixture",
+    "Modes",
+    "allocate",
+    "component_moments",
+    "with_modes",
+]
+
+#: the paper's convergence threshold on √λ₁ (m)
+CONVERGENCE_THRESHOLD = 10.0
+#: weight the heaviest mode must hold for a run to be declared converged ("almost all")
+ONE_MODE_WEIGHT = 0.95
 
 #: the particle field that holds each particle's component label
 COMPONENT = "component"
@@ -60,6 +75,8 @@ MODE_COLUMNS = (
         for name in ("weight", "x", "y", "sqrt_lambda1")
     ),
 )
+#: columns :func:`with_modes` adds to an estimates table
+ESTIMATE_MODE_COLUMNS = ("mode1_weight", "mode2_x", "mode2_y", "mode2_weight", "converged")
 
 
 @dataclass(frozen=True)
@@ -291,12 +308,15 @@ def component_moments(x, y, weights, labels, n_components):
 
 
 class Modes:
-    """After each resampling: the mixture's components, heaviest first (table ``modes``).
+    """After each resampling: the modes of the cloud, heaviest first (table ``modes``).
 
-    One row per resampling (:data:`MODE_COLUMNS`): the number of live components and, for
-    the :data:`REPORTED_MODES` heaviest, weight, mean position (m) and √λ₁ of the
-    component's own covariance (m); NaN where there are fewer components. Reads the
-    particle field ``component`` (:class:`Mixture`).
+    One row per resampling (:data:`MODE_COLUMNS`): the number of modes and, for the
+    :data:`REPORTED_MODES` heaviest, weight, mean position (m) and √λ₁ of the mode's own
+    covariance (m); NaN where there are fewer modes. The modes are the mixture's
+    components (the particle field ``component``, :class:`Mixture`) or, without a
+    mixture, the clusters :meth:`Mixture.recluster` finds in the cloud (its default
+    thresholds: clusters at least 20 m and 3 standard deviations apart, the lighter with
+    at least 2 % of the weight).
     """
 
     every_step = False
@@ -312,8 +332,11 @@ class Modes:
 
     def resampled(self, pf, ancestors) -> None:
         p = pf.particles
-        labels = p.extra[COMPONENT]
-        moments = component_moments(p.x, p.y, pf.weights()[0], labels, int(labels.max()) + 1)
+        weights = pf.weights()[0]
+        labels = p.extra.get(COMPONENT)
+        if labels is None:
+            labels = _CLUSTERS.recluster(p.x, p.y, weights, np.zeros(p.n, dtype=np.int64))
+        moments = component_moments(p.x, p.y, weights, labels, int(labels.max()) + 1)
         order = np.argsort(-moments[:, 0], kind="stable")[:REPORTED_MODES]
         row = [pf.time, len(moments)]
         for k in range(REPORTED_MODES):
@@ -326,3 +349,36 @@ class Modes:
 
     def result(self) -> dict[str, pd.DataFrame]:
         return {"modes": pd.DataFrame(self._rows, columns=list(MODE_COLUMNS))}
+
+
+#: the clustering of :class:`Modes` without a mixture
+_CLUSTERS = Mixture()
+
+
+def with_modes(estimates: pd.DataFrame, modes: pd.DataFrame) -> pd.DataFrame:
+    """The estimates with the modes beside them (:data:`ESTIMATE_MODE_COLUMNS`).
+
+    Each estimate takes the modes of the latest resampling at or before its time:
+    ``mode1_weight`` (the heaviest mode's weight), ``mode2_x``, ``mode2_y`` (m) and
+    ``mode2_weight`` of the second (NaN, NaN, 0 when there is one mode; NaN before the
+    first resampling), and ``converged``: ``sqrt_lambda1`` under
+    :data:`CONVERGENCE_THRESHOLD` *and* the heaviest mode holding at least
+    :data:`ONE_MODE_WEIGHT` of the weight (a cloud split between two points is not
+    converged however narrow each part is).
+
+    Parameters
+    ----------
+    estimates : pandas.DataFrame
+        ``time`` (s, increasing), ``sqrt_lambda1`` (m), ...
+    modes : pandas.DataFrame
+        :data:`MODE_COLUMNS`, by time.
+    """
+    table = modes[["time", "mode1_weight", "mode2_x", "mode2_y", "mode2_weight"]]
+    table = table.drop_duplicates("time", keep="last").astype(float)
+    merged = pd.merge_asof(estimates, table, on="time", direction="backward")
+    single = merged["mode1_weight"].notna() & merged["mode2_weight"].isna()
+    merged.loc[single, "mode2_weight"] = 0.0
+    merged["converged"] = (merged["sqrt_lambda1"] < CONVERGENCE_THRESHOLD) & (
+        merged["mode1_weight"] >= ONE_MODE_WEIGHT
+    )
+    return merged

@@ -45,7 +45,7 @@ from hmmtrack.tracking.config import TrackingConfig
 from hmmtrack.tracking.filter import FilterSettings, ParticleFilter
 from hmmtrack.tracking.measurement import MEASUREMENTS
 from hmmtrack.tracking.measurement.base import EVENT_COLUMNS
-from hmmtrack.tracking.mixture import Mixture, Modes
+from hmmtrack.tracking.mixture import Mixture, Modes, with_modes
 from hmmtrack.tracking.monitor import Monitor
 from hmmtrack.tracking.receivers import ReceiverTracks
 from hmmtrack.tracking.smoothing import Smoothed
@@ -261,7 +261,10 @@ class TrackingResult:
     ----------
     estimates : pandas.DataFrame
         One row per prediction step: ``time`` (s), ``x``, ``y`` (m), ``var_x``, ``var_y``,
-        ``cov_xy`` (m²), ``sqrt_lambda1`` (m), ``n_eff``.
+        ``cov_xy`` (m²), ``sqrt_lambda1`` (m), ``n_eff``; with the modes reported
+        (``config.filter.modes`` or ``mixture``) also
+        :data:`hmmtrack.tracking.mixture.ESTIMATE_MODE_COLUMNS` (the second mode's
+        position and weight, and ``converged``).
     snapshots : dict of float to pandas.DataFrame
         Particles (``x``, ``y``, ..., ``weight``) at the requested snapshot times.
     events : pandas.DataFrame
@@ -283,7 +286,8 @@ class TrackingResult:
         (:data:`hmmtrack.tracking.diagnostics.CLOCK_COLUMNS`; arrival-time measurement).
     modes : pandas.DataFrame or None
         The mixture's components after each resampling
-        (:data:`hmmtrack.tracking.mixture.MODE_COLUMNS`), with ``config.filter.mixture``.
+        (:data:`hmmtrack.tracking.mixture.MODE_COLUMNS`), with ``config.filter.mixture`` or
+        ``config.filter.modes``.
     """
 
     estimates: pd.DataFrame
@@ -323,7 +327,8 @@ def particle_filter(
         Corrected by the measurement's default policy, or tempered at
         ``settings.tempering_ess`` when set; with ``settings.mixture``, resampled by
         components (:class:`hmmtrack.tracking.mixture.Mixture`) and reporting them
-        (:class:`hmmtrack.tracking.mixture.Modes`); with ``settings.acquisition``, started
+        (:class:`hmmtrack.tracking.mixture.Modes`; with ``settings.modes`` too, the
+        clusters of the cloud); with ``settings.acquisition``, started
         from the first corrections' likelihood
         (:class:`hmmtrack.tracking.acquisition.Acquisition`); with ``settings.monitor``,
         watched and re-acquired (:class:`hmmtrack.tracking.monitor.Monitor`).
@@ -344,7 +349,11 @@ def particle_filter(
         rng=as_generator(seed),
         dt=settings.prediction_step,
         correction=correction,
-        collect=[*measurement.collectors(), *collect, *([Modes()] if settings.mixture else [])],
+        collect=[
+            *measurement.collectors(),
+            *collect,
+            *([Modes()] if settings.mixture or settings.modes else []),
+        ],
         mixture=Mixture() if settings.mixture else None,
         acquisition=Acquisition() if settings.acquisition else None,
         monitor=Monitor() if settings.monitor else None,
@@ -427,8 +436,11 @@ def track(
         or [pd.DataFrame(columns=list(EVENT_COLUMNS))],
         ignore_index=True,
     ).sort_values("time", kind="stable", ignore_index=True)
+    estimates = result.estimates
+    if "modes" in result.collected:
+        estimates = with_modes(estimates, result.collected["modes"])
     return TrackingResult(
-        estimates=result.estimates,
+        estimates=estimates,
         snapshots=result.snapshots,
         events=events,
         observations=observations,
