@@ -527,6 +527,13 @@ def test_plot_functions_draw_what_they_are_given():
     ax = plot_particles(snapshot, receivers, truth, time=5.0, observations=observations)
     circles = sorted(patch.radius for patch in ax.patches)
     assert circles == [25.0, 31.0]  # each receiver's latest range at or before 5 s
+    estimates = pd.DataFrame(
+        {"time": [4.0, 5.0, 6.0], "x": [1.0, 2.0, 3.0], "y": [3.0, 4.0, 5.0]}
+    ).assign(mode2_x=[7.0, 8.0, 9.0], mode2_y=[-1.0, -2.0, -3.0], mode2_weight=0.3)
+    ax = plot_particles(snapshot, receivers, time=5.0, estimates=estimates)
+    (second,) = [line for line in ax.lines if line.get_label().startswith("second mode")]
+    assert second.get_label() == "second mode (0.30)"
+    np.testing.assert_array_equal(second.get_xydata(), [[8.0, -2.0]])  # the one at 5 s
     matplotlib.pyplot.close("all")
 
 

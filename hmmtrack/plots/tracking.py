@@ -120,7 +120,9 @@ def plot_particles(
     time : float, optional
         Snapshot time (s); needed for the receivers' positions, ranges and the track.
     estimates : pandas.DataFrame, optional
-        Estimates table: the estimated track up to ``time`` is drawn.
+        Estimates table: the estimated track up to ``time`` is drawn, and with the mode
+        columns (:func:`hmmtrack.tracking.mixture.with_modes`) the second mode at
+        ``time`` (a ring, labelled with its weight).
     observations : pandas.DataFrame, optional
         Observations table: each receiver's latest range at or before ``time`` is drawn as
         a circle around where the receiver is at ``time``.
@@ -141,6 +143,18 @@ def plot_particles(
     if estimates is not None and time is not None:
         done = estimates[estimates["time"] <= time + 1e-9]
         ax.plot(done["x"], done["y"], color=ESTIMATE_COLOUR, lw=1.5, label="estimate")
+        if "mode2_x" in done and len(done) and np.isfinite(done["mode2_x"].iloc[-1]):
+            last = done.iloc[-1]
+            ax.plot(
+                last["mode2_x"],
+                last["mode2_y"],
+                marker="o",
+                ms=12,
+                mfc="none",
+                ls="none",
+                color=ESTIMATE_COLOUR,
+                label=f"second mode ({last['mode2_weight']:.2f})",
+            )
     tracks = ReceiverTracks.from_frame(receivers, outside="clamp")
     for k, name in enumerate(tracks.names):
         colour = RECEIVER_COLOURS[k % len(RECEIVER_COLOURS)]
