@@ -845,6 +845,11 @@ class ParticleFilter:
         )
 
 
+def _switch(help_text: str):
+    """A yes/no setting of the filter section, off by default (the paper's filter)."""
+    return setting(False, help=help_text, check=boolean)
+
+
 def _tempering_ess(name: str, value) -> float:
     result = number(name, value)
     if not 0 < result < 1:
@@ -939,23 +944,15 @@ class FilterSettings(Settings):
         metavar="FRACTION",
         default_text="the measurement's: none for range-rate, 0.3 for arrival-time",
     )
-    mixture: bool = setting(
-        False,
-        help="keep every mode: resample each component of the particle cloud on its own",
-        check=boolean,
+    mixture: bool = _switch(
+        "keep every mode: resample each component of the particle cloud on its own"
     )
-    acquisition: bool = setting(
-        False,
-        help="draw the initial particles from the likelihood of the first corrections",
-        check=boolean,
+    acquisition: bool = _switch(
+        "draw the initial particles from the likelihood of the first corrections"
     )
-    monitor: bool = setting(
-        False,
-        help="notice a lost tag or a long gap from the predictive likelihood and re-acquire",
-        check=boolean,
+    monitor: bool = _switch(
+        "notice a lost tag or a long gap from the predictive likelihood and re-acquire"
     )
-    modes: bool = setting(
-        False,
-        help="report the cloud's modes beside each estimate (always on with the mixture)",
-        check=boolean,
+    modes: bool = _switch(
+        "report the cloud's modes beside each estimate (always on with the mixture)"
     )
