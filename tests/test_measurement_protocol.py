@@ -62,7 +62,16 @@ def arrival_time_case() -> Case:
     return Case(case.corrected_detections(), sc.receivers, config, sc.truth)
 
 
-CASES = {"range-rate": range_rate_case, "arrival-time": arrival_time_case}
+def ping_case() -> Case:
+    """The arrival-time case's moored array and tag, each ping scored on its time
+    differences (the period not used). Three receivers' time differences leave far-field
+    rays nearly as likely as the tag, so the search box is the array plus 100 m."""
+    case = arrival_time_case()
+    config = case.config.override(measurement="ping", search_radius=100.0)
+    return dataclasses.replace(case, config=config)
+
+
+CASES = {"range-rate": range_rate_case, "arrival-time": arrival_time_case, "ping": ping_case}
 
 
 @pytest.fixture(scope="module", params=sorted(MEASUREMENTS))
@@ -220,8 +229,9 @@ def test_track_runs_every_measurement_to_the_tag(built):
     estimates = result.estimates
     assert len(estimates) == int(case.config.end - case.config.start) + 1
     assert np.isfinite(estimates[["x", "y", "sqrt_lambda1"]].to_numpy()).all()
-    collected = [f for f in ("ambiguity", "clock") if getattr(result, f) is not None]
-    assert collected == (["ambiguity", "clock"] if name == "arrival-time" else [])
+    collected = [f for f in ("ambiguity", "clock", "pings") if getattr(result, f) is not None]
+    expected = {"arrival-time": ["ambiguity", "clock"], "ping": ["pings"]}
+    assert collected == expected.get(name, [])
     last = estimates.iloc[-1]
     x, y = (float(v[0]) for v in truth_at(case.truth, np.array([last["time"]])))
     assert np.hypot(last["x"] - x, last["y"] - y) < 25.0

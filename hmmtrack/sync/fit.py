@@ -43,7 +43,7 @@ from scipy import sparse
 from scipy.sparse.linalg import spsolve
 
 from hmmtrack.sync.clocks import DAY, PPM, ReceiverClocks
-from hmmtrack.sync.pings import SLOWEST_SOUND, coarse_clocks, group_pings
+from hmmtrack.sync.pings import coarse_clocks, group_pings, largest_travel_time
 from hmmtrack.sync.sound import mackenzie_sound_speed
 
 logger = logging.getLogger(__name__)
@@ -264,9 +264,12 @@ def fit_clocks(
     drift = np.array([coarse[n][1] for n in sync["receiver"]])
     recorded = sync["time"].to_numpy()
     coarse_time = recorded - offset - drift * (recorded - reference)
-    position = array[["x", "y", "z"]].to_numpy(dtype=float)
-    largest = np.max(np.linalg.norm(position[:, None] - position[None], axis=-1))
-    ping, echoes = group_pings(sync, coarse_time, largest / SLOWEST_SOUND + GROUPING_TOLERANCE)
+    ping, echoes = group_pings(
+        sync["sync_tag"].to_numpy(),
+        sync["receiver"].to_numpy(),
+        coarse_time,
+        largest_travel_time(array[["x", "y", "z"]].to_numpy(dtype=float)) + GROUPING_TOLERANCE,
+    )
     heard_by = pd.Series(ping[ping >= 0]).value_counts()
     keep = (ping >= 0) & np.isin(ping, heard_by.index[heard_by >= 2])
     sync = sync[keep].reset_index(drop=True)

@@ -173,39 +173,60 @@ def _connected(rows: list[np.ndarray], receivers: list[str], time_keeper: str) -
     return {receivers[i] for i in reached}
 
 
-def group_pings(
-    sync: pd.DataFrame, coarse_time: np.ndarray, window: float
-) -> tuple[np.ndarray, int]:
-    """Group each sync tag's detections into emissions on a coarse common time base.
+def largest_travel_time(positions: np.ndarray) -> float:
+    """The array's largest travel time (s): its largest receiver separation at the slowest
+    plausible sound speed (:data:`SLOWEST_SOUND`), the span of one emission's arrivals.
 
     Parameters
     ----------
-    sync : DataFrame
-        Sync-tag detections (``receiver``, ``sync_tag``), one per row.
-    coarse_time : (n,) float array
-        Each detection's time on the coarse common time base (s).
+    positions : (R, 2) or (R, 3) float array
+        Receiver positions (m).
+    """
+    positions = np.asarray(positions, dtype=float)
+    separation = np.linalg.norm(positions[:, None] - positions[None], axis=-1)
+    return float(np.max(separation, initial=0.0)) / SLOWEST_SOUND
+
+
+def group_pings(
+    sources: np.ndarray, receivers: np.ndarray, times: np.ndarray, window: float
+) -> tuple[np.ndarray, int]:
+    """Group detections into emissions: each source's detections close in time are one ping.
+
+    A source's detections within ``window`` (s) after the first detection of a group belong
+    to that group; a second detection of it at the same receiver is an echo (multipath)
+    and is dropped and counted. Used for sync tags (:func:`hmmtrack.sync.fit.fit_clocks`)
+    and for tracked tags (:mod:`hmmtrack.tracking.measurement.pings`).
+
+    Parameters
+    ----------
+    sources : (n,) array
+        The emitter of each detection (e.g. the sync tag's ID); one value for one tag.
+    receivers : (n,) array
+        The receiver of each detection.
+    times : (n,) float array
+        Each detection's time on a common time base (s; coarse is enough).
     window : float
-        A detection within ``window`` (s) after the first of a group belongs to it: the
-        array's largest travel time plus the coarse clocks' error.
+        The array's largest travel time plus the clocks' error (s); for a tag whose
+        emissions can be closer together than that, the shortest interval between them.
 
     Returns
     -------
     ping : (n,) int array
-        Emission index of each detection (0, 1, ...), -1 for a dropped echo (a later
-        detection of the same emission at the same receiver).
+        Emission index of each detection (0, 1, ... in order of source, then time), -1 for
+        a dropped echo.
     echoes : int
         Echoes dropped.
     """
-    ping = np.full(len(sync), -1, dtype=np.int64)
-    tags = sync["sync_tag"].to_numpy()
-    receivers = sync["receiver"].to_numpy()
+    times = np.asarray(times, dtype=float)
+    sources = np.asarray(sources)
+    receivers = np.asarray(receivers)
+    ping = np.full(times.size, -1, dtype=np.int64)
     next_ping, echoes = 0, 0
-    for tag in pd.unique(tags):
-        rows = np.flatnonzero(tags == tag)
-        rows = rows[np.argsort(coarse_time[rows], kind="stable")]
-        times = coarse_time[rows]
+    for source in pd.unique(sources):
+        rows = np.flatnonzero(sources == source)
+        rows = rows[np.argsort(times[rows], kind="stable")]
         start, heard = -np.inf, set()
-        for row, time in zip(rows, times, strict=True):
+        for row, time in zip(rows.tolist(), times[rows].tolist(), strict=True):
             if time > start + window:
                 start, heard = time, set()
                 next_ping += 1

@@ -288,6 +288,9 @@ class TrackingResult:
         The mixture's components after each resampling
         (:data:`hmmtrack.tracking.mixture.MODE_COLUMNS`), with ``config.filter.mixture`` or
         ``config.filter.modes``.
+    pings : pandas.DataFrame or None
+        Per correction of the ping measurement: the ping's estimated emission time and
+        position (:class:`hmmtrack.tracking.measurement.tdoa.PingTrace`).
     """
 
     estimates: pd.DataFrame
@@ -299,6 +302,7 @@ class TrackingResult:
     ambiguity: pd.DataFrame | None = None
     clock: pd.DataFrame | None = None
     modes: pd.DataFrame | None = None
+    pings: pd.DataFrame | None = None
 
 
 def particle_filter(

@@ -83,6 +83,8 @@ __all__ = [
     "ClockedArrivalTime",
     "arrival_observations",
     "default_clock_model",
+    "receiver_tracks",
+    "search_box",
 ]
 
 #: particle fields of the emission clock's mean (s, s, s per ping)
@@ -379,11 +381,29 @@ def arrival_observations(detections: pd.DataFrame, receivers: ReceiverTracks) ->
     return obs.sort_values("time", kind="stable").reset_index(drop=True)
 
 
-def _tracks(receivers) -> ReceiverTracks:
+def receiver_tracks(receivers) -> ReceiverTracks:
     """Receiver tracks of a positions table (positions held outside their GPS span)."""
     if isinstance(receivers, ReceiverTracks):
         return receivers
     return ReceiverTracks.from_frame(receivers, outside="clamp")
+
+
+def search_box(observations: pd.DataFrame, receivers, radius: float, bounds, start) -> Bounds:
+    """``bounds`` when given, else the receivers' positions at ``start`` (s; default: the
+    first observation) widened by ``radius`` (m): the search box of measurements that need
+    no initial range."""
+    if bounds is not None:
+        return tuple(float(b) for b in bounds)
+    tracks = receiver_tracks(receivers)
+    at = float(observations["time"].min()) if start is None else float(start)
+    xs, ys = zip(*(tracks.state(name, at)[:2] for name in tracks.names), strict=True)
+    xs, ys = np.concatenate(xs), np.concatenate(ys)
+    return (
+        float(xs.min() - radius),
+        float(xs.max() + radius),
+        float(ys.min() - radius),
+        float(ys.max() + radius),
+    )
 
 
 @dataclass
@@ -468,7 +488,7 @@ class ClockedArrivalTime:
     def observations(cls, detections: pd.DataFrame, receivers, settings=None) -> pd.DataFrame:
         """:func:`arrival_observations` with the receivers' positions held outside their
         GPS span."""
-        return arrival_observations(detections, _tracks(receivers))
+        return arrival_observations(detections, receiver_tracks(receivers))
 
     @classmethod
     def from_settings(
@@ -481,7 +501,7 @@ class ClockedArrivalTime:
         silence = None
         if settings.detection_curve is not None:
             silence = SilenceModel.from_observations(
-                observations, _tracks(receivers), settings.detection_curve
+                observations, receiver_tracks(receivers), settings.detection_curve
             )
         return cls(
             default_clock_model(settings.period),
@@ -500,21 +520,8 @@ class ClockedArrivalTime:
         bounds: Bounds | None = None,
         start=None,
     ):
-        """``bounds``, else the receivers' positions at ``start`` (s; default: the first
-        observation) widened by :attr:`search_radius` (no initial range needed)."""
-        if bounds is not None:
-            return tuple(float(b) for b in bounds)
-        tracks = _tracks(receivers)
-        at = float(observations["time"].min()) if start is None else float(start)
-        xs, ys = zip(*(tracks.state(name, at)[:2] for name in tracks.names), strict=True)
-        xs, ys = np.concatenate(xs), np.concatenate(ys)
-        radius = self.search_radius
-        return (
-            float(xs.min() - radius),
-            float(xs.max() + radius),
-            float(ys.min() - radius),
-            float(ys.max() + radius),
-        )
+        """:func:`search_box` of :attr:`search_radius` (no initial range needed)."""
+        return search_box(observations, receivers, self.search_radius, bounds, start)
 
     def split(self, observations: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame]:
         """Every detection is scored: all rows, no events."""

@@ -1,0 +1,554 @@
+"""The ping measurement: every ping scored on the time differences of its arrivals, with its
+emission time integrated out, for tags with a random burst interval.
+
+A ping emitted at an unknown time ``T`` from the tag's position ``x`` arrives at receiver
+``i`` at ``t_i = T + d_i(x)/c + e_i``. With the residual ``r_i = t_i − d_i(x)/c`` every
+receiver says ``r_i = T + e_i``, so the ping's likelihood of a particle is
+
+    ℓ(x) = ∫ Π_i p(r_i − T) dT
+
+with a flat prior on ``T`` (density 1 per second: a random burst interval of 20–40 s is flat
+at the milliseconds where the integrand lives, and the prior's constant is the same for all
+particles of a ping). Only the spread of the residuals matters, not their level: the time
+differences between receivers (TDOA) inform the position, and no emission clock is carried.
+A ping heard by one receiver is uninformative (``ℓ`` is the same for every particle).
+
+Residual density (:func:`ping_loglik`): a Gaussian core of sd ``σ`` (direct arrivals) mixed
+with a broad outlier (multipath, a mistimed detection) of weight ``ε``, uniform over
+``|e| ≤ L``:
+
+    p(e) = (1 − ε) N(e; 0, σ²) + ε / (2L) · 1{|e| ≤ L}.
+
+Without outliers (``ε = 0``) the integral is closed form, with ``n`` receivers, ``r̄`` their
+mean residual and ``S = Σ (r_i − r̄)²``::
+
+    log ℓ = −(n − 1)/2 · log(2πσ²) − ½ log n − S / (2σ²)
+
+(the ``−½ log n`` and the ``n − 1`` are the same for every particle of a ping: harmless to
+the filter, but part of the exact value). With outliers it is not closed form (the product
+of mixtures is a sum of ``2^n`` Gaussian integrals), and it is computed exactly to double
+precision by a cheap 1-D quadrature (:func:`ping_integral`): with ``β = ε/(2L)`` the
+integrand is ``β^n Π_i (1 + a_i(T)/β)`` on ``[max r − L, min r + L]`` (``a_i`` the core
+term); residuals more than ``2Kσ`` apart (``K`` = :data:`CLUSTER_SIGMAS`) never share a
+``T`` where both cores count (``a/β < 1e-17`` beyond ``Kσ``), so the integral is the
+interval's length (every arrival an outlier) plus, for each cluster of close residuals, the
+integral of ``Π_cluster(1 + a_i/β) − 1`` over the cluster's ``±Kσ`` span (a lone residual:
+``(1 − ε)/β`` exactly). That integrand is a sum of Gaussians in ``T`` of sd at least
+``σ/√m`` (``m`` the cluster's size) that vanish at the span's ends, so the trapezoidal rule
+with step ``σ/(2√m)`` is exact to ~1e-12 relative (tested against ``scipy.integrate.quad``).
+The support ``L`` is taken larger than any particle's residual spread (the grouping window
+plus the array's travel span), so it never cuts a ping.
+
+The particles are where the tag is at the filter's correction time (the ping's first
+arrival, on the 1 s grid); each range is taken from where the particle was at emission
+(:func:`hmmtrack.tracking.measurement.arrival_time.emission_distance`, its velocity).
+
+:class:`PingTDOA` is the ``"ping"`` measurement of
+:data:`hmmtrack.tracking.measurement.MEASUREMENTS` (detections grouped into pings by
+:mod:`hmmtrack.tracking.measurement.pings`); its :class:`PingTrace` collector reports each
+ping's estimated emission time and position. Corrections are tempered
+(:class:`hmmtrack.tracking.tempering.Tempered`): a ping heard by many receivers places the
+tag to a metre.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+import pandas as pd
+from numba import njit
+
+from hmmtrack.sync.pings import largest_travel_time
+from hmmtrack.tracking.measurement.arrival_time import emission_distance, vertical_parts
+from hmmtrack.tracking.measurement.base import Score, no_events, sound_speed_setting
+from hmmtrack.tracking.measurement.clocked import (
+    SEARCH_RADIUS,
+    TEMPERING_ESS,
+    ClockedArrivalTime,
+    receiver_tracks,
+    search_box,
+)
+from hmmtrack.tracking.measurement.pings import PING_TOLERANCE, ping_observations
+from hmmtrack.tracking.settings import Settings, fraction, positive, setting
+from hmmtrack.tracking.tempering import Tempered
+
+__all__ = [
+    "CLUSTER_SIGMAS",
+    "PING_TRACE_COLUMNS",
+    "ARRIVAL_SIGMA",
+    "OUTLIER_FRACTION",
+    "PingSettings",
+    "PingState",
+    "PingTDOA",
+    "PingTrace",
+    "gaussian_ping_loglik",
+    "ping_integral",
+    "ping_loglik",
+]
+
+#: residuals farther apart than twice this many core sds never count as direct arrivals
+#: at one emission time (the core term over the outlier's is below 1e-17 there)
+CLUSTER_SIGMAS = 10.0
+#: trapezoid steps per core sd of a cluster's product bump (``σ/√m``)
+STEPS_PER_SD = 2.0
+#: columns of the per-ping table (:class:`PingTrace`)
+PING_TRACE_COLUMNS = (
+    "ping", "time", "emission_time", "x", "y", "x_sd", "y_sd", "n_receivers", "receivers",
+)  # fmt: skip
+#: default sd (s) of a direct arrival's residual and share of outliers (reasons in
+#: reports/decisions.md, "Ping measurement")
+ARRIVAL_SIGMA = 1e-3
+OUTLIER_FRACTION = 0.05
+_LOG_2PI = math.log(2.0 * math.pi)
+_NO_ROWS = pd.DataFrame()
+
+
+@njit(cache=True)
+def gaussian_ping_loglik(residual, sigma):
+    """Closed-form ``log ∫ Π N(r_i; T, σ²) dT`` (flat prior on ``T``) and the mean of ``T``.
+
+    Parameters
+    ----------
+    residual : (n,) float array
+        Arrival minus travel time of each receiver (s), n ≥ 1.
+    sigma : float
+        Residual sd (s).
+    """
+    n = residual.size
+    mean = 0.0
+    for value in residual:
+        mean += value
+    mean /= n
+    spread = 0.0
+    for value in residual:
+        spread += (value - mean) ** 2
+    log_l = -0.5 * (n - 1) * (_LOG_2PI + 2.0 * math.log(sigma)) - 0.5 * math.log(n)
+    return log_l - 0.5 * spread / (sigma * sigma), mean
+
+
+@njit(cache=True)
+def _log_add(a, b):
+    if a == -math.inf:
+        return b
+    if b == -math.inf:
+        return a
+    top = max(a, b)
+    return top + math.log(math.exp(a - top) + math.exp(b - top))
+
+
+@njit(cache=True)
+def _cluster_integral(s, a, b, sigma, log_peak):
+    """``log ∫_a^b (Π_i (1 + q_i(T)) − 1) dT`` and the mean of ``T`` under it, where
+    ``q_i = exp(log_peak − (s_i − T)²/(2σ²))``: one cluster's excess over every arrival
+    being an outlier (:func:`ping_integral`).
+
+    Trapezoidal rule with :data:`STEPS_PER_SD` steps per ``σ/√m``. Each ``q_i`` is stepped
+    along the grid by two multiplications (a Gaussian's ratio between neighbouring nodes
+    is itself geometric), started by ``exp`` where it first exceeds ``e^-40`` (below that
+    ``1 + q_i`` is 1 in double precision); the product is scaled by ``e^-c`` per factor
+    (``c ≥ log(1 + q)``) so that it cannot overflow for any number of receivers.
+    """
+    m = s.size
+    steps = int(math.ceil((b - a) / (sigma / (STEPS_PER_SD * math.sqrt(m))))) + 1
+    h = (b - a) / steps
+    delta = h / sigma
+    c = max(log_peak, 0.0) + math.log(2.0)
+    scale = math.exp(-c)
+    reach = math.sqrt(2.0 * (max(log_peak, 0.0) + 40.0))  # |z| beyond: 1 + q == 1
+    product = np.ones(steps + 1)
+    active = np.zeros(steps + 1, dtype=np.int64)
+    ratio_step = math.exp(-delta * delta)
+    for i in range(m):
+        z0 = (s[i] - a) / sigma  # z at node k is z0 − k·delta
+        k_lo = max(0, int(math.ceil((z0 - reach) / delta)))
+        k_hi = min(steps, int(math.floor((z0 + reach) / delta)))
+        if k_hi < k_lo:
+            continue
+        z = z0 - k_lo * delta
+        q = math.exp(log_peak - 0.5 * z * z)
+        ratio = math.exp(z * delta - 0.5 * delta * delta)
+        for k in range(k_lo, k_hi + 1):
+            product[k] *= (1.0 + q) * scale
+            active[k] += 1
+            q *= ratio
+            ratio *= ratio_step
+    powers = np.empty(m + 1)  # e^(-c·j)
+    powers[0] = 1.0
+    for j in range(m):
+        powers[j + 1] = powers[j] * scale
+    total = 0.0
+    weighted = 0.0
+    for k in range(steps + 1):
+        value = product[k] * powers[m - active[k]] - powers[m]
+        if k == 0 or k == steps:
+            value *= 0.5
+        total += value
+        weighted += value * (a + k * h)
+    if not total > 0.0:
+        return -math.inf, 0.5 * (a + b)
+    return m * c + math.log(total * h), weighted / total
+
+
+@njit(cache=True)
+def ping_integral(residual, sigma, outlier_fraction, half_width):
+    """``log ∫ Π_i p(r_i − T) dT`` of the core-plus-outlier density, and the mean of ``T``.
+
+    See the module docstring for the method (clusters of residuals, trapezoid over each).
+
+    Parameters
+    ----------
+    residual : (n,) float array
+        Arrival minus travel time of each receiver (s), n ≥ 1 (not modified).
+    sigma : float
+        Core sd (s).
+    outlier_fraction : float
+        ``ε`` in [0, 1); 0 gives :func:`gaussian_ping_loglik`.
+    half_width : float
+        ``L`` (s): the outlier density is ``ε/(2L)`` for ``|e| ≤ L``.
+
+    Returns
+    -------
+    log_l : float
+        Log of the integral (log s^(1−n)).
+    mean : float
+        Posterior mean of ``T`` (s).
+    """
+    if outlier_fraction == 0.0:
+        return gaussian_ping_loglik(residual, sigma)
+    n = residual.size
+    origin = residual.min()
+    s = np.sort(residual) - origin  # (relative to the smallest: epoch seconds lose digits)
+    beta = outlier_fraction / (2.0 * half_width)
+    log_peak = math.log((1.0 - outlier_fraction) / (sigma * math.sqrt(2.0 * math.pi)) / beta)
+    lo = s[n - 1] - half_width
+    hi = s[0] + half_width
+    width = max(hi - lo, 0.0)
+    log_width = math.log(width) if width > 0.0 else -math.inf
+    reach = CLUSTER_SIGMAS * sigma
+    first = 0
+    # each cluster adds J = ∫(Π(1 + a_i/β) − 1) dT and ∫T(...) dT, summed as log J and J·T̄
+    terms_log = np.empty(n)
+    terms_mean = np.empty(n)
+    n_terms = 0
+    for last in range(n):
+        if last < n - 1 and s[last + 1] - s[last] <= 2.0 * reach:
+            continue
+        m = last - first + 1
+        a = max(s[first] - reach, lo)
+        b = min(s[last] + reach, hi)
+        if m == 1 and a == s[first] - reach and b == s[last] + reach:
+            terms_log[n_terms] = log_peak + math.log(sigma * math.sqrt(2.0 * math.pi))
+            terms_mean[n_terms] = s[first]
+            n_terms += 1
+        elif b > a:
+            terms_log[n_terms], terms_mean[n_terms] = _cluster_integral(
+                s[first : last + 1], a, b, sigma, log_peak
+            )
+            n_terms += 1
+        first = last + 1
+    log_total = log_width
+    for j in range(n_terms):
+        log_total = _log_add(log_total, terms_log[j])
+    mean = math.exp(log_width - log_total) * 0.5 * (lo + hi)  # every arrival an outlier
+    for j in range(n_terms):
+        mean += math.exp(terms_log[j] - log_total) * terms_mean[j]
+    return n * math.log(beta) + log_total, origin + mean
+
+
+@njit(cache=True)
+def ping_loglik(
+    x, y, vx, vy, depth, arrival, receiver_x, receiver_y, row_offset, time, sound_speed,
+    sigma, outlier_fraction, half_width, loglik, emission,
+):  # fmt: skip
+    """:func:`ping_integral` of one ping for every particle, into ``loglik`` and
+    ``emission`` (N,): its log-likelihood and the posterior mean emission time (s).
+
+    Parameters
+    ----------
+    x, y, vx, vy, depth : (N,) float arrays
+        Particle positions (m) at ``time``, velocities (m/s) and depths (m).
+    arrival, receiver_x, receiver_y, row_offset : (n,) float arrays
+        The ping's arrival times (s), receiver positions (m) and vertical offsets (m,
+        :func:`hmmtrack.tracking.measurement.arrival_time.vertical_parts`).
+    time : float
+        Filter time of the particles (s).
+    """
+    slowness = 1.0 / sound_speed
+    residual = np.empty(arrival.size)
+    for p in range(x.size):
+        for j in range(arrival.size):
+            d = emission_distance(
+                x[p], y[p], vx[p], vy[p], depth[p] + row_offset[j], time - arrival[j],
+                receiver_x[j], receiver_y[j], slowness,
+            )  # fmt: skip
+            residual[j] = arrival[j] - d * slowness
+        loglik[p], emission[p] = ping_integral(residual, sigma, outlier_fraction, half_width)
+
+
+def _burst_interval(name: str, value) -> tuple[float, float]:
+    low, high = (positive(f"{name} {end}", v) for end, v in zip(("MIN", "MAX"), value, strict=True))
+    if not low <= high:
+        raise ValueError(f"{name} must be MIN MAX with MIN <= MAX (s), got {low:g} {high:g}")
+    return low, high
+
+
+@dataclass(frozen=True)
+class PingSettings(Settings):
+    """The ``measurement`` section of the ``"ping"`` measurement.
+
+    Parameters
+    ----------
+    burst_interval : (float, float) or None
+        The tag's random interval between emissions, ``(MIN, MAX)`` s; its minimum bounds
+        the grouping window (:func:`hmmtrack.tracking.measurement.pings.ping_window`).
+        ``None``: unknown, pings grouped on the array's travel span only.
+    sound_speed : float
+        Speed of sound (m/s).
+    arrival_sigma : float
+        Sd (s) of a direct arrival's residual: receiver clocks' error after
+        synchronisation, timing jitter and the tag's motion within the filter's step.
+    outlier_fraction : float
+        Share ``ε`` of arrivals that are outliers (multipath, mistimed).
+    ping_tolerance : float
+        Clock error allowed for when grouping detections into pings (s).
+    search_radius : float
+        Without given bounds, the search box is the receivers' positions at the start
+        widened by this many metres.
+    """
+
+    name: ClassVar[str] = "ping"
+
+    burst_interval: tuple[float, float] | None = setting(
+        None,
+        help="random interval between the tag's emissions, MIN MAX (s), e.g. 20 40",
+        check=_burst_interval,
+        parse=float,
+        metavar=("MIN", "MAX"),
+        nargs=2,
+        data=True,
+        default_text="unknown",
+    )
+    sound_speed: float = sound_speed_setting()
+    arrival_sigma: float = setting(
+        ARRIVAL_SIGMA,
+        help="standard deviation of a direct arrival's residual (s)",
+        check=positive,
+        parse=float,
+        metavar="SECONDS",
+    )
+    outlier_fraction: float = setting(
+        OUTLIER_FRACTION,
+        help="share of arrivals that are outliers (multipath, mistimed)",
+        check=fraction,
+        parse=float,
+        metavar="FRACTION",
+    )
+    ping_tolerance: float = setting(
+        PING_TOLERANCE,
+        help="clock error allowed for when grouping detections into pings (s)",
+        check=positive,
+        parse=float,
+        metavar="SECONDS",
+    )
+    search_radius: float = setting(
+        SEARCH_RADIUS,
+        help=(
+            "without bounds, the search box is the receivers' positions at the start widened "
+            "by this (m; about their detection range)"
+        ),
+        check=positive,
+        parse=float,
+        metavar="METRES",
+    )
+
+    def validate(self) -> None:
+        if not self.outlier_fraction < 1.0:
+            raise ValueError(f"outlier_fraction must be below 1, got {self.outlier_fraction}")
+
+    def to_dict(self) -> dict:
+        """As :meth:`Settings.to_dict`, the burst interval as a list."""
+        out = super().to_dict()
+        if self.burst_interval is not None:
+            out["burst_interval"] = list(self.burst_interval)
+        return out
+
+
+@dataclass
+class PingState:
+    """The mutable state of one run of :class:`PingTDOA`: each particle's posterior mean
+    emission time (s, (N,)) of the latest ping, committed with its weights."""
+
+    emission: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class PingTDOA:
+    """Ping measurement: each ping's arrivals scored jointly, the emission time integrated
+    out (module docstring).
+
+    Parameters
+    ----------
+    sound_speed : float
+        m/s.
+    sigma : float
+        Core sd of an arrival's residual (s).
+    outlier_fraction : float
+        ``ε`` of the residual density.
+    half_width : float
+        ``L`` (s), the outlier's support: the grouping window plus the array's travel span.
+    search_radius : float
+        Without bounds, the search box is the receivers' positions widened by this (m).
+    """
+
+    sound_speed: float
+    sigma: float = 1e-3
+    outlier_fraction: float = 0.05
+    half_width: float = 1.0
+    search_radius: float = SEARCH_RADIUS
+    name: ClassVar[str] = "ping"
+    settings: ClassVar[type] = PingSettings
+    columns: ClassVar[tuple[str, ...]] = ("arrival", "ping", "receiver_x", "receiver_y")
+    fields: ClassVar[tuple[str, ...]] = ()
+    default_correction: ClassVar[Tempered] = Tempered(TEMPERING_ESS)
+
+    @classmethod
+    def observations(cls, detections: pd.DataFrame, receivers, settings) -> pd.DataFrame:
+        """:func:`hmmtrack.tracking.measurement.pings.ping_observations` with the burst
+        interval's minimum and the grouping tolerance of ``settings``."""
+        interval = settings.burst_interval
+        return ping_observations(
+            detections,
+            receiver_tracks(receivers),
+            None if interval is None else interval[0],
+            settings.ping_tolerance,
+        )
+
+    @classmethod
+    def from_settings(cls, settings: PingSettings, observations: pd.DataFrame, receivers):
+        """The measurement of ``settings``; the outlier's support is the observations'
+        grouping window plus the receivers' largest travel time (any particle's residual
+        spread fits in it)."""
+        positions = observations[["receiver_x", "receiver_y"]].to_numpy()
+        window = observations.attrs.get("window", settings.ping_tolerance)
+        return cls(
+            settings.sound_speed,
+            settings.arrival_sigma,
+            settings.outlier_fraction,
+            window + largest_travel_time(np.unique(positions.round(), axis=0)),
+            settings.search_radius,
+        )
+
+    def start_box(self, observations, receivers, settings=None, bounds=None, start=None):
+        """``bounds``, else the receivers' positions at ``start`` widened by
+        :attr:`search_radius` (as the arrival-time measurement)."""
+        return search_box(observations, receivers, self.search_radius, bounds, start)
+
+    def split(self, observations: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame]:
+        """Every detection is scored (a ping's rows share its first arrival as ``time``)."""
+        return observations, no_events()
+
+    def collectors(self) -> tuple:
+        """A fresh :class:`PingTrace`."""
+        return (PingTrace(),)
+
+    def start(self, particles, time: float, dt: float = 1.0) -> PingState:
+        """A fresh run state (no particle fields)."""
+        return PingState()
+
+    @staticmethod
+    def as_matrix(table: pd.DataFrame) -> np.ndarray:
+        """Rows as an (M, 6) matrix: arrival (s), receiver x, y (m), vertical offsets without
+        and with a particle depth field (m, as the arrival-time measurement's), ping index."""
+        return np.column_stack(
+            [ClockedArrivalTime.as_matrix(table.assign(time=table["arrival"])), table["ping"]]
+        )
+
+    def loglik(self, particles, obs, time: float | None = None) -> np.ndarray:
+        """Sum over the pings of ``obs`` (table or :meth:`as_matrix` rows) of
+        :func:`ping_loglik`, shape (N,)."""
+        return self._score(particles, obs, time)[0]
+
+    def _score(self, p, rows, time):
+        if isinstance(rows, pd.DataFrame):
+            rows = self.as_matrix(rows)
+        n = p.n if hasattr(p, "n") else np.shape(p.x)[0]
+        if time is None:
+            time = float(rows[:, 0].min())
+        tag_depth = vertical_parts(p, _NO_ROWS)[0]
+        offset_column = 4 if getattr(p, "depth", None) is not None else 3
+        speed = np.asarray(p.speed, dtype=float)
+        vx = speed * np.asarray(p.cos_heading)
+        vy = speed * np.asarray(p.sin_heading)
+        total = np.zeros(n)
+        loglik = np.empty(n)
+        emission = np.empty(n)
+        for ping in np.unique(rows[:, 5]):
+            part = rows[rows[:, 5] == ping]
+            ping_loglik(
+                np.ascontiguousarray(p.x, dtype=float),
+                np.ascontiguousarray(p.y, dtype=float),
+                vx,
+                vy,
+                tag_depth,
+                *(np.ascontiguousarray(part[:, k]) for k in (0, 1, 2, offset_column)),
+                float(time),
+                self.sound_speed,
+                self.sigma,
+                self.outlier_fraction,
+                self.half_width,
+                loglik,
+                emission,
+            )
+            total += loglik
+        return total, emission
+
+    def score(self, particles, rows: np.ndarray, time: float, state: PingState, weights):
+        """The pings' log-likelihood; each particle's posterior mean emission time of the
+        last ping is committed to the run state with the final weights."""
+        latest = []
+
+        def scored(particles, weights):
+            loglik, emission = self._score(particles, rows, time)
+            latest[:] = [emission]
+            return loglik
+
+        def commit(particles):
+            state.emission = latest[0]
+
+        return Score(scored(particles, weights), rescore=scored, commit=commit)
+
+
+class PingTrace:
+    """Per ping: the estimated emission time and position (table ``pings``,
+    :data:`PING_TRACE_COLUMNS`).
+
+    After each correction: the weighted mean of the particles' posterior mean emission
+    times (``pf.measurement_state.emission``), the weighted mean position and its sds, the
+    receivers that heard the ping (``;``-separated, as observed) and their number.
+    """
+
+    every_step = False
+
+    def start(self, pf) -> None:
+        self._rows: list[tuple] = []
+
+    def corrected(self, pf) -> None:
+        p = pf.particles
+        weights = pf.weights()[0]
+        x, y = float(weights @ p.x), float(weights @ p.y)
+        x_sd = math.sqrt(max(float(weights @ (p.x - x) ** 2), 0.0))
+        y_sd = math.sqrt(max(float(weights @ (p.y - y) ** 2), 0.0))
+        emission = float(weights @ pf.measurement_state.emission)
+        self._rows.append((pf.time, emission, x, y, x_sd, y_sd))
+
+    def settled(self, pf) -> None:
+        """Nothing to record."""
+
+    def resampled(self, pf, ancestors) -> None:
+        """Nothing to record."""
+
+    def result(self) -> dict[str, pd.DataFrame]:
+        return {"pings": pd.DataFrame(self._rows, columns=list(PING_TRACE_COLUMNS[1:7]))}

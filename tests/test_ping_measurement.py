@@ -1,0 +1,107 @@
+"""The ping measurement: detections grouped into pings, and each ping's likelihood with the
+emission time integrated out, checked against brute-force numerical integration."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+from scipy import integrate, stats
+
+from hmmtrack.tracking.measurement.pings import ping_observations, ping_window
+from hmmtrack.tracking.measurement.tdoa import gaussian_ping_loglik, ping_integral
+from hmmtrack.tracking.receivers import ReceiverTracks
+
+EPOCH = 1_568_052_029.0  # residuals at epoch scale, as on real data
+
+
+def brute_force(residual, sigma, fraction, half_width):
+    """``log ∫ Π p(r_i − T) dT`` and the mean of T by adaptive quadrature over T."""
+    r = residual - EPOCH
+    lo, hi = r.max() - half_width, r.min() + half_width
+
+    def density(t):
+        e = r - t
+        uniform = fraction / (2 * half_width) * (np.abs(e) <= half_width)
+        return np.prod((1 - fraction) * stats.norm.pdf(e, 0, sigma) + uniform)
+
+    points = np.sort(r[(r > lo) & (r < hi)])
+    options = dict(points=points, limit=5000, epsabs=0, epsrel=1e-11)
+    value = integrate.quad(density, lo, hi, **options)[0]
+    moment = integrate.quad(lambda t: t * density(t), lo, hi, **options)[0]
+    return np.log(value), moment / value
+
+
+@pytest.mark.parametrize("trial", range(20))
+def test_ping_integral_equals_brute_force_integration_over_the_emission_time(trial):
+    rng = np.random.default_rng(trial)
+    n = int(rng.integers(2, 12))
+    sigma = 10 ** rng.uniform(-4, -2.5)
+    fraction = rng.uniform(0.01, 0.3)
+    residual = EPOCH + rng.uniform(0, 1) + rng.normal(0, sigma, n)
+    outliers = rng.random(n) < 0.3  # multipath and far-off particles: scattered residuals
+    residual[outliers] += rng.uniform(-0.2, 0.2, outliers.sum())
+    log_l, mean = ping_integral(residual, sigma, fraction, 0.5)
+    expected, expected_mean = brute_force(residual, sigma, fraction, 0.5)
+    assert log_l == pytest.approx(expected, abs=2e-5)  # (quad's own accuracy)
+    assert mean - EPOCH == pytest.approx(expected_mean, abs=1e-6)
+
+
+def test_one_receiver_tells_nothing_and_no_outliers_is_the_closed_form():
+    assert ping_integral(np.array([EPOCH]), 1e-3, 0.05, 0.5)[0] == pytest.approx(0.0, abs=1e-12)
+    rng = np.random.default_rng(1)
+    residual = EPOCH + rng.normal(0, 1e-3, 6)
+    r = residual - EPOCH
+    value = integrate.quad(
+        lambda t: np.prod(stats.norm.pdf(r - t, 0, 1e-3)), -0.02, 0.02, points=[r.mean()],
+        epsabs=0, epsrel=1e-12,
+    )[0]  # fmt: skip
+    closed, mean = gaussian_ping_loglik(residual, 1e-3)
+    assert closed == pytest.approx(np.log(value), abs=1e-6)
+    assert mean == pytest.approx(residual.mean(), abs=1e-9)
+    assert ping_integral(residual, 1e-3, 0.0, 0.5)[0] == closed
+    # only the spread matters: the same ping shifted in time scores the same
+    assert gaussian_ping_loglik(residual + 3.0, 1e-3)[0] == pytest.approx(closed, abs=1e-6)
+
+
+def receivers(*xs):
+    table = pd.DataFrame(
+        {"receiver": [f"r{i}" for i in range(len(xs))], "x": list(xs), "y": 0.0, "time": np.nan}
+    )
+    return ReceiverTracks.from_frame(table)
+
+
+def test_an_echo_at_one_receiver_is_dropped_and_counted():
+    tracks = receivers(0.0, 300.0)  # 0.2 s apart at the slowest sound
+    detections = pd.DataFrame(
+        {"time": [100.0, 100.15, 100.18, 130.0], "receiver": ["r0", "r1", "r0", "r1"]}
+    )
+    obs = ping_observations(detections, tracks, min_interval=20.0)
+    assert obs["ping"].tolist() == [0, 0, 1]
+    assert obs.attrs["echoes_dropped"] == 1
+    assert obs["time"].tolist() == [100.0, 100.0, 130.0]  # a ping is scored at its first arrival
+    assert obs["heard"].tolist() == [2, 2, 1]
+    assert obs["arrival"].tolist() == [100.0, 100.15, 130.0]
+
+
+def test_two_pings_inside_the_travel_span_are_not_merged():
+    """A 3 km array (2.1 s travel span) and a tag pinging every 1–2 s: the window is the
+    shortest burst interval, not the travel span."""
+    tracks = receivers(0.0, 3000.0)
+    assert ping_window(np.array([[0.0, 0.0], [3000.0, 0.0]])) > 2.0
+    detections = pd.DataFrame(
+        {"time": [10.0, 10.3, 11.2, 11.6], "receiver": ["r0", "r1", "r0", "r1"]}
+    )
+    obs = ping_observations(detections, tracks, min_interval=1.0)
+    assert obs["ping"].tolist() == [0, 0, 1, 1]
+    assert obs.attrs["echoes_dropped"] == 0
+    merged = ping_observations(detections, tracks)  # no interval given: one ping, 2 echoes
+    assert merged["ping"].tolist() == [0, 0] and merged.attrs["echoes_dropped"] == 2
+
+
+def test_pings_heard_by_one_receiver_only_are_their_own_pings():
+    tracks = receivers(0.0, 300.0)
+    detections = pd.DataFrame({"time": [5.0, 35.0, 61.0], "receiver": ["r1", "r1", "r1"]})
+    obs = ping_observations(detections, tracks, min_interval=20.0)
+    assert obs["ping"].tolist() == [0, 1, 2]
+    assert obs["heard"].tolist() == [1, 1, 1]
