@@ -50,6 +50,7 @@ from hmmtrack.tracking.config import (
     read_settings,
     section_classes,
 )
+from hmmtrack.tracking.measurement.tdoa import per_ping_table
 from hmmtrack.tracking.settings import boolean
 
 logger = logging.getLogger(__name__)
@@ -211,7 +212,9 @@ def register(subparsers) -> None:
         choices=tuple(section_classes("measurement")),
         help=(
             "range-rate (default): the paper's ranges and range-rates (needs --r0); "
-            "arrival-time: the tag's emission clock in the particle state, no initial range"
+            "arrival-time: the tag's emission clock in the particle state, no initial range; "
+            "ping (the default with --burst-interval): each ping's arrivals at several receivers "
+            "scored on their time differences, for random-interval tags"
         ),
     )
     parser.add_argument(
@@ -226,12 +229,22 @@ def register(subparsers) -> None:
         "--truth", help="true positions CSV (time, x, y or lon, lat): print metrics"
     )
     parser.add_argument("--plot", help="PNG: error over time (with --truth) and particle snapshots")
+    parser.add_argument(
+        "--per-ping",
+        metavar="FILE",
+        help=(
+            "CSV of every ping heard (ping measurement): estimated emission time, x, y, their "
+            "sds, the receivers that heard it, and the smoothed position with --smooth"
+        ),
+    )
     parser.set_defaults(func=run)
 
 
 def _given(args: argparse.Namespace) -> dict:
     """The settings given as options, by key (``r0`` pairs as a mapping)."""
     given = {key: getattr(args, key) for key in ("measurement", "motion")}
+    if given["measurement"] is None and args.burst_interval is not None:
+        given["measurement"] = "ping"  # a random burst interval is the ping measurement's
     for option in settings_options():
         value = getattr(args, option.key)
         if option.field.metadata["append"] and value is not None:
@@ -269,10 +282,8 @@ def build_config(args: argparse.Namespace) -> TrackingConfig:
             _check_used(option, settings)
     if not args.config:
         measurement = settings.get("measurement", {})
-        needed = (
-            ("period", "r0")
-            if measurement.get("name", "range-rate") == "range-rate"
-            else ("period",)
+        needed = {"range-rate": ("period", "r0"), "ping": ()}.get(
+            measurement.get("name", "range-rate"), ("period",)
         )
         missing = [f"--{k}" for k in needed if k not in measurement]
         if missing:
@@ -334,7 +345,14 @@ def run(args: argparse.Namespace) -> int:
     inputs = {"--detections": args.detections, "--receivers": args.receivers}
     inputs |= {"--config": args.config, "--model": args.model, "--truth": args.truth}
     inputs |= {"--clocks": config.clocks}
-    check_paths(inputs, outputs={"-o": args.output, "--plot": args.plot})
+    if args.per_ping and config.measurement.name != "ping":
+        raise UserInputError(
+            f"--per-ping is used with --measurement ping only (this run's is "
+            f"{config.measurement.name})"
+        )
+    check_paths(
+        inputs, outputs={"-o": args.output, "--plot": args.plot, "--per-ping": args.per_ping}
+    )
     seed = args.seed
     if seed is None:
         seed = int(np.random.SeedSequence().entropy % 2**63)
@@ -396,11 +414,18 @@ def run(args: argparse.Namespace) -> int:
             errors=errors,
             convergence=convergence,
         )
-    with atomic_files(*filter(None, (args.output, args.plot))) as written:
-        io.write_estimates(estimates, written[0], projection=projection)
+    outputs = [args.output, args.plot, args.per_ping]
+    with atomic_files(*filter(None, outputs)) as written:
+        paths = dict(zip([p for p in outputs if p], written, strict=True))
+        io.write_estimates(estimates, paths[args.output], projection=projection)
         if figure is not None:
-            figure.savefig(written[1], dpi=120, bbox_inches="tight")
+            figure.savefig(paths[args.plot], dpi=120, bbox_inches="tight")
+        if args.per_ping:
+            pings = per_ping_table(result.pings, observations, result.smoothed)
+            io.write_estimates(pings, paths[args.per_ping], projection=projection)
     print(f"wrote {len(estimates)} estimates to {args.output}")
+    if args.per_ping:
+        print(f"wrote {len(pings)} pings to {args.per_ping}")
     if args.plot:
         print(f"wrote {args.plot}")
     return 0

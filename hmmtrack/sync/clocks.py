@@ -332,7 +332,8 @@ def apply_clocks(detections: pd.DataFrame, clocks: ReceiverClocks) -> pd.DataFra
     DataFrame
         A copy, ``time`` on the common time base (the time keeper's clock), the logged time
         kept as ``receiver_time``, sorted by the new time (stable); attrs kept, plus
-        ``attrs["time_keeper"]``.
+        ``attrs["time_keeper"]`` and ``attrs["sound_speed"]`` (the fit's, m/s, the mean over
+        its segments: what the arrival times are consistent with).
     """
     missing = sorted(set(detections["receiver"]) - set(clocks.receivers))
     if missing:
@@ -350,7 +351,10 @@ def apply_clocks(detections: pd.DataFrame, clocks: ReceiverClocks) -> pd.DataFra
     out["time"] = common
     out["receiver_time"] = recorded
     out = out.iloc[np.argsort(common, kind="stable")]
-    out.attrs = dict(detections.attrs) | {"time_keeper": clocks.time_keeper}
+    out.attrs = dict(detections.attrs) | {
+        "time_keeper": clocks.time_keeper,
+        "sound_speed": float(np.mean(clocks.sound_speed)),
+    }
     return out
 
 

@@ -54,6 +54,7 @@ from hmmtrack.tracking.tempering import Tempered
 __all__ = [
     "TrackingResult",
     "build_observations",
+    "clock_positions",
     "drop_duplicate_detections",
     "on_common_time",
     "particle_filter",
@@ -166,6 +167,38 @@ def on_common_time(detections: pd.DataFrame, clocks: str | Path) -> pd.DataFrame
             "(hmmtrack sync on detections covering the tracked tag's)"
         )
     return synchronised
+
+
+def clock_positions(receivers, clocks: str | Path):
+    """The receivers with the positions the clock file's fit refined (receivers not marked
+    fixed, ``hmmtrack sync --refine-positions``): the synced times are consistent with
+    those positions, not the surveyed ones. Other receivers, and receiver tracks (GPS),
+    are returned as given.
+
+    Parameters
+    ----------
+    receivers : pandas.DataFrame or ReceiverTracks
+    clocks : str or Path
+        Clock file of ``hmmtrack sync``.
+    """
+    if isinstance(receivers, ReceiverTracks):
+        return receivers
+    fitted = read_clocks(clocks)
+    moved = {
+        name: position
+        for name, position, given in zip(
+            fitted.receivers, fitted.positions, fitted.file_positions, strict=True
+        )
+        if not np.array_equal(position, given)
+    }
+    if not moved:
+        return receivers
+    out = receivers.copy()
+    rows = out["receiver"].astype(str).isin(list(moved)).to_numpy()
+    for axis, column in enumerate(("x", "y")):
+        out.loc[rows, column] = [moved[name][axis] for name in out.loc[rows, "receiver"]]
+    logger.info("%d receiver position(s) refined by the clock file %s", len(moved), clocks)
+    return out
 
 
 def tracked_detections(detections: pd.DataFrame, config: TrackingConfig) -> pd.DataFrame:
@@ -384,7 +417,8 @@ def track(
     detections, receivers, config
         See :func:`build_observations`; the configuration's sections name the measurement,
         the motion model (its model file, variant, resting state), the filter's settings,
-        its ``clocks`` a clock file mapping the receivers' times to the common time base,
+        its ``clocks`` a clock file mapping the receivers' times to the common time base
+        (and the positions it refined, :func:`clock_positions`),
         and its ``smoothing_lag`` a fixed-lag smoother.
     motion : motion model, optional
         The motion model to run instead of the one the ``motion`` section builds.
@@ -408,6 +442,8 @@ def track(
     """
     settings = config.measurement
     kind = MEASUREMENTS[settings.name]
+    if config.clocks is not None:
+        receivers = clock_positions(receivers, config.clocks)
     observations = build_observations(detections, receivers, config)
     if observations.empty:
         raise ValueError("no detections to track from")

@@ -63,7 +63,7 @@ from numba import njit
 
 from hmmtrack.sync.pings import largest_travel_time
 from hmmtrack.tracking.measurement.arrival_time import emission_distance, vertical_parts
-from hmmtrack.tracking.measurement.base import Score, no_events, sound_speed_setting
+from hmmtrack.tracking.measurement.base import Score, no_events
 from hmmtrack.tracking.measurement.clocked import (
     SEARCH_RADIUS,
     TEMPERING_ESS,
@@ -72,6 +72,7 @@ from hmmtrack.tracking.measurement.clocked import (
     search_box,
 )
 from hmmtrack.tracking.measurement.pings import PING_TOLERANCE, ping_observations
+from hmmtrack.tracking.measurement.ranging import SOUND_SPEED
 from hmmtrack.tracking.settings import Settings, fraction, positive, setting
 from hmmtrack.tracking.tempering import Tempered
 
@@ -86,6 +87,7 @@ __all__ = [
     "PingTrace",
     "gaussian_ping_loglik",
     "ping_integral",
+    "per_ping_table",
     "ping_loglik",
 ]
 
@@ -305,8 +307,10 @@ class PingSettings(Settings):
         The tag's random interval between emissions, ``(MIN, MAX)`` s; its minimum bounds
         the grouping window (:func:`hmmtrack.tracking.measurement.pings.ping_window`).
         ``None``: unknown, pings grouped on the array's travel span only.
-    sound_speed : float
-        Speed of sound (m/s).
+    sound_speed : float or None
+        Speed of sound (m/s); ``None``: the one the clock file's fit estimated when the
+        detections were synchronised (``attrs["sound_speed"]``), else
+        :data:`~hmmtrack.tracking.measurement.ranging.SOUND_SPEED`.
     arrival_sigma : float
         Sd (s) of a direct arrival's residual: receiver clocks' error after
         synchronisation, timing jitter and the tag's motion within the filter's step.
@@ -331,7 +335,14 @@ class PingSettings(Settings):
         data=True,
         default_text="unknown",
     )
-    sound_speed: float = sound_speed_setting()
+    sound_speed: float | None = setting(
+        None,
+        help="speed of sound (m/s)",
+        check=positive,
+        parse=float,
+        metavar="M_PER_S",
+        default_text=f"the clock file's, else {SOUND_SPEED:g}",
+    )
     arrival_sigma: float = setting(
         ARRIVAL_SIGMA,
         help="standard deviation of a direct arrival's residual (s)",
@@ -419,22 +430,26 @@ class PingTDOA:
         """:func:`hmmtrack.tracking.measurement.pings.ping_observations` with the burst
         interval's minimum and the grouping tolerance of ``settings``."""
         interval = settings.burst_interval
-        return ping_observations(
+        obs = ping_observations(
             detections,
             receiver_tracks(receivers),
             None if interval is None else interval[0],
             settings.ping_tolerance,
         )
+        obs.attrs["sound_speed"] = detections.attrs.get("sound_speed")
+        return obs
 
     @classmethod
     def from_settings(cls, settings: PingSettings, observations: pd.DataFrame, receivers):
         """The measurement of ``settings``; the outlier's support is the observations'
         grouping window plus the receivers' largest travel time (any particle's residual
-        spread fits in it)."""
+        spread fits in it); the sound speed is the settings', else the clock file's (the
+        observations' ``attrs``), else the default."""
         positions = observations[["receiver_x", "receiver_y"]].to_numpy()
         window = observations.attrs.get("window", settings.ping_tolerance)
+        sound_speed = settings.sound_speed or observations.attrs.get("sound_speed")
         return cls(
-            settings.sound_speed,
+            SOUND_SPEED if sound_speed is None else float(sound_speed),
             settings.arrival_sigma,
             settings.outlier_fraction,
             window + largest_travel_time(np.unique(positions.round(), axis=0)),
@@ -552,3 +567,45 @@ class PingTrace:
 
     def result(self) -> dict[str, pd.DataFrame]:
         return {"pings": pd.DataFrame(self._rows, columns=list(PING_TRACE_COLUMNS[1:7]))}
+
+
+def per_ping_table(
+    pings: pd.DataFrame, observations: pd.DataFrame, smoothed: pd.DataFrame | None = None
+) -> pd.DataFrame:
+    """One row per ping heard: the :class:`PingTrace` of its correction, with the receivers.
+
+    Parameters
+    ----------
+    pings : pandas.DataFrame
+        A run's ``pings`` table (:class:`PingTrace`; one row per correction).
+    observations : pandas.DataFrame
+        The run's observations (:func:`hmmtrack.tracking.measurement.pings.ping_observations`).
+    smoothed : pandas.DataFrame, optional
+        The run's smoothed estimates (one per second): interpolated at each ping's estimated
+        emission time as ``smoothed_x``, ``smoothed_y`` (m).
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``time`` (the estimated emission time, s) and :data:`PING_TRACE_COLUMNS` (``time``
+        as ``correction_time``, s; ``emission_time`` s;
+        ``x``, ``y`` and their sds m; ``n_receivers``; ``receivers`` ``;``-separated) and the
+        smoothed columns; a correction that scored two pings describes both by its state.
+    """
+    heard = observations.groupby("ping", sort=True).agg(
+        first=("time", "first"),
+        n_receivers=("receiver", "size"),
+        receivers=("receiver", lambda names: ";".join(names)),
+    )
+    heard = heard.reset_index().sort_values("first", kind="stable")
+    table = pd.merge_asof(
+        heard, pings.sort_values("time"), left_on="first", right_on="time", direction="nearest"
+    )
+    table = table[list(PING_TRACE_COLUMNS)].rename(columns={"time": "correction_time"})
+    table.insert(0, "time", table["emission_time"])
+    if smoothed is not None and len(smoothed):
+        for axis in ("x", "y"):
+            table[f"smoothed_{axis}"] = np.interp(
+                table["emission_time"], smoothed["time"], smoothed[axis]
+            )
+    return table
