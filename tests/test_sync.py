@@ -207,3 +207,36 @@ def test_real_array_synced_times_agree_with_yaps(tmp_path, refine, median_ms, p9
     clocks = read_clocks(tmp_path / "clocks.json")
     assert (tmp_path / "clocks_residuals.csv").exists()
     assert 1500 < clocks.sound_speed.min() and clocks.sound_speed.max() < 1600
+
+
+@pytest.mark.skipif(not SHARED.exists(), reason="YAPS ssu1 data absent (../shared/data)")
+def test_random_interval_tag_tracked_within_yaps_accuracy_from_the_raw_export(tmp_path):
+    """YAPS's example, CLI only: sync (positions refined), then tag 15266 (20-40 s random
+    interval) tracked by the ping measurement and smoothed; at YAPS's ping times against the
+    GPS: median <= 3.0 m and RMSE <= 4.0 m (YAPS: 3.22 m, 4.34 m)."""
+    vue = str(SHARED / "VUE_Export_ssu1.csv")
+    receivers = str(yaps_receivers(tmp_path / "receivers.csv"))
+    clocks = str(tmp_path / "clocks.json")
+    sync = ["sync", "--detections", vue, "--receivers", receivers, "-o", clocks]
+    assert main([*sync, "--time-keeper", "VR2W-128367", "--refine-positions", "3"]) == 0
+    track = ["track", "--detections", vue, "--receivers", receivers, "--clocks", clocks]
+    track += ["--transmitter", "15266", "--burst-interval", "20", "40", "--motion", "baseline"]
+    track += ["--sigma-position", "2.5", "--arrival-sigma", "0.002", "--smooth", "60"]
+    track += ["--particles", "2000", "--seed", "1", "-o", str(tmp_path / "est.csv")]
+    assert main([*track, "--per-ping", str(tmp_path / "pings.csv")]) == 0
+    estimates = io.read_truth(tmp_path / "est.csv", None)
+    gps = pd.read_csv(SHARED / "ssu1_gps.csv")
+    gps_time = io.parse_times(gps, "ts", tz=None)
+    top = pd.read_csv(SHARED / "yaps_reference_track_15266.csv")["top"].to_numpy()
+    top = top[(top >= gps_time.min()) & (top <= gps_time.max())]
+    assert top.size == 142
+    error = np.hypot(
+        np.interp(top, estimates["time"], estimates["x"]) - np.interp(top, gps_time, gps["utm_x"]),
+        np.interp(top, estimates["time"], estimates["y"]) - np.interp(top, gps_time, gps["utm_y"]),
+    )
+    assert np.median(error) <= 3.0
+    assert np.sqrt(np.mean(error**2)) <= 4.0
+    pings = pd.read_csv(tmp_path / "pings.csv")
+    assert len(pings) == 130  # pings heard (YAPS's 142 include unheard ones)
+    assert (pings["n_receivers"] == pings["receivers"].str.count(";") + 1).all()
+    assert pings["n_receivers"].sum() == 2118  # every detection of the tag, no echo

@@ -85,6 +85,7 @@ __all__ = [
     "default_clock_model",
     "receiver_tracks",
     "search_box",
+    "search_radius_setting",
 ]
 
 #: particle fields of the emission clock's mean (s, s, s per ping)
@@ -96,6 +97,22 @@ SEARCH_RADIUS = 1000.0
 #: fast-turning plan need 0.6 (benchmarks/bench_two_auv_plan.py)
 TEMPERING_ESS = 0.3
 _NO_ROWS = pd.DataFrame()
+
+
+def search_radius_setting():
+    """The ``search_radius`` key of a measurement section that needs no initial range (m):
+    the search box without bounds is the receivers' positions widened by it
+    (:func:`search_box`)."""
+    return setting(
+        SEARCH_RADIUS,
+        help=(
+            "without bounds, the search box is the receivers' positions at the start widened "
+            "by this (m; about their detection range)"
+        ),
+        check=positive,
+        parse=float,
+        metavar="METRES",
+    )
 
 
 def _detection_curve(name: str, value) -> LogisticDetection:
@@ -162,16 +179,7 @@ class ArrivalTimeSettings(Settings):
         nargs=2,
         default_text="none, missed pings tell nothing",
     )
-    search_radius: float = setting(
-        SEARCH_RADIUS,
-        help=(
-            "without bounds, the search box is the receivers' positions at the start widened "
-            "by this (m; about their detection range)"
-        ),
-        check=positive,
-        parse=float,
-        metavar="METRES",
-    )
+    search_radius: float = search_radius_setting()
 
     def to_dict(self) -> dict:
         """As :meth:`Settings.to_dict`, the detection curve as ``{"range_50", "width"}``."""

@@ -70,6 +70,7 @@ from hmmtrack.tracking.measurement.clocked import (
     ClockedArrivalTime,
     receiver_tracks,
     search_box,
+    search_radius_setting,
 )
 from hmmtrack.tracking.measurement.pings import PING_TOLERANCE, ping_observations
 from hmmtrack.tracking.measurement.ranging import SOUND_SPEED
@@ -364,16 +365,7 @@ class PingSettings(Settings):
         parse=float,
         metavar="SECONDS",
     )
-    search_radius: float = setting(
-        SEARCH_RADIUS,
-        help=(
-            "without bounds, the search box is the receivers' positions at the start widened "
-            "by this (m; about their detection range)"
-        ),
-        check=positive,
-        parse=float,
-        metavar="METRES",
-    )
+    search_radius: float = search_radius_setting()
 
     def validate(self) -> None:
         if not self.outlier_fraction < 1.0:
