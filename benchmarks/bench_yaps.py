@@ -33,7 +33,7 @@ FIXED = (2, 3, 6, 8, 11, 13, 14, 15, 16, 17)
 #: the tracking options of the YAPS runs (reasons in reports/decisions.md, "Ping measurement")
 TRACK_OPTIONS = [
     "--burst-interval", "20", "40", "--motion", "baseline", "--sigma-position", "2.5",
-    "--arrival-sigma", "0.002", "--smooth", "60",
+    "--arrival-sigma", "0.002", "--tempering-ess", "0.6", "--smooth", "60",
 ]  # fmt: skip
 
 

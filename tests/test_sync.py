@@ -221,8 +221,9 @@ def test_random_interval_tag_tracked_within_yaps_accuracy_from_the_raw_export(tm
     assert main([*sync, "--time-keeper", "VR2W-128367", "--refine-positions", "3"]) == 0
     track = ["track", "--detections", vue, "--receivers", receivers, "--clocks", clocks]
     track += ["--transmitter", "15266", "--burst-interval", "20", "40", "--motion", "baseline"]
-    track += ["--sigma-position", "2.5", "--arrival-sigma", "0.002", "--smooth", "60"]
-    track += ["--particles", "2000", "--seed", "1", "-o", str(tmp_path / "est.csv")]
+    track += ["--sigma-position", "2.5", "--arrival-sigma", "0.002", "--tempering-ess", "0.6"]
+    track += ["--smooth", "60"]
+    track += ["--particles", "2000", "--seed", "2", "-o", str(tmp_path / "est.csv")]
     assert main([*track, "--per-ping", str(tmp_path / "pings.csv")]) == 0
     estimates = io.read_truth(tmp_path / "est.csv", None)
     gps = pd.read_csv(SHARED / "ssu1_gps.csv")
