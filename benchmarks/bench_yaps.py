@@ -148,6 +148,9 @@ def draw(smoothed: pd.DataFrame, pings: pd.DataFrame, path: str) -> None:
         pings["x"] - origin[0], pings["y"] - origin[1], "C3.", ms=5, label="filtered (per ping)"
     )
     ax.plot(hydros["x"] - origin[0], hydros["y"] - origin[1], "g^", label="hydrophones")
+    margin = 30.0  # the array and its surroundings (a first, unconverged ping may lie off it)
+    ax.set_xlim(hydros["x"].min() - origin[0] - margin, hydros["x"].max() - origin[0] + margin)
+    ax.set_ylim(hydros["y"].min() - origin[1] - margin, hydros["y"].max() - origin[1] + margin)
     ax.set(xlabel="x (m)", ylabel="y (m)", aspect="equal", title="tag 15266, YAPS ssu1")
     ax.legend()
     fig.savefig(path, dpi=120, bbox_inches="tight")
