@@ -37,8 +37,9 @@ per-second moments; with ``backend="numpy"`` every second is one call of
 compiled kernel). The compiled path draws from per-particle random streams, so one seed
 gives one answer whatever the number of threads; by default the number of threads is chosen
 by timing one thread against all (:class:`ThreadChoice`), because on a shared machine more
-threads are often slower. A correction is a handful of compiled or vectorised passes
-(log-likelihood, normalisation with the moments and ESS, the resampling's inverse CDF);
+threads are often slower. A correction is a handful of compiled passes (log-likelihood; the
+normalisation with the moments and ESS in one compiled call on the threads of the latest
+prediction, :func:`hmmtrack.tracking.compiled.weighing.weigh`; the resampling's inverse CDF);
 :meth:`ParticleFilter.iterate` converts all observations once to the measurement model's
 matrix form when the model offers one (``as_matrix``) instead of slicing a table at every
 correction. After each resampling :attr:`ParticleFilter.last_ancestors` holds the ancestor
@@ -52,7 +53,6 @@ This module does not read files or build observations (:mod:`hmmtrack.tracking.p
 
 from __future__ import annotations
 
-import math
 import time as clock
 import warnings
 from collections.abc import Iterator, Sequence
@@ -62,11 +62,11 @@ from typing import NamedTuple
 import numba
 import numpy as np
 import pandas as pd
-from numba import njit
 
 from hmmtrack.random import SeedLike, as_generator
 from hmmtrack.tracking.compiled import streams as rs
 from hmmtrack.tracking.compiled.threads import ThreadChoice
+from hmmtrack.tracking.compiled.weighing import weigh
 from hmmtrack.tracking.measurement.base import Score
 from hmmtrack.tracking.particles import Particles, as_bounds, sqrt_largest_eigenvalue
 from hmmtrack.tracking.resampling import RESAMPLERS, get_resampler
@@ -155,92 +155,35 @@ def _estimate(time, mean_x, mean_y, var_x, var_y, cov_xy, n_eff) -> Estimate:
     return Estimate(time, mean_x, mean_y, var_x, var_y, cov_xy, sqrt_lambda1, n_eff)
 
 
-@njit(cache=True)
-def _add_log_weights(log_weight, loglik, out):
-    """``out = log_weight + loglik`` in one (vectorised) pass; whether ``loglik`` has NaN
-    or ``+inf`` entries."""
-    bad = False
-    for i in range(out.size):
-        li = loglik[i]
-        bad |= not li < np.inf
-        out[i] = log_weight[i] + li
-    return bad
-
-
-# ``reassoc`` lets LLVM split the sums into vector lanes (4-5x faster than one serial chain
-# of additions); the result is still one fixed order of operations for a given input
-@njit(cache=True, fastmath={"reassoc"})
-def _normalised_moments(w, x, y, k):
-    """Normalise the weights ``w`` (N,) in place and return their sum ``s`` before that,
-    the weighted mean, variances and covariance of ``(x, y)`` and the ESS ``s^2 / sum w^2``.
-
-    The moments are taken about particle ``k`` (the heaviest: inside the cloud, so no
-    cancellation far from the origin)."""
-    x0 = x[k]
-    y0 = y[k]
-    s = sx = sy = sxx = syy = sxy = sww = 0.0
-    for i in range(w.size):
-        dx = x[i] - x0
-        dy = y[i] - y0
-        wi = w[i]
-        s += wi
-        sx += wi * dx
-        sy += wi * dy
-        sxx += wi * dx * dx
-        syy += wi * dy * dy
-        sxy += wi * dx * dy
-        sww += wi * wi
-    scale = 1.0 / s
-    for i in range(w.size):
-        w[i] *= scale
-    mx, my = sx / s, sy / s
-    var_x = max(sxx / s - mx * mx, 0.0)
-    var_y = max(syy / s - my * my, 0.0)
-    return s, x0 + mx, y0 + my, var_x, var_y, sxy / s - mx * my, s * s / sww
-
-
-def _weight_summary(x, y, log_weight, top=None, k=None):
-    """Normalised weights (N,) and the weighted mean, covariance and ESS.
-
-    The exponentials are NumPy's (vectorised), the moments one compiled pass
-    (:func:`_normalised_moments`). ``top`` and ``k``, the largest log weight and its index,
-    are computed when not given.
+def _weight_summary(x, y, log_weight, threads: int = 1):
+    """Normalised weights (N,) and the weighted mean, covariance and ESS
+    (:func:`hmmtrack.tracking.compiled.weighing.weigh` on ``threads`` threads).
 
     Returns ``(weights, log_total, mean_x, mean_y, var_x, var_y, cov_xy, n_eff)`` with
     ``log_total`` the log-sum-exp of ``log_weight`` (all ``-inf`` count as equal); the same
     numbers as ``np.average`` / ``np.cov(..., aweights=w, bias=True)`` and
     :func:`hmmtrack.tracking.resampling.effective_sample_size` (tested).
     """
-    if top is None:
-        k = int(np.argmax(log_weight))
-        top = log_weight[k]
-    if top == -np.inf:  # every particle impossible: all equally so (never NaN)
-        top, log_weight = 0.0, np.zeros(log_weight.size)
-    weights = np.subtract(log_weight, top)
-    np.exp(weights, out=weights)
-    s, *moments = _normalised_moments(weights, x, y, k)
-    return weights, top + math.log(s), *moments
+    status, _, weights, log_total, summary = weigh(log_weight, None, x, y, threads)
+    if status == 2:  # every particle impossible: all equally so (never NaN)
+        _, _, weights, log_total, summary = weigh(np.zeros(log_weight.size), None, x, y, threads)
+    return weights, log_total, *summary
 
 
-def _weigh(log_weight, loglik, x, y):
+def _weigh(log_weight, loglik, x, y, threads: int = 1):
     """The correction's arithmetic: add ``loglik`` to the log weights, normalise them, and
-    return the normalised weights, moments and ESS.
+    return the normalised weights, moments and ESS
+    (:func:`hmmtrack.tracking.compiled.weighing.weigh` on ``threads`` threads).
 
     Returns ``(status, log_weight, weights, mean_x, mean_y, var_x, var_y, cov_xy, n_eff)``
     where ``status`` is 0 (done), 1 (``loglik`` has NaN or ``+inf``) or 2 (every particle
     impossible); the rest is meaningful only when ``status == 0``. Equal to
     :func:`hmmtrack.tracking.resampling.log_normalise` and :func:`_weight_summary` (tested).
     """
-    updated = np.empty(log_weight.size)
-    if _add_log_weights(log_weight, loglik, updated):
-        return 1, None, None, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-    k = int(np.argmax(updated))
-    top = updated[k]
-    if top == -np.inf:
-        return 2, None, None, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-    weights, log_total, *moments = _weight_summary(x, y, updated, top, k)
-    updated -= log_total
-    return 0, updated, weights, *moments
+    status, updated, weights, _, summary = weigh(log_weight, loglik, x, y, threads)
+    if status:
+        return status, None, None, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    return 0, updated, weights, *summary
 
 
 def _weighted_moments(p: Particles, weights: np.ndarray, origin) -> np.ndarray:
@@ -396,6 +339,9 @@ class ParticleFilter:
         # numba's thread count of this thread (``numba.set_num_threads``: 1 in the worker
         # processes of hmmtrack.experiments.executors, which run one trial per core)
         self._thread_choice = ThreadChoice(numba.get_num_threads())
+        # threads of the corrections: those of the latest compiled prediction (which the
+        # thread choice times), else ``threads`` or one
+        self._threads_in_use = 1 if threads is None else threads
         self.particles: Particles | None = None
         self.time: float | None = None
         self.events: list[dict] = []
@@ -443,7 +389,8 @@ class ParticleFilter:
     def estimate(self) -> Estimate:
         """Weighted estimate of the current particles at the current time."""
         p = self._require_particles()
-        return _estimate(self.time, *_weight_summary(p.x, p.y, p.log_weight)[2:])
+        summary = _weight_summary(p.x, p.y, p.log_weight, self._threads_in_use)
+        return _estimate(self.time, *summary[2:])
 
     def _require_particles(self) -> Particles:
         if self.particles is None:
@@ -489,7 +436,9 @@ class ParticleFilter:
         p = self.particles
         if self._weighed is not None and self._weighed[0] is p.log_weight:
             return self._weighed[1:]
-        weights, _, mean_x, mean_y, _, _, _, n_eff = _weight_summary(p.x, p.y, p.log_weight)
+        weights, _, mean_x, mean_y, _, _, _, n_eff = _weight_summary(
+            p.x, p.y, p.log_weight, self._threads_in_use
+        )
         return weights, n_eff, (mean_x, mean_y)
 
     def _advance(self, p: Particles, n_steps: int, weights: np.ndarray, origin) -> np.ndarray:
@@ -498,6 +447,7 @@ class ParticleFilter:
         if threads is None:
             threads = 1 if work < PARALLEL_MIN_WORK else self._thread_choice.pick()
         threads = min(threads, numba.config.NUMBA_NUM_THREADS)
+        self._threads_in_use = threads
         started = clock.perf_counter()
         moments = self.motion.advance(
             p, self._streams, n_steps, self.dt, weights, origin, threads=threads
@@ -559,7 +509,9 @@ class ParticleFilter:
                 f"{type(self.measurement).__name__}.loglik returned shape {loglik.shape}, "
                 f"expected ({p.n},), at time {self.time} for observations:\n{rows()}"
             )
-        status, log_weight, weights, *moments, n_eff = _weigh(p.log_weight, loglik, p.x, p.y)
+        status, log_weight, weights, *moments, n_eff = _weigh(
+            p.log_weight, loglik, p.x, p.y, self._threads_in_use
+        )
         if status == 1:
             raise ValueError(
                 f"{type(self.measurement).__name__}.loglik returned NaN/+inf values "
