@@ -264,7 +264,8 @@ class ParticleFilter:
         Threads for compiled prediction; ``None`` uses one thread for small calls (fewer
         than :data:`PARALLEL_MIN_WORK` particle-steps) and otherwise whichever of one
         thread and ``numba.get_num_threads()`` (when the filter is made) has been faster per
-        particle-step so far (:class:`ThreadChoice`). Results do not depend on it.
+        particle-step so far (:class:`ThreadChoice`). Corrections and resamplings run on the
+        threads of the latest prediction. Results do not depend on it.
     correction : Plain, Tempered or None
         Correction policy (:mod:`hmmtrack.tracking.tempering`); ``None``: :class:`Plain`.
     collect : sequence of collectors
@@ -281,6 +282,12 @@ class ParticleFilter:
     monitor : Monitor or None
         Test every correction's predictive likelihood and re-acquire a lost tag
         (:class:`hmmtrack.tracking.monitor.Monitor`); ``None``: no test.
+
+    Notes
+    -----
+    A resampling gathers the new particles into the arrays of the particles from before the
+    previous resampling (no fresh arrays): :attr:`particles` held from outside stay valid
+    until the next resampling but one; keep a :meth:`Particles.copy` for longer.
     """
 
     def __init__(
@@ -346,6 +353,10 @@ class ParticleFilter:
         self.time: float | None = None
         self.events: list[dict] = []
         self._streams: np.ndarray | None = None
+        # the particles before the latest resampling: the arrays the next one gathers into
+        # (Particles.take's ``out``), so that a resampling allocates no particle arrays
+        self._spare: Particles | None = None
+        self._equal: np.ndarray | None = None  # see _equal_weights
         #: ancestor indices (N,) of the last resampling (None before any); read by smoothers
         self.last_ancestors: np.ndarray | None = None
         #: the measurement's state of this run (its ``start`` hook's; None without one)
@@ -369,6 +380,7 @@ class ParticleFilter:
         self.particles = Particles.uniform(self.rng, self.n_particles, self.bounds)
         self.motion.initialise(self.rng, self.particles)
         self._streams = rs.new_streams(self.rng, self.n_particles)
+        self._spare = None
         self.time = float(time)
         self.events = []
         self.last_ancestors = None
@@ -597,17 +609,33 @@ class ParticleFilter:
         weights, _, origin = self.weights()
         if self.mixture is None:
             ancestors = self._resample(self.rng, weights, p.n)
-            self.particles = p.take(ancestors, equal_weights=True)
+            self._take(p, ancestors)
             # equal weights now; the old weighted mean still lies inside the cloud
-            self._weighed = (self.particles.log_weight, np.full(p.n, 1.0 / p.n), float(p.n), origin)
+            self._weighed = (self.particles.log_weight, self._equal_weights(), float(p.n), origin)
         else:
             ancestors, log_weight = self.mixture.resample(self, weights)
-            self.particles = p.take(ancestors, equal_weights=True)
+            self._take(p, ancestors)
             self.particles.log_weight = log_weight
             self.keep_weights(np.exp(log_weight))
         self.last_ancestors = ancestors
         for collector in self.collect:
             collector.resampled(self, ancestors)
+
+    def _take(self, p: Particles, ancestors: np.ndarray) -> None:
+        """The particles become ``p``'s ``ancestors`` with equal weights, gathered into the
+        spare arrays (those of the particles before the previous resampling, which nothing
+        holds on to) on the correction's threads; ``p``'s arrays become the spare ones."""
+        spare = self._spare
+        self.particles = p.take(ancestors, True, out=spare, threads=self._threads_in_use)
+        self._spare = p
+
+    def _equal_weights(self) -> np.ndarray:
+        """The equal normalised weights ``1 / N`` (N,), one read-only array per filter."""
+        n = self.particles.n
+        if self._equal is None or self._equal.size != n:
+            self._equal = np.full(n, 1.0 / n)
+            self._equal.flags.writeable = False
+        return self._equal
 
     def _settle(self) -> None:
         """The particles at :attr:`time` are final (about to move or be resampled, or the
