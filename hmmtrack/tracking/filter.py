@@ -36,10 +36,12 @@ per-second moments; with ``backend="numpy"`` every second is one call of
 ``motion.propagate`` instead (the reference path, and the one for motion models without a
 compiled kernel). The compiled path draws from per-particle random streams, so one seed
 gives one answer whatever the number of threads; by default the number of threads is chosen
-by timing one thread against all (:class:`ThreadChoice`), because on a shared machine more
-threads are often slower. A correction is a handful of compiled passes (log-likelihood; the
-normalisation with the moments and ESS in one compiled call on the threads of the latest
-prediction, :func:`hmmtrack.tracking.compiled.weighing.weigh`; the resampling's inverse CDF);
+by timing one thread against all (:class:`ThreadChoice`; a prediction with the correction
+and resampling after it), because on a shared machine more threads are often slower. A
+correction is a handful of compiled passes (log-likelihood; the normalisation with the
+moments and ESS in one compiled call, :func:`hmmtrack.tracking.compiled.weighing.weigh`;
+the resampling's inverse CDF and gather into the spare particle arrays), on the threads of
+the latest prediction from :data:`PARALLEL_MIN_CORRECTION` particles;
 :meth:`ParticleFilter.iterate` converts all observations once to the measurement model's
 matrix form when the model offers one (``as_matrix``) instead of slicing a table at every
 correction. After each resampling :attr:`ParticleFilter.last_ancestors` holds the ancestor
@@ -97,6 +99,10 @@ ESTIMATE_COLUMNS = ("time", "x", "y", "var_x", "var_y", "cov_xy", "sqrt_lambda1"
 #: for more threads to pay); above it the filter times one and all threads and keeps the
 #: faster (pass ``threads=`` to fix the number)
 PARALLEL_MIN_WORK = 20_000
+#: below this many particles corrections and resamplings run on one thread: their chunked
+#: passes are too short for thread hand-overs to pay (at N = 10,000 on a loaded 2-core
+#: machine, running them on the prediction's two threads made runs 3-4x slower)
+PARALLEL_MIN_CORRECTION = 50_000
 BACKENDS = ("auto", "numba", "numpy")
 RESAMPLE_WHEN = ("always", "ess")
 
@@ -264,8 +270,10 @@ class ParticleFilter:
         Threads for compiled prediction; ``None`` uses one thread for small calls (fewer
         than :data:`PARALLEL_MIN_WORK` particle-steps) and otherwise whichever of one
         thread and ``numba.get_num_threads()`` (when the filter is made) has been faster per
-        particle-step so far (:class:`ThreadChoice`). Corrections and resamplings run on the
-        threads of the latest prediction. Results do not depend on it.
+        particle-step so far (:class:`ThreadChoice`), each prediction timed with the
+        correction and resampling that follow it; corrections and resamplings of at least
+        :data:`PARALLEL_MIN_CORRECTION` particles run on the threads of the latest
+        prediction. Results do not depend on it.
     correction : Plain, Tempered or None
         Correction policy (:mod:`hmmtrack.tracking.tempering`); ``None``: :class:`Plain`.
     collect : sequence of collectors
@@ -346,9 +354,13 @@ class ParticleFilter:
         # numba's thread count of this thread (``numba.set_num_threads``: 1 in the worker
         # processes of hmmtrack.experiments.executors, which run one trial per core)
         self._thread_choice = ThreadChoice(numba.get_num_threads())
-        # threads of the corrections: those of the latest compiled prediction (which the
-        # thread choice times), else ``threads`` or one
+        # threads of the latest compiled prediction (else ``threads`` or one): the
+        # corrections' too from PARALLEL_MIN_CORRECTION particles (see _correction_threads)
         self._threads_in_use = 1 if threads is None else threads
+        # (threads, start, particle-steps) of the timed prediction under way: the thread
+        # choice is told the cost of each prediction with the correction and resampling that
+        # follow it, when the next prediction starts
+        self._cycle: tuple[int, float, int] | None = None
         self.particles: Particles | None = None
         self.time: float | None = None
         self.events: list[dict] = []
@@ -381,6 +393,7 @@ class ParticleFilter:
         self.motion.initialise(self.rng, self.particles)
         self._streams = rs.new_streams(self.rng, self.n_particles)
         self._spare = None
+        self._cycle = None
         self.time = float(time)
         self.events = []
         self.last_ancestors = None
@@ -401,7 +414,7 @@ class ParticleFilter:
     def estimate(self) -> Estimate:
         """Weighted estimate of the current particles at the current time."""
         p = self._require_particles()
-        summary = _weight_summary(p.x, p.y, p.log_weight, self._threads_in_use)
+        summary = _weight_summary(p.x, p.y, p.log_weight, self._correction_threads())
         return _estimate(self.time, *summary[2:])
 
     def _require_particles(self) -> Particles:
@@ -449,7 +462,7 @@ class ParticleFilter:
         if self._weighed is not None and self._weighed[0] is p.log_weight:
             return self._weighed[1:]
         weights, _, mean_x, mean_y, _, _, _, n_eff = _weight_summary(
-            p.x, p.y, p.log_weight, self._threads_in_use
+            p.x, p.y, p.log_weight, self._correction_threads()
         )
         return weights, n_eff, (mean_x, mean_y)
 
@@ -461,12 +474,19 @@ class ParticleFilter:
         threads = min(threads, numba.config.NUMBA_NUM_THREADS)
         self._threads_in_use = threads
         started = clock.perf_counter()
-        moments = self.motion.advance(
+        if self._cycle is not None:
+            last_threads, last_started, last_work = self._cycle
+            self._thread_choice.record(last_threads, (started - last_started) / last_work)
+        timed = self.threads is None and work >= PARALLEL_MIN_WORK
+        self._cycle = (threads, started, work) if timed else None
+        return self.motion.advance(
             p, self._streams, n_steps, self.dt, weights, origin, threads=threads
         )
-        if self.threads is None and work >= PARALLEL_MIN_WORK:
-            self._thread_choice.record(threads, (clock.perf_counter() - started) / work)
-        return moments
+
+    def _correction_threads(self) -> int:
+        """Threads of corrections and resamplings: the latest prediction's from
+        :data:`PARALLEL_MIN_CORRECTION` particles, else one."""
+        return self._threads_in_use if self.n_particles >= PARALLEL_MIN_CORRECTION else 1
 
     # ------------------------------------------------------------------ correct
 
@@ -522,7 +542,7 @@ class ParticleFilter:
                 f"expected ({p.n},), at time {self.time} for observations:\n{rows()}"
             )
         status, log_weight, weights, *moments, n_eff = _weigh(
-            p.log_weight, loglik, p.x, p.y, self._threads_in_use
+            p.log_weight, loglik, p.x, p.y, self._correction_threads()
         )
         if status == 1:
             raise ValueError(
@@ -626,7 +646,7 @@ class ParticleFilter:
         spare arrays (those of the particles before the previous resampling, which nothing
         holds on to) on the correction's threads; ``p``'s arrays become the spare ones."""
         spare = self._spare
-        self.particles = p.take(ancestors, True, out=spare, threads=self._threads_in_use)
+        self.particles = p.take(ancestors, True, out=spare, threads=self._correction_threads())
         self._spare = p
 
     def _equal_weights(self) -> np.ndarray:
