@@ -163,11 +163,9 @@ def in_chunks(kernel, parallel, n: int, threads: int | None, args: tuple, out) -
             # tuples of arrays (the von Mises tables) are passed to ``parallel`` as their items
             flat = [item for arg in args for item in (arg if isinstance(arg, tuple) else (arg,))]
             try:
-                # Load the serial kernel before its parallel twin: a call with every chunk
-                # already claimed does nothing. When the twin was loaded from numba's on-disk
-                # cache first, it ran its own copy of the kernel, 20-25 % slower (HMM at 1 s,
-                # N = 10,000: 0.97 s against 0.78 s a run); with the kernel loaded first it
-                # runs the kernel's (2.7 us)
+                # Load the serial kernel before its parallel twin (a call with every chunk
+                # already claimed does nothing): a twin loaded first from numba's on-disk
+                # cache runs a slower copy of its own (reports/decisions.md, "Motion models")
                 kernel(*args, np.array([n_chunks], dtype=np.int64), out)
                 if previous != threads:
                     numba.set_num_threads(threads)
