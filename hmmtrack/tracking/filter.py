@@ -468,15 +468,15 @@ class ParticleFilter:
 
     def _advance(self, p: Particles, n_steps: int, weights: np.ndarray, origin) -> np.ndarray:
         work = p.n * n_steps
+        started = clock.perf_counter()
+        if self._cycle is not None:  # the previous cycle ends here, before the next choice
+            last_threads, last_started, last_work = self._cycle
+            self._thread_choice.record(last_threads, (started - last_started) / last_work)
         threads = self.threads
         if threads is None:
             threads = 1 if work < PARALLEL_MIN_WORK else self._thread_choice.pick()
         threads = min(threads, numba.config.NUMBA_NUM_THREADS)
         self._threads_in_use = threads
-        started = clock.perf_counter()
-        if self._cycle is not None:
-            last_threads, last_started, last_work = self._cycle
-            self._thread_choice.record(last_threads, (started - last_started) / last_work)
         timed = self.threads is None and work >= PARALLEL_MIN_WORK
         self._cycle = (threads, started, work) if timed else None
         return self.motion.advance(
