@@ -335,6 +335,37 @@ def test_take_is_numpy_indexing_of_every_field_and_refuses_bad_indices():
                     particles.take(np.array(bad), equal_weights=equal_weights)
 
 
+def test_resampling_gathers_into_the_spare_arrays_with_the_fresh_answer():
+    """A resampling gathers into the arrays of the particles from before the previous one
+    (no fresh arrays) exactly what gathering into new arrays gives, on any threads; the
+    equal weights after it are one read-only array."""
+    obs = circling_observations(duration=100.0)
+    runs = {}
+    for threads in (1, 2):
+        pf = make_filter("hmm", n=5000, seed=4, threads=threads)
+        pf.initialise(T0)
+        held, fields = [], []
+        for k in range(3):
+            pf.predict(8)
+            pf.correct(obs.iloc[k : k + 1])
+            before = pf.particles
+            copy = before.copy()
+            pf.resample_if_due()
+            for name in _ARRAY_NAMES:
+                want = getattr(copy, name)[pf.last_ancestors]
+                if name == "log_weight":
+                    want = np.full(5000, -np.log(5000))
+                np.testing.assert_array_equal(getattr(pf.particles, name), want)
+            held.append(before)
+            fields.append(pf.particles.x)
+        assert pf.particles is held[1] and pf.particles.x is not fields[1]  # two resamplings ago
+        weights = pf.weights()[0]
+        assert not weights.flags.writeable and np.all(weights == 1 / 5000)
+        runs[threads] = pf.particles.copy()
+    for name in _ARRAY_NAMES:
+        np.testing.assert_array_equal(getattr(runs[1], name), getattr(runs[2], name))
+
+
 def test_weigh_matches_log_normalise_and_the_weight_summary():
     rng = np.random.default_rng(5)
     x, y = rng.normal(0, 50, 500), rng.normal(0, 80, 500)

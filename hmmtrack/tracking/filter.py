@@ -36,9 +36,12 @@ per-second moments; with ``backend="numpy"`` every second is one call of
 ``motion.propagate`` instead (the reference path, and the one for motion models without a
 compiled kernel). The compiled path draws from per-particle random streams, so one seed
 gives one answer whatever the number of threads; by default the number of threads is chosen
-by timing one thread against all (:class:`ThreadChoice`), because on a shared machine more
-threads are often slower. A correction is a handful of compiled or vectorised passes
-(log-likelihood, normalisation with the moments and ESS, the resampling's inverse CDF);
+by timing one thread against all (:class:`ThreadChoice`; a prediction with the correction
+and resampling after it), because on a shared machine more threads are often slower. A
+correction is a handful of compiled passes (log-likelihood; the normalisation with the
+moments and ESS in one compiled call, :func:`hmmtrack.tracking.compiled.weighing.weigh`;
+the resampling's inverse CDF and gather into the spare particle arrays), on the threads of
+the latest prediction from :data:`PARALLEL_MIN_CORRECTION` particles;
 :meth:`ParticleFilter.iterate` converts all observations once to the measurement model's
 matrix form when the model offers one (``as_matrix``) instead of slicing a table at every
 correction. After each resampling :attr:`ParticleFilter.last_ancestors` holds the ancestor
@@ -52,7 +55,6 @@ This module does not read files or build observations (:mod:`hmmtrack.tracking.p
 
 from __future__ import annotations
 
-import math
 import time as clock
 import warnings
 from collections.abc import Iterator, Sequence
@@ -62,11 +64,11 @@ from typing import NamedTuple
 import numba
 import numpy as np
 import pandas as pd
-from numba import njit
 
 from hmmtrack.random import SeedLike, as_generator
 from hmmtrack.tracking.compiled import streams as rs
 from hmmtrack.tracking.compiled.threads import ThreadChoice
+from hmmtrack.tracking.compiled.weighing import weigh
 from hmmtrack.tracking.measurement.base import Score
 from hmmtrack.tracking.particles import Particles, as_bounds, sqrt_largest_eigenvalue
 from hmmtrack.tracking.resampling import RESAMPLERS, get_resampler
@@ -97,6 +99,10 @@ ESTIMATE_COLUMNS = ("time", "x", "y", "var_x", "var_y", "cov_xy", "sqrt_lambda1"
 #: for more threads to pay); above it the filter times one and all threads and keeps the
 #: faster (pass ``threads=`` to fix the number)
 PARALLEL_MIN_WORK = 20_000
+#: below this many particles corrections and resamplings run on one thread: their chunked
+#: passes are too short for thread hand-overs to pay (at N = 10,000 on a loaded 2-core
+#: machine, running them on the prediction's two threads made runs 3-4x slower)
+PARALLEL_MIN_CORRECTION = 50_000
 BACKENDS = ("auto", "numba", "numpy")
 RESAMPLE_WHEN = ("always", "ess")
 
@@ -155,92 +161,35 @@ def _estimate(time, mean_x, mean_y, var_x, var_y, cov_xy, n_eff) -> Estimate:
     return Estimate(time, mean_x, mean_y, var_x, var_y, cov_xy, sqrt_lambda1, n_eff)
 
 
-@njit(cache=True)
-def _add_log_weights(log_weight, loglik, out):
-    """``out = log_weight + loglik`` in one (vectorised) pass; whether ``loglik`` has NaN
-    or ``+inf`` entries."""
-    bad = False
-    for i in range(out.size):
-        li = loglik[i]
-        bad |= not li < np.inf
-        out[i] = log_weight[i] + li
-    return bad
-
-
-# ``reassoc`` lets LLVM split the sums into vector lanes (4-5x faster than one serial chain
-# of additions); the result is still one fixed order of operations for a given input
-@njit(cache=True, fastmath={"reassoc"})
-def _normalised_moments(w, x, y, k):
-    """Normalise the weights ``w`` (N,) in place and return their sum ``s`` before that,
-    the weighted mean, variances and covariance of ``(x, y)`` and the ESS ``s^2 / sum w^2``.
-
-    The moments are taken about particle ``k`` (the heaviest: inside the cloud, so no
-    cancellation far from the origin)."""
-    x0 = x[k]
-    y0 = y[k]
-    s = sx = sy = sxx = syy = sxy = sww = 0.0
-    for i in range(w.size):
-        dx = x[i] - x0
-        dy = y[i] - y0
-        wi = w[i]
-        s += wi
-        sx += wi * dx
-        sy += wi * dy
-        sxx += wi * dx * dx
-        syy += wi * dy * dy
-        sxy += wi * dx * dy
-        sww += wi * wi
-    scale = 1.0 / s
-    for i in range(w.size):
-        w[i] *= scale
-    mx, my = sx / s, sy / s
-    var_x = max(sxx / s - mx * mx, 0.0)
-    var_y = max(syy / s - my * my, 0.0)
-    return s, x0 + mx, y0 + my, var_x, var_y, sxy / s - mx * my, s * s / sww
-
-
-def _weight_summary(x, y, log_weight, top=None, k=None):
-    """Normalised weights (N,) and the weighted mean, covariance and ESS.
-
-    The exponentials are NumPy's (vectorised), the moments one compiled pass
-    (:func:`_normalised_moments`). ``top`` and ``k``, the largest log weight and its index,
-    are computed when not given.
+def _weight_summary(x, y, log_weight, threads: int = 1):
+    """Normalised weights (N,) and the weighted mean, covariance and ESS
+    (:func:`hmmtrack.tracking.compiled.weighing.weigh` on ``threads`` threads).
 
     Returns ``(weights, log_total, mean_x, mean_y, var_x, var_y, cov_xy, n_eff)`` with
     ``log_total`` the log-sum-exp of ``log_weight`` (all ``-inf`` count as equal); the same
     numbers as ``np.average`` / ``np.cov(..., aweights=w, bias=True)`` and
     :func:`hmmtrack.tracking.resampling.effective_sample_size` (tested).
     """
-    if top is None:
-        k = int(np.argmax(log_weight))
-        top = log_weight[k]
-    if top == -np.inf:  # every particle impossible: all equally so (never NaN)
-        top, log_weight = 0.0, np.zeros(log_weight.size)
-    weights = np.subtract(log_weight, top)
-    np.exp(weights, out=weights)
-    s, *moments = _normalised_moments(weights, x, y, k)
-    return weights, top + math.log(s), *moments
+    status, _, weights, log_total, summary = weigh(log_weight, None, x, y, threads)
+    if status == 2:  # every particle impossible: all equally so (never NaN)
+        _, _, weights, log_total, summary = weigh(np.zeros(log_weight.size), None, x, y, threads)
+    return weights, log_total, *summary
 
 
-def _weigh(log_weight, loglik, x, y):
+def _weigh(log_weight, loglik, x, y, threads: int = 1):
     """The correction's arithmetic: add ``loglik`` to the log weights, normalise them, and
-    return the normalised weights, moments and ESS.
+    return the normalised weights, moments and ESS
+    (:func:`hmmtrack.tracking.compiled.weighing.weigh` on ``threads`` threads).
 
     Returns ``(status, log_weight, weights, mean_x, mean_y, var_x, var_y, cov_xy, n_eff)``
     where ``status`` is 0 (done), 1 (``loglik`` has NaN or ``+inf``) or 2 (every particle
     impossible); the rest is meaningful only when ``status == 0``. Equal to
     :func:`hmmtrack.tracking.resampling.log_normalise` and :func:`_weight_summary` (tested).
     """
-    updated = np.empty(log_weight.size)
-    if _add_log_weights(log_weight, loglik, updated):
-        return 1, None, None, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-    k = int(np.argmax(updated))
-    top = updated[k]
-    if top == -np.inf:
-        return 2, None, None, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-    weights, log_total, *moments = _weight_summary(x, y, updated, top, k)
-    updated -= log_total
-    return 0, updated, weights, *moments
+    status, updated, weights, _, summary = weigh(log_weight, loglik, x, y, threads)
+    if status:
+        return status, None, None, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    return 0, updated, weights, *summary
 
 
 def _weighted_moments(p: Particles, weights: np.ndarray, origin) -> np.ndarray:
@@ -321,7 +270,10 @@ class ParticleFilter:
         Threads for compiled prediction; ``None`` uses one thread for small calls (fewer
         than :data:`PARALLEL_MIN_WORK` particle-steps) and otherwise whichever of one
         thread and ``numba.get_num_threads()`` (when the filter is made) has been faster per
-        particle-step so far (:class:`ThreadChoice`). Results do not depend on it.
+        particle-step so far (:class:`ThreadChoice`), each prediction timed with the
+        correction and resampling that follow it; corrections and resamplings of at least
+        :data:`PARALLEL_MIN_CORRECTION` particles run on the threads of the latest
+        prediction. Results do not depend on it.
     correction : Plain, Tempered or None
         Correction policy (:mod:`hmmtrack.tracking.tempering`); ``None``: :class:`Plain`.
     collect : sequence of collectors
@@ -338,6 +290,12 @@ class ParticleFilter:
     monitor : Monitor or None
         Test every correction's predictive likelihood and re-acquire a lost tag
         (:class:`hmmtrack.tracking.monitor.Monitor`); ``None``: no test.
+
+    Notes
+    -----
+    A resampling gathers the new particles into the arrays of the particles from before the
+    previous resampling (no fresh arrays): :attr:`particles` held from outside stay valid
+    until the next resampling but one; keep a :meth:`Particles.copy` for longer.
     """
 
     def __init__(
@@ -396,10 +354,21 @@ class ParticleFilter:
         # numba's thread count of this thread (``numba.set_num_threads``: 1 in the worker
         # processes of hmmtrack.experiments.executors, which run one trial per core)
         self._thread_choice = ThreadChoice(numba.get_num_threads())
+        # threads of the latest compiled prediction (else ``threads`` or one): the
+        # corrections' too from PARALLEL_MIN_CORRECTION particles (see _correction_threads)
+        self._threads_in_use = 1 if threads is None else threads
+        # (threads, start, particle-steps) of the timed prediction under way: the thread
+        # choice is told the cost of each prediction with the correction and resampling that
+        # follow it, when the next prediction starts
+        self._cycle: tuple[int, float, int] | None = None
         self.particles: Particles | None = None
         self.time: float | None = None
         self.events: list[dict] = []
         self._streams: np.ndarray | None = None
+        # the particles before the latest resampling: the arrays the next one gathers into
+        # (Particles.take's ``out``), so that a resampling allocates no particle arrays
+        self._spare: Particles | None = None
+        self._equal: np.ndarray | None = None  # see _equal_weights
         #: ancestor indices (N,) of the last resampling (None before any); read by smoothers
         self.last_ancestors: np.ndarray | None = None
         #: the measurement's state of this run (its ``start`` hook's; None without one)
@@ -423,6 +392,8 @@ class ParticleFilter:
         self.particles = Particles.uniform(self.rng, self.n_particles, self.bounds)
         self.motion.initialise(self.rng, self.particles)
         self._streams = rs.new_streams(self.rng, self.n_particles)
+        self._spare = None
+        self._cycle = None
         self.time = float(time)
         self.events = []
         self.last_ancestors = None
@@ -443,7 +414,8 @@ class ParticleFilter:
     def estimate(self) -> Estimate:
         """Weighted estimate of the current particles at the current time."""
         p = self._require_particles()
-        return _estimate(self.time, *_weight_summary(p.x, p.y, p.log_weight)[2:])
+        summary = _weight_summary(p.x, p.y, p.log_weight, self._correction_threads())
+        return _estimate(self.time, *summary[2:])
 
     def _require_particles(self) -> Particles:
         if self.particles is None:
@@ -489,22 +461,32 @@ class ParticleFilter:
         p = self.particles
         if self._weighed is not None and self._weighed[0] is p.log_weight:
             return self._weighed[1:]
-        weights, _, mean_x, mean_y, _, _, _, n_eff = _weight_summary(p.x, p.y, p.log_weight)
+        weights, _, mean_x, mean_y, _, _, _, n_eff = _weight_summary(
+            p.x, p.y, p.log_weight, self._correction_threads()
+        )
         return weights, n_eff, (mean_x, mean_y)
 
     def _advance(self, p: Particles, n_steps: int, weights: np.ndarray, origin) -> np.ndarray:
         work = p.n * n_steps
+        started = clock.perf_counter()
+        if self._cycle is not None:  # the previous cycle ends here, before the next choice
+            last_threads, last_started, last_work = self._cycle
+            self._thread_choice.record(last_threads, (started - last_started) / last_work)
         threads = self.threads
         if threads is None:
             threads = 1 if work < PARALLEL_MIN_WORK else self._thread_choice.pick()
         threads = min(threads, numba.config.NUMBA_NUM_THREADS)
-        started = clock.perf_counter()
-        moments = self.motion.advance(
+        self._threads_in_use = threads
+        timed = self.threads is None and work >= PARALLEL_MIN_WORK
+        self._cycle = (threads, started, work) if timed else None
+        return self.motion.advance(
             p, self._streams, n_steps, self.dt, weights, origin, threads=threads
         )
-        if self.threads is None and work >= PARALLEL_MIN_WORK:
-            self._thread_choice.record(threads, (clock.perf_counter() - started) / work)
-        return moments
+
+    def _correction_threads(self) -> int:
+        """Threads of corrections and resamplings: the latest prediction's from
+        :data:`PARALLEL_MIN_CORRECTION` particles, else one."""
+        return self._threads_in_use if self.n_particles >= PARALLEL_MIN_CORRECTION else 1
 
     # ------------------------------------------------------------------ correct
 
@@ -559,7 +541,9 @@ class ParticleFilter:
                 f"{type(self.measurement).__name__}.loglik returned shape {loglik.shape}, "
                 f"expected ({p.n},), at time {self.time} for observations:\n{rows()}"
             )
-        status, log_weight, weights, *moments, n_eff = _weigh(p.log_weight, loglik, p.x, p.y)
+        status, log_weight, weights, *moments, n_eff = _weigh(
+            p.log_weight, loglik, p.x, p.y, self._correction_threads()
+        )
         if status == 1:
             raise ValueError(
                 f"{type(self.measurement).__name__}.loglik returned NaN/+inf values "
@@ -645,17 +629,33 @@ class ParticleFilter:
         weights, _, origin = self.weights()
         if self.mixture is None:
             ancestors = self._resample(self.rng, weights, p.n)
-            self.particles = p.take(ancestors, equal_weights=True)
+            self._take(p, ancestors)
             # equal weights now; the old weighted mean still lies inside the cloud
-            self._weighed = (self.particles.log_weight, np.full(p.n, 1.0 / p.n), float(p.n), origin)
+            self._weighed = (self.particles.log_weight, self._equal_weights(), float(p.n), origin)
         else:
             ancestors, log_weight = self.mixture.resample(self, weights)
-            self.particles = p.take(ancestors, equal_weights=True)
+            self._take(p, ancestors)
             self.particles.log_weight = log_weight
             self.keep_weights(np.exp(log_weight))
         self.last_ancestors = ancestors
         for collector in self.collect:
             collector.resampled(self, ancestors)
+
+    def _take(self, p: Particles, ancestors: np.ndarray) -> None:
+        """The particles become ``p``'s ``ancestors`` with equal weights, gathered into the
+        spare arrays (those of the particles before the previous resampling, which nothing
+        holds on to) on the correction's threads; ``p``'s arrays become the spare ones."""
+        spare = self._spare
+        self.particles = p.take(ancestors, True, out=spare, threads=self._correction_threads())
+        self._spare = p
+
+    def _equal_weights(self) -> np.ndarray:
+        """The equal normalised weights ``1 / N`` (N,), one read-only array per filter."""
+        n = self.particles.n
+        if self._equal is None or self._equal.size != n:
+            self._equal = np.full(n, 1.0 / n)
+            self._equal.flags.writeable = False
+        return self._equal
 
     def _settle(self) -> None:
         """The particles at :attr:`time` are final (about to move or be resampled, or the

@@ -17,9 +17,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field, fields
 
+import numba
 import numpy as np
 import pandas as pd
 from numba import njit
+
+from hmmtrack.tracking.compiled.chunks import in_chunks, next_chunk
 
 __all__ = ["Bounds", "Particles", "as_bounds", "split_in_two", "sqrt_largest_eigenvalue"]
 
@@ -177,8 +180,14 @@ class Particles:
         """Deep copy."""
         return self.take(np.arange(self.n))
 
-    def take(self, indices: np.ndarray, equal_weights: bool = False) -> Particles:
-        """New particles ``self[indices]`` for every field (used after resampling).
+    def take(
+        self,
+        indices: np.ndarray,
+        equal_weights: bool = False,
+        out: Particles | None = None,
+        threads: int = 1,
+    ) -> Particles:
+        """Particles ``self[indices]`` for every field (used after resampling).
 
         Parameters
         ----------
@@ -187,6 +196,15 @@ class Particles:
         equal_weights : bool
             Give the new particles the equal log weights ``-log M`` instead of their
             ancestors' (what resampling does; the old ones are then not gathered).
+        out : Particles, optional
+            Particles whose arrays receive the fields and which are returned, when they are
+            M particles in contiguous arrays of the fields' dtypes and are not ``self``
+            (the particle filter's spare set: no fresh arrays to allocate and fault in);
+            otherwise, and by default, the fields are new arrays. Extra fields are always
+            new arrays.
+        threads : int
+            Threads for the compiled gather (in the chunks of
+            :mod:`hmmtrack.tracking.compiled.chunks`; results do not depend on it).
         """
         indices = np.asarray(indices)
         if indices.ndim != 1 or not np.issubdtype(indices.dtype, np.integer):
@@ -194,30 +212,38 @@ class Particles:
                 f"Particles.take needs a 1-D integer array of indices, got a {indices.dtype} "
                 f"array of shape {indices.shape}"
             )
+        m = indices.size
         names = _MOTION_NAMES if equal_weights else _FLOAT_NAMES
-        # every field taken is a fresh, contiguous array of the field's dtype and shape (M,):
-        # nothing for __post_init__ to check or convert
-        taken = object.__new__(Particles)
         sources = tuple(getattr(self, name) for name in names)
         if all(a.dtype == np.float64 and a.flags.c_contiguous for a in sources):
-            targets = tuple(np.empty(indices.size) for _ in sources)
-            state = np.empty(indices.size, dtype=self.state.dtype)
-            inside = _gather(sources, targets, self.state, state, indices)
-            for name, value in zip(names, targets, strict=True):
-                setattr(taken, name, value)
-            taken.state = state
-        else:  # fields replaced by arrays of another layout: NumPy's indexing
-            inside = indices.size == 0 or 0 <= indices.min() <= indices.max() < self.n
+            inside = _all_inside(indices, self.n)
             if inside:
+                taken = out if _fits(out, m, self) else _empty(m, self.state.dtype)
+                log_target = taken.log_weight
+                log_source = log_target if equal_weights else self.log_weight
+                in_chunks(
+                    _gather_kernel, _gather_parallel, m, threads,
+                    (
+                        tuple(getattr(self, name) for name in _MOTION_NAMES),
+                        tuple(getattr(taken, name) for name in _MOTION_NAMES),
+                        log_source, log_target, equal_weights, -math.log(max(m, 1)),
+                        self.state, indices,
+                    ),
+                    taken.state,
+                )  # fmt: skip
+        else:  # fields replaced by arrays of another layout: NumPy's indexing
+            inside = m == 0 or 0 <= indices.min() <= indices.max() < self.n
+            if inside:
+                taken = object.__new__(Particles)
                 for name in (*names, "state"):
                     setattr(taken, name, getattr(self, name)[indices])
+                if equal_weights:
+                    taken.log_weight = np.full(m, -np.log(m))
         if not inside:
             raise ValueError(
                 f"Particles.take needs indices in 0..{self.n - 1}, got values from "
                 f"{indices.min()} to {indices.max()}"
             )
-        if equal_weights:
-            taken.log_weight = np.full(indices.size, -np.log(indices.size))
         taken.extra = {name: value[indices] for name, value in self.extra.items()}
         return taken
 
@@ -246,27 +272,84 @@ _FLOAT_NAMES = tuple(name for name in _ARRAY_NAMES if name != "state")
 _MOTION_NAMES = tuple(name for name in _FLOAT_NAMES if name != "log_weight")
 
 
+def _empty(m: int, state_dtype) -> Particles:
+    """Particles of ``m`` particles in new, uninitialised, contiguous arrays (nothing for
+    ``__post_init__`` to check or convert)."""
+    empty = object.__new__(Particles)
+    for name in _FLOAT_NAMES:
+        setattr(empty, name, np.empty(m))
+    empty.state = np.empty(m, dtype=state_dtype)
+    return empty
+
+
+def _fits(out: Particles | None, m: int, source: Particles) -> bool:
+    """Whether ``out`` can receive ``m`` particles taken from ``source``."""
+    if out is None or out is source:
+        return False
+    arrays = [getattr(out, name) for name in _FLOAT_NAMES]
+    return all(
+        a.shape == (m,) and a.dtype == np.float64 and a.flags.c_contiguous and a.flags.writeable
+        for a in arrays
+    ) and (
+        out.state.shape == (m,)
+        and out.state.dtype == source.state.dtype
+        and out.state.flags.c_contiguous
+        and out.state.flags.writeable
+    )
+
+
 @njit(cache=True)
-def _gather(sources, targets, state_source, state_target, indices):
-    """``targets[k][:] = sources[k][indices]`` for every array of the tuples ``sources``
-    (N,) and ``targets`` (M,), and ``state_target[:] = state_source[indices]``, when every
-    index (M,) lies in ``0..N-1``; returns whether they do (nothing is written otherwise).
-    One compiled pass per array, about 15 % faster than NumPy's indexing for 10,000
-    particles (``Particles.take`` runs after every correction)."""
-    n = state_source.size
+def _all_inside(indices, n):
+    """Whether every index lies in ``0..n-1`` (one branch-free, vectorised pass)."""
     inside = True
     for i in range(indices.size):
         inside &= (indices[i] >= 0) & (indices[i] < n)
-    if not inside:
-        return False
-    for k in range(len(sources)):
-        source = sources[k]
-        target = targets[k]
-        for i in range(indices.size):
-            target[i] = source[indices[i]]
-    for i in range(indices.size):
-        state_target[i] = state_source[indices[i]]
-    return True
+    return inside
+
+
+@njit(cache=True, nogil=True)
+def _gather_kernel(
+    sources, targets, log_source, log_target, equal, log_fill, state_source, indices, counter,
+    state_target,
+):  # fmt: skip
+    """For each chunk not yet claimed (:func:`next_chunk`) of the ``M`` new particles
+    ``lo:hi``: ``targets[k][lo:hi] = sources[k][indices[lo:hi]]`` for every array of the
+    tuples, the same for the state and the log weight, or ``log_fill`` for every log weight
+    when ``equal``. Indices must lie inside the sources."""
+    chunk, lo, hi = next_chunk(counter, indices.size)
+    while chunk >= 0:
+        for k in range(len(sources)):
+            source = sources[k]
+            target = targets[k]
+            for i in range(lo, hi):
+                target[i] = source[indices[i]]
+        for i in range(lo, hi):
+            state_target[i] = state_source[indices[i]]
+        if equal:
+            log_target[lo:hi] = log_fill
+        else:
+            for i in range(lo, hi):
+                log_target[i] = log_source[indices[i]]
+        chunk, lo, hi = next_chunk(counter, indices.size)
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def _gather_parallel(
+    threads, x, y, heading, cos_heading, sin_heading, speed, turn_rate, time_since_draw,
+    x_to, y_to, heading_to, cos_heading_to, sin_heading_to, speed_to, turn_rate_to,
+    time_since_draw_to, log_source, log_target, equal, log_fill, state_source, indices,
+    counter, state_target,
+):  # fmt: skip
+    sources = (x, y, heading, cos_heading, sin_heading, speed, turn_rate, time_since_draw)
+    targets = (
+        x_to, y_to, heading_to, cos_heading_to, sin_heading_to, speed_to, turn_rate_to,
+        time_since_draw_to,
+    )  # fmt: skip
+    for _ in numba.prange(threads):
+        _gather_kernel(
+            sources, targets, log_source, log_target, equal, log_fill, state_source, indices,
+            counter, state_target,
+        )  # fmt: skip
 
 
 def sqrt_largest_eigenvalue(var_x, var_y, cov_xy) -> np.ndarray | float:

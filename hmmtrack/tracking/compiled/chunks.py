@@ -1,13 +1,14 @@
-"""Chunked parallel runs of compiled particle kernels: the plumbing shared by the motion kernels.
+"""Chunked parallel runs of compiled particle kernels: the plumbing shared by the motion kernels
+and the correction (:mod:`hmmtrack.tracking.compiled.weighing`).
 
 A compiled motion kernel (:mod:`hmmtrack.tracking.motion`) moves ``N`` particles ``n_steps``
 prediction steps and sums their weighted position moments after every step. This module
 splits the particles into fixed chunks (:func:`chunking`: the split depends on ``N`` only),
 lets threads claim the chunks one at a time (:func:`next_chunk`, an atomic counter), and
-runs a kernel and its parallel twin over them (:func:`run_chunks`), minding numba's
-threading layers (the "workqueue" layer's lock, OpenMP after a fork). Every chunk writes its
-own particles and its own row of sums, reduced in a fixed order, so results do not depend
-on the number of threads.
+runs a kernel and its parallel twin over them (:func:`in_chunks`; :func:`run_chunks` for the
+motion kernels' sums), minding numba's threading layers (the "workqueue" layer's lock,
+OpenMP after a fork). Every chunk writes its own particles and its own row of sums, reduced
+in a fixed order, so results do not depend on the number of threads.
 
 It knows nothing of motion models or random numbers (:mod:`hmmtrack.tracking.compiled.streams`).
 """
@@ -28,6 +29,7 @@ __all__ = [
     "N_CHUNKS",
     "N_MOMENTS",
     "chunking",
+    "in_chunks",
     "moments_pass",
     "next_chunk",
     "run_chunks",
@@ -125,23 +127,30 @@ os.register_at_fork(after_in_child=_note_fork)
 
 
 def run_chunks(kernel, parallel, n: int, n_steps: int, threads: int | None, *args) -> np.ndarray:
-    """Run ``kernel(*args, counter, sums)`` over all chunks of ``n`` particles and return
-    the weighted moments ``(n_steps, 5)`` (the per-chunk sums reduced in a fixed order).
+    """Run ``kernel(*args, counter, sums)`` over all chunks of ``n`` particles
+    (:func:`in_chunks`) and return the weighted moments ``(n_steps, 5)`` (the per-chunk sums
+    reduced in a fixed order)."""
+    sums = np.zeros((chunking(n)[0], n_steps, N_MOMENTS))
+    in_chunks(kernel, parallel, n, threads, args, sums)
+    return sums.sum(axis=0)
+
+
+def in_chunks(kernel, parallel, n: int, threads: int | None, args: tuple, out) -> None:
+    """Run ``kernel(*args, counter, out)`` over all chunks of ``n`` particles.
 
     With ``threads`` > 1 (``None``: ``numba.get_num_threads()``), ``parallel(threads,
-    *args, counter, sums)`` (tuple arguments spread into their items) runs the kernel on
+    *args, counter, out)`` (tuple arguments spread into their items) runs the kernel on
     that many threads of numba's threading layer at once (OpenMP's threads wait awake for
     a while between calls, so a call starts in a few microseconds), each claiming the next
     unclaimed chunk whenever it finishes one (:func:`next_chunk`): a thread that starts
     late or is slowed by other work on the machine simply runs fewer chunks. Every chunk
-    writes its own particles and its own row of ``sums``, so the results do not depend on
+    writes its own particles and its own row of ``out``, so the results do not depend on
     which thread ran it. Under numba's "workqueue" layer only one Python thread at a time
     runs kernels in parallel, the others run them on their own thread; in a process forked
     after this one started OpenMP threads, every call runs on the calling thread.
     """
     global _OPENMP_STARTED
     n_chunks, _ = chunking(n)
-    sums = np.zeros((n_chunks, n_steps, N_MOMENTS))
     counter = np.zeros(1, dtype=np.int64)
     previous = numba.get_num_threads()  # of this thread (numba's default: all); starts the layer
     threads = previous if threads is None else threads
@@ -154,20 +163,17 @@ def run_chunks(kernel, parallel, n: int, n_steps: int, threads: int | None, *arg
             # tuples of arrays (the von Mises tables) are passed to ``parallel`` as their items
             flat = [item for arg in args for item in (arg if isinstance(arg, tuple) else (arg,))]
             try:
-                # Load the serial kernel before its parallel twin: a call with every chunk
-                # already claimed does nothing. When the twin was loaded from numba's on-disk
-                # cache first, it ran its own copy of the kernel, 20-25 % slower (HMM at 1 s,
-                # N = 10,000: 0.97 s against 0.78 s a run); with the kernel loaded first it
-                # runs the kernel's (2.7 us)
-                kernel(*args, np.array([n_chunks], dtype=np.int64), sums)
+                # Load the serial kernel before its parallel twin (a call with every chunk
+                # already claimed does nothing): a twin loaded first from numba's on-disk
+                # cache runs a slower copy of its own (reports/decisions.md, "Motion models")
+                kernel(*args, np.array([n_chunks], dtype=np.int64), out)
                 if previous != threads:
                     numba.set_num_threads(threads)
-                parallel(threads, *flat, counter, sums)
+                parallel(threads, *flat, counter, out)
             finally:
                 if previous != threads:
                     numba.set_num_threads(previous)
                 if exclusive:
                     _WORKQUEUE_LOCK.release()
-            return sums.sum(axis=0)
-    kernel(*args, counter, sums)
-    return sums.sum(axis=0)
+            return
+    kernel(*args, counter, out)

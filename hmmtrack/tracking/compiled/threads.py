@@ -2,9 +2,10 @@
 
 On a shared machine more threads are often slower than one, and which is faster changes with
 the load; the particle filter (:class:`hmmtrack.tracking.filter.ParticleFilter`) therefore
-times its compiled prediction calls (:func:`hmmtrack.tracking.compiled.chunks.run_chunks`)
-on one thread and on all, keeps the cheaper and retries the other now and then. Only speed
-depends on the choice, never results.
+times its compiled prediction calls (:func:`hmmtrack.tracking.compiled.chunks.run_chunks`),
+each with the correction and resampling that follow it on the same threads (from one
+prediction to the next), on one thread and on all, keeps the cheaper and retries the other
+now and then. Only speed depends on the choice, never results.
 """
 
 from __future__ import annotations

@@ -1,0 +1,218 @@
+"""The particle filter's correction arithmetic, compiled, in chunks that run on several threads.
+
+A correction adds a log-likelihood (N,) to the particles' log weights, normalises them by
+their log-sum-exp and summarises the weights: the weighted mean and covariance of the
+positions and the effective sample size (ESS). :func:`weigh` does it in four passes over the
+particles, three of them in the chunks of :mod:`hmmtrack.tracking.compiled.chunks` on as many
+threads as asked (:func:`~hmmtrack.tracking.compiled.chunks.in_chunks`):
+
+1. per chunk: the updated log weights, whether the log-likelihood has NaN or ``+inf``
+   entries, and the chunk's largest log weight (its first index);
+2. per chunk: the weights ``exp(log weight - largest)``;
+3. on one thread: the sums of the weights, of their position moments about the heaviest
+   particle and of their squares (:func:`moment_sums`). These sums feed back into the filter
+   (normalisation, resampling, every later estimate); summed per chunk and combined they
+   would differ in their last bits from the one vectorised order of this pass, which is
+   the order the filter has always used (its stored golden runs);
+4. per chunk: the weights divided by their sum (a division, not a multiplication by its
+   reciprocal: the filter's order since its moments pass let LLVM turn one into the other)
+   and the log weights minus their log-sum-exp.
+
+Every chunk writes only its own particles and its own row of results, combined in chunk order,
+so the results do not depend on the number of threads; they are bit for bit those of the
+NumPy composition (``log_weight + loglik``, ``np.argmax``, ``np.exp``, one pass of sums).
+
+It knows nothing of measurements or resampling schemes.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+from numba import njit
+
+from hmmtrack.tracking.compiled.chunks import chunking, in_chunks, next_chunk
+
+__all__ = ["moment_sums", "weigh"]
+
+#: the passes of :func:`_weigh_kernel`
+_UPDATE, _EXPONENTIALS, _NORMALISE = 0, 1, 2
+
+
+@njit(cache=True, nogil=True)
+def _weigh_kernel(
+    phase, log_weight, loglik, add, updated, weights, top, total, shift, counter, found
+):  # fmt: skip
+    """One pass over every chunk not yet claimed (:func:`next_chunk`).
+
+    ``_UPDATE``: ``updated = log_weight + loglik`` (``add``; else a copy of ``log_weight``),
+    ``found[chunk] = (whether loglik has NaN or +inf, index of the chunk's first largest
+    updated log weight, that log weight)``. ``_EXPONENTIALS``: ``weights = exp(updated -
+    top)``. ``_NORMALISE``: ``weights /= total``, ``updated -= shift``.
+    """
+    n = updated.size
+    chunk, lo, hi = next_chunk(counter, n)
+    while chunk >= 0:
+        if phase == _UPDATE:
+            bad = False
+            if add:
+                for i in range(lo, hi):
+                    li = loglik[i]
+                    bad |= not li < np.inf
+                    updated[i] = log_weight[i] + li
+            else:
+                updated[lo:hi] = log_weight[lo:hi]
+            k = lo
+            largest = updated[lo]
+            for i in range(lo + 1, hi):
+                if updated[i] > largest:
+                    largest = updated[i]
+                    k = i
+            found[chunk, 0] = bad
+            found[chunk, 1] = k
+            found[chunk, 2] = largest
+        elif phase == _EXPONENTIALS:
+            for i in range(lo, hi):
+                weights[i] = math.exp(updated[i] - top)
+        else:
+            for i in range(lo, hi):
+                weights[i] /= total
+                updated[i] -= shift
+        chunk, lo, hi = next_chunk(counter, n)
+
+
+# ``reassoc`` lets LLVM split the sums into vector lanes (4-5x faster than one serial chain
+# of additions); the result is still one fixed order of operations for a given input
+@njit(cache=True, fastmath={"reassoc"})
+def moment_sums(w, x, y, k):
+    """The sum ``s`` of the weights ``w`` (N,), the weighted mean, variances and covariance
+    of ``(x, y)`` (N,) (m, m^2) and the ESS ``s^2 / sum w^2``.
+
+    The moments are taken about particle ``k`` (the heaviest: inside the cloud, so no
+    cancellation far from the origin)."""
+    x0 = x[k]
+    y0 = y[k]
+    s = sx = sy = sxx = syy = sxy = sww = 0.0
+    for i in range(w.size):
+        dx = x[i] - x0
+        dy = y[i] - y0
+        wi = w[i]
+        s += wi
+        sx += wi * dx
+        sy += wi * dy
+        sxx += wi * dx * dx
+        syy += wi * dy * dy
+        sxy += wi * dx * dy
+        sww += wi * wi
+    mx, my = sx / s, sy / s
+    var_x = max(sxx / s - mx * mx, 0.0)
+    var_y = max(syy / s - my * my, 0.0)
+    return s, x0 + mx, y0 + my, var_x, var_y, sxy / s - mx * my, s * s / sww
+
+
+@njit(cache=True, nogil=True)
+def _largest(add, found):
+    """``(status, k, top)`` from the chunks' rows of ``found`` (:func:`_weigh_kernel`):
+    status 1 when a chunk found NaN or ``+inf`` in the log-likelihood, 2 when the largest
+    log weight ``top`` is ``-inf``, else 0; ``k`` its first index (``np.argmax``'s)."""
+    if add and found[:, 0].any():
+        return 1, 0, 0.0
+    best = np.argmax(found[:, 2])  # the first chunk with the largest
+    k, top = int(found[best, 1]), found[best, 2]
+    return (2 if top == -np.inf else 0), k, top
+
+
+@njit(cache=True, nogil=True)
+def _weigh_serial(log_weight, loglik, add, x, y, updated, weights, result, counter, found):
+    """:func:`weigh`'s passes on the calling thread; ``result[:] = (status, log_total, mean
+    x, mean y, var x, var y, cov xy, ESS)``. Does nothing when ``counter`` says every chunk
+    was claimed (how :func:`~hmmtrack.tracking.compiled.chunks.in_chunks` loads it)."""
+    if counter[0] > 0:
+        return
+    args = (log_weight, loglik, add, updated, weights)
+    _weigh_kernel(_UPDATE, *args, 0.0, 0.0, 0.0, counter, found)
+    status, k, top = _largest(add, found)
+    result[0] = status
+    if status:
+        return
+    counter[0] = 0
+    _weigh_kernel(_EXPONENTIALS, *args, top, 0.0, 0.0, counter, found)
+    summary = moment_sums(weights, x, y, k)
+    log_total = top + math.log(summary[0])
+    counter[0] = 0
+    _weigh_kernel(_NORMALISE, *args, top, summary[0], log_total, counter, found)
+    result[1] = log_total
+    result[2:] = np.array(summary[1:])
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def _weigh_parallel(
+    threads, log_weight, loglik, add, x, y, updated, weights, result, counter, found
+):  # fmt: skip
+    """:func:`_weigh_serial` with the chunked passes on ``threads`` threads."""
+    for _ in numba.prange(threads):
+        _weigh_kernel(
+            _UPDATE, log_weight, loglik, add, updated, weights, 0.0, 0.0, 0.0, counter, found
+        )
+    status, k, top = _largest(add, found)
+    result[0] = status
+    if status == 0:
+        counter[0] = 0
+        for _ in numba.prange(threads):
+            _weigh_kernel(
+                _EXPONENTIALS, log_weight, loglik, add, updated, weights, top, 0.0, 0.0,
+                counter, found,
+            )  # fmt: skip
+        summary = moment_sums(weights, x, y, k)
+        log_total = top + math.log(summary[0])
+        counter[0] = 0
+        for _ in numba.prange(threads):
+            _weigh_kernel(
+                _NORMALISE, log_weight, loglik, add, updated, weights, top, summary[0],
+                log_total, counter, found,
+            )  # fmt: skip
+        result[1] = log_total
+        result[2:] = np.array(summary[1:])
+
+
+def weigh(log_weight, loglik, x, y, threads: int = 1):
+    """Log weights plus a log-likelihood, normalised, with their weights' summary.
+
+    Parameters
+    ----------
+    log_weight : numpy.ndarray, shape (N,)
+        Log weights (finite or ``-inf``).
+    loglik : numpy.ndarray, shape (N,), or None
+        Log-likelihood to add; ``None``: summarise ``log_weight`` itself.
+    x, y : numpy.ndarray, shape (N,)
+        Positions (m).
+    threads : int
+        Threads for the chunked passes (results do not depend on it).
+
+    Returns
+    -------
+    status : int
+        0 (done), 1 (``loglik`` has NaN or ``+inf`` entries) or 2 (every updated log weight
+        is ``-inf``: every particle impossible); the rest is ``None`` unless 0.
+    log_weight : numpy.ndarray, shape (N,)
+        New array: the updated log weights minus their log-sum-exp.
+    weights : numpy.ndarray, shape (N,)
+        New array: their exponentials, summing to one.
+    log_total : float
+        The log-sum-exp of the updated log weights.
+    summary : list of float
+        Weighted mean x, y (m), variances of x and y and their covariance (m^2), ESS.
+    """
+    n = log_weight.size
+    add = loglik is not None
+    updated = np.empty(n)
+    weights = np.empty(n)
+    result = np.empty(8)
+    args = (log_weight, loglik if add else log_weight, add, x, y, updated, weights, result)
+    in_chunks(_weigh_serial, _weigh_parallel, n, threads, args, np.empty((chunking(n)[0], 3)))
+    status = int(result[0])
+    if status:
+        return status, None, None, None, None
+    return 0, updated, weights, float(result[1]), result[2:].tolist()

@@ -1,0 +1,49 @@
+import math
+
+import numpy as np
+import pytest
+
+from hmmtrack.tracking.compiled.weighing import moment_sums, weigh
+
+
+@pytest.mark.parametrize("n", [1, 1000, 5000, 70_001])
+def test_weigh_is_the_numpy_arithmetic_bit_for_bit_on_any_number_of_threads(n):
+    """One chunk or many, one thread or several: the log weights plus the log-likelihood,
+    ``np.argmax``, ``np.exp``, one pass of sums, the weights divided by their sum and the
+    log weights minus their log-sum-exp -- exactly (the filter's stored golden runs)."""
+    rng = np.random.default_rng(n)
+    x, y = rng.normal(5e5, 50.0, n), rng.normal(4.2e6, 80.0, n)
+    log_weight, loglik = rng.normal(-5.0, 3.0, n), rng.normal(-40.0, 10.0, n)
+    loglik[1::7] = -np.inf
+    updated = log_weight + loglik
+    k = int(np.argmax(updated))
+    w = np.exp(updated - updated[k])
+    s, *summary = moment_sums(w, x, y, k)
+    log_total = updated[k] + math.log(s)
+    for threads in (1, 2, 3):
+        status, out, weights, total, got = weigh(log_weight, loglik, x, y, threads)
+        assert status == 0 and total == log_total and got == summary
+        np.testing.assert_array_equal(weights, w / s)
+        np.testing.assert_array_equal(out, updated - log_total)
+        status, out, weights, total, got = weigh(updated, None, x, y, threads)
+        assert status == 0 and total == log_total and got == summary
+        np.testing.assert_array_equal(weights, w / s)
+    assert summary[:2] == pytest.approx([w @ x / s, w @ y / s], rel=1e-12)
+    assert summary[-1] == pytest.approx(s * s / (w @ w), rel=1e-12)
+
+
+def test_weigh_reports_bad_loglik_and_impossible_particles_in_any_chunk():
+    n = 5000
+    rng = np.random.default_rng(1)
+    x, y, log_weight = rng.normal(size=n), rng.normal(size=n), np.zeros(n)
+    for threads in (1, 2):
+        for bad in (np.nan, np.inf):
+            loglik = np.zeros(n)
+            loglik[4321] = bad
+            assert weigh(log_weight, loglik, x, y, threads)[0] == 1
+        assert weigh(log_weight, np.full(n, -np.inf), x, y, threads)[0] == 2
+        first = np.full(n, -np.inf)
+        first[[3000, 4000]] = 2.0  # ties: the first index, as np.argmax
+        status, out, weights, _, summary = weigh(first, None, x, y, threads)
+        assert status == 0 and weights[3000] == weights[4000] == 0.5
+        assert summary[0] == pytest.approx(0.5 * (x[3000] + x[4000]), rel=1e-12, abs=1e-12)
