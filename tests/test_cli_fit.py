@@ -162,7 +162,7 @@ def test_fit_reads_movebank_lon_lat(track_file, tmp_path):
     np.testing.assert_allclose(model.step.mean, TRUE.step.mean, rtol=0.2)
 
 
-def test_fit_with_a_transition_formula(track_file, tmp_path, capsys):
+def test_fit_with_transition_and_emission_formulas(track_file, tmp_path, capsys):
     table = pd.read_csv(track_file)
     hour = pd.to_datetime(table["time"]).dt.hour + pd.to_datetime(table["time"]).dt.minute / 60
     table.assign(cosT=np.cos(2 * np.pi * hour / 24), sinT=np.sin(2 * np.pi * hour / 24)).to_csv(
@@ -181,8 +181,14 @@ def test_fit_with_a_transition_formula(track_file, tmp_path, capsys):
     assert main([*arguments, "--covariates", "cosT", "sinT"]) == 0
     assert json.loads(model_path.read_text())["coefficients"] == block
     model_path.unlink()
-    assert main([*arguments, "--formula", "step.mean ~ cosT"]) != 0
-    assert "only the transition" in capsys.readouterr().err
+    assert main([*arguments, "--formula", "step.mean ~ cosT", "--formula", "~ sinT"]) == 0
+    assert "step.mean coefficients (~ cosT, link scale)" in capsys.readouterr().out
+    document = json.loads(model_path.read_text())
+    assert document["version"] == 3 and document["coefficients"]["formula"] == "~ sinT"
+    assert document["step"]["formulas"]["mean"]["columns"] == ["Intercept", "cosT"]
+    model_path.unlink()
+    assert main([*arguments, "--formula", "step.shape ~ cosT"]) != 0
+    assert "the parameters that take a formula are ['mean', 'sd']" in capsys.readouterr().err
 
 
 def test_decode_refuses_another_time_step_unless_regularised_or_allowed(track_file, tmp_path):

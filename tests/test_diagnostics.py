@@ -55,7 +55,7 @@ def test_pseudo_residuals_reveal_a_wrong_model():
 def test_pseudo_residuals_match_a_forward_oracle_on_a_short_sequence():
     data = simulate(TRUE, 1, 12, seed=3, n_missing=2).assign(segment="a")
     residuals = diagnostics.pseudo_residuals(TRUE, data)
-    log_lik = TRUE.log_likelihood_matrix(data["step"], data["angle"])
+    log_lik = TRUE.log_likelihood_matrix(TRUE.observations(data))
     log_a = np.log(TRUE.transition)
     for t in range(12):
         if t == 0:

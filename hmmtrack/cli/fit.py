@@ -8,8 +8,9 @@ reads the tracks (plain CSV in metres, or Movebank lon/lat with ``--format moveb
 projected by ``--crs``; rows without a fix refused, dropped or kept by ``--missing``),
 computes steps and turning angles (:func:`hmmtrack.tracks.prepare`), fits
 (:class:`hmmtrack.hmm.MovementHMMEstimator`, with ``--formula 'transition ~ cosT + sinT'`` or
-``--covariates`` on the transition probabilities), prints the parameters with Wald intervals,
-the transition coefficients on the data's scale, the transition matrix, the log-likelihood
+``--covariates`` on the transition probabilities and ``--formula 'step.mean ~ cosT + sinT'``
+on a parameter of a stream's distribution), prints the parameters with Wald intervals,
+the coefficients on the data's scale, the transition matrix, the log-likelihood
 and AIC, and writes the model file; ``--plot DIR`` also writes the standard figures
 (:func:`hmmtrack.plots.hmm.hmm_figures`). States are numbered from 1 (the smallest mean step);
 ``--state-names`` labels them in the output. The reading options defined here are shared with
@@ -181,10 +182,14 @@ def register(subparsers) -> None:
     )
     parser.add_argument(
         "--formula",
-        metavar="'transition ~ TERMS'",
-        help="formula of the transition probabilities, e.g. 'transition ~ cosT + sinT' or "
-        "'transition ~ C(season) + cos(2*pi*hour/24)' (columns of the track file; factors "
-        "with C(), any numpy expression; coefficients printed also on the data's scale)",
+        action="append",
+        default=[],
+        metavar="'PARAMETER ~ TERMS'",
+        help="formula of the transition probabilities ('transition ~ cosT + sinT', "
+        "'transition ~ C(season) + cos(2*pi*hour/24)') or of a parameter of a stream's "
+        "distribution through its link ('step.mean ~ cosT + sinT', 'angle.concentration ~ "
+        "x'); repeat for several. Columns of the track file; factors with C(), any numpy "
+        "expression; coefficients printed also on the data's scale",
     )
     parser.add_argument(
         "--impute",
@@ -248,36 +253,40 @@ def write_figures(folder: str, model, prepared: pd.DataFrame, states, state_name
     return sorted(figures)
 
 
-def transition_formula(text: str | None) -> str | None:
-    """The right-hand side ``"~ terms"`` of ``--formula 'transition ~ terms'``.
+def parse_formulas(texts: list[str]) -> dict[str, str]:
+    """``{parameter: "~ terms"}`` of ``--formula 'parameter ~ terms'`` options (a formula
+    without a parameter is the transition probabilities').
 
     Raises
     ------
     ValueError
-        For a formula of anything but the transition probabilities (the only parameter with
-        covariates so far), or without ``~``.
+        For a formula without ``~`` or a parameter given twice.
     """
-    if text is None:
-        return None
-    target, tilde, terms = text.partition("~")
-    if not tilde or target.strip() not in ("", "transition"):
-        raise ValueError(
-            f"--formula {text!r}: expected 'transition ~ terms' (only the transition "
-            "probabilities take a formula)"
-        )
-    return "~" + terms
+    out: dict[str, str] = {}
+    for text in texts:
+        target, tilde, terms = text.partition("~")
+        target = target.strip() or "transition"
+        if not tilde:
+            raise ValueError(
+                f"--formula {text!r}: expected 'PARAMETER ~ terms' ('transition ~ cosT', "
+                "'step.mean ~ cosT + sinT')"
+            )
+        if target in out:
+            raise ValueError(f"--formula: two formulas of {target!r}")
+        out[target] = "~" + terms
+    return out
 
 
 def run(args: argparse.Namespace) -> int:
     check_paths({"tracks": args.tracks}, outputs={"-o": args.output}, folders={"--plot": args.plot})
-    formula = transition_formula(args.formula)
+    formulas = parse_formulas(args.formula)
     check_state_names_option(args.states, args.state_names)
     options = {
         "step": args.step,
         "angle": args.angle,
         "estimate_angle_mean": not args.fix_angle_mean,
         "covariates": tuple(args.covariates),
-        "formula": formula,
+        "formulas": formulas,
         "n_starts": args.starts,
         "n_jobs": args.jobs,
         "step_unit": tracks.length_unit(args.scale),

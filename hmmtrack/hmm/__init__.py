@@ -20,7 +20,8 @@ Submodules: :mod:`~hmmtrack.hmm.distributions` (emission families),
 :mod:`~hmmtrack.hmm.crw` (irregular tracks: continuous-time correlated random walk,
 regularisation and imputed tracks), :mod:`~hmmtrack.hmm.imputation` (fits to imputed tracks
 pooled by Rubin's rules), :mod:`~hmmtrack.hmm.formula` (formula design matrices),
-:mod:`~hmmtrack.hmm.decoding` (decoded states as a table aligned to the input rows).
+:mod:`~hmmtrack.hmm.decoding` (decoded states as a table aligned to the input rows),
+:mod:`~hmmtrack.hmm.emission` (emission formulas: covariates on a stream's distribution).
 """
 
 from hmmtrack.hmm.distributions import (

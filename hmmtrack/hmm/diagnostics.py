@@ -26,9 +26,9 @@ from scipy import special, stats
 from statsmodels.graphics.gofplots import ProbPlot
 from statsmodels.tsa.stattools import acf
 
-from hmmtrack.hmm import fit
+from hmmtrack.hmm import emission, fit
 from hmmtrack.hmm.inference import forward_backward
-from hmmtrack.hmm.model import MovementHMM, Observations
+from hmmtrack.hmm.model import MovementHMM
 
 # ---------------------------------------------------------------------------------------------
 # Pseudo-residuals
@@ -50,8 +50,8 @@ def pseudo_residuals(model: MovementHMM, data: pd.DataFrame) -> pd.DataFrame:
         Columns ``step_residual`` and ``angle_residual``, one row per data row; NaN where
         the observation is missing.
     """
-    observations = Observations.from_frame(data, model.transition_design)
-    log_lik = model.log_likelihood_matrix(observations.step, observations.angle)
+    observations = model.observations(data)
+    log_lik = model.log_likelihood_matrix(observations)
     log_transition = model.log_transition_for(observations)
     with np.errstate(divide="ignore"):
         log_initial = np.log(model.initial)
@@ -119,8 +119,7 @@ def working_covariance(model: MovementHMM, data: pd.DataFrame):
         Pseudo-inverse of minus the Hessian of the log-likelihood at ``theta``.
     """
     params = fit.parameters_of(model)
-    observations = Observations.from_frame(data, model.transition_design)
-    likelihood = fit.WorkingLikelihood(params, fit.fit_data(observations))
+    likelihood = fit.WorkingLikelihood(params, fit.fit_data(model.observations(data)))
     theta = likelihood.pack(params)
     return likelihood, theta, np.linalg.pinv(-working_hessian(likelihood, theta))
 
@@ -141,6 +140,9 @@ def natural_parameters(
     names : list of (parameter, index) tuples
         ``("step.mean", "1")``, ``("transition", "1->2")``, ``("beta.intercept", "1->2")``,
         ``("beta.dist_water", "1->2")``...; states numbered from 1 as moveHMM prints them.
+        A parameter with an emission formula has its value at the intercept
+        (``("step.mean", "1")``) and its coefficients on the link scale
+        (``("step.mean.beta.cosT", "1")``, ``"intercept"`` for formulaic's ``"Intercept"``).
     values : ndarray, shape (n,)
     """
     names, values = [], []
@@ -150,6 +152,12 @@ def natural_parameters(
                 for k, v in enumerate(value):
                     names.append((f"{prefix}.{key}", str(k + 1)))
                     values.append(v)
+        if isinstance(dist, emission.CovariateEmission):
+            for key, design in dist.designs.items():
+                for c, column in enumerate(_column_names(design.columns)):
+                    for k in range(dist.n_states):
+                        names.append((f"{prefix}.{key}.beta.{column}", str(k + 1)))
+                        values.append(dist.coefficients[key][k, c])
     k = params.n_states
     if params.transition is not None:
         for i in range(k):
@@ -173,7 +181,12 @@ def coefficient_names(model: MovementHMM) -> tuple[str, ...]:
     ``"intercept"`` for formulaic's ``"Intercept"``; empty without covariates."""
     if model.transition_design is None:
         return ()
-    return tuple("intercept" if c == "Intercept" else c for c in model.transition_design.columns)
+    return _column_names(model.transition_design.columns)
+
+
+def _column_names(columns) -> tuple[str, ...]:
+    """Design columns as printed: ``"intercept"`` for formulaic's ``"Intercept"``."""
+    return tuple("intercept" if c == "Intercept" else c for c in columns)
 
 
 def confidence_intervals(model: MovementHMM, data: pd.DataFrame, level: float = 0.95):
@@ -232,15 +245,19 @@ def _interval(names, values, se, z):
 
     Probabilities (transition, initial, zero mass): logit scale; positive parameters (step
     parameters, concentrations): log scale; real ones (angle means, log-normal location,
-    coefficients): as they are. The standard error on the transformed scale is the delta
-    method's ``se / |d transform^-1|``.
+    transition and emission coefficients): as they are. The standard error on the
+    transformed scale is the delta method's ``se / |d transform^-1|``.
     """
     lower, upper = np.empty_like(values), np.empty_like(values)
     for i, ((name, _), value, s) in enumerate(zip(names, values, se, strict=True)):
         if name in ("transition", "initial", "step.zero_mass") and 0 < value < 1:
             centre, spread = np.log(value / (1 - value)), z * s / (value * (1 - value))
             lower[i], upper[i] = special.expit(centre - spread), special.expit(centre + spread)
-        elif name.startswith(("angle.mean", "step.location", "beta.")) or not value > 0:
+        elif (
+            name.startswith(("angle.mean", "step.location", "beta."))
+            or ".beta." in name
+            or not value > 0
+        ):
             lower[i], upper[i] = value - z * s, value + z * s
         else:
             lower[i], upper[i] = value * np.exp(-z * s / value), value * np.exp(z * s / value)
@@ -277,6 +294,23 @@ def data_scale_coefficients(model: MovementHMM) -> pd.DataFrame:
     )
 
 
+def emission_coefficients(model: MovementHMM) -> dict[str, pd.DataFrame]:
+    """The emission formulas' coefficients on the data's scale, by parameter
+    (``"step.mean"``): one row per state (from 1), one column per design column, on the
+    parameter's link scale (per unit of each column as the data have it; the intercept at
+    zero)."""
+    out = {}
+    for stream, designs in model.emission_designs.items():
+        dist = getattr(model, stream)
+        for name, design in designs.items():
+            out[f"{stream}.{name}"] = pd.DataFrame(
+                design.to_data_scale(dist.coefficients[name]),
+                index=[f"state {k + 1}" for k in range(model.n_states)],
+                columns=list(_column_names(design.columns)),
+            )
+    return out
+
+
 def summary(model: MovementHMM, intervals: pd.DataFrame | None = None) -> str:
     """Readable text: parameters (with intervals), transition matrix, log-likelihood, AIC/BIC.
 
@@ -308,6 +342,15 @@ def summary(model: MovementHMM, intervals: pd.DataFrame | None = None) -> str:
             "(per unit of each column; the intercept at zero)"
         )
         lines.append(data_scale_coefficients(model).to_string(float_format=lambda v: f"{v:.6g}"))
+        lines.append("")
+    for name, table in emission_coefficients(model).items():
+        stream, parameter = name.split(".", 1)
+        design = model.emission_designs[stream][parameter]
+        lines.append(
+            f"{name} coefficients ({design.formula}, link scale) on the data's scale (per "
+            "unit of each column; the intercept at zero)"
+        )
+        lines.append(table.to_string(float_format=lambda v: f"{v:.6g}"))
         lines.append("")
     lines.append(
         "transition matrix"

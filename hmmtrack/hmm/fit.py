@@ -42,7 +42,7 @@ import pandas as pd
 from scipy.optimize import minimize
 
 from hmmtrack.hmm import covariates as cov
-from hmmtrack.hmm import distributions, em_kernels
+from hmmtrack.hmm import distributions, em_kernels, emission
 from hmmtrack.hmm import formula as formulas
 from hmmtrack.hmm.inference import forward_backward, load_kernels, log_likelihood
 from hmmtrack.hmm.model import DT_TOLERANCE, MovementHMM, Observations, time_steps
@@ -72,22 +72,34 @@ class FitData:
     lengths : ndarray, shape (n_sequences,)
     design : ndarray, shape (T, p) or None
         Standardised design matrix of the transition formula (None without covariates).
+    emission : dict
+        ``{stream: {parameter: (T, p_j) design matrix}}`` of the emission formulas
+        (:mod:`~hmmtrack.hmm.emission`); empty without.
     prepared_step : PreparedSteps
     prepared_angle : PreparedAngles
         ``step`` and ``angle`` validated once with their transforms (log step, cos and sin
         of the angle); every density evaluation, M-step and score of the fit uses these.
+    step_input, angle_input : PreparedSteps, PreparedAngles or EmissionRows
+        What the stream's distribution is evaluated on: the prepared observations, with the
+        design matrices of the stream's emission formulas when it has some.
     """
 
     step: np.ndarray
     angle: np.ndarray
     lengths: np.ndarray
     design: np.ndarray | None = None
+    emission: dict = field(default_factory=dict)
     prepared_step: distributions.PreparedSteps = field(init=False, repr=False)
     prepared_angle: distributions.PreparedAngles = field(init=False, repr=False)
+    step_input: object = field(init=False, repr=False)
+    angle_input: object = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "prepared_step", distributions.prepare_steps(self.step))
         object.__setattr__(self, "prepared_angle", distributions.prepare_angles(self.angle))
+        for stream, prepared in (("step", self.prepared_step), ("angle", self.prepared_angle)):
+            value = emission.stream_input(prepared, self.emission.get(stream))
+            object.__setattr__(self, f"{stream}_input", value)
 
     @property
     def starts(self) -> np.ndarray:
@@ -133,8 +145,8 @@ class Parameters:
 
     def log_likelihood_matrix(self, data: FitData) -> np.ndarray:
         """Emission log densities, shape (T, K)."""
-        log_lik = self.step.logpdf(data.prepared_step)
-        log_lik += self.angle.logpdf(data.prepared_angle)  # in place: no third (T, K) array
+        log_lik = self.step.logpdf(data.step_input)
+        log_lik += self.angle.logpdf(data.angle_input)  # in place: no third (T, K) array
         return log_lik
 
     def permuted(self, order: np.ndarray) -> Parameters:
@@ -150,19 +162,9 @@ class Parameters:
             else self.coefficients[
                 [position[order[i], order[j]] for i, j in zip(rows, cols, strict=True)]
             ],
-            step=_permute_distribution(self.step, order),
-            angle=_permute_distribution(self.angle, order),
+            step=self.step.permuted(order),
+            angle=self.angle.permuted(order),
         )
-
-
-def _permute_distribution(dist, order: np.ndarray):
-    """Reorder every per-state list of a distribution's dict (its ``(K,)`` parameters)."""
-    document = dist.to_dict()
-    k = dist.n_states
-    for key, value in document.items():
-        if isinstance(value, list) and len(value) == k:
-            document[key] = [value[i] for i in order]
-    return type(dist).from_dict(document)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -257,8 +259,8 @@ class WorkingLikelihood:
         data = self.data
         gradient = np.empty_like(theta)
         a, b = self.n_step, self.n_step + self.n_angle
-        gradient[:a] = params.step.working_score(data.prepared_step, weights)
-        gradient[a:b] = params.angle.working_score(data.prepared_angle, weights)
+        gradient[:a] = params.step.working_score(data.step_input, weights)
+        gradient[a:b] = params.angle.working_score(data.angle_input, weights)
         c = b + int(np.prod(self.coefficient_shape))
         if data.design is None:
             xi, design = post.pair_counts[None], np.ones((1, 1))
@@ -350,8 +352,8 @@ def m_step(params: Parameters, data: FitData, post) -> Parameters:
         initial=initial,
         transition=transition,
         coefficients=coefficients,
-        step=params.step.fit_weighted(data.prepared_step, weights),
-        angle=params.angle.fit_weighted(data.prepared_angle, weights),
+        step=params.step.fit_weighted(data.step_input, weights),
+        angle=params.angle.fit_weighted(data.angle_input, weights),
     )
 
 
@@ -502,6 +504,7 @@ class FitSpec:
     zero_inflated: bool
     max_iter: int
     tol: float
+    emission_designs: dict = field(default_factory=dict)  # {stream: {parameter: Design}}
 
 
 def initial_parameters(rng: np.random.Generator | None, data: FitData, spec: FitSpec) -> Parameters:
@@ -510,8 +513,8 @@ def initial_parameters(rng: np.random.Generator | None, data: FitData, spec: Fit
     Emission distributions come from :func:`hmmtrack.hmm.distributions.initial_guess` (steps
     cut into groups at quantiles; random group sizes with ``rng``, equal sizes without). The
     transition matrix has diagonal entries 0.9 (without ``rng``) or uniform in (0.5, 0.95),
-    the rest of each row spread evenly; covariate slopes start at 0; the initial distribution
-    is uniform.
+    the rest of each row spread evenly; covariate slopes start at 0 (transition and emission
+    formulas alike); the initial distribution is uniform.
     """
     k = spec.n_states
     step, angle = distributions.initial_guess(
@@ -524,6 +527,11 @@ def initial_parameters(rng: np.random.Generator | None, data: FitData, spec: Fit
         zero_inflated=spec.zero_inflated,
         rng=rng,
     )
+    designs = spec.emission_designs
+    if "step" in designs:
+        step = emission.CovariateEmission.from_constant(step, designs["step"])
+    if "angle" in designs:
+        angle = emission.CovariateEmission.from_constant(angle, designs["angle"])
     diagonal = np.full(k, 0.9) if rng is None else rng.uniform(0.5, 0.95, k)
     if k == 1:
         diagonal = np.ones(1)
@@ -593,7 +601,13 @@ def run_starts(data: FitData, spec: FitSpec, n_starts: int, seed, n_jobs: int = 
 
 def fit_data(observations: Observations) -> FitData:
     """:class:`FitData` of a table's observations."""
-    return FitData(observations.step, observations.angle, observations.lengths, observations.design)
+    return FitData(
+        observations.step,
+        observations.angle,
+        observations.lengths,
+        observations.design,
+        observations.emission,
+    )
 
 
 def parameters_of(model: MovementHMM) -> Parameters:
@@ -681,6 +695,11 @@ class MovementHMMEstimator:
         Transition formula (``"~ dist_water"``, ``"~ C(season) + cos(2*pi*hour/24)"``; see
         :mod:`hmmtrack.hmm.formula`): its design matrix, standardised, is the multinomial
         logit's (:mod:`~hmmtrack.hmm.covariates`). It must keep the intercept.
+    formulas : dict of str to str, or None
+        Formulas by parameter: ``"transition"`` (as ``formula``) and any parameter of a
+        stream's distribution, ``"<stream>.<parameter>"`` (``{"step.mean": "~ cosT + sinT",
+        "angle.concentration": "~ x"}``): the parameter depends on the covariates through
+        its link, state by state (:mod:`hmmtrack.hmm.emission`). Each keeps its intercept.
     zero_inflation : "auto" or bool
         "auto" switches zero-inflated steps on when a step is exactly 0.
     n_starts : int
@@ -724,6 +743,7 @@ class MovementHMMEstimator:
         estimate_angle_mean: bool = True,
         covariates=(),
         formula: str | None = None,
+        formulas: dict | None = None,
         zero_inflation="auto",
         n_starts: int = 1,
         seed=None,
@@ -740,6 +760,7 @@ class MovementHMMEstimator:
         self.estimate_angle_mean = estimate_angle_mean
         self.covariates = covariates
         self.formula = formula
+        self.formulas = formulas
         self.zero_inflation = zero_inflation
         self.n_starts = n_starts
         self.seed = seed
@@ -777,7 +798,7 @@ class MovementHMMEstimator:
             setattr(self, name, value)
         return self
 
-    def _spec(self, data: FitData) -> FitSpec:
+    def _spec(self, data: FitData, emission_designs: dict) -> FitSpec:
         for kind, name, known in (
             ("step", self.step, distributions.STEP_FAMILIES),
             ("angle", self.angle, distributions.ANGLE_FAMILIES),
@@ -803,18 +824,25 @@ class MovementHMMEstimator:
             zero_inflated=zero_inflated,
             max_iter=int(self.max_iter),
             tol=float(self.tol),
+            emission_designs=emission_designs,
         )
 
-    def _transition_formula(self) -> str | None:
-        """The transition formula: ``formula``, or that of ``covariates``, or None."""
+    def _formulas(self) -> tuple[str | None, dict]:
+        """The transition formula (``formula``, ``formulas["transition"]`` or that of
+        ``covariates``, or None) and the emission formulas ``{stream: {parameter: rhs}}``."""
+        transition, emission_formulas = emission.split_formulas(self.formulas)
         names = tuple(self.covariates)
-        if self.formula is not None and names:
+        given = [self.formula is not None, transition is not None, bool(names)]
+        if sum(given) > 1:
             raise ValueError(
-                "give the transition covariates either as 'covariates' or in 'formula', not both"
+                "give the transition covariates either as 'covariates', in 'formula' or as "
+                "formulas['transition'], not several"
             )
         if self.formula is not None:
-            return self.formula
-        return formulas.of_columns(names) if names else None
+            transition = self.formula
+        elif names:
+            transition = formulas.of_columns(names)
+        return transition, emission_formulas
 
     def fit(self, X, lengths=None) -> MovementHMMEstimator:
         """Fit to a prepared-track table or to an array ``(T, 2 + p)`` with ``lengths``.
@@ -828,7 +856,7 @@ class MovementHMMEstimator:
         lengths : array of int, optional
             Rows per sequence, for an array ``X``.
         """
-        rhs = self._transition_formula()
+        rhs, emission_formulas = self._formulas()
         table = as_table(X, lengths, tuple(self.covariates))
         warn_if_irregular(table)
         design = None
@@ -836,10 +864,15 @@ class MovementHMMEstimator:
             design = formulas.design(rhs, table)
             if not design.has_intercept:
                 raise ValueError(f"transition formula {rhs!r} needs an intercept")
-        data = fit_data(Observations.from_frame(table, design))
+        emission_designs = {
+            stream: {name: formulas.design(f, table) for name, f in by_name.items()}
+            for stream, by_name in emission_formulas.items()
+        }
+        data = fit_data(Observations.from_frame(table, design, emission_designs=emission_designs))
         if np.all(np.isnan(data.step)):
             raise ValueError("no observed step in the data")
-        spec = self._spec(data)
+        spec = self._spec(data, emission_designs)
+        initial_parameters(None, data, spec)  # refuses unknown parameters before any start
         starts = run_starts(data, spec, int(self.n_starts), self.seed, int(self.n_jobs))
         failed = [s for s in starts if s.error is not None]
         if len(failed) == len(starts):

@@ -218,6 +218,28 @@ def design(formula: str, table: pd.DataFrame, *, standardise: bool = True) -> De
     return Design(rhs, columns, scaling, spec)
 
 
+def design_rows(design: Design, table: pd.DataFrame | dict, source: str = "table") -> np.ndarray:
+    """``design.transform(table)``, refusing rows with missing or non-finite values.
+
+    Returns
+    -------
+    ndarray, shape (len(table), p)
+    """
+    table = table if isinstance(table, pd.DataFrame) else pd.DataFrame(table)
+    try:
+        matrix = design.transform(table)
+    except ValueError as exc:
+        raise ValueError(f"{source}: {exc}") from exc
+    bad = np.flatnonzero(~np.all(np.isfinite(matrix), axis=1))
+    if bad.size:
+        raise ValueError(
+            f"{source}: the covariates of formula {design.formula!r} have missing or non-finite "
+            f"values at rows {bad[:10].tolist()}{' ...' if bad.size > 10 else ''}; fill or "
+            "drop them first"
+        )
+    return matrix
+
+
 def of_columns(names) -> str:
     """The formula ``"~ a + b"`` of plain columns (quoted with backticks where not a name)."""
     terms = [n if str(n).isidentifier() else f"`{n}`" for n in names]

@@ -8,9 +8,11 @@ about it: transition matrices, the stationary distribution, state
 probabilities and Viterbi paths for data, simulation -- and builds the model with a
 resting state added for tracking (:meth:`MovementHMM.with_resting_state`).
 :meth:`MovementHMM.save` / :meth:`MovementHMM.load` write and read the JSON schema
-``"hmmtrack.movement_hmm"``, version 2 (version 1 files, whose covariates were plain columns,
-still load); loading validates every field and refuses anything it does not understand. There
-is no pickle.
+``"hmmtrack.movement_hmm"``: version 2, or version 3 for a model with emission formulas
+(:mod:`hmmtrack.hmm.emission`: a distribution block with a ``formulas`` block; written only
+then, so that older readers keep reading every other model). Version 1 files, whose
+covariates were plain columns, still load; loading validates every field and refuses
+anything it does not understand. There is no pickle.
 
 This module is not for fitting (see :mod:`hmmtrack.hmm.fit`) nor for the recursions (see
 :mod:`hmmtrack.hmm.inference`).
@@ -21,7 +23,7 @@ from __future__ import annotations
 import difflib
 import json
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -29,13 +31,14 @@ import pandas as pd
 
 from hmmtrack import __version__
 from hmmtrack.hmm import covariates as cov
-from hmmtrack.hmm import distributions
-from hmmtrack.hmm.formula import Design, of_columns
+from hmmtrack.hmm import distributions, emission
+from hmmtrack.hmm.formula import Design, design_rows, of_columns
 from hmmtrack.hmm.inference import forward_backward, viterbi
 
 SCHEMA = "hmmtrack.movement_hmm"
-VERSION = 2
-_READABLE_VERSIONS = (1, 2)
+VERSION = 3  # written for models with emission formulas; the others stay version 2
+_PLAIN_VERSION = 2
+_READABLE_VERSIONS = (1, 2, 3)
 # The fields of a model document (see MovementHMM.to_dict), in file order; no others are read.
 _FIELDS = (
     "schema", "version", "package_version", "units", "n_states", "dt", "initial", "transition",
@@ -48,6 +51,7 @@ _COEFFICIENT_FIELDS = {
     1: ("covariates", "scaling", "values", "layout"),
     2: ("formula", "columns", "scaling", "levels", "values", "values_data_scale", "layout"),
 }
+_COEFFICIENT_FIELDS[3] = _COEFFICIENT_FIELDS[2]
 
 
 @dataclass(frozen=True)
@@ -64,16 +68,24 @@ class Observations:
         Rows per sequence (track segment), in table order; sums to ``T``.
     design : ndarray, shape (T, p) or None
         The transition formula's standardised design matrix; None without a formula.
+    emission : dict
+        ``{stream: {parameter: (T, p_j) design matrix}}`` of the emission formulas; empty
+        without.
     """
 
     step: np.ndarray
     angle: np.ndarray
     lengths: np.ndarray
     design: np.ndarray | None = None
+    emission: dict = field(default_factory=dict)
 
     @classmethod
     def from_frame(
-        cls, frame: pd.DataFrame, design: Design | None = None, source: str | None = None
+        cls,
+        frame: pd.DataFrame,
+        design: Design | None = None,
+        source: str | None = None,
+        emission_designs: dict | None = None,
     ):
         """Read ``step``, ``angle``, ``segment`` (and the design) from a prepared-track table.
 
@@ -88,6 +100,9 @@ class Observations:
         source : str, optional
             Name of the table's origin used in error messages; by default the file name that
             :mod:`hmmtrack.io` keeps in ``frame.attrs["source"]``, else ``"table"``.
+        emission_designs : dict, optional
+            ``{stream: {parameter: Design}}`` of the emission formulas, evaluated on
+            ``frame`` like ``design``.
         """
         source = source or frame.attrs.get("source", "table")
         missing = [c for c in ("step", "angle") if c not in frame.columns]
@@ -131,29 +146,11 @@ class Observations:
             angle=values["angle"],
             lengths=lengths.astype(np.int64),
             design=None if design is None else design_rows(design, frame, source),
+            emission={
+                stream: {name: design_rows(d, frame, source) for name, d in designs.items()}
+                for stream, designs in (emission_designs or {}).items()
+            },
         )
-
-
-def design_rows(design: Design, table: pd.DataFrame | dict, source: str = "table") -> np.ndarray:
-    """``design.transform(table)``, refusing rows with missing or non-finite values.
-
-    Returns
-    -------
-    ndarray, shape (len(table), p)
-    """
-    table = table if isinstance(table, pd.DataFrame) else pd.DataFrame(table)
-    try:
-        matrix = design.transform(table)
-    except ValueError as exc:
-        raise ValueError(f"{source}: {exc}") from exc
-    bad = np.flatnonzero(~np.all(np.isfinite(matrix), axis=1))
-    if bad.size:
-        raise ValueError(
-            f"{source}: the covariates of formula {design.formula!r} have missing or non-finite "
-            f"values at rows {bad[:10].tolist()}{' ...' if bad.size > 10 else ''}; fill or "
-            "drop them first"
-        )
-    return matrix
 
 
 @dataclass(frozen=True, eq=False)
@@ -365,6 +362,11 @@ class MovementHMM:
             For a model without a time step, or rates or a step that are not finite numbers
             in range.
         """
+        if self.emission_designs:
+            raise ValueError(
+                "with_resting_state needs state-dependent distributions without emission "
+                "formulas (one step and angle distribution per state)"
+            )
         if not (math.isfinite(self.dt) and self.dt > 0):
             raise ValueError(
                 f"with_resting_state needs the fitted time step (model.dt = {self.dt}) to turn "
@@ -404,10 +406,34 @@ class MovementHMM:
 
     # -- data ---------------------------------------------------------------------------------
 
-    def log_likelihood_matrix(self, step: np.ndarray, angle: np.ndarray) -> np.ndarray:
-        """State-dependent log densities of each row, shape ``(T, K)``; missing values add 0."""
-        return self.step.logpdf(np.asarray(step, float)) + self.angle.logpdf(
-            np.asarray(angle, float)
+    @property
+    def emission_designs(self) -> dict:
+        """``{stream: {parameter: Design}}`` of the emission formulas; empty without."""
+        return {
+            stream: dist.designs
+            for stream, dist in (("step", self.step), ("angle", self.angle))
+            if isinstance(dist, emission.CovariateEmission)
+        }
+
+    def log_likelihood_matrix(self, observations: Observations) -> np.ndarray:
+        """State-dependent log densities of each row, shape ``(T, K)``; missing values add 0.
+
+        ``observations`` are read with this model's formulas (:meth:`observations`): an
+        emission formula gives each row its own parameters.
+        """
+        step = emission.stream_input(
+            distributions.prepare_steps(observations.step), observations.emission.get("step")
+        )
+        angle = emission.stream_input(
+            distributions.prepare_angles(observations.angle), observations.emission.get("angle")
+        )
+        return self.step.logpdf(step) + self.angle.logpdf(angle)
+
+    def observations(self, data: pd.DataFrame) -> Observations:
+        """The :class:`Observations` of a prepared track with this model's transition and
+        emission formulas evaluated on it."""
+        return Observations.from_frame(
+            data, self.transition_design, emission_designs=self.emission_designs
         )
 
     def check_time_step(self, data: pd.DataFrame) -> None:
@@ -442,13 +468,13 @@ class MovementHMM:
     def _recursion_inputs(self, data: pd.DataFrame, allow_other_step: bool):
         if not allow_other_step:
             self.check_time_step(data)
-        obs = Observations.from_frame(data, self.transition_design)
+        obs = self.observations(data)
         with np.errstate(divide="ignore"):
             log_initial = np.log(self.initial)
         return (
             log_initial,
             self.log_transition_for(obs),
-            self.log_likelihood_matrix(obs.step, obs.angle),
+            self.log_likelihood_matrix(obs),
             obs.lengths,
         )
 
@@ -483,14 +509,14 @@ class MovementHMM:
             Number of rows.
         covariates : DataFrame or mapping, optional
             ``n`` rows of raw covariate values (covariate models only; without them the
-            matrix at the covariate means is used).
+            matrix at the covariate means is used). Required by emission formulas.
 
         Returns
         -------
         DataFrame
             Columns ``state`` (int), ``step`` (``step_unit``), ``angle`` (rad).
         """
-        gamma = self.transition_matrix(covariates)
+        gamma = self.transition_matrix(None if self.coefficients is None else covariates)
         if gamma.ndim == 2:
             gamma = np.broadcast_to(gamma, (n, *gamma.shape))
         elif gamma.shape[0] != n:
@@ -502,13 +528,15 @@ class MovementHMM:
         for t in range(1, n):
             row = cumulative[t, states[t - 1]]
             states[t] = min(np.searchsorted(row, uniforms[t] * row[-1]), self.n_states - 1)
-        return pd.DataFrame(
-            {
-                "state": states,
-                "step": self.step.sample(rng, states),
-                "angle": self.angle.sample(rng, states),
-            }
-        )
+        draws = {}
+        for stream, dist in (("step", self.step), ("angle", self.angle)):
+            if isinstance(dist, emission.CovariateEmission):
+                if covariates is None:
+                    raise ValueError(f"the {stream} formulas need n rows of covariates")
+                draws[stream] = dist.sample(rng, states, dist.matrices(covariates, "covariates"))
+            else:
+                draws[stream] = dist.sample(rng, states)
+        return pd.DataFrame({"state": states, **draws})
 
     # -- file ---------------------------------------------------------------------------------
 
@@ -516,7 +544,7 @@ class MovementHMM:
         """The JSON document of this model (plain Python types)."""
         return {
             "schema": SCHEMA,
-            "version": VERSION,
+            "version": VERSION if self.emission_designs else _PLAIN_VERSION,
             "package_version": __version__,
             "units": {"step": self.step_unit, "angle": "rad", "dt": "s"},
             "n_states": self.n_states,
@@ -542,7 +570,8 @@ class MovementHMM:
         }
 
     def save(self, path: str | Path) -> None:
-        """Write the model as JSON (schema ``hmmtrack.movement_hmm``, version 2)."""
+        """Write the model as JSON (schema ``hmmtrack.movement_hmm``, version 2; version 3
+        when it has emission formulas, which older readers do not know)."""
         Path(path).write_text(json.dumps(self.to_dict(), indent=2) + "\n", encoding="utf-8")
 
     @classmethod
@@ -778,7 +807,7 @@ class _Reader:
     def distribution(self, name: str, n_states: int):
         block = self.get(name, dict)
         try:
-            dist = distributions.from_dict(block)
+            dist = emission.from_dict(block)
         except (KeyError, TypeError, ValueError) as exc:
             self.fail(name, f"is not a valid distribution ({exc})")
         if dist.n_states != n_states:

@@ -208,6 +208,67 @@ class _AngleFamily(_Family):
             mean, r = np.zeros(n_states), np.exp(blocks[0])
         return cls(mean, cls._radial_inverse(r), estimate_mean)  # type: ignore[attr-defined]
 
+    # --- per-row view (covariate-dependent parameters, hmmtrack.hmm.emission) -------------
+    def link_names(self) -> tuple[str, ...]:
+        """``("mean", "concentration")``, or ``("concentration",)`` with the mean fixed."""
+        return ("mean", "concentration") if self.estimate_mean else ("concentration",)
+
+    def to_links(self) -> np.ndarray:
+        """Parameters on their link scale (n_links, K): the mean as it is (rad), the
+        concentration through the family's link (:meth:`_concentration_link`)."""
+        links = [self._concentration_link(self.concentration)]
+        return np.vstack([self.mean, *links] if self.estimate_mean else links)
+
+    @classmethod
+    def from_links(cls: type[D], eta: np.ndarray, estimate_mean: bool = True) -> D:
+        """The member whose parameters on their link scale are ``eta`` (n_links, n)."""
+        eta = np.asarray(eta, dtype=float)
+        mean = eta[0] if estimate_mean else np.zeros(eta.shape[1])
+        return cls(mean, cls._concentration_from_link(eta[-1]), estimate_mean)  # type: ignore[attr-defined]
+
+    def _row_deviations(self, x: np.ndarray | PreparedAngles):
+        data = prepare_angles(x)
+        if self.n_states != data.n_obs:
+            raise ValueError(
+                f"{type(self).__name__}: a row distribution needs one parameter set per row; "
+                f"it has {self.n_states} for {data.n_obs} rows"
+            )
+        cos_mean, sin_mean = np.cos(self.mean), np.sin(self.mean)
+        cos_dev = data.cos * cos_mean + data.sin * sin_mean
+        sin_dev = data.sin * cos_mean - data.cos * sin_mean
+        return data, cos_dev, sin_dev
+
+    def row_logpdf(self, x: np.ndarray | PreparedAngles) -> np.ndarray:
+        """Log-density (T,) of angle ``t`` under the parameters of "state" ``t`` (a row
+        distribution, K = T); missing rows 0.0."""
+        data, cos_dev, _ = self._row_deviations(x)
+        out = self._state_logpdf_cos(slice(None), cos_dev)  # type: ignore[arg-type]
+        out[data.missing] = 0.0
+        return out
+
+    def row_score(self, x: np.ndarray | PreparedAngles) -> np.ndarray:
+        """Derivatives (n_links, T) of :meth:`row_logpdf` by each row's link values."""
+        data, cos_dev, sin_dev = self._row_deviations(x)
+        by_mean, by_concentration = self._row_angle_score(cos_dev, sin_dev)
+        blocks = np.vstack(
+            [by_mean, by_concentration] if self.estimate_mean else [by_concentration]
+        )
+        blocks[:, data.missing] = 0.0
+        return blocks
+
+    def _row_angle_score(self, cos_dev, sin_dev) -> tuple[np.ndarray, np.ndarray]:
+        """Derivatives (T,) of each row's log-density by its mean and its linked
+        concentration, given ``cos(x - mean)`` and ``sin(x - mean)`` (T,)."""
+        raise NotImplementedError
+
+    @classmethod
+    def _concentration_link(cls, concentration: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    @classmethod
+    def _concentration_from_link(cls, eta: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
 
 def _a1(kappa: np.ndarray) -> np.ndarray:
     """Mean resultant length of a von Mises: I1(kappa) / I0(kappa)."""
@@ -294,6 +355,20 @@ class VonMises(_AngleFamily):
         c, s = np.cos(self.mean), np.sin(self.mean)
         radial = c * sum_cos + s * sum_sin - total * _a1(self.concentration)
         return radial, c * sum_sin - s * sum_cos
+
+    def _row_angle_score(self, cos_dev, sin_dev) -> tuple[np.ndarray, np.ndarray]:
+        # log link: d/d log kappa = kappa (cos(x - mean) - A1(kappa))
+        kappa = self.concentration
+        return kappa * sin_dev, kappa * (cos_dev - _a1(kappa))
+
+    @classmethod
+    def _concentration_link(cls, concentration: np.ndarray) -> np.ndarray:
+        """log kappa (kappa floored at 1e-12)."""
+        return np.log(np.maximum(concentration, _TINY))
+
+    @classmethod
+    def _concentration_from_link(cls, eta: np.ndarray) -> np.ndarray:
+        return np.minimum(np.exp(eta), _MAX_CONCENTRATION)
 
     def _sample_deviation(self, rng: np.random.Generator, states: np.ndarray) -> np.ndarray:
         return rng.vonmises(0.0, self.concentration[states])
@@ -455,6 +530,24 @@ class WrappedCauchy(_AngleFamily):
             shrink = rho[k] / r[k] if r[k] > 0 else 1.0
             tangential[k] = 2.0 * shrink * _dot(weighted, sin_dev)
         return radial, tangential
+
+    def _row_angle_score(self, cos_dev, sin_dev) -> tuple[np.ndarray, np.ndarray]:
+        # log f = log(1 - rho^2) - log D - log 2 pi, D = 1 + rho^2 - 2 rho cos(x - mean);
+        # logit link: d rho / d eta = rho (1 - rho)
+        rho = self.concentration
+        inverse = 1.0 / ((1.0 - rho) ** 2 + 2.0 * rho * np.maximum(1.0 - cos_dev, 0.0))
+        by_rho = -2.0 * rho / (1.0 - rho**2) + 2.0 * (cos_dev - rho) * inverse
+        return 2.0 * rho * sin_dev * inverse, rho * (1.0 - rho) * by_rho
+
+    @classmethod
+    def _concentration_link(cls, concentration: np.ndarray) -> np.ndarray:
+        """logit rho (rho clipped to [1e-12, 1 - 1e-9])."""
+        rho = np.clip(concentration, _TINY, _MAX_WRAPPED_CAUCHY_RHO)
+        return np.log(rho) - np.log1p(-rho)
+
+    @classmethod
+    def _concentration_from_link(cls, eta: np.ndarray) -> np.ndarray:
+        return np.minimum(special.expit(eta), _MAX_WRAPPED_CAUCHY_RHO)
 
     def _sample_deviation(self, rng: np.random.Generator, states: np.ndarray) -> np.ndarray:
         rho = self.concentration[states]

@@ -49,6 +49,14 @@ class StateDistribution(Protocol):
     * ``working_score(x, w) -> (n_working,)`` the gradient of the weighted log-likelihood
       ``sum(w * logpdf(x))`` with respect to ``to_working()``, in closed form (the emission
       part of the likelihood gradient by Fisher's identity);
+    * ``permuted(order)`` the same distribution with its states reordered;
+    * ``link_names()``, ``to_links() -> (n_links, K)``, ``from_links(eta, **structure)``,
+      ``row_logpdf(x) -> (T,)`` and ``row_score(x) -> (n_links, T)``: the per-row view
+      that covariate-dependent parameters (:mod:`hmmtrack.hmm.emission`) build on. A *row
+      distribution* is a member whose K "states" are the T rows of the data (row ``t`` has
+      its own parameters); ``eta`` holds each parameter on its link scale (log for positive
+      parameters, logit for probabilities, identity for locations and angle means), and
+      ``row_score`` is the derivative of each row's log-density by its link values;
     * ``prepare(x)``: the observations validated once with their transforms (log x; cos x
       and sin x), a :class:`PreparedSteps` / :class:`PreparedAngles` accepted wherever ``x``
       is. Callers that evaluate the same data many times (EM, numerical derivatives) should
@@ -77,6 +85,8 @@ class StateDistribution(Protocol):
     def to_dict(self) -> dict: ...
 
     def to_working(self) -> np.ndarray: ...
+
+    def permuted(self, order: np.ndarray) -> StateDistribution: ...
 
     def with_working(self, theta: np.ndarray) -> StateDistribution: ...
 
@@ -420,6 +430,14 @@ class _Family:
                 f"(optional {sorted(names - required)}), got {sorted(keys)}"
             )
         return cls(**{k: d[k] for k in keys})
+
+    def permuted(self: D, order: np.ndarray) -> D:
+        """The same distribution with state ``k`` of the result being state ``order[k]``."""
+        document = self.to_dict()
+        for key, value in document.items():
+            if isinstance(value, list) and len(value) == self.n_states:
+                document[key] = [value[i] for i in order]
+        return type(self).from_dict(document)
 
     def with_working(self: D, theta: np.ndarray) -> D:
         """Return a distribution of the same structure from working parameters ``theta``."""

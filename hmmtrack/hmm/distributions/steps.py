@@ -229,6 +229,62 @@ class _StepFamily(_Family):
     def _positive_from_working(cls, blocks: np.ndarray) -> dict:
         return {f: np.exp(b) for f, b in zip(cls._parameters, blocks, strict=True)}  # type: ignore[attr-defined]
 
+    # --- per-row view (covariate-dependent parameters, hmmtrack.hmm.emission) -------------
+    def link_names(self) -> tuple[str, ...]:
+        """The parameters in link order: the family's, then ``zero_mass`` if present."""
+        return (*self._parameters, *(("zero_mass",) if self.zero_mass is not None else ()))
+
+    def to_links(self) -> np.ndarray:
+        """Each parameter on its link scale, shape (n_links, K): the working blocks (log of
+        positive parameters, identity for the log-normal location, logit of ``zero_mass``)."""
+        return self.to_working().reshape(-1, self.n_states)
+
+    @classmethod
+    def from_links(cls: type[D], eta: np.ndarray, zero_inflated: bool = False) -> D:
+        """The member whose parameters on their link scale are ``eta`` (n_links, n)."""
+        eta = np.asarray(eta, dtype=float)
+        return cls.from_working(eta.ravel(), eta.shape[1], zero_inflated=zero_inflated)  # type: ignore[attr-defined]
+
+    def _check_rows(self, data: PreparedSteps) -> None:
+        if self.n_states != data.n_obs:
+            raise ValueError(
+                f"{type(self).__name__}: a row distribution needs one parameter set per row; "
+                f"it has {self.n_states} for {data.n_obs} rows"
+            )
+
+    def row_logpdf(self, x: np.ndarray | PreparedSteps) -> np.ndarray:
+        """Log-density (T,) of step ``t`` under the parameters of "state" ``t`` (a row
+        distribution, K = T); missing rows 0.0, zero steps ``log zero_mass``."""
+        data = self._prepared(x)
+        self._check_rows(data)
+        out = self._state_logpdf(slice(None), data.safe, data.log_safe)  # type: ignore[arg-type]
+        if self.zero_mass is not None:
+            out += np.log1p(-self.zero_mass)
+            with np.errstate(divide="ignore"):
+                out[data.zero] = np.log(self.zero_mass[data.zero])
+        out[data.missing] = 0.0
+        return out
+
+    def row_score(self, x: np.ndarray | PreparedSteps) -> np.ndarray:
+        """Derivatives (n_links, T) of :meth:`row_logpdf` by each row's link values.
+
+        The positive part's derivatives vanish on zero and missing rows; the zero mass's is
+        ``1 - z`` at a zero step and ``-z`` at a positive one (logit link).
+        """
+        data = self._prepared(x)
+        self._check_rows(data)
+        blocks = self._row_positive_score(data.safe, data.log_safe)
+        blocks[:, ~data.positive] = 0.0
+        if self.zero_mass is not None:
+            zero = np.where(data.zero, 1.0 - self.zero_mass, -self.zero_mass)
+            zero[data.missing] = 0.0
+            blocks = np.vstack([blocks, zero])
+        return blocks
+
+    def _row_positive_score(self, x: np.ndarray, log_x: np.ndarray) -> np.ndarray:
+        """Derivatives (n_parameters, T) of each row's ``log f(x_t)`` by its link values."""
+        raise NotImplementedError
+
 
 def _gamma_shape_mle(s: np.ndarray) -> np.ndarray:
     """Solve ``log k - digamma(k) = s`` for the gamma shape k, (K,), by Newton from Minka's start.
@@ -314,6 +370,13 @@ class Gamma(_StepFamily):
         by_shape = 2.0 * a * (_weighted_sums(log_x, w) + total * (np.log(b) - special.digamma(a)))
         by_rate = a * total - b * _weighted_sums(x, w)
         return np.concatenate([by_shape + by_rate, -by_shape - 2.0 * by_rate])
+
+    def _row_positive_score(self, x: np.ndarray, log_x: np.ndarray) -> np.ndarray:
+        # the derivatives of _positive_score, row by row
+        a, b = self.shape, self.mean / self.sd**2
+        by_shape = 2.0 * a * (log_x + np.log(b) - special.digamma(a))
+        by_rate = a - b * x
+        return np.vstack([by_shape + by_rate, -by_shape - 2.0 * by_rate])
 
     def _cdf_positive(self, x: np.ndarray, log_x: np.ndarray) -> np.ndarray:
         return special.gammainc(self.shape, np.divide.outer(x, self.scale))
@@ -406,6 +469,11 @@ class Weibull(_StepFamily):
             by_scale[k] = self.shape[k] * _dot(excess, w[:, k])
         return np.concatenate([by_shape, by_scale])
 
+    def _row_positive_score(self, x: np.ndarray, log_x: np.ndarray) -> np.ndarray:
+        z = self.shape * (log_x - np.log(self.scale))
+        excess = np.expm1(z)
+        return np.vstack([1.0 - z * excess, self.shape * excess])
+
     def _cdf_positive(self, x: np.ndarray, log_x: np.ndarray) -> np.ndarray:
         z = np.multiply.outer(log_x, self.shape) - self.shape * np.log(self.scale)
         return -np.expm1(-np.exp(z))
@@ -475,6 +543,10 @@ class LogNormal(_StepFamily):
         variance = self.scale**2
         return np.concatenate([first / variance, second / variance - total])
 
+    def _row_positive_score(self, x: np.ndarray, log_x: np.ndarray) -> np.ndarray:
+        z = (log_x - self.location) / self.scale
+        return np.vstack([z / self.scale, z**2 - 1.0])
+
     def _cdf_positive(self, x: np.ndarray, log_x: np.ndarray) -> np.ndarray:
         return special.ndtr(np.subtract.outer(log_x, self.location) / self.scale)
 
@@ -517,6 +589,9 @@ class Exponential(_StepFamily):
     def _positive_score(self, x: np.ndarray, log_x: np.ndarray, w: np.ndarray) -> np.ndarray:
         # d/d log rate of (log rate - rate x) = 1 - rate x
         return _column_sums(w) - self.rate * _weighted_sums(x, w)
+
+    def _row_positive_score(self, x: np.ndarray, log_x: np.ndarray) -> np.ndarray:
+        return (1.0 - self.rate * x)[None, :]
 
     def _cdf_positive(self, x: np.ndarray, log_x: np.ndarray) -> np.ndarray:
         return -np.expm1(np.multiply.outer(x, -self.rate))

@@ -1,0 +1,430 @@
+"""Covariates on the state-dependent distributions: emission formulas (momentuHMM's ``DM``).
+
+A formula such as ``"step.mean ~ cosT + sinT"`` makes one parameter of a stream's family
+depend on covariates, state by state, through the parameter's link (log for positive
+parameters, logit for probabilities, identity for locations and angle means; the families'
+``to_links``)::
+
+    link(theta[t, k]) = X[t] @ beta[k],        X = the formula's standardised design matrix
+
+:class:`CovariateEmission` is such a distribution. It follows the emission protocol of
+:mod:`hmmtrack.hmm.distributions` (``logpdf``, ``fit_weighted``, ``working_score``, the
+working scale, ``to_dict``...) with one difference: its observations are
+:class:`EmissionRows`, the prepared observations together with the design matrices of its
+formulas, because each row has its own parameters. The parameters without a formula stay
+one value per state. The M-step is a weighted maximum likelihood per state over that
+state's coefficients and constant parameters (BFGS with the analytic gradient
+``X^T (w * d log f / d eta)`` from the families' ``row_score``; the E-step's posteriors are
+the weights), warm-started at the current values.
+
+The design matrices are standardised (:mod:`hmmtrack.hmm.formula`): the intercept is the
+parameter at the covariate means (factors at their reference levels), which is what
+:attr:`CovariateEmission.base` holds and what orders the states; the coefficients are saved
+on that scale and on the data's (``values_data_scale``).
+
+Not for the families' maths (:mod:`hmmtrack.hmm.distributions`), design matrices
+(:mod:`hmmtrack.hmm.formula`) or EM bookkeeping (:mod:`hmmtrack.hmm.fit`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+from scipy.optimize import minimize
+
+from hmmtrack.hmm import distributions
+from hmmtrack.hmm.distributions import PreparedAngles, PreparedSteps
+from hmmtrack.hmm.formula import Design, design_rows
+
+STREAMS = ("step", "angle")
+_INTERCEPT = "Intercept"
+_MIN_STATE_WEIGHT = 1e-10  # a state with less total weight keeps its parameters
+_M_STEP_MAX_ITER = 200  # BFGS iterations per state and M-step (warm-started)
+_M_STEP_GTOL = 1e-6  # M-step stops when no gradient entry of the per-weight log-lik exceeds this
+_BLOCK_FIELDS = ("formula", "columns", "scaling", "levels", "values", "values_data_scale", "layout")
+_LAYOUT = (
+    "rows: states; columns: 'columns' of the formula's design; on the parameter's link scale "
+    "(log for positive parameters, logit for probabilities, identity for locations and angle "
+    "means), standardised columns ('scaling': (raw - centre) / sd) in 'values', raw in "
+    "'values_data_scale' (not read back); the parameter's list holds its value at the intercept"
+)
+
+
+@dataclass(frozen=True, eq=False)
+class EmissionRows:
+    """Observations of one stream with the design matrices of its emission formulas.
+
+    Attributes
+    ----------
+    observations : PreparedSteps or PreparedAngles
+        The stream's observations, T rows.
+    matrices : dict of str to ndarray, shape (T, p_j)
+        Standardised design matrix of each parameter with a formula, by parameter name.
+    """
+
+    observations: PreparedSteps | PreparedAngles
+    matrices: dict[str, np.ndarray]
+
+    @property
+    def n_obs(self) -> int:
+        """Number of rows T."""
+        return self.observations.n_obs
+
+
+@dataclass(frozen=True, eq=False)
+class CovariateEmission:
+    """A state-dependent distribution some of whose parameters depend on covariates.
+
+    Parameters
+    ----------
+    base : family instance (K states)
+        The family (class, zero inflation, estimated or fixed angle mean) with the values of
+        the parameters without a formula; its other parameters are overwritten by their
+        values at the intercept (covariates at their means) when constructed.
+    designs : dict of str to Design
+        The formula of each parameter that has one (``{"mean": design("~ cosT + sinT")}``);
+        each keeps its intercept.
+    coefficients : dict of str to ndarray, shape (K, p_j)
+        Per state, the coefficients of the parameter's standardised design columns on its
+        link scale.
+    """
+
+    base: distributions.StateDistribution
+    designs: dict[str, Design]
+    coefficients: dict[str, np.ndarray]
+
+    def __post_init__(self) -> None:
+        links = self.base.link_names()
+        unknown = sorted(set(self.designs) - set(links))
+        if unknown or not self.designs:
+            raise ValueError(
+                f"{self.base.name}: formulas of {unknown or 'no parameter'}; the parameters "
+                f"that take a formula are {list(links)}"
+            )
+        if set(self.coefficients) != set(self.designs):
+            raise ValueError("give coefficients for exactly the parameters with a formula")
+        eta = self.base.to_links()
+        coefficients = {}
+        for name in links:
+            if name not in self.designs:
+                continue
+            design = self.designs[name]
+            if not design.has_intercept:
+                raise ValueError(
+                    f"{self.base.name}.{name} formula {design.formula!r} needs an intercept"
+                )
+            values = np.array(self.coefficients[name], dtype=float)
+            expected = (self.base.n_states, len(design.columns))
+            if values.shape != expected or not np.all(np.isfinite(values)):
+                raise ValueError(
+                    f"{self.base.name}.{name} coefficients have shape {values.shape}; expected "
+                    f"{expected} finite numbers (states x columns {list(design.columns)})"
+                )
+            values.setflags(write=False)
+            coefficients[name] = values
+            eta[links.index(name)] = values[:, design.columns.index(_INTERCEPT)]
+        object.__setattr__(self, "coefficients", coefficients)
+        object.__setattr__(
+            self, "designs", {n: self.designs[n] for n in links if n in self.designs}
+        )
+        object.__setattr__(self, "base", self.base.from_links(eta, **self.base._structure()))
+
+    @classmethod
+    def from_constant(cls, base, designs: dict[str, Design]) -> CovariateEmission:
+        """The distribution whose parameters equal ``base``'s at every row: each formula's
+        intercept is the parameter's link value, its slopes 0 (EM starting values)."""
+        eta, links = base.to_links(), base.link_names()
+        coefficients = {}
+        for name, design in designs.items():
+            if name not in links:
+                raise ValueError(
+                    f"{base.name}: no parameter {name!r}; the parameters that take a formula "
+                    f"are {list(links)}"
+                )
+            values = np.zeros((base.n_states, len(design.columns)))
+            if design.has_intercept:
+                values[:, design.columns.index(_INTERCEPT)] = eta[links.index(name)]
+            coefficients[name] = values
+        return cls(base, designs, coefficients)
+
+    # -- what every distribution answers -------------------------------------------------------
+
+    @property
+    def name(self) -> str:
+        """The family's name (``"gamma"``)."""
+        return self.base.name
+
+    @property
+    def n_states(self) -> int:
+        """Number of states K."""
+        return self.base.n_states
+
+    def expected_value(self) -> np.ndarray:
+        """Expected value per state (K,) at the intercept (covariates at their means)."""
+        return self.base.expected_value()
+
+    def matrices(self, table: pd.DataFrame | dict, source: str = "table") -> dict:
+        """The design matrices ``{parameter: (T, p_j)}`` of ``table``'s T rows.
+
+        Raises
+        ------
+        ValueError
+            When a formula cannot be evaluated on ``table`` or its covariates are missing or
+            not finite in some row.
+        """
+        return {name: design_rows(design, table, source) for name, design in self.designs.items()}
+
+    def _row_distribution(self, k: int, rows: EmissionRows, theta: np.ndarray | None = None):
+        """The row distribution of state ``k``: its parameters at every row, from the state's
+        working block ``theta`` (default: the current one)."""
+        eta = self._row_links(self._state_blocks(k, theta), rows.matrices, rows.n_obs)
+        return self.base.from_links(eta, **self.base._structure())
+
+    def _state_blocks(self, k: int, theta: np.ndarray | None) -> list[np.ndarray]:
+        """Per link, state ``k``'s constant (shape (1,)) or coefficients (shape (p_j,))."""
+        if theta is None:
+            theta = self._state_working(k)
+        blocks, start = [], 0
+        for name in self.base.link_names():
+            size = len(self.designs[name].columns) if name in self.designs else 1
+            blocks.append(theta[start : start + size])
+            start += size
+        return blocks
+
+    def _state_working(self, k: int) -> np.ndarray:
+        """State ``k``'s working block: per link, the constant or the coefficients."""
+        eta = self.base.to_links()
+        return np.concatenate(
+            [
+                self.coefficients[name][k] if name in self.designs else eta[j, k : k + 1]
+                for j, name in enumerate(self.base.link_names())
+            ]
+        )
+
+    def _row_links(self, blocks: list[np.ndarray], matrices: dict, n_obs: int) -> np.ndarray:
+        """Link values (n_links, T) of the working blocks at the rows of ``matrices``."""
+        eta = np.empty((len(blocks), n_obs))
+        for j, (name, block) in enumerate(zip(self.base.link_names(), blocks, strict=True)):
+            if name in self.designs:
+                eta[j] = np.einsum("tp,p->t", matrices[name], block)
+            else:
+                eta[j] = block[0]
+        return eta
+
+    def _state_score(self, k: int, rows: EmissionRows, w: np.ndarray, theta=None):
+        """Weighted log-likelihood of state ``k`` and its gradient by the working block."""
+        row = self._row_distribution(k, rows, theta)
+        value = float(np.einsum("t,t->", w, row.row_logpdf(rows.observations)))
+        weighted = row.row_score(rows.observations) * w
+        gradient = [
+            np.einsum("tp,t->p", rows.matrices[name], weighted[j])
+            if name in self.designs
+            else weighted[j].sum(keepdims=True)
+            for j, name in enumerate(self.base.link_names())
+        ]
+        return value, np.concatenate(gradient)
+
+    def logpdf(self, rows: EmissionRows) -> np.ndarray:
+        """Log-density of every row in every state, shape (T, K); missing rows 0.0."""
+        out = np.empty((rows.n_obs, self.n_states))
+        for k in range(self.n_states):
+            out[:, k] = self._row_distribution(k, rows).row_logpdf(rows.observations)
+        return out
+
+    def cdf(self, rows: EmissionRows) -> np.ndarray:
+        """Not available: pseudo-residuals of covariate-dependent emissions are not written."""
+        raise ValueError(
+            f"{self.name} with emission formulas: CDFs (pseudo-residuals) are not available"
+        )
+
+    def sample(self, rng: np.random.Generator, states: np.ndarray, matrices: dict) -> np.ndarray:
+        """One draw per row (n,) of state ``states[t]`` with row ``t``'s parameters, the
+        design matrices of the n rows being ``matrices`` (:meth:`matrices`)."""
+        states = np.asarray(states)
+        eta = np.empty((len(self.base.link_names()), states.size))
+        for k in range(self.n_states):
+            here = states == k
+            if here.any():
+                links = self._row_links(self._state_blocks(k, None), matrices, states.size)
+                eta[:, here] = links[:, here]
+        row = self.base.from_links(eta, **self.base._structure())
+        return row.sample(rng, np.arange(states.size))
+
+    def fit_weighted(self, rows: EmissionRows, w: np.ndarray) -> CovariateEmission:
+        """Weighted maximum likelihood per state (``w`` (T, K)): the EM M-step.
+
+        Each state's working block (constants and coefficients) is maximised by BFGS from
+        its current value with the analytic gradient; a state with (almost) no weight, or
+        whose optimum is not better than its start, keeps its values.
+        """
+        theta = self.to_working_by_state()
+        for k in range(self.n_states):
+            weights = np.ascontiguousarray(w[:, k])
+            total = weights.sum()
+            if total <= _MIN_STATE_WEIGHT:
+                continue
+            weights = weights / total
+
+            def objective(block, k=k, weights=weights):
+                try:
+                    value, gradient = self._state_score(k, rows, weights, block)
+                except (ValueError, FloatingPointError):
+                    return np.inf, np.zeros_like(block)
+                if not np.isfinite(value):
+                    return np.inf, np.zeros_like(block)
+                return -value, -gradient
+
+            start_value = objective(theta[k])[0]
+            with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+                result = minimize(
+                    objective,
+                    theta[k],
+                    jac=True,
+                    method="BFGS",
+                    options={"maxiter": _M_STEP_MAX_ITER, "gtol": _M_STEP_GTOL},
+                )
+            if np.isfinite(result.fun) and result.fun < start_value:
+                theta[k] = result.x
+        return self._from_state_working(theta)
+
+    # -- working scale ------------------------------------------------------------------------
+
+    def to_working_by_state(self) -> list[np.ndarray]:
+        """Each state's working block (constants then coefficients, in link order)."""
+        return [self._state_working(k) for k in range(self.n_states)]
+
+    def _from_state_working(self, theta: list[np.ndarray]) -> CovariateEmission:
+        links = self.base.link_names()
+        blocks = [self._state_blocks(k, theta[k]) for k in range(self.n_states)]
+        eta = self.base.to_links()
+        coefficients = {}
+        for j, name in enumerate(links):
+            if name in self.designs:
+                coefficients[name] = np.array([b[j] for b in blocks])
+            else:
+                eta[j] = [b[j][0] for b in blocks]
+        base = self.base.from_links(eta, **self.base._structure())
+        return CovariateEmission(base, self.designs, coefficients)
+
+    def to_working(self) -> np.ndarray:
+        """Working vector: the states' working blocks one after the other."""
+        return np.concatenate(self.to_working_by_state())
+
+    def with_working(self, theta: np.ndarray) -> CovariateEmission:
+        """The distribution of the same structure at the working vector ``theta``."""
+        size = theta.size // self.n_states
+        return self._from_state_working(
+            [theta[k * size : (k + 1) * size] for k in range(self.n_states)]
+        )
+
+    def working_score(self, rows: EmissionRows, w: np.ndarray) -> np.ndarray:
+        """Gradient of ``sum(w * logpdf(rows))`` by :meth:`to_working`, (n_working,)."""
+        return np.concatenate(
+            [
+                self._state_score(k, rows, np.ascontiguousarray(w[:, k]))[1]
+                for k in range(self.n_states)
+            ]
+        )
+
+    def permuted(self, order: np.ndarray) -> CovariateEmission:
+        """The same distribution with state ``k`` of the result being state ``order[k]``."""
+        order = np.asarray(order)
+        return CovariateEmission(
+            self.base.permuted(order),
+            self.designs,
+            {name: values[order] for name, values in self.coefficients.items()},
+        )
+
+    # -- file ---------------------------------------------------------------------------------
+
+    def to_dict(self) -> dict:
+        """The base family's document (values at the intercept) with a ``formulas`` block:
+        per parameter, its design (:meth:`Design.to_dict`) and coefficients."""
+        return {
+            **self.base.to_dict(),
+            "formulas": {
+                name: {
+                    **design.to_dict(),
+                    "values": self.coefficients[name].tolist(),
+                    "values_data_scale": design.to_data_scale(self.coefficients[name]).tolist(),
+                    "layout": _LAYOUT,
+                }
+                for name, design in self.designs.items()
+            },
+        }
+
+    @classmethod
+    def from_dict(cls, document: dict) -> CovariateEmission:
+        """Rebuild from :meth:`to_dict` output.
+
+        Raises
+        ------
+        ValueError
+            For an unknown field of a formula block or a malformed block.
+        """
+        document = dict(document)
+        blocks = document.pop("formulas")
+        if not isinstance(blocks, dict):
+            raise ValueError(f"'formulas' must be an object, got {blocks!r}")
+        base = distributions.from_dict(document)
+        designs, coefficients = {}, {}
+        for name, block in blocks.items():
+            if not isinstance(block, dict):
+                raise ValueError(f"formulas.{name} must be an object, got {block!r}")
+            unknown = sorted(set(block) - set(_BLOCK_FIELDS))
+            if unknown:
+                raise ValueError(
+                    f"unknown field(s) {[f'formulas.{name}.{u}' for u in unknown]}; valid: "
+                    f"{list(_BLOCK_FIELDS)}"
+                )
+            try:
+                designs[name] = Design.from_dict(block)
+                coefficients[name] = np.array(block["values"], dtype=float)
+            except (KeyError, TypeError, ValueError) as exc:
+                raise ValueError(f"formulas.{name} malformed ({exc!r})") from exc
+        return cls(base, designs, coefficients)
+
+
+def from_dict(document: dict):
+    """Any emission distribution from its document: a :class:`CovariateEmission` when the
+    document has ``formulas``, else the plain family (:func:`distributions.from_dict`)."""
+    if isinstance(document, dict) and "formulas" in document:
+        return CovariateEmission.from_dict(document)
+    return distributions.from_dict(document)
+
+
+def stream_input(prepared: PreparedSteps | PreparedAngles, matrices: dict | None):
+    """What a stream's distribution is evaluated on: the prepared observations, or their
+    :class:`EmissionRows` when the stream has emission formulas (``matrices`` not empty)."""
+    return EmissionRows(prepared, matrices) if matrices else prepared
+
+
+def split_formulas(formulas: dict[str, str] | None) -> tuple[str | None, dict[str, dict[str, str]]]:
+    """The transition formula and the emission formulas by stream and parameter.
+
+    Parameters
+    ----------
+    formulas : dict of str to str, or None
+        ``{"transition": "~ x", "step.mean": "~ cosT + sinT", "angle.concentration": "~ z"}``.
+
+    Returns
+    -------
+    transition : str or None
+    emission : dict
+        ``{"step": {"mean": "~ cosT + sinT"}, "angle": {"concentration": "~ z"}}``.
+    """
+    transition, emission = None, {}
+    for key, rhs in (formulas or {}).items():
+        if key == "transition":
+            transition = rhs
+            continue
+        stream, _, parameter = str(key).partition(".")
+        if stream not in STREAMS or not parameter:
+            raise ValueError(
+                f"formula of {key!r}: expected 'transition' or '<stream>.<parameter>' with a "
+                f"stream in {list(STREAMS)} ('step.mean', 'angle.concentration')"
+            )
+        emission.setdefault(stream, {})[parameter] = rhs
+    return transition, emission
