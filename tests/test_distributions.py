@@ -551,8 +551,8 @@ def test_bad_input_raises_clear_errors():
         D.from_dict({"family": "gamma", "mean": [1.0], "sd": ["wide"]})
     with pytest.raises(ValueError, match=r"in \[0, 1\)"):
         D.WrappedCauchy([0.0], [1.0])
-    with pytest.raises(ValueError, match="unknown distribution family 'normal'"):
-        D.from_dict({"family": "normal"})
+    with pytest.raises(ValueError, match="unknown distribution family 'cauchy'"):
+        D.from_dict({"family": "cauchy"})
     with pytest.raises(ValueError, match="expected keys"):
         D.from_dict({"family": "gamma", "mean": [1.0]})
     with pytest.raises(ValueError, match="states must be in"):

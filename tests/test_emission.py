@@ -88,7 +88,9 @@ def test_design_matrices_equal_hand_built_ones(simulated):
     )
     np.testing.assert_allclose(matrices["mean"], hand, atol=1e-12)
     # the fitted mean of each row is exp(hand @ coefficients)
-    row_means = model.step._row_distribution(1, fit.fit_data(model.observations(data)).step_input)
+    row_means = model.step._row_distribution(
+        1, fit.fit_data(model.observations(data)).inputs["step"]
+    )
     np.testing.assert_allclose(
         row_means.mean, np.exp(hand @ model.step.coefficients["mean"][1]), rtol=1e-12
     )

@@ -146,7 +146,7 @@ def natural_parameters(
     values : ndarray, shape (n,)
     """
     names, values = [], []
-    for prefix, dist in (("step", params.step), ("angle", params.angle)):
+    for prefix, dist in params.emissions.items():
         for key, value in dist.to_dict().items():
             if isinstance(value, list):
                 for k, v in enumerate(value):

@@ -38,7 +38,7 @@ from hmmtrack.hmm import distributions
 from hmmtrack.hmm.distributions import PreparedAngles, PreparedSteps
 from hmmtrack.hmm.formula import Design, design_rows
 
-STREAMS = ("step", "angle")
+STREAMS = ("step", "angle")  # the streams of every movement HMM
 _INTERCEPT = "Intercept"
 _MIN_STATE_WEIGHT = 1e-10  # a state with less total weight keeps its parameters
 _M_STEP_MAX_ITER = 200  # BFGS iterations per state and M-step (warm-started)
@@ -401,13 +401,17 @@ def stream_input(prepared: PreparedSteps | PreparedAngles, matrices: dict | None
     return EmissionRows(prepared, matrices) if matrices else prepared
 
 
-def split_formulas(formulas: dict[str, str] | None) -> tuple[str | None, dict[str, dict[str, str]]]:
+def split_formulas(
+    formulas: dict[str, str] | None, streams=STREAMS
+) -> tuple[str | None, dict[str, dict[str, str]]]:
     """The transition formula and the emission formulas by stream and parameter.
 
     Parameters
     ----------
     formulas : dict of str to str, or None
         ``{"transition": "~ x", "step.mean": "~ cosT + sinT", "angle.concentration": "~ z"}``.
+    streams : sequence of str
+        The streams of the model (``"step"``, ``"angle"`` and any further ones).
 
     Returns
     -------
@@ -421,10 +425,10 @@ def split_formulas(formulas: dict[str, str] | None) -> tuple[str | None, dict[st
             transition = rhs
             continue
         stream, _, parameter = str(key).partition(".")
-        if stream not in STREAMS or not parameter:
+        if stream not in streams or not parameter:
             raise ValueError(
                 f"formula of {key!r}: expected 'transition' or '<stream>.<parameter>' with a "
-                f"stream in {list(STREAMS)} ('step.mean', 'angle.concentration')"
+                f"stream in {list(streams)} ('step.mean', 'angle.concentration')"
             )
         emission.setdefault(stream, {})[parameter] = rhs
     return transition, emission

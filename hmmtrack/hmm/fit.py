@@ -75,13 +75,16 @@ class FitData:
     emission : dict
         ``{stream: {parameter: (T, p_j) design matrix}}`` of the emission formulas
         (:mod:`~hmmtrack.hmm.emission`); empty without.
-    prepared_step : PreparedSteps
-    prepared_angle : PreparedAngles
-        ``step`` and ``angle`` validated once with their transforms (log step, cos and sin
-        of the angle); every density evaluation, M-step and score of the fit uses these.
-    step_input, angle_input : PreparedSteps, PreparedAngles or EmissionRows
-        What the stream's distribution is evaluated on: the prepared observations, with the
-        design matrices of the stream's emission formulas when it has some.
+    streams : dict of str to ndarray, shape (T,)
+        Further data streams by name (a dive depth, counts; NaN = missing); empty without.
+    prepared : dict
+        Each stream's observations validated once with their transforms (log step, cos and
+        sin of the angle), by stream; every density evaluation, M-step and score of the fit
+        uses these.
+    inputs : dict
+        What each stream's distribution is evaluated on, by stream (``"step"``,
+        ``"angle"``, then ``streams``): its prepared observations, with the design matrices
+        of the stream's emission formulas when it has some.
     """
 
     step: np.ndarray
@@ -89,17 +92,22 @@ class FitData:
     lengths: np.ndarray
     design: np.ndarray | None = None
     emission: dict = field(default_factory=dict)
-    prepared_step: distributions.PreparedSteps = field(init=False, repr=False)
-    prepared_angle: distributions.PreparedAngles = field(init=False, repr=False)
-    step_input: object = field(init=False, repr=False)
-    angle_input: object = field(init=False, repr=False)
+    streams: dict = field(default_factory=dict)
+    prepared: dict = field(init=False, repr=False)
+    inputs: dict = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "prepared_step", distributions.prepare_steps(self.step))
-        object.__setattr__(self, "prepared_angle", distributions.prepare_angles(self.angle))
-        for stream, prepared in (("step", self.prepared_step), ("angle", self.prepared_angle)):
-            value = emission.stream_input(prepared, self.emission.get(stream))
-            object.__setattr__(self, f"{stream}_input", value)
+        prepared = {
+            "step": distributions.prepare_steps(self.step),
+            "angle": distributions.prepare_angles(self.angle),
+            **{name: distributions.prepare_values(x) for name, x in self.streams.items()},
+        }
+        inputs = {
+            name: emission.stream_input(values, self.emission.get(name))
+            for name, values in prepared.items()
+        }
+        object.__setattr__(self, "prepared", prepared)
+        object.__setattr__(self, "inputs", inputs)
 
     @property
     def starts(self) -> np.ndarray:
@@ -124,6 +132,8 @@ class Parameters:
     coefficients : ndarray, shape (K*(K-1), 1 + p) or None
         Logit coefficients, used with covariates.
     step, angle : StateDistribution
+    streams : dict of str to StateDistribution
+        The distributions of further data streams, by name; empty without.
     """
 
     initial: np.ndarray
@@ -131,10 +141,22 @@ class Parameters:
     coefficients: np.ndarray | None
     step: distributions.StateDistribution
     angle: distributions.StateDistribution
+    streams: dict = field(default_factory=dict)
 
     @property
     def n_states(self) -> int:
         return self.initial.shape[0]
+
+    @property
+    def emissions(self) -> dict:
+        """Every stream's distribution by name: ``step``, ``angle``, then ``streams``."""
+        return {"step": self.step, "angle": self.angle, **self.streams}
+
+    def with_emissions(self, emissions: dict) -> Parameters:
+        """These parameters with the stream distributions ``emissions`` (same names)."""
+        emissions = dict(emissions)
+        step, angle = emissions.pop("step"), emissions.pop("angle")
+        return replace(self, step=step, angle=angle, streams=emissions)
 
     def log_transition(self, data: FitData) -> np.ndarray:
         """``(K, K)`` or, with covariates, ``(T-1, K, K)`` (entry t: row t -> t+1)."""
@@ -145,8 +167,10 @@ class Parameters:
 
     def log_likelihood_matrix(self, data: FitData) -> np.ndarray:
         """Emission log densities, shape (T, K)."""
-        log_lik = self.step.logpdf(data.step_input)
-        log_lik += self.angle.logpdf(data.angle_input)  # in place: no third (T, K) array
+        log_lik = self.step.logpdf(data.inputs["step"])
+        for name, dist in self.emissions.items():
+            if name != "step":
+                log_lik += dist.logpdf(data.inputs[name])  # in place: no third (T, K) array
         return log_lik
 
     def permuted(self, order: np.ndarray) -> Parameters:
@@ -164,6 +188,7 @@ class Parameters:
             ],
             step=self.step.permuted(order),
             angle=self.angle.permuted(order),
+            streams={name: dist.permuted(order) for name, dist in self.streams.items()},
         )
 
 
@@ -175,9 +200,10 @@ class Parameters:
 class WorkingLikelihood:
     """Log-likelihood of the data as a function of the working parameter vector.
 
-    The vector is ``[step.to_working(), angle.to_working(), logit coefficients (row-major,
-    intercepts = log(Gamma_ij / Gamma_ii) without covariates), log(delta_k / delta_0) for
-    k = 1..K-1]``, moveHMM's layout up to ordering.
+    The vector is ``[step.to_working(), angle.to_working(), the further streams'
+    to_working(), logit coefficients (row-major, intercepts = log(Gamma_ij / Gamma_ii)
+    without covariates), log(delta_k / delta_0) for k = 1..K-1]``, moveHMM's layout up to
+    ordering.
 
     Parameters
     ----------
@@ -189,12 +215,14 @@ class WorkingLikelihood:
     def __init__(self, template: Parameters, data: FitData):
         self.template = template
         self.data = data
-        self.n_step = template.step.to_working().size
-        self.n_angle = template.angle.to_working().size
+        sizes = [dist.to_working().size for dist in template.emissions.values()]
+        #: where each stream's block ends in the vector, by name
+        self.ends = dict(zip(template.emissions, np.cumsum(sizes), strict=True))
+        self.n_emission = int(np.sum(sizes))
         n_design = 1 if data.design is None else data.design.shape[1]
         k = template.n_states
         self.coefficient_shape = (k * (k - 1), n_design)
-        self.size = self.n_step + self.n_angle + k * (k - 1) * n_design + k - 1
+        self.size = self.n_emission + k * (k - 1) * n_design + k - 1
 
     def pack(self, params: Parameters) -> np.ndarray:
         """Working vector of ``params``, shape (n_parameters,)."""
@@ -205,16 +233,22 @@ class WorkingLikelihood:
         initial = np.maximum(params.initial, _TINY)
         return np.concatenate(
             [
-                params.step.to_working(),
-                params.angle.to_working(),
+                *(dist.to_working() for dist in params.emissions.values()),
                 coefficients.ravel(),
                 np.log(initial[1:]) - np.log(initial[0]),
             ]
         )
 
+    def _blocks(self):
+        """``(name, start, end)`` of each stream's block of the vector."""
+        start = 0
+        for name, end in self.ends.items():
+            yield name, start, end
+            start = end
+
     def unpack(self, theta: np.ndarray) -> Parameters:
         """Parameters of a working vector (inverse of :meth:`pack`)."""
-        a, b = self.n_step, self.n_step + self.n_angle
+        b = self.n_emission
         c = b + int(np.prod(self.coefficient_shape))
         coefficients = theta[b:c].reshape(self.coefficient_shape)
         log_initial = np.concatenate([[0.0], theta[c:]])
@@ -224,12 +258,11 @@ class WorkingLikelihood:
             coefficients = None
         else:
             transition = None
-        return Parameters(
-            initial=initial,
-            transition=transition,
-            coefficients=coefficients,
-            step=self.template.step.with_working(theta[:a]),
-            angle=self.template.angle.with_working(theta[a:b]),
+        emissions = self.template.emissions
+        return replace(
+            self.template, initial=initial, transition=transition, coefficients=coefficients
+        ).with_emissions(
+            {name: emissions[name].with_working(theta[i:j]) for name, i, j in self._blocks()}
         )
 
     def value(self, theta: np.ndarray) -> float:
@@ -258,9 +291,9 @@ class WorkingLikelihood:
         weights = post.posterior
         data = self.data
         gradient = np.empty_like(theta)
-        a, b = self.n_step, self.n_step + self.n_angle
-        gradient[:a] = params.step.working_score(data.step_input, weights)
-        gradient[a:b] = params.angle.working_score(data.angle_input, weights)
+        for name, i, j in self._blocks():
+            gradient[i:j] = params.emissions[name].working_score(data.inputs[name], weights)
+        b = self.n_emission
         c = b + int(np.prod(self.coefficient_shape))
         if data.design is None:
             xi, design = post.pair_counts[None], np.ones((1, 1))
@@ -348,12 +381,13 @@ def m_step(params: Parameters, data: FitData, post) -> Parameters:
         )
     else:
         coefficients = cov.fit_coefficients(post.pair_counts, data.design[1:], params.coefficients)
-    return Parameters(
-        initial=initial,
-        transition=transition,
-        coefficients=coefficients,
-        step=params.step.fit_weighted(data.step_input, weights),
-        angle=params.angle.fit_weighted(data.angle_input, weights),
+    return replace(
+        params, initial=initial, transition=transition, coefficients=coefficients
+    ).with_emissions(
+        {
+            name: dist.fit_weighted(data.inputs[name], weights)
+            for name, dist in params.emissions.items()
+        }
     )
 
 
@@ -505,6 +539,7 @@ class FitSpec:
     max_iter: int
     tol: float
     emission_designs: dict = field(default_factory=dict)  # {stream: {parameter: Design}}
+    stream_families: dict = field(default_factory=dict)  # {further stream: family name}
 
 
 def initial_parameters(rng: np.random.Generator | None, data: FitData, spec: FitSpec) -> Parameters:
@@ -514,11 +549,13 @@ def initial_parameters(rng: np.random.Generator | None, data: FitData, spec: Fit
     cut into groups at quantiles; random group sizes with ``rng``, equal sizes without). The
     transition matrix has diagonal entries 0.9 (without ``rng``) or uniform in (0.5, 0.95),
     the rest of each row spread evenly; covariate slopes start at 0 (transition and emission
-    formulas alike); the initial distribution is uniform.
+    formulas alike); the initial distribution is uniform. A further stream starts at its
+    weighted fit with each row's state probabilities under the starting step distribution
+    alone (equal prior), so that its states follow the steps'.
     """
     k = spec.n_states
     step, angle = distributions.initial_guess(
-        data.prepared_step,
+        data.prepared["step"],
         data.angle,
         k,
         spec.step_family,
@@ -527,11 +564,16 @@ def initial_parameters(rng: np.random.Generator | None, data: FitData, spec: Fit
         zero_inflated=spec.zero_inflated,
         rng=rng,
     )
-    designs = spec.emission_designs
-    if "step" in designs:
-        step = emission.CovariateEmission.from_constant(step, designs["step"])
-    if "angle" in designs:
-        angle = emission.CovariateEmission.from_constant(angle, designs["angle"])
+    emissions = {"step": step, "angle": angle}
+    if spec.stream_families:
+        log_lik = step.logpdf(data.prepared["step"])
+        weights = np.exp(log_lik - np.logaddexp.reduce(log_lik, axis=1, keepdims=True))
+        for name, family in spec.stream_families.items():
+            cls = distributions.VALUE_FAMILIES[family]
+            emissions[name] = cls.initial(data.prepared[name], weights)
+    for name, designs in spec.emission_designs.items():
+        emissions[name] = emission.CovariateEmission.from_constant(emissions[name], designs)
+    step, angle = emissions.pop("step"), emissions.pop("angle")
     diagonal = np.full(k, 0.9) if rng is None else rng.uniform(0.5, 0.95, k)
     if k == 1:
         diagonal = np.ones(1)
@@ -541,7 +583,7 @@ def initial_parameters(rng: np.random.Generator | None, data: FitData, spec: Fit
     if data.design is not None:
         coefficients = cov.coefficients_from_matrix(transition, data.design.shape[1])
         transition = None
-    return Parameters(np.full(k, 1.0 / k), transition, coefficients, step, angle)
+    return Parameters(np.full(k, 1.0 / k), transition, coefficients, step, angle, emissions)
 
 
 def run_start(index: int, seed: np.random.SeedSequence, data: FitData, spec: FitSpec):
@@ -607,12 +649,15 @@ def fit_data(observations: Observations) -> FitData:
         observations.lengths,
         observations.design,
         observations.emission,
+        observations.streams,
     )
 
 
 def parameters_of(model: MovementHMM) -> Parameters:
     """The :class:`Parameters` of a fitted model."""
-    return Parameters(model.initial, model.transition, model.coefficients, model.step, model.angle)
+    return Parameters(
+        model.initial, model.transition, model.coefficients, model.step, model.angle, model.streams
+    )
 
 
 def as_table(X, lengths=None, covariate_names=()) -> pd.DataFrame:
@@ -698,8 +743,12 @@ class MovementHMMEstimator:
     formulas : dict of str to str, or None
         Formulas by parameter: ``"transition"`` (as ``formula``) and any parameter of a
         stream's distribution, ``"<stream>.<parameter>"`` (``{"step.mean": "~ cosT + sinT",
-        "angle.concentration": "~ x"}``): the parameter depends on the covariates through
-        its link, state by state (:mod:`hmmtrack.hmm.emission`). Each keeps its intercept.
+        "angle.concentration": "~ x", "depth.mean": "~ x"}``): the parameter depends on the
+        covariates through its link, state by state (:mod:`hmmtrack.hmm.emission`). Each
+        keeps its intercept.
+    streams : dict of str to str, or None
+        Further data streams: a column of the table and its family in ``VALUE_FAMILIES``
+        (``{"depth": "normal", "dives": "poisson"}``); NaN = missing.
     zero_inflation : "auto" or bool
         "auto" switches zero-inflated steps on when a step is exactly 0.
     n_starts : int
@@ -744,6 +793,7 @@ class MovementHMMEstimator:
         covariates=(),
         formula: str | None = None,
         formulas: dict | None = None,
+        streams: dict | None = None,
         zero_inflation="auto",
         n_starts: int = 1,
         seed=None,
@@ -761,6 +811,7 @@ class MovementHMMEstimator:
         self.covariates = covariates
         self.formula = formula
         self.formulas = formulas
+        self.streams = streams
         self.zero_inflation = zero_inflation
         self.n_starts = n_starts
         self.seed = seed
@@ -802,6 +853,7 @@ class MovementHMMEstimator:
         for kind, name, known in (
             ("step", self.step, distributions.STEP_FAMILIES),
             ("angle", self.angle, distributions.ANGLE_FAMILIES),
+            *((name, f, distributions.VALUE_FAMILIES) for name, f in self._streams().items()),
         ):
             if name not in known:
                 raise ValueError(f"{kind} family {name!r} unknown; choose from {list(known)}")
@@ -825,12 +877,22 @@ class MovementHMMEstimator:
             max_iter=int(self.max_iter),
             tol=float(self.tol),
             emission_designs=emission_designs,
+            stream_families=self._streams(),
         )
+
+    def _streams(self) -> dict:
+        """The further streams ``{column: family}``, their names checked."""
+        streams = dict(self.streams or {})
+        reserved = {"step", "angle", "transition", "segment"} & set(streams)
+        if reserved:
+            raise ValueError(f"streams cannot be named {sorted(reserved)}")
+        return streams
 
     def _formulas(self) -> tuple[str | None, dict]:
         """The transition formula (``formula``, ``formulas["transition"]`` or that of
         ``covariates``, or None) and the emission formulas ``{stream: {parameter: rhs}}``."""
-        transition, emission_formulas = emission.split_formulas(self.formulas)
+        streams = ("step", "angle", *self._streams())
+        transition, emission_formulas = emission.split_formulas(self.formulas, streams)
         names = tuple(self.covariates)
         given = [self.formula is not None, transition is not None, bool(names)]
         if sum(given) > 1:
@@ -868,7 +930,10 @@ class MovementHMMEstimator:
             stream: {name: formulas.design(f, table) for name, f in by_name.items()}
             for stream, by_name in emission_formulas.items()
         }
-        data = fit_data(Observations.from_frame(table, design, emission_designs=emission_designs))
+        observations = Observations.from_frame(
+            table, design, emission_designs=emission_designs, streams=tuple(self._streams())
+        )
+        data = fit_data(observations)
         if np.all(np.isnan(data.step)):
             raise ValueError("no observed step in the data")
         spec = self._spec(data, emission_designs)
@@ -893,6 +958,7 @@ class MovementHMMEstimator:
             transition=params.transition,
             step=params.step,
             angle=params.angle,
+            streams=params.streams,
             dt=self._time_step(table),
             coefficients=params.coefficients,
             transition_design=design,

@@ -42,7 +42,7 @@ _READABLE_VERSIONS = (1, 2, 3)
 # The fields of a model document (see MovementHMM.to_dict), in file order; no others are read.
 _FIELDS = (
     "schema", "version", "package_version", "units", "n_states", "dt", "initial", "transition",
-    "coefficients", "step", "angle", "log_likelihood", "n_obs", "aic", "bic",
+    "coefficients", "step", "angle", "streams", "log_likelihood", "n_obs", "aic", "bic",
 )  # fmt: skip
 _UNITS = {"step": "m", "angle": "rad", "dt": "s"}
 DT_TOLERANCE = 0.1  # a time step more than 10 % from the reference one is another step
@@ -71,6 +71,8 @@ class Observations:
     emission : dict
         ``{stream: {parameter: (T, p_j) design matrix}}`` of the emission formulas; empty
         without.
+    streams : dict of str to ndarray, shape (T,)
+        Further data streams by column name (NaN where missing); empty without.
     """
 
     step: np.ndarray
@@ -78,6 +80,7 @@ class Observations:
     lengths: np.ndarray
     design: np.ndarray | None = None
     emission: dict = field(default_factory=dict)
+    streams: dict = field(default_factory=dict)
 
     @classmethod
     def from_frame(
@@ -86,6 +89,7 @@ class Observations:
         design: Design | None = None,
         source: str | None = None,
         emission_designs: dict | None = None,
+        streams: tuple[str, ...] = (),
     ):
         """Read ``step``, ``angle``, ``segment`` (and the design) from a prepared-track table.
 
@@ -103,16 +107,19 @@ class Observations:
         emission_designs : dict, optional
             ``{stream: {parameter: Design}}`` of the emission formulas, evaluated on
             ``frame`` like ``design``.
+        streams : tuple of str
+            Columns of further data streams to read.
         """
         source = source or frame.attrs.get("source", "table")
-        missing = [c for c in ("step", "angle") if c not in frame.columns]
+        missing = [c for c in ("step", "angle", *streams) if c not in frame.columns]
         if missing:
             raise ValueError(
                 f"{source}: missing column(s) {missing}; a prepared track needs 'step' (m) and "
-                f"'angle' (rad) (and 'segment'); columns present: {list(frame.columns)}"
+                f"'angle' (rad) (and 'segment'), and a column per further stream; columns "
+                f"present: {list(frame.columns)}"
             )
         values = {}
-        for name in ("step", "angle"):
+        for name in ("step", "angle", *streams):
             try:
                 values[name] = np.asarray(frame[name], dtype=float)
             except (TypeError, ValueError) as exc:
@@ -150,6 +157,7 @@ class Observations:
                 stream: {name: design_rows(d, frame, source) for name, d in designs.items()}
                 for stream, designs in (emission_designs or {}).items()
             },
+            streams={name: values[name] for name in streams},
         )
 
 
@@ -165,6 +173,9 @@ class MovementHMM:
         Row-stochastic transition matrix; ``None`` when ``coefficients`` are given.
     step, angle : StateDistribution
         State-dependent distributions of step length (m) and turning angle (rad).
+    streams : dict of str to StateDistribution
+        Further data streams (a dive depth, counts) by the name of their column, each with
+        its family (:data:`hmmtrack.hmm.distributions.VALUE_FAMILIES`); empty without.
     dt : float
         Time step of the data fitted (s); NaN when the data had no times.
     coefficients : ndarray, shape (K*(K-1), p) or None
@@ -202,6 +213,7 @@ class MovementHMM:
     n_obs: int = 0
     aic: float = math.nan
     bic: float = math.nan
+    streams: dict = field(default_factory=dict)
 
     def __post_init__(self):
         initial = np.asarray(self.initial, dtype=float)
@@ -228,6 +240,7 @@ class MovementHMM:
             "initial": (initial.shape, (k,)),
             "step": ((self.step.n_states,), (k,)),
             "angle": ((self.angle.n_states,), (k,)),
+            **{name: ((dist.n_states,), (k,)) for name, dist in self.streams.items()},
         }
         if self.transition is not None:
             shapes["transition"] = (self.transition.shape, (k, k))
@@ -362,9 +375,9 @@ class MovementHMM:
             For a model without a time step, or rates or a step that are not finite numbers
             in range.
         """
-        if self.emission_designs:
+        if self.emission_designs or self.streams:
             raise ValueError(
-                "with_resting_state needs state-dependent distributions without emission "
+                "with_resting_state needs a model of steps and angles only, without emission "
                 "formulas (one step and angle distribution per state)"
             )
         if not (math.isfinite(self.dt) and self.dt > 0):
@@ -407,11 +420,16 @@ class MovementHMM:
     # -- data ---------------------------------------------------------------------------------
 
     @property
+    def emissions(self) -> dict:
+        """Every stream's distribution by name: ``step``, ``angle``, then ``streams``."""
+        return {"step": self.step, "angle": self.angle, **self.streams}
+
+    @property
     def emission_designs(self) -> dict:
         """``{stream: {parameter: Design}}`` of the emission formulas; empty without."""
         return {
             stream: dist.designs
-            for stream, dist in (("step", self.step), ("angle", self.angle))
+            for stream, dist in self.emissions.items()
             if isinstance(dist, emission.CovariateEmission)
         }
 
@@ -421,19 +439,24 @@ class MovementHMM:
         ``observations`` are read with this model's formulas (:meth:`observations`): an
         emission formula gives each row its own parameters.
         """
-        step = emission.stream_input(
-            distributions.prepare_steps(observations.step), observations.emission.get("step")
+        prepared = {
+            "step": distributions.prepare_steps(observations.step),
+            "angle": distributions.prepare_angles(observations.angle),
+            **{n: distributions.prepare_values(x) for n, x in observations.streams.items()},
+        }
+        return sum(
+            dist.logpdf(emission.stream_input(prepared[name], observations.emission.get(name)))
+            for name, dist in self.emissions.items()
         )
-        angle = emission.stream_input(
-            distributions.prepare_angles(observations.angle), observations.emission.get("angle")
-        )
-        return self.step.logpdf(step) + self.angle.logpdf(angle)
 
     def observations(self, data: pd.DataFrame) -> Observations:
         """The :class:`Observations` of a prepared track with this model's transition and
         emission formulas evaluated on it."""
         return Observations.from_frame(
-            data, self.transition_design, emission_designs=self.emission_designs
+            data,
+            self.transition_design,
+            emission_designs=self.emission_designs,
+            streams=tuple(self.streams),
         )
 
     def check_time_step(self, data: pd.DataFrame) -> None:
@@ -514,7 +537,8 @@ class MovementHMM:
         Returns
         -------
         DataFrame
-            Columns ``state`` (int), ``step`` (``step_unit``), ``angle`` (rad).
+            Columns ``state`` (int), ``step`` (``step_unit``), ``angle`` (rad), then one per
+            further stream.
         """
         gamma = self.transition_matrix(None if self.coefficients is None else covariates)
         if gamma.ndim == 2:
@@ -529,7 +553,7 @@ class MovementHMM:
             row = cumulative[t, states[t - 1]]
             states[t] = min(np.searchsorted(row, uniforms[t] * row[-1]), self.n_states - 1)
         draws = {}
-        for stream, dist in (("step", self.step), ("angle", self.angle)):
+        for stream, dist in self.emissions.items():
             if isinstance(dist, emission.CovariateEmission):
                 if covariates is None:
                     raise ValueError(f"the {stream} formulas need n rows of covariates")
@@ -544,7 +568,7 @@ class MovementHMM:
         """The JSON document of this model (plain Python types)."""
         return {
             "schema": SCHEMA,
-            "version": VERSION if self.emission_designs else _PLAIN_VERSION,
+            "version": VERSION if self.emission_designs or self.streams else _PLAIN_VERSION,
             "package_version": __version__,
             "units": {"step": self.step_unit, "angle": "rad", "dt": "s"},
             "n_states": self.n_states,
@@ -563,6 +587,11 @@ class MovementHMM:
             },
             "step": self.step.to_dict(),
             "angle": self.angle.to_dict(),
+            **(
+                {"streams": {name: d.to_dict() for name, d in self.streams.items()}}
+                if self.streams
+                else {}
+            ),
             "log_likelihood": _float_or_none(self.log_likelihood),
             "n_obs": int(self.n_obs),
             "aic": _float_or_none(self.aic),
@@ -622,6 +651,12 @@ class MovementHMM:
         initial = reader.probabilities("initial", (n_states,))
         step = reader.distribution("step", n_states)
         angle = reader.distribution("angle", n_states)
+        streams = {}
+        if document.get("streams") is not None:
+            block = reader.get("streams", dict)
+            streams = {
+                str(name): reader.distribution(f"streams.{name}", n_states, block) for name in block
+            }
         transition = coefficients = design = None
         if document.get("transition") is not None:
             transition = reader.probabilities("transition", (n_states, n_states))
@@ -660,6 +695,7 @@ class MovementHMM:
                 n_obs=reader.get("n_obs", int),
                 aic=reader.number("aic"),
                 bic=reader.number("bic"),
+                streams=streams,
             )
         except ValueError as exc:
             raise ValueError(f"{source}: {exc}") from exc
@@ -804,8 +840,14 @@ class _Reader:
             self.fail(name, "must hold non-negative numbers with each row summing to 1")
         return values
 
-    def distribution(self, name: str, n_states: int):
-        block = self.get(name, dict)
+    def distribution(self, name: str, n_states: int, within: dict | None = None):
+        """The distribution of field ``name`` (of the block ``within``: a further stream)."""
+        if within is None:
+            block = self.get(name, dict)
+        else:
+            block = within[name.split(".", 1)[1]]
+            if not isinstance(block, dict):
+                self.fail(name, f"is {block!r}; expected dict")
         try:
             dist = emission.from_dict(block)
         except (KeyError, TypeError, ValueError) as exc:

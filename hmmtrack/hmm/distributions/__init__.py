@@ -14,7 +14,9 @@ fixed at 0 (``estimate_mean``).
 
 Modules: :mod:`.base` (the protocol, prepared observations, the shared family machinery),
 :mod:`.steps` (step families), :mod:`.angles` (angle families), :mod:`.families` (the
-registries ``STEP_FAMILIES`` / ``ANGLE_FAMILIES``, :func:`from_dict`, :func:`initial_guess`).
+registries ``STEP_FAMILIES`` / ``ANGLE_FAMILIES`` / ``VALUE_FAMILIES``, :func:`from_dict`,
+:func:`initial_guess`), :mod:`.values` (families of further data streams: ``Normal``,
+``Beta``, ``Poisson``, ``NegativeBinomial``, ``Bernoulli``).
 The names below are the package's public face.
 
 Not for: hidden-state inference (``hmmtrack.hmm.inference``), transition matrices or EM
@@ -32,19 +34,36 @@ from hmmtrack.hmm.distributions.base import (
 from hmmtrack.hmm.distributions.families import (
     ANGLE_FAMILIES,
     STEP_FAMILIES,
+    VALUE_FAMILIES,
     from_dict,
     initial_guess,
 )
 from hmmtrack.hmm.distributions.steps import Exponential, Gamma, LogNormal, Weibull
+from hmmtrack.hmm.distributions.values import (
+    Bernoulli,
+    Beta,
+    NegativeBinomial,
+    Normal,
+    Poisson,
+    PreparedValues,
+    prepare_values,
+)
 
 __all__ = [
     "ANGLE_FAMILIES",
     "STEP_FAMILIES",
+    "VALUE_FAMILIES",
+    "Bernoulli",
+    "Beta",
     "Exponential",
     "Gamma",
     "LogNormal",
+    "NegativeBinomial",
+    "Normal",
+    "Poisson",
     "PreparedAngles",
     "PreparedSteps",
+    "PreparedValues",
     "StateDistribution",
     "VonMises",
     "Weibull",
@@ -53,4 +72,5 @@ __all__ = [
     "initial_guess",
     "prepare_angles",
     "prepare_steps",
+    "prepare_values",
 ]

@@ -13,18 +13,30 @@ from hmmtrack.hmm.distributions.steps import (
     Weibull,
     _StepFamily,
 )
+from hmmtrack.hmm.distributions.values import (
+    Bernoulli,
+    Beta,
+    NegativeBinomial,
+    Normal,
+    Poisson,
+    _ValueFamily,
+)
 
 STEP_FAMILIES: dict[str, type[_StepFamily]] = {
     cls.name: cls for cls in (Gamma, Weibull, LogNormal, Exponential)
 }
 ANGLE_FAMILIES: dict[str, type[_AngleFamily]] = {cls.name: cls for cls in (VonMises, WrappedCauchy)}
+#: families of further data streams (a third stream and more): any of these or of the above
+VALUE_FAMILIES: dict[str, type[_ValueFamily]] = {
+    cls.name: cls for cls in (Normal, Beta, Poisson, NegativeBinomial, Bernoulli)
+}
 
 
-def from_dict(d: dict) -> _StepFamily | _AngleFamily:
+def from_dict(d: dict) -> _StepFamily | _AngleFamily | _ValueFamily:
     """Rebuild any family from its ``to_dict`` output, dispatching on ``d["family"]``."""
     if not isinstance(d, dict) or "family" not in d:
         raise ValueError(f"a distribution needs a dict with a 'family' key, got {d!r}")
-    families = {**STEP_FAMILIES, **ANGLE_FAMILIES}
+    families = {**STEP_FAMILIES, **ANGLE_FAMILIES, **VALUE_FAMILIES}
     if d["family"] not in families:
         raise ValueError(f"unknown distribution family {d['family']!r}; known: {sorted(families)}")
     return families[d["family"]].from_dict(d)
