@@ -189,6 +189,12 @@ def test_fit_with_transition_and_emission_formulas(track_file, tmp_path, capsys)
     model_path.unlink()
     assert main([*arguments, "--formula", "step.shape ~ cosT"]) != 0
     assert "the parameters that take a formula are ['mean', 'sd']" in capsys.readouterr().err
+    assert main([*arguments, "--stream", "cosT=normal", "--formula", "cosT.mean ~ sinT"]) == 0
+    document = json.loads(model_path.read_text())
+    assert document["streams"]["cosT"]["family"] == "normal"
+    assert document["streams"]["cosT"]["formulas"]["mean"]["formula"] == "~ sinT"
+    assert main([*arguments, "--stream", "cosT"]) != 0
+    assert "expected COLUMN=FAMILY" in capsys.readouterr().err
 
 
 def test_decode_refuses_another_time_step_unless_regularised_or_allowed(track_file, tmp_path):

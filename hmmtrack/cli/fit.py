@@ -8,8 +8,9 @@ reads the tracks (plain CSV in metres, or Movebank lon/lat with ``--format moveb
 projected by ``--crs``; rows without a fix refused, dropped or kept by ``--missing``),
 computes steps and turning angles (:func:`hmmtrack.tracks.prepare`), fits
 (:class:`hmmtrack.hmm.MovementHMMEstimator`, with ``--formula 'transition ~ cosT + sinT'`` or
-``--covariates`` on the transition probabilities and ``--formula 'step.mean ~ cosT + sinT'``
-on a parameter of a stream's distribution), prints the parameters with Wald intervals,
+``--covariates`` on the transition probabilities, ``--formula 'step.mean ~ cosT + sinT'``
+on a parameter of a stream's distribution, ``--stream depth=normal`` for a further data
+stream), prints the parameters with Wald intervals,
 the coefficients on the data's scale, the transition matrix, the log-likelihood
 and AIC, and writes the model file; ``--plot DIR`` also writes the standard figures
 (:func:`hmmtrack.plots.hmm.hmm_figures`). States are numbered from 1 (the smallest mean step);
@@ -200,6 +201,15 @@ def register(subparsers) -> None:
         "the fits by Rubin's rules (hmmtrack.hmm.imputation.fit_imputed); the model saved is "
         "the pooled one (no log-likelihood)",
     )
+    parser.add_argument(
+        "--stream",
+        action="append",
+        default=[],
+        metavar="COLUMN=FAMILY",
+        help="a further data stream: a column of the track file and its family ("
+        + ", ".join(sorted(distributions.VALUE_FAMILIES))
+        + "), e.g. depth=normal; repeat for several; NaN = missing",
+    )
     parser.add_argument("--starts", type=int, default=5, help="EM starts (default 5)")
     parser.add_argument("--seed", type=int, default=1, help="seed of the starts (default 1)")
     parser.add_argument("--jobs", type=int, default=1, help="processes for the starts")
@@ -277,6 +287,25 @@ def parse_formulas(texts: list[str]) -> dict[str, str]:
     return out
 
 
+def parse_streams(texts: list[str]) -> dict[str, str]:
+    """``{column: family}`` of ``--stream COLUMN=FAMILY`` options.
+
+    Raises
+    ------
+    ValueError
+        For an option without ``=`` or a column given twice.
+    """
+    out: dict[str, str] = {}
+    for text in texts:
+        column, equals, family = text.partition("=")
+        if not equals or not column.strip() or not family.strip():
+            raise ValueError(f"--stream {text!r}: expected COLUMN=FAMILY (depth=normal)")
+        if column.strip() in out:
+            raise ValueError(f"--stream: two families of {column.strip()!r}")
+        out[column.strip()] = family.strip()
+    return out
+
+
 def run(args: argparse.Namespace) -> int:
     check_paths({"tracks": args.tracks}, outputs={"-o": args.output}, folders={"--plot": args.plot})
     formulas = parse_formulas(args.formula)
@@ -287,6 +316,7 @@ def run(args: argparse.Namespace) -> int:
         "estimate_angle_mean": not args.fix_angle_mean,
         "covariates": tuple(args.covariates),
         "formulas": formulas,
+        "streams": parse_streams(args.stream),
         "n_starts": args.starts,
         "n_jobs": args.jobs,
         "step_unit": tracks.length_unit(args.scale),

@@ -301,7 +301,7 @@ def emission_coefficients(model: MovementHMM) -> dict[str, pd.DataFrame]:
     zero)."""
     out = {}
     for stream, designs in model.emission_designs.items():
-        dist = getattr(model, stream)
+        dist = model.emissions[stream]
         for name, design in designs.items():
             out[f"{stream}.{name}"] = pd.DataFrame(
                 design.to_data_scale(dist.coefficients[name]),
