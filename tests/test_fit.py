@@ -316,3 +316,38 @@ def test_package_ships_py_typed():
     from importlib import resources
 
     assert resources.files("hmmtrack").joinpath("py.typed").is_file()
+
+
+def test_user_starting_values_are_the_first_start(simulated):
+    """Without EM iterations and polish, the fit returns the given starting values."""
+    estimator = MovementHMMEstimator(2, start=TRUE, max_iter=0, polish=False, n_starts=2, seed=3)
+    model = estimator.fit(simulated).model_
+    np.testing.assert_array_equal(model.step.mean, TRUE.step.mean)
+    np.testing.assert_array_equal(model.transition, TRUE.transition)
+    assert model.log_likelihood == pytest.approx(TRUE.score(simulated), rel=1e-12)
+    assert estimator.starts_[1].parameters.step != TRUE.step  # the other starts stay random
+    weibull = MovementHMM(
+        TRUE.initial, TRUE.transition, Weibull([1.0, 2.0], [2.0, 9.0]), TRUE.angle
+    )
+    with pytest.raises(ValueError, match=r"start: the model's \['step'\] differ"):
+        MovementHMMEstimator(2, start=weibull).fit(simulated)
+
+
+def test_known_states_everywhere_give_the_complete_data_estimates(simulated):
+    """With every state known the likelihood is the complete-data one: its maximum is the
+    weighted fit with one-hot weights and the counted transitions."""
+    data = simulated.assign(known=simulated.state + 1.0)
+    model = MovementHMMEstimator(2, known_states="known", seed=1).fit(data).model_
+    one_hot = np.eye(2)[simulated.state.to_numpy()]
+    expected = TRUE.step.fit_weighted(simulated.step.to_numpy(), one_hot)
+    np.testing.assert_allclose(model.step.mean, expected.mean, rtol=1e-6)
+    np.testing.assert_allclose(model.step.sd, expected.sd, rtol=1e-6)
+    states = simulated.state.to_numpy()
+    same_track = simulated.segment.to_numpy()[1:] == simulated.segment.to_numpy()[:-1]
+    counts = np.zeros((2, 2))
+    np.add.at(counts, (states[:-1][same_track], states[1:][same_track]), 1)
+    np.testing.assert_allclose(
+        model.transition, counts / counts.sum(axis=1, keepdims=True), rtol=1e-6
+    )
+    with pytest.raises(ValueError, match="known states must be 1..2"):
+        MovementHMMEstimator(2, known_states="known").fit(data.assign(known=3.0))

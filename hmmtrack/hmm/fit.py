@@ -77,6 +77,10 @@ class FitData:
         (:mod:`~hmmtrack.hmm.emission`); empty without.
     streams : dict of str to ndarray, shape (T,)
         Further data streams by name (a dive depth, counts; NaN = missing); empty without.
+    known : ndarray, shape (T, K) or None
+        Known states as log-likelihood terms: 0 where the state is possible, -inf for the
+        other states of a row whose state is known (:func:`known_state_terms`); None
+        without.
     prepared : dict
         Each stream's observations validated once with their transforms (log step, cos and
         sin of the angle), by stream; every density evaluation, M-step and score of the fit
@@ -93,6 +97,7 @@ class FitData:
     design: np.ndarray | None = None
     emission: dict = field(default_factory=dict)
     streams: dict = field(default_factory=dict)
+    known: np.ndarray | None = None
     prepared: dict = field(init=False, repr=False)
     inputs: dict = field(init=False, repr=False)
 
@@ -166,11 +171,14 @@ class Parameters:
         return cov.log_transition_matrices(self.coefficients, data.design[1:])
 
     def log_likelihood_matrix(self, data: FitData) -> np.ndarray:
-        """Emission log densities, shape (T, K)."""
+        """Emission log densities, shape (T, K), with ``data.known``'s -inf where a row's
+        state is known to be another."""
         log_lik = self.step.logpdf(data.inputs["step"])
         for name, dist in self.emissions.items():
             if name != "step":
                 log_lik += dist.logpdf(data.inputs[name])  # in place: no third (T, K) array
+        if data.known is not None:
+            log_lik += data.known
         return log_lik
 
     def permuted(self, order: np.ndarray) -> Parameters:
@@ -540,6 +548,7 @@ class FitSpec:
     tol: float
     emission_designs: dict = field(default_factory=dict)  # {stream: {parameter: Design}}
     stream_families: dict = field(default_factory=dict)  # {further stream: family name}
+    start: Parameters | None = None  # the user's starting values of start 0
 
 
 def initial_parameters(rng: np.random.Generator | None, data: FitData, spec: FitSpec) -> Parameters:
@@ -589,10 +598,13 @@ def initial_parameters(rng: np.random.Generator | None, data: FitData, spec: Fit
 def run_start(index: int, seed: np.random.SeedSequence, data: FitData, spec: FitSpec):
     """One start, then EM; states ordered by mean step.
 
-    Start 0 uses the deterministic equal-count starting values, the others random ones drawn
-    with a generator from ``seed``.
+    Start 0 uses the user's starting values (``spec.start``) or the deterministic
+    equal-count ones, the others random ones drawn with a generator from ``seed``.
     """
-    start = initial_parameters(None if index == 0 else as_generator(seed), data, spec)
+    if index == 0 and spec.start is not None:
+        start = spec.start
+    else:
+        start = initial_parameters(None if index == 0 else as_generator(seed), data, spec)
     try:
         params, log_likelihood, monitor = run_em(start, data, spec.max_iter, spec.tol)
     except (ValueError, FloatingPointError, np.linalg.LinAlgError) as exc:
@@ -641,8 +653,8 @@ def run_starts(data: FitData, spec: FitSpec, n_starts: int, seed, n_jobs: int = 
 # ---------------------------------------------------------------------------------------------
 
 
-def fit_data(observations: Observations) -> FitData:
-    """:class:`FitData` of a table's observations."""
+def fit_data(observations: Observations, known: np.ndarray | None = None) -> FitData:
+    """:class:`FitData` of a table's observations (``known``: see :class:`FitData`)."""
     return FitData(
         observations.step,
         observations.angle,
@@ -650,7 +662,36 @@ def fit_data(observations: Observations) -> FitData:
         observations.design,
         observations.emission,
         observations.streams,
+        known,
     )
+
+
+def known_state_terms(states, n_states: int) -> np.ndarray:
+    """Log-likelihood terms (T, K) of known states: 0 for the possible states of a row, -inf
+    for the others.
+
+    Parameters
+    ----------
+    states : array of float, shape (T,)
+        The state of each row, numbered from 1 as users see them; NaN where unknown.
+    n_states : int
+
+    Raises
+    ------
+    ValueError
+        For a state that is not a whole number in 1..K.
+    """
+    states = np.asarray(states, dtype=float)
+    known = np.isfinite(states)
+    bad = known & ~np.isin(states, np.arange(1, n_states + 1))
+    if bad.any() or np.isinf(states).any():
+        rows = np.flatnonzero(bad | np.isinf(states))[:10].tolist()
+        raise ValueError(f"known states must be 1..{n_states} or NaN; not at rows {rows}")
+    terms = np.zeros((states.size, n_states))
+    rows = np.flatnonzero(known)
+    terms[rows] = -np.inf
+    terms[rows, states[rows].astype(np.int64) - 1] = 0.0
+    return terms
 
 
 def parameters_of(model: MovementHMM) -> Parameters:
@@ -717,6 +758,30 @@ def information_criteria(log_likelihood: float, n_parameters: int, n_obs: int):
     )
 
 
+def _matching_start(given: Parameters, template: Parameters) -> Parameters:
+    """``given`` if it has the structure of ``template`` (the fit's), else a ``ValueError``
+    naming the difference."""
+
+    def structure(params: Parameters) -> dict:
+        return {
+            "states": params.n_states,
+            "transition covariates": params.coefficients is not None and params.coefficients.shape,
+            **{
+                name: (dist.name, dist.link_names(), tuple(getattr(dist, "designs", {})))
+                for name, dist in params.emissions.items()
+            },
+        }
+
+    want, have = structure(template), structure(given)
+    different = [key for key in {**want, **have} if want.get(key) != have.get(key)]
+    if different:
+        raise ValueError(
+            f"start: the model's {different} differ from the fit's: "
+            + "; ".join(f"{k}: {have.get(k)} given, {want.get(k)} fitted" for k in different)
+        )
+    return given
+
+
 # ---------------------------------------------------------------------------------------------
 # Estimator
 # ---------------------------------------------------------------------------------------------
@@ -749,6 +814,13 @@ class MovementHMMEstimator:
     streams : dict of str to str, or None
         Further data streams: a column of the table and its family in ``VALUE_FAMILIES``
         (``{"depth": "normal", "dives": "poisson"}``); NaN = missing.
+    start : MovementHMM or None
+        Starting values of the first start (the others stay random): a model of the same
+        structure as the fit (families, zero inflation, formulas, streams, states).
+    known_states : str or None
+        A column of the table with the state of each row where it is known (1..K, as users
+        number states; NaN where unknown): the fit allows only that state there. The
+        fitted model does not keep it (decoding and intervals see the data alone).
     zero_inflation : "auto" or bool
         "auto" switches zero-inflated steps on when a step is exactly 0.
     n_starts : int
@@ -794,6 +866,8 @@ class MovementHMMEstimator:
         formula: str | None = None,
         formulas: dict | None = None,
         streams: dict | None = None,
+        start=None,
+        known_states: str | None = None,
         zero_inflation="auto",
         n_starts: int = 1,
         seed=None,
@@ -812,6 +886,8 @@ class MovementHMMEstimator:
         self.formula = formula
         self.formulas = formulas
         self.streams = streams
+        self.start = start
+        self.known_states = known_states
         self.zero_inflation = zero_inflation
         self.n_starts = n_starts
         self.seed = seed
@@ -933,11 +1009,18 @@ class MovementHMMEstimator:
         observations = Observations.from_frame(
             table, design, emission_designs=emission_designs, streams=tuple(self._streams())
         )
-        data = fit_data(observations)
+        known = None
+        if self.known_states is not None:
+            if self.known_states not in table.columns:
+                raise ValueError(f"known_states: no column {self.known_states!r} in the data")
+            known = known_state_terms(table[self.known_states], int(self.n_states))
+        data = fit_data(observations, known)
         if np.all(np.isnan(data.step)):
             raise ValueError("no observed step in the data")
         spec = self._spec(data, emission_designs)
-        initial_parameters(None, data, spec)  # refuses unknown parameters before any start
+        template = initial_parameters(None, data, spec)  # refuses unknown parameters early
+        if self.start is not None:
+            spec = replace(spec, start=_matching_start(parameters_of(self.start), template))
         starts = run_starts(data, spec, int(self.n_starts), self.seed, int(self.n_jobs))
         failed = [s for s in starts if s.error is not None]
         if len(failed) == len(starts):
