@@ -420,7 +420,8 @@ def fused_em(params, data) -> FusedEM | None:
 
     The fused path needs 2 or 3 states (:data:`KERNELS`), a constant transition matrix (no
     covariates) and exactly the families :class:`Gamma` (zero-inflated or not) and
-    :class:`VonMises` (mean estimated or fixed at 0).
+    :class:`VonMises` (mean estimated or fixed at 0), no further streams (emission formulas
+    have other types) and no known states.
     """
     if params.n_states not in KERNELS or params.coefficients is not None:
         return None
@@ -428,6 +429,9 @@ def fused_em(params, data) -> FusedEM | None:
         return None
     if type(params.step) is not Gamma or type(params.angle) is not VonMises:
         return None
-    if params.step.zero_mass is None and data.prepared_step.zero.any():
+    if params.streams or data.known is not None:
+        return None
+    steps, angles = data.prepared["step"], data.prepared["angle"]
+    if params.step.zero_mass is None and steps.zero.any():
         return None  # the general path refuses zero steps without zero-inflation
-    return FusedEM(data.prepared_step, data.prepared_angle, data.lengths, params.n_states)
+    return FusedEM(steps, angles, data.lengths, params.n_states)
