@@ -62,6 +62,19 @@ def world(tmp_path_factory) -> Path:
     pd.concat([two, two.assign(transmitter="A69-9001-1234")]).to_csv(
         root / "det_two_1234.csv", index=False
     )
+    detections = pd.read_csv(root / "sim" / "detections.csv")
+    epoch = pd.to_datetime(detections["time"]) - pd.Timestamp("1970-01-01", tz="UTC")
+    detections.assign(time=epoch // pd.Timedelta("1ms")).to_csv(root / "det_ms.csv", index=False)
+    detections.head(1).to_csv(root / "det_one.csv", index=False)
+    later = detections[detections["receiver"] == "boat"].head(20)  # the boat, 2 h later
+    later = later.assign(time=pd.to_datetime(later["time"]) + pd.Timedelta("2h"))
+    later["time"] = later["time"].dt.strftime("%Y-%m-%dT%H:%M:%S.%fZ")
+    pd.concat([detections, later]).to_csv(root / "det_gap.csv", index=False)
+    receivers = pd.read_csv(root / "sim" / "receivers.csv")  # metres as degrees, as mm
+    receivers.assign(x=-118.2 + receivers["x"] * 1e-5, y=33.7 + receivers["y"] * 1e-5).to_csv(
+        root / "rec_degrees.csv", index=False
+    )
+    receivers.assign(x=receivers["x"] * 1e6).to_csv(root / "rec_far.csv", index=False)
     (root / "folder").mkdir()
     (root / "reports").mkdir()
     (root / "reports" / "summary.md").write_text(PREVIOUS)
@@ -179,6 +192,32 @@ def expand(case: Case, world: Path) -> list[str]:
 @pytest.mark.parametrize("case", CASES, ids=lambda c: c.name)
 def test_bad_input_is_refused_and_nothing_is_written(world, capsys, case):
     assert_refused(world, capsys, expand(case, world), case.code, case.says)
+
+
+def test_a_long_gap_breaks_the_range_chain_with_a_warning(world, tmp_path, capsys, caplog):
+    """Detections 2 h after the rest (longer than --max-gap, 1 h) are not used and the break
+    is said once; with --max-gap above the gap they are used (and the track is longer)."""
+    argv = TRACK_NO_CONFIG.replace("{s}/detections.csv", "{w}/det_gap.csv")
+    argv = argv.format(w=world, s=world / "sim").split()
+    with caplog.at_level("WARNING"):
+        assert main([*argv, "-o", str(tmp_path / "e.csv")]) == 0
+    assert "Traceback" not in capsys.readouterr().err
+    broken = [r.getMessage() for r in caplog.records if "range_chain_broken" in r.getMessage()]
+    assert len(broken) == 1, caplog.text
+    assert "receiver boat: its 20 detection(s)" in broken[0]
+    assert "--max-gap" in broken[0]
+    caplog.clear()
+    with caplog.at_level("WARNING"):
+        assert main([*argv, "--max-gap", "9000", "-o", str(tmp_path / "f.csv")]) == 0
+    assert "range_chain_broken" not in caplog.text
+
+
+def test_a_dead_dask_scheduler_is_one_line_and_exit_1(world, capsys):
+    """Nothing listens at the address: a one-line failure after --dask-timeout, no hang."""
+    pytest.importorskip("distributed")
+    address = "tcp://127.0.0.1:1"
+    argv = f"reproduce --quick --out {world}/r --dask-scheduler {address} --dask-timeout 2"
+    assert_refused(world, capsys, argv.split(), 1, ("--dask-scheduler", address, "2 s"))
 
 
 def test_a_folder_output_may_hold_its_own_previous_files(world, tmp_path, capsys):

@@ -472,10 +472,10 @@ REAL = Path(__file__).resolve().parents[2] / "shared" / "data" / "yaps_ssu1"
 def test_real_vue_export_runs_end_to_end(tmp_path, capsys):
     """A real Innovasea VUE export with 19 moored VR2W receivers (skipped when absent).
 
-    Tag 15266 has a random 20-40 s burst interval, so fixed-period ranging does not apply
-    and the positions are not checked: this is the real-format path (receiver and
-    transmitter names, millisecond receiver-clock times, several transmitters) and the
-    filter's guarantee of finite estimates whatever the ranges.
+    Tag 15266 has a random 20-40 s burst interval, so fixed-period ranging does not apply:
+    this is the real-format path (receiver and transmitter names, millisecond
+    receiver-clock times, several transmitters) up to the period check, which refuses the
+    tag as not of a fixed period instead of writing a track from meaningless ranges.
     """
     if not REAL.is_dir():
         pytest.skip(f"real data not present: {REAL}")
@@ -500,11 +500,10 @@ def test_real_vue_export_runs_end_to_end(tmp_path, capsys):
     args += ["--motion", "velocity", "--particles", "300", "--seed", "1", "-o", str(output)]
     assert main(args) == 2  # nine transmitters in the file: which one?
     assert "choose one" in capsys.readouterr().err
-    assert main([*args, "--transmitter", "15266"]) == 0  # the ID part is enough
-    table = pd.read_csv(output)
-    span = np.ceil(detections["time"].max()) - np.floor(detections["time"].min())
-    assert len(table) == int(span) + 1
-    assert np.isfinite(table[ESTIMATE_COLUMNS[1:]].to_numpy()).all()
+    assert main([*args, "--transmitter", "15266"]) == 2  # the ID part is enough
+    err = capsys.readouterr().err
+    assert "not those of a fixed-period tag" in err and "random delays" in err
+    assert not output.exists()
 
 
 def test_plot_functions_draw_what_they_are_given():

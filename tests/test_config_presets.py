@@ -172,7 +172,7 @@ def test_default_models_are_those_of_the_trackers():
         ({"resample_when": "never"}, "resample_when must be one of"),
         ({"ess_threshold": 1.5}, r"ess_threshold must lie in \(0, 1\]"),
         ({"prediction_step": 0}, "prediction_step must be a positive"),
-        ({"sound_speed": -1}, "sound_speed must be a positive"),
+        ({"sound_speed": -1}, "sound_speed must be a speed of sound in water between 1300"),
         ({"sigma_range": 0}, "sigma_range must be a positive"),
         ({"range_rate_correlation": 1.0}, r"range_rate_correlation must lie in \(-1, 1\)"),
         ({"depth": "deep"}, "depth must be one of"),

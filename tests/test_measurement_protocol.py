@@ -15,7 +15,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from hmmtrack import scenarios
+from hmmtrack import io, scenarios
 from hmmtrack.analysis.metrics import truth_at
 from hmmtrack.experiments.configs import tracking_config
 from hmmtrack.scenarios.realistic import moored_array
@@ -238,15 +238,15 @@ def test_track_runs_every_measurement_to_the_tag(built):
 
 
 def test_exact_duplicate_detections_are_dropped_once_for_every_measurement(built, caplog):
-    """The same detection logged twice is used once, whatever the measurement (the
-    range-rate ranging refuses a pair at one time; arrival time would count it twice)."""
+    """The same detection logged twice is used once, whatever the measurement (a pair at one
+    time has no range-rate; arrival time would count it twice)."""
     _, case, observations, _ = built
     repeated = case.detections.iloc[[3, 7, 7, 20]]
     doubled = pd.concat([case.detections, repeated]).sort_values("time", kind="stable")
-    with caplog.at_level("WARNING", logger="hmmtrack.tracking.pipeline"):
+    with caplog.at_level("WARNING", logger="hmmtrack.io.detections"):
         rebuilt = pipeline.build_observations(doubled, case.receivers, case.config)
     pd.testing.assert_frame_equal(rebuilt, observations)
     assert "dropped 4 exact duplicate detection(s)" in caplog.text
     near = case.detections.iloc[[3]].assign(time=case.detections["time"].iloc[3] + 1e-3)
     with_near = pd.concat([case.detections, near]).sort_values("time", kind="stable")
-    assert len(pipeline.drop_duplicate_detections(with_near)) == len(case.detections) + 1
+    assert len(io.drop_duplicate_detections(with_near)) == len(case.detections) + 1

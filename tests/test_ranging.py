@@ -10,6 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from hmmtrack.tracking.measurement import ranging
+from hmmtrack.tracking.measurement.range_rate import RangeRateMeasurement, RangeRateSettings
 
 PERIOD = 8.179
 SOUND = 1460.0
@@ -164,12 +165,20 @@ def test_range_table_groups_pairs_and_sorts_rows():
         np.testing.assert_allclose(rows["range"], expected, atol=1e-7)
 
 
+def test_range_table_uses_a_detection_logged_twice_once(caplog):
+    """The pipeline's one rule for duplicates (io.drop_duplicate_detections), not an error."""
+    once = pd.DataFrame({"time": [0.0, 8.0, 16.5], "receiver": "A", "transmitter": "T"})
+    twice = pd.concat([once, once.iloc[[1]]]).sort_values("time", kind="stable")
+    with caplog.at_level("WARNING", logger="hmmtrack.io.detections"):
+        table = ranging.range_table(twice, PERIOD, {"A": 1.0})
+    pd.testing.assert_frame_equal(table, ranging.range_table(once, PERIOD, {"A": 1.0}))
+    assert "dropped 1 exact duplicate detection(s)" in caplog.text
+
+
 def test_range_table_errors_name_what_is_wrong():
     detections = pd.DataFrame({"time": [0.0, 8.0, 8.0], "receiver": "A", "transmitter": "T"})
     with pytest.raises(ValueError, match=r"receiver\(s\) \['A'\]"):
         ranging.range_table(detections, PERIOD, {"B": 1.0})
-    with pytest.raises(ValueError, match=r"same time in rows \[1, 2\]"):
-        ranging.range_table(detections, PERIOD, {"A": 1.0})
     with pytest.raises(ValueError, match="lacks column"):
         ranging.range_table(detections.drop(columns="transmitter"), PERIOD, {"A": 1.0})
     with pytest.raises(ValueError, match="period"):
@@ -228,3 +237,23 @@ def test_depth_correction_reproduces_the_papers_figures():
     )
     with pytest.raises(ValueError, match=r"position\(s\) \[0\]"):
         ranging.depth_correction(np.array([5.0, 13.0]), 12.0)
+
+
+def test_a_gap_longer_than_max_gap_breaks_the_range_chain():
+    """Ranges counted across a long gap are not trusted: NaN from the detection after it,
+    and the measurement reports the break as an event instead of scoring those rows."""
+    times = np.r_[np.arange(5) * PERIOD, 5000.0 + np.arange(3) * PERIOD]
+    detections = pd.DataFrame({"time": times, "receiver": "A", "transmitter": "T"})
+    whole = ranging.range_table(detections, PERIOD, {"A": 30.0})
+    assert np.isfinite(whole["range"]).all()
+    table = ranging.range_table(detections, PERIOD, {"A": 30.0}, max_gap=3600.0)
+    np.testing.assert_array_equal(table["range"][:5], whole["range"][:5])
+    assert table["range"][5:].isna().all() and table["range_rate"][5:].isna().all()
+    observations = table.assign(receiver_x=0.0, receiver_y=0.0, receiver_vx=0.0, receiver_vy=0.0)
+    measurement = RangeRateMeasurement.from_settings(RangeRateSettings(period=PERIOD))
+    scored, events = measurement.split(observations)
+    np.testing.assert_array_equal(scored["time"], times[1:5])
+    assert events["kind"].tolist() == ["anchor_detection", "range_chain_broken"]
+    assert events["time"].iloc[1] == 5000.0
+    assert "receiver A: its 3 detection(s)" in events["detail"].iloc[1]
+    assert "4967 s gap" in events["detail"].iloc[1]

@@ -15,11 +15,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from hmmtrack import scenarios
+from hmmtrack import io, scenarios
 from hmmtrack.analysis import metrics
 from hmmtrack.analysis.calibration import expected_measurements
 from hmmtrack.analysis.crb import static_tag_fit
 from hmmtrack.experiments.configs import tracking_config
+from hmmtrack.tracking import filter as filter_module
 from hmmtrack.tracking import pipeline as tracking
 from hmmtrack.tracking.config import TrackingConfig
 from hmmtrack.tracking.filter import FilterSettings
@@ -366,3 +367,28 @@ def test_measurement_covariance_from_a_simulation(stationary):
     # default Σ_z (5 m, 0.5 m/s) covers them
     assert 0.1 < np.sqrt(sigma[0, 0]) < 5.0
     assert 0.01 < np.sqrt(sigma[1, 1]) < 0.5
+
+
+@pytest.mark.filterwarnings("ignore:.*observations_outside_window:RuntimeWarning")
+def test_streamed_estimates_are_the_kept_ones_written(stationary, tmp_path, monkeypatch):
+    """With a sink (``estimates_to``) the estimates leave as tables of at most
+    ``ESTIMATE_ROWS`` rows, none is kept, and an ``io.EstimatesWriter`` sink writes the very
+    file ``io.write_estimates`` writes from the kept estimates (the CLI's streamed output)."""
+    monkeypatch.setattr(filter_module, "ESTIMATE_ROWS", 70)
+    config = scenario_config(stationary, n_particles=200, end=stationary.start + 200)
+    data = stationary.detections, stationary.receivers
+    kept = tracking.track(*data, config, seed=3)
+    io.write_estimates(kept.estimates, tmp_path / "kept.csv")
+    tables = []
+    with open(tmp_path / "streamed.csv", "w", newline="") as file:
+        writer = io.EstimatesWriter(file)
+
+        def sink(table: pd.DataFrame) -> None:
+            tables.append(len(table))
+            writer(table)
+
+        streamed = tracking.track(*data, config, seed=3, estimates_to=sink)
+    assert streamed.estimates is None
+    assert tables == [70, 70, 61] and writer.rows == len(kept.estimates) == 201
+    assert (tmp_path / "streamed.csv").read_text() == (tmp_path / "kept.csv").read_text()
+    pd.testing.assert_frame_equal(streamed.events, kept.events)

@@ -47,6 +47,7 @@ from collections.abc import Iterator
 from concurrent.futures.process import BrokenProcessPool
 
 from hmmtrack import __version__
+from hmmtrack.io.times import TIME_UNITS
 
 #: command modules, in the order ``hmmtrack --help`` lists them
 COMMANDS = ("fit", "decode", "plot", "track", "sync", "simulate", "reproduce", "study")
@@ -71,6 +72,17 @@ class Interrupted(KeyboardInterrupt):
     def __init__(self, signum: int):
         super().__init__(signal.Signals(signum).name)
         self.signum = signum
+
+
+def add_time_unit(parser: argparse.ArgumentParser, files: str) -> None:
+    """``--time-unit {s,ms}``: the unit of numeric times in ``files`` (ISO 8601 text ignores
+    it; :func:`hmmtrack.io.times.parse_times`)."""
+    parser.add_argument(
+        "--time-unit",
+        choices=TIME_UNITS,
+        default="s",
+        help=f"unit of numeric (epoch) times in {files}: s or ms (default: s)",
+    )
 
 
 def _raise_interrupted(signum: int, frame) -> None:

@@ -66,6 +66,13 @@ def register(subparsers) -> None:
         metavar="ADDRESS",
         help="run trials on a Dask cluster at ADDRESS (needs hmmtrack[dask])",
     )
+    parser.add_argument(
+        "--dask-timeout",
+        type=float,
+        default=30.0,
+        metavar="SECONDS",
+        help="how long to wait for the Dask scheduler to answer (default 30)",
+    )
     parser.add_argument("--seed", type=int, default=0, help="experiment seed (default 0)")
     progress = parser.add_mutually_exclusive_group()
     progress.add_argument(
@@ -104,7 +111,16 @@ def run(args: argparse.Namespace) -> int:
             raise UserInputError(
                 "--dask-scheduler needs Dask: pip install 'hmmtrack[dask]'"
             ) from None
-        client = Client(args.dask_scheduler)
+        if not args.dask_timeout > 0:
+            raise UserInputError(f"--dask-timeout must be positive, got {args.dask_timeout:g}")
+        try:
+            client = Client(args.dask_scheduler, timeout=args.dask_timeout)
+        except OSError as exc:  # nothing listening, a wrong address: a failure, exit 1
+            raise OSError(
+                f"--dask-scheduler {args.dask_scheduler}: no Dask scheduler answered within "
+                f"{args.dask_timeout:g} s ({exc}); start one (dask scheduler) or check the "
+                "address"
+            ) from None
         executor = client
     else:
         executor = "serial" if args.workers == 1 else "processes"

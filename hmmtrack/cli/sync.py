@@ -21,8 +21,10 @@ import time
 from pathlib import Path
 
 from hmmtrack import io
+from hmmtrack.cli import add_time_unit
 from hmmtrack.io.outputs import atomic_files, check_paths
 from hmmtrack.sync import apply_clocks, fit_clocks, write_clocks
+from hmmtrack.tracking.measurement.ranging import check_sound_speed
 
 
 def register(subparsers) -> None:
@@ -42,6 +44,7 @@ def register(subparsers) -> None:
         help="receivers CSV: receiver,x,y[,z][,sync_tag][,fixed] (moored)",
     )
     parser.add_argument("-o", "--out", required=True, help="clock file to write (JSON)")
+    add_time_unit(parser, "the detections and receivers")
     parser.add_argument(
         "--time-keeper", help="receiver whose clock is the common time base (default: most heard)"
     )
@@ -105,8 +108,10 @@ def run(args: argparse.Namespace) -> int:
             "--write-synced": args.write_synced,
         },
     )
-    detections = io.read_detections(args.detections, tz=args.tz)
-    receivers = io.read_receivers(args.receivers)
+    if args.sound_speed is not None:
+        check_sound_speed("--sound-speed", args.sound_speed)
+    detections = io.read_detections(args.detections, tz=args.tz, time_unit=args.time_unit)
+    receivers = io.read_receivers(args.receivers, time_unit=args.time_unit)
     temperature, salinity = args.water if args.water else (None, None)
     fit = fit_clocks(
         detections,

@@ -37,7 +37,7 @@ import pandas as pd
 
 from hmmtrack import io
 from hmmtrack.analysis import metrics
-from hmmtrack.cli import UserInputError
+from hmmtrack.cli import UserInputError, add_time_unit
 from hmmtrack.io.outputs import atomic_files, check_paths
 from hmmtrack.tracking import pipeline as tracking
 from hmmtrack.tracking.config import (
@@ -195,6 +195,7 @@ def register(subparsers) -> None:
         "--receivers", required=True, help="receiver positions CSV (x/y or lon/lat)"
     )
     parser.add_argument("-o", "--output", required=True, help="estimates CSV to write")
+    add_time_unit(parser, "the detections, receivers and truth")
     parser.add_argument(
         "--preset",
         metavar="NAME",
@@ -340,41 +341,9 @@ def _warn_ambiguous(ambiguity: pd.DataFrame) -> None:
         )
 
 
-def run(args: argparse.Namespace) -> int:
-    config = build_config(args)
-    inputs = {"--detections": args.detections, "--receivers": args.receivers}
-    inputs |= {"--config": args.config, "--model": args.model, "--truth": args.truth}
-    inputs |= {"--clocks": config.clocks}
-    if args.per_ping and config.measurement.name != "ping":
-        raise UserInputError(
-            f"--per-ping is used with --measurement ping only (this run's is "
-            f"{config.measurement.name})"
-        )
-    check_paths(
-        inputs, outputs={"-o": args.output, "--plot": args.plot, "--per-ping": args.per_ping}
-    )
-    seed = args.seed
-    if seed is None:
-        seed = int(np.random.SeedSequence().entropy % 2**63)
-        print(f"seed: {seed} (pass --seed {seed} to repeat this run)", file=sys.stderr)
-    detections = io.read_detections(args.detections)
-    receivers = io.read_receivers(args.receivers)
-    projection = io.Projection.from_frame(receivers)
-    truth = io.read_truth(args.truth, projection) if args.truth else None
-    if args.bounds is not None and projection is not None:
-        config = config.override(bounds=io.bounds_in_metres(args.bounds, projection))
-    snapshot_times = ()
-    if args.plot:
-        from hmmtrack.plots.tracking import snapshot_times as choose_snapshots
-
-        tracked = tracking.tracked_detections(detections, config)
-        snapshot_times = choose_snapshots(*tracking.time_window(tracked["time"], config))
-    with warnings.catch_warnings():
-        # the filter warns of each event as it happens; they are logged once below
-        warnings.filterwarnings("ignore", message=r"t=\S+: \w+: ", category=RuntimeWarning)
-        result = tracking.track(
-            detections, receivers, config, seed=seed, snapshot_times=snapshot_times
-        )
+def _report(result, args: argparse.Namespace, receivers: pd.DataFrame, truth):
+    """Say what the run found (ambiguity, the filter's events, the metrics against
+    ``truth``) and draw the ``--plot`` figure (``None`` without one)."""
     if result.ambiguity is not None:
         _warn_ambiguous(result.ambiguity)
     estimates = result.estimates if result.smoothed is None else result.smoothed
@@ -398,32 +367,82 @@ def run(args: argparse.Namespace) -> int:
         convergence = metrics.time_to_convergence(
             scored["time"].to_numpy(), scored["sqrt_lambda1"].to_numpy()
         )
-    figure = None
-    if args.plot:
-        import matplotlib
+    if not args.plot:
+        return None
+    import matplotlib
 
-        matplotlib.use("Agg")
-        from hmmtrack.plots.tracking import plot_tracking_run
+    matplotlib.use("Agg")
+    from hmmtrack.plots.tracking import plot_tracking_run
 
-        figure = plot_tracking_run(
-            estimates,
-            snapshots,
-            receivers,
-            observations=observations,
-            truth=truth,
-            errors=errors,
-            convergence=convergence,
+    return plot_tracking_run(
+        estimates,
+        snapshots,
+        receivers,
+        observations=observations,
+        truth=truth,
+        errors=errors,
+        convergence=convergence,
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    config = build_config(args)
+    inputs = {"--detections": args.detections, "--receivers": args.receivers}
+    inputs |= {"--config": args.config, "--model": args.model, "--truth": args.truth}
+    inputs |= {"--clocks": config.clocks}
+    if args.per_ping and config.measurement.name != "ping":
+        raise UserInputError(
+            f"--per-ping is used with --measurement ping only (this run's is "
+            f"{config.measurement.name})"
         )
+    check_paths(
+        inputs, outputs={"-o": args.output, "--plot": args.plot, "--per-ping": args.per_ping}
+    )
+    seed = args.seed
+    if seed is None:
+        seed = int(np.random.SeedSequence().entropy % 2**63)
+        print(f"seed: {seed} (pass --seed {seed} to repeat this run)", file=sys.stderr)
+    detections = io.read_detections(args.detections, time_unit=args.time_unit)
+    receivers = io.read_receivers(args.receivers, time_unit=args.time_unit)
+    projection = io.Projection.from_frame(receivers)
+    truth = io.read_truth(args.truth, projection, args.time_unit) if args.truth else None
+    if args.bounds is not None and projection is not None:
+        config = config.override(bounds=io.bounds_in_metres(args.bounds, projection))
+    snapshot_times = ()
+    if args.plot:
+        from hmmtrack.plots.tracking import snapshot_times as choose_snapshots
+
+        tracked = tracking.tracked_detections(detections, config)
+        snapshot_times = choose_snapshots(*tracking.time_window(tracked["time"], config))
+    # estimates go to the output as they are made (memory bounded by the particles, not the
+    # span) unless the metrics, the plot, the smoother or the modes need them all at the end
+    modes = config.filter.modes or config.filter.mixture
+    stream = truth is None and not args.plot and config.smoothing_lag is None and not modes
     outputs = [args.output, args.plot, args.per_ping]
     with atomic_files(*filter(None, outputs)) as written:
         paths = dict(zip([p for p in outputs if p], written, strict=True))
-        io.write_estimates(estimates, paths[args.output], projection=projection)
+        with open(paths[args.output], "w", newline="") as file:
+            writer = io.EstimatesWriter(file, projection)
+            with warnings.catch_warnings():
+                # the filter warns of each event as it happens; they are logged once below
+                warnings.filterwarnings("ignore", message=r"t=\S+: \w+: ", category=RuntimeWarning)
+                result = tracking.track(
+                    detections,
+                    receivers,
+                    config,
+                    seed=seed,
+                    snapshot_times=snapshot_times,
+                    estimates_to=writer if stream else None,
+                )
+            figure = _report(result, args, receivers, truth)
+            if not stream:
+                writer(result.estimates if result.smoothed is None else result.smoothed)
         if figure is not None:
             figure.savefig(paths[args.plot], dpi=120, bbox_inches="tight")
         if args.per_ping:
-            pings = per_ping_table(result.pings, observations, result.smoothed)
+            pings = per_ping_table(result.pings, result.observations, result.smoothed)
             io.write_estimates(pings, paths[args.per_ping], projection=projection)
-    print(f"wrote {len(estimates)} estimates to {args.output}")
+    print(f"wrote {writer.rows} estimates to {args.output}")
     if args.per_ping:
         print(f"wrote {len(pings)} pings to {args.per_ping}")
     if args.plot:

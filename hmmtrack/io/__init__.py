@@ -36,8 +36,13 @@ Not for: track maths (:mod:`hmmtrack.tracks`), ranging
 (:mod:`hmmtrack.tracking.measurement.ranging`).
 """
 
-from hmmtrack.io.detections import VUE_COLUMNS, detect_format, read_detections
-from hmmtrack.io.estimates import read_truth, write_estimates
+from hmmtrack.io.detections import (
+    VUE_COLUMNS,
+    detect_format,
+    drop_duplicate_detections,
+    read_detections,
+)
+from hmmtrack.io.estimates import EstimatesWriter, read_truth, write_estimates
 from hmmtrack.io.geo import Projection, bounds_in_metres, choose_projection
 from hmmtrack.io.receivers import read_receivers, validate_receivers
 from hmmtrack.io.times import format_times, parse_times
@@ -45,10 +50,12 @@ from hmmtrack.io.tracks import read_movebank, read_tracks
 
 __all__ = [
     "VUE_COLUMNS",
+    "EstimatesWriter",
     "Projection",
     "bounds_in_metres",
     "choose_projection",
     "detect_format",
+    "drop_duplicate_detections",
     "format_times",
     "parse_times",
     "read_detections",

@@ -60,6 +60,7 @@ def read_detections(
     *,
     transmitter: str | list[str] | None = None,
     tz: str | None = None,
+    time_unit: str = "s",
 ) -> pd.DataFrame:
     """Read a detection log into the detections table.
 
@@ -94,6 +95,8 @@ def read_detections(
         ``attrs["other_transmitters"]``.
     tz : str, optional
         Zone of naive times in a plain CSV (VUE and Fathom times are UTC by definition).
+    time_unit : {"s", "ms"}
+        Unit of numeric times (UTC since the epoch, :func:`hmmtrack.io.times.parse_times`).
 
     Returns
     -------
@@ -108,7 +111,7 @@ def read_detections(
     readers = {"vue": _read_vue, "fathom": _read_fathom, "plain": _read_plain_detections}
     if fmt not in readers:
         raise ValueError(f"format must be 'auto' or one of {list(readers)}, got {format!r}")
-    table = readers[fmt](Path(path), tz)
+    table = readers[fmt](Path(path), tz, time_unit)
     for col in ("receiver", "transmitter"):
         empty = np.flatnonzero(table[col].isna().to_numpy())
         if empty.size:
@@ -116,10 +119,8 @@ def read_detections(
     bad = np.flatnonzero(~np.isfinite(table["time"].to_numpy()))
     if bad.size:
         raise ValueError(f"{describe_rows(table, bad)}: detection time is empty")
-    parts = table["transmitter"].str.rsplit("-", n=1, expand=True)
-    if "code_space" not in table.columns and parts.shape[1] == 2:
-        table["code_space"] = parts[0].where(parts[1].notna())
-        table["transmitter_id"] = parts[1]
+    if "code_space" not in table.columns:
+        _split_transmitter(table)
     if transmitter is not None:
         wanted = {transmitter} if isinstance(transmitter, str) else set(transmitter)
         keep = np.zeros(len(table), dtype=bool)
@@ -178,6 +179,20 @@ def transmitter_rows(table: pd.DataFrame, transmitter: str) -> np.ndarray:
     return keep
 
 
+def _split_transmitter(table: pd.DataFrame) -> None:
+    """Add ``code_space`` and ``transmitter_id`` (``A69-1602`` and ``15266`` of
+    ``A69-1602-15266``; missing for a name without ``-``) when some name has that form.
+    Split once per distinct name: a season's log holds few tags but millions of rows."""
+    codes, names = pd.factorize(table["transmitter"])
+    parts = [name.rsplit("-", 1) for name in names]
+    if not any(len(p) == 2 for p in parts):
+        return
+    dtype = table["transmitter"].dtype
+    for column, k in (("code_space", 0), ("transmitter_id", 1)):
+        values = np.array([p[k] if len(p) == 2 else np.nan for p in parts], dtype=object)
+        table[column] = pd.Series(values[codes], index=table.index, dtype=dtype)
+
+
 def _split_receiver(receiver: pd.Series) -> tuple[pd.Series, pd.Series]:
     parts = receiver.str.rsplit("-", n=1, expand=True)
     if parts.shape[1] < 2:
@@ -229,7 +244,7 @@ def _copy_optional(raw: pd.DataFrame, table: pd.DataFrame, columns: tuple[str, .
     table.attrs = dict(raw.attrs)
 
 
-def _read_vue(path: Path, tz: str | None) -> pd.DataFrame:
+def _read_vue(path: Path, tz: str | None, unit: str) -> pd.DataFrame:
     raw = read_csv(path)
     require(
         raw,
@@ -237,7 +252,7 @@ def _read_vue(path: Path, tz: str | None) -> pd.DataFrame:
         "a VUE export",
     )
     table = pd.DataFrame(index=raw.index)
-    table["time"] = parse_times(raw, VUE_COLUMNS[0], "UTC")
+    table["time"] = parse_times(raw, VUE_COLUMNS[0], "UTC", unit)
     table["receiver"] = raw["Receiver"].str.strip()
     table["transmitter"] = raw["Transmitter"].str.strip()
     table["receiver_model"], table["receiver_serial"] = _split_receiver(table["receiver"])
@@ -245,7 +260,7 @@ def _read_vue(path: Path, tz: str | None) -> pd.DataFrame:
     return table
 
 
-def _read_fathom(path: Path, tz: str | None) -> pd.DataFrame:
+def _read_fathom(path: Path, tz: str | None, unit: str) -> pd.DataFrame:
     with unreadable_as_value_error(path), open(path, encoding="utf-8-sig", newline="") as handle:
         rows = list(csv.reader(handle))
     if not rows or rows[0][:1] != ["VEMCO DATA LOG"]:
@@ -274,7 +289,7 @@ def _read_fathom(path: Path, tz: str | None) -> pd.DataFrame:
         "Fathom DET records",
     )
     table = pd.DataFrame(index=raw.index)
-    table["time"] = parse_times(raw, "Device Time (UTC)", "UTC")
+    table["time"] = parse_times(raw, "Device Time (UTC)", "UTC", unit)
     if "Time Correction (s)" in raw.columns:
         correction = numeric(raw, "Time Correction (s)", "seconds")
         table["time"] += np.nan_to_num(correction)
@@ -287,7 +302,7 @@ def _read_fathom(path: Path, tz: str | None) -> pd.DataFrame:
     return table
 
 
-def _read_plain_detections(path: Path, tz: str | None) -> pd.DataFrame:
+def _read_plain_detections(path: Path, tz: str | None, unit: str) -> pd.DataFrame:
     raw = read_csv(path)
     require(
         raw,
@@ -295,8 +310,32 @@ def _read_plain_detections(path: Path, tz: str | None) -> pd.DataFrame:
         "a plain detections CSV",
     )
     table = raw.copy()
-    table["time"] = parse_times(raw, "time", tz)
+    table["time"] = parse_times(raw, "time", tz, unit)
     for col in ("receiver", "transmitter"):
         table[col] = raw[col].str.strip()
     numeric_columns(table, skip=("time", "receiver", "transmitter"))
     return table
+
+
+def drop_duplicate_detections(detections: pd.DataFrame) -> pd.DataFrame:
+    """The detections without exact repeats: one row per (time, receiver, transmitter).
+
+    A receiver hears a tag's ping once; a second row with the same time, receiver and
+    transmitter is the same detection logged twice (an offload read twice, logs merged),
+    carrying no information. Every measurement gets each detection once: counting it twice
+    would double its weight (arrival time), and a pair at one time has no range rate. The
+    first row is kept and the number dropped is logged as a warning.
+    """
+    key = [c for c in ("time", "receiver", "transmitter") if c in detections.columns]
+    repeated = detections.duplicated(subset=key, keep="first").to_numpy()
+    if not repeated.any():
+        return detections
+    source = detections.attrs.get("source", "detections")
+    logger.warning(
+        "%s: dropped %d exact duplicate detection(s) (same %s as an earlier row), e.g. rows %s",
+        source,
+        int(repeated.sum()),
+        ", ".join(key),
+        detections.index[repeated][:5].tolist(),
+    )
+    return detections.loc[~repeated]

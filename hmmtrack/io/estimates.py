@@ -7,6 +7,7 @@ is read in the same frame as the receivers it is compared with.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TextIO
 
 import numpy as np
 import pandas as pd
@@ -31,20 +32,54 @@ def write_estimates(
     projection : Projection, optional
         Projection of ``x``/``y``; adds ``lon``/``lat`` columns.
     """
-    for col in ("time", "x", "y"):
-        if col not in estimates.columns:
-            raise ValueError(f"estimates: missing column {col!r}; found {list(estimates.columns)}")
-    out = estimates.copy()
-    out["time"] = format_times(out["time"].to_numpy(dtype=float))
-    front = ["time", "x", "y"]
-    if projection is not None:
-        out["lon"], out["lat"] = projection.to_lonlat(out["x"], out["y"])
-        front += ["lon", "lat"]
-    out = out[front + [c for c in out.columns if c not in front]]
-    out.to_csv(path, index=False, float_format="%.12g")
+    with open(path, "w", newline="") as file:
+        EstimatesWriter(file, projection)(estimates)
 
 
-def read_truth(path: str | Path, projection: Projection | None) -> pd.DataFrame:
+class EstimatesWriter:
+    """Estimates appended to an open CSV table by table, as :func:`write_estimates` writes
+    them whole (the same text): the sink of a streamed run
+    (:func:`hmmtrack.tracking.pipeline.track`'s ``estimates_to``).
+
+    Parameters
+    ----------
+    file : text file
+        Open for writing (``newline=""``); the header goes with the first table.
+    projection : Projection, optional
+        Projection of ``x``/``y``; adds ``lon``/``lat`` columns.
+
+    Attributes
+    ----------
+    rows : int
+        Estimates written so far.
+    """
+
+    def __init__(self, file: TextIO, projection: Projection | None = None):
+        self.file, self.projection, self.rows = file, projection, 0
+        self._header = True
+
+    def __call__(self, estimates: pd.DataFrame) -> None:
+        """Append ``estimates`` (a table of :func:`write_estimates`'s form)."""
+        for col in ("time", "x", "y"):
+            if col not in estimates.columns:
+                raise ValueError(
+                    f"estimates: missing column {col!r}; found {list(estimates.columns)}"
+                )
+        out = estimates.copy()
+        out["time"] = format_times(out["time"].to_numpy(dtype=float))
+        front = ["time", "x", "y"]
+        if self.projection is not None:
+            out["lon"], out["lat"] = self.projection.to_lonlat(out["x"], out["y"])
+            front += ["lon", "lat"]
+        out = out[front + [c for c in out.columns if c not in front]]
+        out.to_csv(self.file, index=False, header=self._header, float_format="%.12g")
+        self._header = False
+        self.rows += len(out)
+
+
+def read_truth(
+    path: str | Path, projection: Projection | None, time_unit: str = "s"
+) -> pd.DataFrame:
     """Read a truth track (the tag's true positions) to score estimates against.
 
     Parameters
@@ -55,6 +90,8 @@ def read_truth(path: str | Path, projection: Projection | None) -> pd.DataFrame:
         fixed tag.
     projection : Projection or None
         The receivers' projection; needed (and used) for lon/lat truth.
+    time_unit : {"s", "ms"}
+        Unit of numeric times (:func:`hmmtrack.io.times.parse_times`).
 
     Returns
     -------
@@ -78,7 +115,7 @@ def read_truth(path: str | Path, projection: Projection | None) -> pd.DataFrame:
         raise ValueError(
             f"{path}: truth needs x, y or lon, lat columns; found {list(table.columns)}"
         )
-    time = parse_times(table, "time", tz=None)
+    time = parse_times(table, "time", None, time_unit)
     if len(table) > 1 and not np.isfinite(time).all():
         raise ValueError(f"{path}: empty time in a truth with several rows")
     return pd.DataFrame({"time": time, "x": x, "y": y})

@@ -157,6 +157,37 @@ def check_lonlat(table: pd.DataFrame, lon: str, lat: str) -> None:
             )
 
 
+#: no projected coordinate on Earth is farther from its origin (m): half the equator
+LARGEST_METRES = 2.0e7
+
+
+def check_metres(table: pd.DataFrame, x: str, y: str) -> None:
+    """Raise when x/y columns declared as metres cannot be: a value beyond
+    :data:`LARGEST_METRES`, or values that look like lon/lat degrees (every ``|x| <= 180`` and
+    ``|y| <= 90``, away from the origin, spanning under a metre both ways: a receiver array
+    or a track in degrees, which read as metres would put everything within a metre)."""
+    xs, ys = table[x].to_numpy(dtype=float), table[y].to_numpy(dtype=float)
+    for col, values in ((x, xs), (y, ys)):
+        bad = np.flatnonzero(np.abs(values) > LARGEST_METRES)
+        if bad.size:
+            raise ValueError(
+                f"{describe_rows(table, bad)}: column {col!r} holds {values[bad[0]]:g}, farther "
+                f"than any projected coordinate on Earth ({LARGEST_METRES:g} m); x and y must be "
+                "metres (not millimetres or cm), or give lon and lat columns in degrees"
+            )
+    if not xs.size:
+        return
+    degrees = np.all(np.abs(xs) <= 180.0) and np.all(np.abs(ys) <= 90.0)
+    spans = np.ptp(xs), np.ptp(ys)
+    if degrees and max(spans) < 1.0 and max(np.abs(xs).max(), np.abs(ys).max()) > 1.0:
+        raise ValueError(
+            f"{table.attrs.get('source', 'table')}: columns {x!r}, {y!r} look like longitude "
+            f"and latitude in degrees ({x} {xs.min():g} to {xs.max():g}, {y} {ys.min():g} to "
+            f"{ys.max():g}: all within a metre if read as metres); name the columns lon and "
+            "lat to have them projected to metres, or give x and y in metres"
+        )
+
+
 def bounds_in_metres(
     bounds: tuple[float, float, float, float], projection: Projection
 ) -> tuple[float, float, float, float]:

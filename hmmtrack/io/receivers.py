@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from hmmtrack.io.geo import Projection, check_lonlat, choose_projection
+from hmmtrack.io.geo import Projection, check_lonlat, check_metres, choose_projection
 from hmmtrack.io.tables import handle_missing, numeric, read_csv, rename, require
 from hmmtrack.io.times import parse_times
 from hmmtrack.tracks import describe_rows
@@ -33,6 +33,7 @@ def read_receivers(
     sync_tag_col: str = "sync_tag",
     fixed_col: str = "fixed",
     tz: str | None = None,
+    time_unit: str = "s",
     projection: Projection | str = "utm",
 ) -> pd.DataFrame:
     """Read receiver (hydrophone) positions: GPS tracks of AUVs / boats, or moorings.
@@ -52,6 +53,8 @@ def read_receivers(
         Column names in the file.
     tz : str, optional
         Zone of naive times.
+    time_unit : {"s", "ms"}
+        Unit of numeric times (UTC since the epoch, :func:`hmmtrack.io.times.parse_times`).
     projection : Projection or {"utm", "local"}
         For lon/lat input: the projection to use, or how to choose one from the data.
 
@@ -93,6 +96,7 @@ def read_receivers(
         table["x"] = numeric(table, "x", "metres")
         table["y"] = numeric(table, "y", "metres")
         handle_missing(table, ["x", "y"], "error")
+        check_metres(table, "x", "y")
     if "z" in table.columns:
         table["z"] = numeric(table, "z", "metres")
         handle_missing(table, ["z"], "error")
@@ -100,7 +104,7 @@ def read_receivers(
         table["sync_tag"] = table["sync_tag"].str.strip().replace("", np.nan)
     if "fixed" in table.columns:
         table["fixed"] = _flags(table, "fixed")
-    table["time"] = parse_times(table, "time", tz) if has_time else np.nan
+    table["time"] = parse_times(table, "time", tz, time_unit) if has_time else np.nan
     front = ["receiver", "time", "x", "y"]
     table = table[front + [c for c in table.columns if c not in front]]
     table = table.iloc[np.argsort(pd.factorize(table["receiver"])[0], kind="stable")]

@@ -6,8 +6,12 @@ an explicit ``tz`` (an IANA name such as ``"UTC"`` or ``"America/Los_Angeles"``)
 the reader raises an error naming the column, because guessing a zone silently shifts a
 track by hours. Formats that define their zone (VUE ``Date and Time (UTC)``, Fathom
 ``Device Time (UTC)``, Movebank ``timestamp``) are read as UTC. Numeric time columns are taken
-as UTC seconds since the epoch. Times are ``float64`` seconds with millisecond and finer
-precision kept (whole seconds and the fraction are converted apart).
+as UTC seconds since the epoch, or milliseconds when the reader is told so (``time_unit="ms"``,
+the CLI's ``--time-unit ms``); numbers too large for seconds (after the year 5000, as epoch
+milliseconds of any date after 1973 are) are refused, since read as seconds they put every
+detection in a future millennium and the intervals between them 1,000 times too long. Times
+are ``float64`` seconds with millisecond and finer precision kept (whole seconds and the
+fraction are converted apart).
 
 This is the only module of the package that parses or prints calendar times.
 """
@@ -21,10 +25,16 @@ import pandas as pd
 
 from hmmtrack.tracks import describe_rows
 
+#: numeric times (s) beyond this are refused as seconds: year 5138, while epoch milliseconds of
+#: any date after March 1973 exceed it
+LARGEST_SECONDS = 1e11
+#: numeric time units a reader accepts
+TIME_UNITS = ("s", "ms")
+
 _OFFSET = re.compile(r"\d:\d{2}(?::\d{2}(?:\.\d*)?)?\s*(?:Z|[+-]\d{2}(?::?\d{2})?)$", re.I)
 
 
-def parse_times(table: pd.DataFrame, column: str, tz: str | None) -> np.ndarray:
+def parse_times(table: pd.DataFrame, column: str, tz: str | None, unit: str = "s") -> np.ndarray:
     """Parse a time column of ``table`` to UTC seconds since the epoch.
 
     Parameters
@@ -35,6 +45,9 @@ def parse_times(table: pd.DataFrame, column: str, tz: str | None) -> np.ndarray:
         Column of ISO 8601 strings, or of numbers (taken as UTC epoch seconds).
     tz : str or None
         Zone of strings without an offset; ``None`` makes such strings an error.
+    unit : {"s", "ms"}
+        Unit of a numeric column (:data:`TIME_UNITS`; UTC since the epoch); ISO 8601
+        strings ignore it.
 
     Returns
     -------
@@ -46,8 +59,22 @@ def parse_times(table: pd.DataFrame, column: str, tz: str | None) -> np.ndarray:
     text = raw.iloc[pos].astype(str).str.strip()
     numeric = pd.to_numeric(text, errors="coerce")
     out = np.full(len(raw), np.nan)
+    if unit not in TIME_UNITS:
+        raise ValueError(f"time unit must be one of {list(TIME_UNITS)}, got {unit!r}")
     if len(text) and numeric.notna().all():
-        out[pos] = numeric.to_numpy(dtype=float)
+        values = numeric.to_numpy(dtype=float)
+        if unit == "ms":  # whole seconds and the fraction apart, as for ISO 8601 text
+            whole, fraction = np.divmod(values, 1000.0)
+            values = whole + fraction / 1000.0
+        out[pos] = values
+        largest = np.flatnonzero(np.abs(out) > LARGEST_SECONDS)
+        if largest.size:
+            raise ValueError(
+                f"{describe_rows(table, pos[largest])}: column {column!r} holds numbers such as "
+                f"{text.iloc[largest[0]]} ({unit}), after the year 5000 as epoch seconds: "
+                "epoch milliseconds? Pass --time-unit ms (time_unit='ms'), or write the "
+                "times as ISO 8601"
+            )
         return out
     aware = text.str.contains(_OFFSET).to_numpy()
     for mask in (aware, ~aware):

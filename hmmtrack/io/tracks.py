@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from hmmtrack.io.geo import Projection, check_lonlat, choose_projection
+from hmmtrack.io.geo import Projection, check_lonlat, check_metres, choose_projection
 from hmmtrack.io.tables import handle_missing, numeric, numeric_columns, read_csv, rename, require
 from hmmtrack.io.times import parse_times
 from hmmtrack.tracks import describe_rows, validate_tracks
@@ -86,6 +86,7 @@ def _finish_tracks(
     table["x"] = numeric(table, "x", "metres")
     table["y"] = numeric(table, "y", "metres")
     table = handle_missing(table, ["x", "y"], missing, _MISSING_REMEDY)
+    check_metres(table, "x", "y")
     if has_time:
         table["time"] = parse_times(table, "time", tz)
     numeric_columns(table, skip=("id", "time", "x", "y"))

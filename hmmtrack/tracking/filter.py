@@ -55,9 +55,10 @@ This module does not read files or build observations (:mod:`hmmtrack.tracking.p
 
 from __future__ import annotations
 
+import itertools
 import time as clock
 import warnings
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -95,6 +96,8 @@ __all__ = [
 
 #: columns of the estimates table (docs/interfaces.md plus the effective sample size)
 ESTIMATE_COLUMNS = ("time", "x", "y", "var_x", "var_y", "cov_xy", "sqrt_lambda1", "n_eff")
+#: rows per table handed to an estimates sink (:meth:`ParticleFilter.run`): under 1 MB
+ESTIMATE_ROWS = 10_000
 #: below this many particle-steps per compiled call the default is one thread (too short
 #: for more threads to pay); above it the filter times one and all threads and keeps the
 #: faster (pass ``threads=`` to fix the number)
@@ -214,8 +217,9 @@ class FilterResult:
 
     Attributes
     ----------
-    estimates : pandas.DataFrame
-        One row per second, columns :data:`ESTIMATE_COLUMNS`.
+    estimates : pandas.DataFrame or None
+        One row per second, columns :data:`ESTIMATE_COLUMNS`; ``None`` when the run handed
+        them to a sink (``run(..., estimates_to=...)``) instead of keeping them.
     snapshots : dict of float to pandas.DataFrame
         Particles (x, y, heading, speed, turn_rate, state, weight) at each requested time,
         taken after the correction and before resampling.
@@ -226,7 +230,7 @@ class FilterResult:
         The collectors' tables by name (``smoothed``, ``ambiguity``, ``clock``, ...).
     """
 
-    estimates: pd.DataFrame
+    estimates: pd.DataFrame | None
     snapshots: dict[float, pd.DataFrame] = field(default_factory=dict)
     events: pd.DataFrame = field(
         default_factory=lambda: pd.DataFrame(columns=["time", "kind", "detail"])
@@ -828,17 +832,30 @@ class ParticleFilter:
         start: float | None = None,
         end: float | None = None,
         snapshot_times: Sequence[float] = (),
+        estimates_to: Callable[[pd.DataFrame], None] | None = None,
     ) -> FilterResult:
         """Run :meth:`iterate` to the end; estimates, snapshots, events and the collectors'
-        tables together."""
+        tables together.
+
+        ``estimates_to``: a sink called with the estimates as they are made, in tables of
+        :data:`ESTIMATE_ROWS` rows (:data:`ESTIMATE_COLUMNS`; the last one shorter), e.g. a
+        CSV writer, so that a long run's memory is bounded by the particles rather than its
+        span; the result's ``estimates`` are then ``None``.
+        """
         snapshots: dict[float, pd.DataFrame] = {}
-        rows = list(self.iterate(observations, start, end, snapshot_times, snapshots))
+        estimates = self.iterate(observations, start, end, snapshot_times, snapshots)
+        if estimates_to is None:
+            rows = list(estimates)
+        else:
+            rows = None
+            while chunk := list(itertools.islice(estimates, ESTIMATE_ROWS)):
+                estimates_to(pd.DataFrame(chunk, columns=list(ESTIMATE_COLUMNS)))
         self._settle()
         collected: dict[str, pd.DataFrame] = {}
         for collector in self.collect:
             collected.update(collector.result())
         return FilterResult(
-            estimates=pd.DataFrame(rows, columns=list(ESTIMATE_COLUMNS)),
+            estimates=None if rows is None else pd.DataFrame(rows, columns=list(ESTIMATE_COLUMNS)),
             snapshots=snapshots,
             events=pd.DataFrame(self.events, columns=["time", "kind", "detail"]),
             collected=collected,

@@ -29,14 +29,14 @@ computes no metrics (see :mod:`hmmtrack.io`, :mod:`hmmtrack.analysis.metrics`).
 from __future__ import annotations
 
 import logging
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from hmmtrack.io.detections import transmitter_rows
+from hmmtrack.io.detections import drop_duplicate_detections, transmitter_rows
 from hmmtrack.io.times import format_times
 from hmmtrack.random import SeedLike, as_generator
 from hmmtrack.sync import apply_clocks, read_clocks
@@ -55,7 +55,6 @@ __all__ = [
     "TrackingResult",
     "build_observations",
     "clock_positions",
-    "drop_duplicate_detections",
     "on_common_time",
     "particle_filter",
     "select_transmitter",
@@ -205,7 +204,8 @@ def tracked_detections(detections: pd.DataFrame, config: TrackingConfig) -> pd.D
     """The detections of ``config.transmitter`` (:func:`select_transmitter`), on the common
     time base of ``config.clocks`` when set (:func:`on_common_time`): what the measurement
     builds its observations from. Exact duplicate detections are dropped first
-    (:func:`drop_duplicate_detections`), in the receivers' own clocks as logged."""
+    (:func:`hmmtrack.io.detections.drop_duplicate_detections`), in the receivers' own
+    clocks as logged."""
     chosen = drop_duplicate_detections(select_transmitter(detections, config.transmitter))
     return chosen if config.clocks is None else on_common_time(chosen, config.clocks)
 
@@ -230,30 +230,6 @@ def time_window(
     start = float(np.floor(times.min())) if start is None else float(start)
     end = float(np.ceil(times.max())) if end is None else float(end)
     return start, end
-
-
-def drop_duplicate_detections(detections: pd.DataFrame) -> pd.DataFrame:
-    """The detections without exact repeats: one row per (time, receiver, transmitter).
-
-    A receiver hears a tag's ping once; a second row with the same time, receiver and
-    transmitter is the same detection logged twice (an offload read twice, logs merged),
-    carrying no information. Every measurement gets each detection once: counting it twice
-    would double its weight (arrival time), and a pair at one time has no range rate. The
-    first row is kept and the number dropped is logged as a warning.
-    """
-    key = [c for c in ("time", "receiver", "transmitter") if c in detections.columns]
-    repeated = detections.duplicated(subset=key, keep="first").to_numpy()
-    if not repeated.any():
-        return detections
-    source = detections.attrs.get("source", "detections")
-    logger.warning(
-        "%s: dropped %d exact duplicate detection(s) (same %s as an earlier row), e.g. rows %s",
-        source,
-        int(repeated.sum()),
-        ", ".join(key),
-        detections.index[repeated][:5].tolist(),
-    )
-    return detections.loc[~repeated]
 
 
 def build_observations(
@@ -286,18 +262,51 @@ def build_observations(
     return MEASUREMENTS[settings.name].observations(chosen, receivers, settings)
 
 
+def _require_usable(
+    observations: pd.DataFrame,
+    scored: pd.DataFrame,
+    start: float,
+    end: float,
+    config: TrackingConfig,
+    source: str | None,
+) -> None:
+    """Refuse a window with fewer than two detections, or none the likelihood uses (e.g. only
+    the range-rate anchors): the filter would write a confident-looking per-second track
+    from nothing but its prior."""
+    dt = config.filter.prediction_step
+    last = np.floor((end - start) / dt + 1e-9)
+
+    def inside(table: pd.DataFrame) -> int:
+        ticks = np.rint((table["time"].to_numpy(dtype=float) - start) / dt)
+        return int(((ticks >= 0) & (ticks <= last)).sum())
+
+    n_detections, n_scored = inside(observations), inside(scored)
+    if n_detections >= 2 and n_scored >= 1:
+        return
+    window = " to ".join(format_times(np.array([start, end])))
+    unused = (
+        "" if n_scored or not n_detections else f", none of them used by {config.measurement.name}"
+    )
+    raise ValueError(
+        f"{source or 'detections'}: the window {window} holds "
+        f"{n_detections} detection(s) of the tracked transmitter{unused}; tracking needs at "
+        "least two with information: widen the window (--start/--end) or check --transmitter"
+    )
+
+
 @dataclass(frozen=True)
 class TrackingResult:
     """What :func:`track` returns, for every measurement.
 
     Attributes
     ----------
-    estimates : pandas.DataFrame
+    estimates : pandas.DataFrame or None
         One row per prediction step: ``time`` (s), ``x``, ``y`` (m), ``var_x``, ``var_y``,
         ``cov_xy`` (m²), ``sqrt_lambda1`` (m), ``n_eff``; with the modes reported
         (``config.filter.modes`` or ``mixture``) also
         :data:`hmmtrack.tracking.mixture.ESTIMATE_MODE_COLUMNS` (the second mode's
-        position and weight, and ``converged``).
+        position and weight, and ``converged``); ``None`` when they went to a sink
+        (``track(..., estimates_to=...)``).
     snapshots : dict of float to pandas.DataFrame
         Particles (``x``, ``y``, ..., ``weight``) at the requested snapshot times.
     events : pandas.DataFrame
@@ -326,7 +335,7 @@ class TrackingResult:
         position (:class:`hmmtrack.tracking.measurement.tdoa.PingTrace`).
     """
 
-    estimates: pd.DataFrame
+    estimates: pd.DataFrame | None
     snapshots: dict
     events: pd.DataFrame
     observations: pd.DataFrame
@@ -409,6 +418,7 @@ def track(
     snapshot_times: Sequence[float] = (),
     measurement=None,
     collect: Sequence = (),
+    estimates_to: Callable[[pd.DataFrame], None] | None = None,
 ) -> TrackingResult:
     """Estimate the tag's position every prediction step (the ``filter`` section's, 1 s).
 
@@ -435,6 +445,11 @@ def track(
         model; it must be of the class the section names.
     collect : sequence of collectors
         More collectors (:mod:`hmmtrack.tracking.diagnostics`) besides the measurement's.
+    estimates_to : callable, optional
+        A sink for the per-second estimates, called with tables of them as they are made
+        (:meth:`hmmtrack.tracking.filter.ParticleFilter.run`), e.g.
+        :class:`hmmtrack.io.EstimatesWriter`: memory then stays bounded by the particles,
+        not the span, and the result's ``estimates`` are ``None``.
 
     Returns
     -------
@@ -464,13 +479,19 @@ def track(
     bounds = measurement.start_box(
         observations, receivers, settings, config.bounds, config.start if start is None else start
     )
+    if estimates_to is not None and (config.filter.modes or config.filter.mixture):
+        raise ValueError(
+            "the mode columns are added to the estimates after the run: estimates_to cannot "
+            "be used with filter.modes or filter.mixture"
+        )
     start, end = time_window(observations["time"].to_numpy(), config, start, end)
     scored, measurement_events = measurement.split(observations)
+    _require_usable(observations, scored, start, end, config, detections.attrs.get("source"))
     collectors = [*collect]
     if config.smoothing_lag is not None:
         collectors.append(Smoothed(config.smoothing_lag))
     pf = particle_filter(config.filter, measurement, bounds, motion, seed=seed, collect=collectors)
-    result = pf.run(scored, start, end, snapshot_times)
+    result = pf.run(scored, start, end, snapshot_times, estimates_to=estimates_to)
     events = pd.concat(
         [df for df in (measurement_events, result.events) if not df.empty]
         or [pd.DataFrame(columns=list(EVENT_COLUMNS))],

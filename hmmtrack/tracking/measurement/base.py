@@ -59,7 +59,7 @@ from typing import Any, ClassVar, Protocol, runtime_checkable
 import numpy as np
 import pandas as pd
 
-from hmmtrack.tracking.measurement.ranging import SOUND_SPEED
+from hmmtrack.tracking.measurement.ranging import SOUND_SPEED, check_sound_speed
 from hmmtrack.tracking.settings import positive, setting
 
 Bounds = tuple[float, float, float, float]
@@ -156,5 +156,9 @@ def period_setting():
 def sound_speed_setting():
     """The ``sound_speed`` key of a measurement section (m/s)."""
     return setting(
-        SOUND_SPEED, help="speed of sound (m/s)", check=positive, parse=float, metavar="M_PER_S"
+        SOUND_SPEED,
+        help="speed of sound (m/s), between 1300 and 1700",
+        check=check_sound_speed,
+        parse=float,
+        metavar="M_PER_S",
     )

@@ -45,6 +45,7 @@ from numba import njit
 
 from hmmtrack.tracking.measurement import ranging
 from hmmtrack.tracking.measurement.base import (
+    EVENT_COLUMNS,
     Bounds,
     no_events,
     period_setting,
@@ -205,6 +206,11 @@ class RangeRateSettings(Settings):
     bounds_margin : float
         Margin (m) added around the search box derived from ``r0``
         (:func:`search_bounds`), and the slack of :func:`check_bounds` for given bounds.
+    max_gap : float
+        Longest gap (s) between a receiver's detections that its range chain spans
+        (:func:`hmmtrack.tracking.measurement.ranging.range_table`); its detections after a
+        longer one are not used, with a ``range_chain_broken`` event. An hour: 450 pings of
+        an 8 s tag, over which a period known to 1 ms adds 660 m of range.
     """
 
     name: ClassVar[str] = "range-rate"
@@ -268,6 +274,16 @@ class RangeRateSettings(Settings):
         check=non_negative,
         parse=float,
         metavar="METRES",
+    )
+    max_gap: float = setting(
+        3600.0,
+        help=(
+            "longest gap (s) between a receiver's detections that its ranges are counted "
+            "across; its detections after a longer gap are not used"
+        ),
+        check=positive,
+        parse=float,
+        metavar="SECONDS",
     )
 
     @property
@@ -350,7 +366,9 @@ class RangeRateMeasurement:
         Raises
         ------
         ValueError
-            When a receiver lacks ``r0`` or positions at a detection time, or a depth
+            When a receiver lacks ``r0`` or positions at a detection time, the period does
+            not fit the detections (:func:`ranging.check_period_fits
+            <hmmtrack.tracking.measurement.ranging.check_period_fits>`), or a depth
             correction is impossible (messages name what and where).
         """
         tracks = (
@@ -358,7 +376,10 @@ class RangeRateMeasurement:
             if isinstance(receivers, ReceiverTracks)
             else ReceiverTracks.from_frame(receivers, velocity_window=settings.velocity_window)
         )
-        table = ranging.range_table(detections, settings.period, settings.r0, settings.sound_speed)
+        ranging.check_period_fits(detections, settings.period, settings.sound_speed)
+        table = ranging.range_table(
+            detections, settings.period, settings.r0, settings.sound_speed, settings.max_gap
+        )
         table = _depth_corrected(table, detections, settings)
         unknown = sorted(set(table["receiver"]) - set(tracks.names))
         if unknown:
@@ -390,11 +411,14 @@ class RangeRateMeasurement:
 
     def split(self, observations: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame]:
         """The rows with a range-rate, and an ``"anchor_detection"`` event for each receiver's
-        first detection (its range is ``r0``; no range-rate, not scored)."""
-        anchors = observations["range_rate"].isna().to_numpy()
-        if not anchors.any():
+        first detection (its range is ``r0``; no range-rate, not scored), and a
+        ``"range_chain_broken"`` event for each receiver whose ranges stop after a long gap
+        (``max_gap``: its later detections are not scored)."""
+        broken = observations["range"].isna().to_numpy()
+        anchors = observations["range_rate"].isna().to_numpy() & ~broken
+        if not (anchors.any() or broken.any()):
             return observations, no_events()
-        events = pd.DataFrame(
+        anchor_events = pd.DataFrame(
             {
                 "time": observations.loc[anchors, "time"].to_numpy(),
                 "kind": "anchor_detection",
@@ -407,7 +431,10 @@ class RangeRateMeasurement:
                 ],
             }
         )
-        return observations.loc[~anchors], events
+        parts = [anchor_events, _broken_chains(observations, broken)]
+        events = pd.concat([p for p in parts if not p.empty], ignore_index=True)
+        events = events.sort_values("time", kind="stable", ignore_index=True)
+        return observations.loc[~(anchors | broken)], events
 
     def collectors(self) -> tuple:
         """No diagnostics of its own."""
@@ -498,6 +525,23 @@ class RangeRateMeasurement:
         for j, name in enumerate(RANGE_RATE_COLUMNS):
             z[:, j] = np.asarray(obs[name], dtype=np.float64)
         return z
+
+
+def _broken_chains(observations: pd.DataFrame, broken: np.ndarray) -> pd.DataFrame:
+    """One ``range_chain_broken`` event per receiver with ``broken`` rows, at the first."""
+    rows = []
+    times = observations["time"].to_numpy(dtype=float)
+    for receiver, where in observations.groupby("receiver", sort=False).indices.items():
+        lost = where[broken[where]]
+        if lost.size:
+            gap = times[lost[0]] - times[where[np.searchsorted(where, lost[0]) - 1]]
+            detail = (
+                f"receiver {receiver}: its {lost.size} detection(s) from here on not used: the "
+                f"{gap:.0f} s gap before this one is longer than max_gap (--max-gap), across "
+                "which the count of pings, and so the range, is not trusted"
+            )
+            rows.append((times[lost[0]], "range_chain_broken", detail))
+    return pd.DataFrame(rows, columns=list(EVENT_COLUMNS))
 
 
 def _depth_corrected(table: pd.DataFrame, detections: pd.DataFrame, settings):

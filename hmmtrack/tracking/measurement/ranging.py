@@ -33,9 +33,22 @@ from collections.abc import Mapping
 import numpy as np
 import pandas as pd
 
+from hmmtrack.io.detections import drop_duplicate_detections
+from hmmtrack.tracking.settings import number
+
 #: speed of sound in sea water used by the paper (m/s), the one default of the package;
 #: fresh water is about 1416-1450
 SOUND_SPEED = 1460.0
+#: plausible sound speeds in water (m/s): fresh or sea water from 0 to 40 degC, any depth a
+#: tag reaches, lies inside; a value outside is a unit slip (e.g. km/s) or a typo
+SOUND_SPEED_RANGE = (1300.0, 1700.0)
+
+#: fastest relative radial speed of tag and receiver the period check allows (m/s): a shark
+#: bursting past a moving AUV; a period error shows as a steady range change faster than this
+PERIOD_CHECK_SPEED = 5.0
+#: intervals of at most this many periods are used by the period check (a small period error
+#: cannot change their count of periods)
+PERIOD_CHECK_PINGS = 4
 
 #: columns of the table returned by :func:`range_table`
 RANGE_COLUMNS = ("time", "receiver", "transmitter", "range", "range_rate", "missed_pings")
@@ -46,6 +59,19 @@ def _check_period(period: float) -> float:
     if not np.isfinite(period) or period <= 0:
         raise ValueError(f"period must be a positive number of seconds, got {period!r}")
     return period
+
+
+def check_sound_speed(name: str, value) -> float:
+    """A sound speed (m/s) inside :data:`SOUND_SPEED_RANGE`, or a ``ValueError`` naming
+    ``name`` and the range."""
+    speed = number(name, value)
+    low, high = SOUND_SPEED_RANGE
+    if not low <= speed <= high:
+        raise ValueError(
+            f"{name} must be a speed of sound in water between {low:g} and {high:g} m/s "
+            f"(sea water about 1450-1550, fresh about 1400-1480), got {value!r}"
+        )
+    return speed
 
 
 def _check_times(times, name: str = "times") -> np.ndarray:
@@ -169,11 +195,69 @@ def range_rates(times, range_values) -> np.ndarray:
     return rate
 
 
+def check_period_fits(
+    detections: pd.DataFrame, period: float, sound_speed: float = SOUND_SPEED
+) -> None:
+    """Refuse a period that the detections' intervals contradict, naming a better one.
+
+    Between two detections of a receiver, ``Δt − n·T`` (``n`` pings) is the change of time
+    of flight: a relative radial speed times ``n·T`` over the sound speed. For a wrong
+    period it grows by the period's error every ping (8.0 s for an 8.179 s tag: 0.179 s, a
+    261 m range error added per ping), so its median per ping, over every receiver's
+    intervals of 1 to :data:`PERIOD_CHECK_PINGS` pings, must stay within what
+    :data:`PERIOD_CHECK_SPEED` explains.
+
+    Parameters
+    ----------
+    detections : pandas.DataFrame
+        Detections of one transmitter (``time`` s, ``receiver``).
+    period, sound_speed : float
+        Tag period (s) and sound speed (m/s) of the ranging.
+
+    Raises
+    ------
+    ValueError
+        Naming the given period, the residual per ping and the median period of the
+        intervals (the better estimate); or, when the intervals per ping spread more than
+        that speed explains (a tag with random delays), saying so.
+    """
+    period = _check_period(period)
+    per_ping = []
+    for _, group in detections.groupby(detections["receiver"].astype(str), sort=False):
+        dt = np.diff(np.sort(group["time"].to_numpy(dtype=float)))
+        counts = period_counts(dt, period)
+        short = (counts >= 1) & (counts <= PERIOD_CHECK_PINGS)
+        per_ping.append(dt[short] / counts[short])
+    intervals = np.concatenate(per_ping) if per_ping else np.empty(0)
+    if intervals.size < 3:
+        return
+    low, estimate, high = (float(q) for q in np.quantile(intervals, [0.25, 0.5, 0.75]))
+    allowed = PERIOD_CHECK_SPEED * period / sound_speed
+    if high - low > allowed:
+        raise ValueError(
+            f"the detections are not those of a fixed-period tag: the {intervals.size} "
+            f"intervals between a receiver's detections of 1 to {PERIOD_CHECK_PINGS} pings "
+            f"vary from {low:.3f} to {high:.3f} s per ping (quartiles), more than a tag and "
+            f"receiver moving at {PERIOD_CHECK_SPEED:g} m/s explain ({allowed:.4f} s): a tag "
+            "with random delays? The range-rate measurement needs a fixed period (--period)"
+        )
+    if abs(estimate - period) > allowed:
+        raise ValueError(
+            f"period {period:g} s does not fit the detections: the {intervals.size} intervals "
+            f"between a receiver's detections of 1 to {PERIOD_CHECK_PINGS} pings are "
+            f"{estimate:.4f} s per ping (median), {abs(estimate - period):.4f} s from the "
+            f"period, more than a tag and receiver moving apart at {PERIOD_CHECK_SPEED:g} m/s "
+            f"explain ({allowed:.4f} s); is the period {estimate:.4g} s? Give --period "
+            f"{estimate:.4g} (the configuration's period)"
+        )
+
+
 def range_table(
     detections: pd.DataFrame,
     period: float,
     r0: Mapping[str, float],
     sound_speed: float = SOUND_SPEED,
+    max_gap: float | None = None,
 ) -> pd.DataFrame:
     """Ranges and range-rates of a detections table, per (receiver, transmitter) pair.
 
@@ -188,20 +272,27 @@ def range_table(
         receiver in ``detections`` needs one.
     sound_speed : float
         Speed of sound (m/s).
+    max_gap : float, optional
+        Longest interval (s) between a pair's detections that its range chain spans: a
+        period's error adds up over every ping of a gap, and a long one can hide a ping
+        more or less, so the ranges from the first detection after a longer gap on are not
+        trusted (NaN range and range-rate; the chain is broken). ``None``: no limit.
 
     Returns
     -------
     pandas.DataFrame
         One row per detection, sorted by time then receiver, with columns
-        ``time`` (s), ``receiver``, ``transmitter``, ``range`` (m), ``range_rate`` (m/s,
-        NaN on the first detection of a pair) and ``missed_pings`` (pings missed since the
-        pair's previous detection, 0 on the first).
+        ``time`` (s), ``receiver``, ``transmitter``, ``range`` (m; NaN after a broken chain),
+        ``range_rate`` (m/s, NaN on the first detection of a pair and after a broken chain)
+        and ``missed_pings`` (pings missed since the pair's previous detection, 0 on the
+        first).
 
     Raises
     ------
     ValueError
-        If a column is missing, a receiver has no ``r0``, or a pair has two detections at
-        the same time (the rows are named).
+        If a column is missing or a receiver has no ``r0``. A detection logged twice (same
+        time, receiver and transmitter) is used once, by the pipeline's one rule
+        (:func:`hmmtrack.io.detections.drop_duplicate_detections`, a warning counts them).
     """
     missing = [c for c in ("time", "receiver", "transmitter") if c not in detections.columns]
     if missing:
@@ -218,20 +309,18 @@ def range_table(
     bad_time = np.flatnonzero(~np.isfinite(detections["time"].to_numpy(dtype=float)))
     if bad_time.size:
         raise ValueError(f"detections table has non-finite time in row(s) {bad_time[:10].tolist()}")
+    detections = drop_duplicate_detections(detections)
     parts = []
     for (receiver, transmitter), group in detections.groupby(
         [detections["receiver"].astype(str), detections["transmitter"].astype(str)], sort=True
     ):
         group = group.sort_values("time", kind="stable")
         times = group["time"].to_numpy(dtype=float)
-        duplicate = np.flatnonzero(np.diff(times) == 0)
-        if duplicate.size:
-            rows = group.index[duplicate[:5]].tolist() + group.index[duplicate[:5] + 1].tolist()
-            raise ValueError(
-                f"receiver {receiver!r}, transmitter {transmitter!r}: two detections at the "
-                f"same time in rows {sorted(rows)}; expected strictly increasing times"
-            )
         r = ranges(times, period, r0[receiver], sound_speed)
+        if max_gap is not None:
+            gaps = np.flatnonzero(np.diff(times) > max_gap)
+            if gaps.size:
+                r[gaps[0] + 1 :] = np.nan
         missed = np.zeros(times.size, dtype=np.int64)
         missed[1:] = period_counts(np.diff(times), period) - 1
         parts.append(
