@@ -28,6 +28,7 @@ from hmmtrack.analysis.metrics import position_error
 from hmmtrack.scenarios.array import TaggedArray, tagged_array
 from hmmtrack.sync import apply_clocks, fit_clocks
 from hmmtrack.tracking.config import TrackingConfig, section_classes
+from hmmtrack.tracking.measurement.tdoa import per_ping_table
 from hmmtrack.tracking.pipeline import track
 
 #: the time keeper of every run (the array's first receiver)
@@ -81,7 +82,11 @@ def array_bound_ratios(
         ``bound_m`` (RMS of the filtering bound over the same pings), ``ratio`` (their
         quotient), and when the
         configuration smooths ``smoothed_rms_error_m``, ``smoother_bound_m`` and
-        ``smoothed_ratio``; ``seconds`` (wall time of the filter).
+        ``smoothed_ratio``; with a ping measurement (a run with ``pings``) also
+        ``per_ping_rms_error_m`` (the position right after each heard ping's correction, at
+        its emission), ``per_ping_bound_m`` and ``per_ping_ratio``: the per-second estimate
+        at an emission is a prediction made before the ping arrived, so only these compare
+        with the filtering bound; ``seconds`` (wall time of the filter).
     """
     rows = []
     for dataset in datasets:
@@ -123,6 +128,11 @@ def array_bound_ratios(
                 "bound_m": _rms(bound.loc[late, "filter_position_m"]),
             }
             row["ratio"] = row["rms_error_m"] / row["bound_m"]
+            if getattr(result, "pings", None) is not None and len(result.pings):
+                error, at = _per_ping_rms(result, truth, pings, late)
+                row["per_ping_rms_error_m"] = error
+                row["per_ping_bound_m"] = _rms(bound.loc[at, "filter_position_m"])
+                row["per_ping_ratio"] = error / row["per_ping_bound_m"]
             if result.smoothed is not None:
                 smoothed = _rms_at(result.smoothed, truth, pings[late])
                 row["smoothed_rms_error_m"] = smoothed
@@ -185,6 +195,20 @@ def _clock_error(case: TaggedArray, clocks) -> float:
 
 def _rms(values: pd.Series) -> float:
     return float(np.sqrt(np.mean(np.square(values.to_numpy(dtype=float)))))
+
+
+def _per_ping_rms(result, truth: pd.DataFrame, pings: np.ndarray, late: np.ndarray):
+    """RMS error (m) of the filter's position at each heard ping's emission, right after
+    the ping's correction (:func:`~hmmtrack.tracking.measurement.tdoa.per_ping_table`), and
+    the indices of the true pings it was matched to (the nearest emission, within 1 s)."""
+    table = per_ping_table(result.pings, result.observations)
+    estimated = table["emission_time"].to_numpy(dtype=float)
+    nearest = np.abs(estimated[:, None] - pings[None, :]).argmin(axis=1)
+    keep = (np.abs(pings[nearest] - estimated) < 1.0) & late[nearest]
+    at = pd.DataFrame(
+        {"time": pings[nearest[keep]], "x": table["x"][keep], "y": table["y"][keep]}
+    )
+    return float(np.sqrt(np.mean(position_error(at, truth) ** 2))), np.unique(nearest[keep])
 
 
 def _rms_at(estimates: pd.DataFrame, truth: pd.DataFrame, times: np.ndarray) -> float:
