@@ -66,6 +66,8 @@ def world(tmp_path_factory) -> Path:
     epoch = pd.to_datetime(detections["time"]) - pd.Timestamp("1970-01-01", tz="UTC")
     detections.assign(time=epoch // pd.Timedelta("1ms")).to_csv(root / "det_ms.csv", index=False)
     detections.head(1).to_csv(root / "det_one.csv", index=False)
+    naive = pd.to_datetime(detections["time"]).dt.strftime("%Y-%m-%dT%H:%M:%S.%f")
+    detections.assign(time=naive).to_csv(root / "det_naive.csv", index=False)
     later = detections[detections["receiver"] == "boat"].head(20)  # the boat, 2 h later
     later = later.assign(time=pd.to_datetime(later["time"]) + pd.Timedelta("2h"))
     later["time"] = later["time"].dt.strftime("%Y-%m-%dT%H:%M:%S.%fZ")
@@ -210,6 +212,16 @@ def test_a_long_gap_breaks_the_range_chain_with_a_warning(world, tmp_path, capsy
     with caplog.at_level("WARNING"):
         assert main([*argv, "--max-gap", "9000", "-o", str(tmp_path / "f.csv")]) == 0
     assert "range_chain_broken" not in caplog.text
+
+
+def test_naive_times_with_tz_track_as_their_utc_twins(world, tmp_path):
+    """``--tz UTC`` on detections written without an offset gives the estimates of the same
+    detections written with ``Z``."""
+    base = TRACK.format(w=world, s=world / "sim").split()
+    assert main([*base, "-o", str(tmp_path / "utc.csv")]) == 0
+    naive = [str(world / "det_naive.csv") if a.endswith("detections.csv") else a for a in base]
+    assert main([*naive, "--tz", "UTC", "-o", str(tmp_path / "naive.csv")]) == 0
+    assert (tmp_path / "naive.csv").read_text() == (tmp_path / "utc.csv").read_text()
 
 
 def test_a_dead_dask_scheduler_is_one_line_and_exit_1(world, capsys):

@@ -197,6 +197,11 @@ def register(subparsers) -> None:
     parser.add_argument("-o", "--output", required=True, help="estimates CSV to write")
     add_time_unit(parser, "the detections, receivers and truth")
     parser.add_argument(
+        "--tz",
+        help="time zone of ISO times written without a UTC offset in the detections, receivers "
+        "and truth (e.g. UTC, America/Los_Angeles); such times are refused without it",
+    )
+    parser.add_argument(
         "--preset",
         metavar="NAME",
         help=(
@@ -402,10 +407,10 @@ def run(args: argparse.Namespace) -> int:
     if seed is None:
         seed = int(np.random.SeedSequence().entropy % 2**63)
         print(f"seed: {seed} (pass --seed {seed} to repeat this run)", file=sys.stderr)
-    detections = io.read_detections(args.detections, time_unit=args.time_unit)
-    receivers = io.read_receivers(args.receivers, time_unit=args.time_unit)
+    detections = io.read_detections(args.detections, tz=args.tz, time_unit=args.time_unit)
+    receivers = io.read_receivers(args.receivers, tz=args.tz, time_unit=args.time_unit)
     projection = io.Projection.from_frame(receivers)
-    truth = io.read_truth(args.truth, projection, args.time_unit) if args.truth else None
+    truth = io.read_truth(args.truth, projection, args.time_unit, args.tz) if args.truth else None
     if args.bounds is not None and projection is not None:
         config = config.override(bounds=io.bounds_in_metres(args.bounds, projection))
     snapshot_times = ()

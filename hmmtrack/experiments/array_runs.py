@@ -205,9 +205,7 @@ def _per_ping_rms(result, truth: pd.DataFrame, pings: np.ndarray, late: np.ndarr
     estimated = table["emission_time"].to_numpy(dtype=float)
     nearest = np.abs(estimated[:, None] - pings[None, :]).argmin(axis=1)
     keep = (np.abs(pings[nearest] - estimated) < 1.0) & late[nearest]
-    at = pd.DataFrame(
-        {"time": pings[nearest[keep]], "x": table["x"][keep], "y": table["y"][keep]}
-    )
+    at = pd.DataFrame({"time": pings[nearest[keep]], "x": table["x"][keep], "y": table["y"][keep]})
     return float(np.sqrt(np.mean(position_error(at, truth) ** 2))), np.unique(nearest[keep])
 
 

@@ -78,7 +78,7 @@ class EstimatesWriter:
 
 
 def read_truth(
-    path: str | Path, projection: Projection | None, time_unit: str = "s"
+    path: str | Path, projection: Projection | None, time_unit: str = "s", tz: str | None = None
 ) -> pd.DataFrame:
     """Read a truth track (the tag's true positions) to score estimates against.
 
@@ -92,6 +92,8 @@ def read_truth(
         The receivers' projection; needed (and used) for lon/lat truth.
     time_unit : {"s", "ms"}
         Unit of numeric times (:func:`hmmtrack.io.times.parse_times`).
+    tz : str, optional
+        Time zone of ISO times written without a UTC offset (refused without it).
 
     Returns
     -------
@@ -115,7 +117,7 @@ def read_truth(
         raise ValueError(
             f"{path}: truth needs x, y or lon, lat columns; found {list(table.columns)}"
         )
-    time = parse_times(table, "time", None, time_unit)
+    time = parse_times(table, "time", tz, time_unit)
     if len(table) > 1 and not np.isfinite(time).all():
         raise ValueError(f"{path}: empty time in a truth with several rows")
     return pd.DataFrame({"time": time, "x": x, "y": y})

@@ -92,8 +92,8 @@ def parse_times(table: pd.DataFrame, column: str, tz: str | None, unit: str = "s
             if tz is None:
                 raise ValueError(
                     f"{describe_rows(table, pos[mask])}: column {column!r} has times without a "
-                    f"UTC offset (e.g. {part.iloc[0]!r}); pass tz= the time zone they were "
-                    "recorded in (e.g. tz='UTC')"
+                    f"UTC offset (e.g. {part.iloc[0]!r}); give the time zone they were recorded "
+                    "in: --tz UTC on the command line, tz='UTC' in Python"
                 )
             try:
                 parsed = parsed.dt.tz_localize(tz, ambiguous="raise", nonexistent="raise")
