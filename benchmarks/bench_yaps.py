@@ -38,20 +38,11 @@ TRACK_OPTIONS = [
 
 
 def receivers_file(path: Path) -> Path:
-    """``receivers.csv`` from ``ssu1_hydros.csv``: ``VR2W-<serial>``, x, y, z, the sync tag
-    ``A69-1602-<id>`` and whether YAPS held the hydrophone fixed."""
-    hydros = pd.read_csv(DATA / "ssu1_hydros.csv")
-    table = pd.DataFrame(
-        {
-            "receiver": "VR2W-" + hydros["serial"].astype(str),
-            "x": hydros["x"],
-            "y": hydros["y"],
-            "z": hydros["z"],
-            "sync_tag": [f"A69-1602-{int(t)}" if pd.notna(t) else "" for t in hydros["sync_tag"]],
-            "fixed": hydros["idx"].isin(FIXED),
-        }
+    """``receivers.csv`` from ``ssu1_hydros.csv``
+    (:func:`hmmtrack.io.receivers_from_yaps_hydros`)."""
+    io.receivers_from_yaps_hydros(DATA / "ssu1_hydros.csv", fixed_idx=FIXED).to_csv(
+        path, index=False
     )
-    table.to_csv(path, index=False)
     return path
 
 

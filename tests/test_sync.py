@@ -153,20 +153,28 @@ def test_receivers_file_with_sync_tags_and_fixed_flags(tmp_path):
 
 
 def yaps_receivers(path: Path) -> Path:
-    hydros = pd.read_csv(SHARED / "ssu1_hydros.csv")
-    table = pd.DataFrame(
-        {
-            "receiver": "VR2W-" + hydros["serial"].astype(str),
-            "x": hydros["x"],
-            "y": hydros["y"],
-            "z": hydros["z"],
-            "sync_tag": [f"A69-1602-{int(t)}" if pd.notna(t) else "" for t in hydros["sync_tag"]],
-            # the hydrophones YAPS's ssu1 example holds at their surveyed positions
-            "fixed": hydros["idx"].isin([2, 3, 6, 8, 11, 13, 14, 15, 16, 17]),
-        }
-    )
-    table.to_csv(path, index=False)
+    # the hydrophones YAPS's ssu1 example holds at their surveyed positions
+    fixed = [2, 3, 6, 8, 11, 13, 14, 15, 16, 17]
+    hydros = SHARED / "ssu1_hydros.csv"
+    io.receivers_from_yaps_hydros(hydros, fixed_idx=fixed).to_csv(path, index=False)
     return path
+
+
+def test_yaps_hydros_become_a_receivers_table(tmp_path):
+    path = tmp_path / "hydros.csv"
+    path.write_text(
+        '"serial","x","y","z","sync_tag","idx"\n128344,10,20,1.8,NA,1\n128355,30,40,1.5,59334,2\n'
+    )
+    table = io.receivers_from_yaps_hydros(path, fixed_idx=[2])
+    assert table["receiver"].tolist() == ["VR2W-128344", "VR2W-128355"]
+    assert table["sync_tag"].tolist() == ["", "A69-1602-59334"]
+    assert table["fixed"].tolist() == [False, True]
+    table.to_csv(tmp_path / "rx.csv", index=False)
+    rx = io.read_receivers(tmp_path / "rx.csv")
+    assert rx["x"].tolist() == [10.0, 30.0] and rx["z"].tolist() == [1.8, 1.5]
+    path.write_text("serial,x,y\n1,2,3\n")
+    with pytest.raises(ValueError, match=r"hydros.csv: a hydros file needs column\(s\) 'z'"):
+        io.receivers_from_yaps_hydros(path)
 
 
 @pytest.mark.skipif(not SHARED.exists(), reason="YAPS ssu1 data absent (../shared/data)")

@@ -118,6 +118,48 @@ _TRUE = {"true", "yes", "1", "t", "y"}
 _FALSE = {"false", "no", "0", "f", "n"}
 
 
+def receivers_from_yaps_hydros(
+    path: str | Path,
+    *,
+    fixed_idx=(),
+    receiver_prefix: str = "VR2W-",
+    sync_code_space: str = "A69-1602",
+) -> pd.DataFrame:
+    """The receivers table of a YAPS ``hydros`` CSV (``serial, x, y, z, sync_tag, idx``).
+
+    YAPS names a hydrophone by its serial number and its sync tag by the ID part alone;
+    detection logs name them ``VR2W-<serial>`` and ``A69-1602-<id>``.
+
+    Parameters
+    ----------
+    path : str or Path
+        The hydros CSV (``sync_tag`` empty or ``NA`` for a hydrophone without one).
+    fixed_idx : iterable of int
+        YAPS's ``idx`` of the hydrophones held at their surveyed positions.
+    receiver_prefix, sync_code_space : str
+        Receiver model prefix and sync-tag code space of the detection log.
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``receiver``, ``x``, ``y``, ``z`` (m), ``sync_tag`` (full transmitter ID, "" for
+        none), ``fixed`` (bool): the columns :func:`read_receivers` reads.
+    """
+    hydros = read_csv(path)
+    require(hydros, {c: c for c in ("serial", "x", "y", "z", "sync_tag", "idx")}, "a hydros file")
+    sync = [f"{sync_code_space}-{t}" if pd.notna(t) else "" for t in hydros["sync_tag"]]
+    return pd.DataFrame(
+        {
+            "receiver": receiver_prefix + hydros["serial"],
+            "x": numeric(hydros, "x", "m"),
+            "y": numeric(hydros, "y", "m"),
+            "z": numeric(hydros, "z", "m"),
+            "sync_tag": sync,
+            "fixed": np.isin(numeric(hydros, "idx", "index"), list(fixed_idx)),
+        }
+    ).reset_index(drop=True)
+
+
 def _flags(table: pd.DataFrame, column: str) -> np.ndarray:
     """A yes/no column as bool (empty = False); other text raises naming lines and column."""
     text = table[column].fillna("false").astype(str).str.strip().str.lower()
