@@ -286,7 +286,8 @@ def write_summary(
     )
     if comparison is not None and len(comparison):
         parts.append(_comparison_section(comparison))
-        parts.extend(filter(None, [_spread_section(comparison)]))
+        if spread := _spread_section(comparison):
+            parts.append(spread)
         parts.append(_differences_section(comparison))
     if loss is not None and len(loss):
         parts.append(_loss_section(loss))
