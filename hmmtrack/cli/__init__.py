@@ -3,11 +3,14 @@
 Each command lives in its own module of this package and exposes two functions:
 
 ``register(subparsers)``
-    adds its ``argparse`` sub-parser and sets ``func`` on it;
+    adds its ``argparse`` sub-parser (:func:`add_command`, with the one-line help listed in
+    :data:`COMMANDS`) and sets ``func`` on it;
 ``run(args) -> int``
     does the work and returns the exit code.
 
-The commands hold no logic that the library lacks: they parse arguments, call library
+Only the command being run is imported (:func:`build_parser`), so that ``hmmtrack --help``
+and light commands do not load the libraries of the heavy ones. The commands hold no logic
+that the library lacks: they parse arguments, call library
 functions and print or write what those return.
 
 :func:`main` is the one place where failures become messages and exit codes (a command's
@@ -49,8 +52,20 @@ from concurrent.futures.process import BrokenProcessPool
 from hmmtrack import __version__
 from hmmtrack.io.times import TIME_UNITS
 
-#: command modules, in the order ``hmmtrack --help`` lists them
-COMMANDS = ("fit", "decode", "plot", "track", "sync", "simulate", "reproduce", "study")
+#: command modules and their one-line help, in the order ``hmmtrack --help`` lists them
+COMMANDS = {
+    "fit": "fit a movement HMM (step length, turning angle) to tracks",
+    "decode": "Viterbi states and state probabilities of tracks under a fitted model",
+    "plot": "figures of a fitted movement HMM on tracks (densities, residuals, states)",
+    "track": "estimate positions of a tag from detection logs (particle filter)",
+    "sync": "fit receiver clocks from sync tags (clock file for tracking)",
+    "simulate": "write a synthetic dataset (detections, receivers, truth, settings)",
+    "reproduce": "rerun the paper's experiments; write figures and summary.md",
+    "study": "rerun a study behind reports/ and write its report",
+}
+
+#: options of ``hmmtrack`` itself that may come before the command
+GLOBAL_FLAGS = ("-v", "--verbose", "--debug")
 
 #: exit codes (see the module docstring)
 EXIT_FAILURE = 1
@@ -109,7 +124,31 @@ def _log_warning(message, category, filename, lineno, file=None, line=None) -> N
     logging.getLogger("py.warnings").warning("%s", message)
 
 
-def build_parser() -> argparse.ArgumentParser:
+def add_command(subparsers, name: str, **kwargs) -> argparse.ArgumentParser:
+    """The sub-parser of command ``name``, with its one-line help from :data:`COMMANDS`
+    (``kwargs`` go to ``add_parser``: ``description``, ``epilog``...)."""
+    return subparsers.add_parser(name, help=COMMANDS[name], **kwargs)
+
+
+def named_command(argv: list[str]) -> str | None:
+    """The command that ``argv`` runs (``None`` when it names none, e.g. ``--help``): the
+    first word after the global flags, if it is one of :data:`COMMANDS`."""
+    for word in argv:
+        if word in COMMANDS:
+            return word
+        if word not in GLOBAL_FLAGS and not (word.startswith("-v") and set(word[1:]) == {"v"}):
+            return None
+    return None
+
+
+def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
+    """The ``hmmtrack`` parser. Given ``argv``, only the command it names is imported and
+    gets its full sub-parser; the others get a placeholder with their one-line help, which
+    is all ``hmmtrack --help`` shows. A command's module imports its libraries (SciPy,
+    statsmodels, numba kernels), so this keeps ``hmmtrack sync`` from loading the movement
+    HMM and ``hmmtrack --help`` from loading anything. Without ``argv``, every command is
+    built (for tests and documentation)."""
+    loaded = COMMANDS if argv is None else {named_command(argv)}
     parser = argparse.ArgumentParser(
         prog="hmmtrack",
         description="Movement HMMs and particle-filter tracking of acoustically tagged animals.",
@@ -123,8 +162,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
-    for name in COMMANDS:
-        importlib.import_module(f"hmmtrack.cli.{name}").register(sub)
+    for name, summary in COMMANDS.items():
+        if name in loaded:
+            importlib.import_module(f"hmmtrack.cli.{name}").register(sub)
+        else:
+            sub.add_parser(name, help=summary, add_help=False)
     return parser
 
 
@@ -142,8 +184,8 @@ def message(exc: BaseException) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     """Run ``hmmtrack`` with ``argv`` (default ``sys.argv[1:]``); return the exit code."""
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    argv = sys.argv[1:] if argv is None else argv
+    args = build_parser(argv).parse_args(argv)
     logging.basicConfig(
         level=logging.WARNING - 10 * min(args.verbose, 2), format="%(levelname)s: %(message)s"
     )

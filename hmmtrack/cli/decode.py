@@ -23,6 +23,7 @@ import argparse
 import numpy as np
 
 from hmmtrack import io, tracks
+from hmmtrack.cli import add_command
 from hmmtrack.cli.fit import (
     add_state_names_argument,
     add_track_arguments,
@@ -35,9 +36,9 @@ from hmmtrack.io.outputs import atomic_files, check_paths
 
 
 def register(subparsers) -> None:
-    parser = subparsers.add_parser(
+    parser = add_command(
+        subparsers,
         "decode",
-        help="Viterbi states and state probabilities of tracks under a fitted model",
         description="Decode tracks with a fitted movement HMM (model JSON from hmmtrack fit).",
     )
     add_track_arguments(parser)

@@ -27,6 +27,7 @@ import numpy as np
 import pandas as pd
 
 from hmmtrack import io, tracks
+from hmmtrack.cli import add_command
 from hmmtrack.hmm import MovementHMMEstimator, crw, diagnostics, distributions, imputation
 from hmmtrack.hmm.decoding import check_state_names
 from hmmtrack.io.geo import Projection
@@ -161,9 +162,9 @@ def read_table(args: argparse.Namespace) -> pd.DataFrame:
 
 
 def register(subparsers) -> None:
-    parser = subparsers.add_parser(
+    parser = add_command(
+        subparsers,
         "fit",
-        help="fit a movement HMM (step length, turning angle) to tracks",
         description="Fit an N-state movement HMM by EM with multi-start and save it as JSON.",
     )
     add_track_arguments(parser)

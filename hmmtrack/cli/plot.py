@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 
+from hmmtrack.cli import add_command
 from hmmtrack.cli.decode import add_other_step_argument, load_model_for
 from hmmtrack.cli.fit import (
     add_state_names_argument,
@@ -30,9 +31,9 @@ from hmmtrack.io.outputs import check_paths
 
 
 def register(subparsers) -> None:
-    parser = subparsers.add_parser(
+    parser = add_command(
+        subparsers,
         "plot",
-        help="figures of a fitted movement HMM on tracks (densities, residuals, states)",
         description="Draw the standard figures of a fitted movement HMM (model JSON from "
         "hmmtrack fit) on tracks.",
     )

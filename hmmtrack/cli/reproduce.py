@@ -11,7 +11,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from hmmtrack.cli import UserInputError
+from hmmtrack.cli import UserInputError, add_command
 from hmmtrack.io.outputs import check_paths
 
 DESCRIPTION = (
@@ -24,9 +24,9 @@ DESCRIPTION = (
 
 
 def register(subparsers) -> None:
-    parser = subparsers.add_parser(
+    parser = add_command(
+        subparsers,
         "reproduce",
-        help="rerun the paper's experiments; write figures and summary.md",
         description=DESCRIPTION,
     )
     parser.add_argument(

@@ -16,6 +16,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from hmmtrack.cli import add_command
 from hmmtrack.experiments.configs import scenario_settings
 from hmmtrack.io.outputs import check_paths, staged_folder
 from hmmtrack.scenarios import GENERATORS
@@ -32,9 +33,9 @@ ARRAY = "moored-array"
 
 
 def register(subparsers) -> None:
-    parser = subparsers.add_parser(
+    parser = add_command(
+        subparsers,
         "simulate",
-        help="write a synthetic dataset (detections, receivers, truth, settings)",
         description=(
             "Simulate one of the paper's three datasets (synthetic analogues) and write "
             "detections.csv, receivers.csv, truth.csv and scenario.json into a directory; "

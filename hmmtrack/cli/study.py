@@ -20,7 +20,7 @@ import argparse
 import importlib
 import warnings
 
-from hmmtrack.cli import UserInputError
+from hmmtrack.cli import UserInputError, add_command
 from hmmtrack.io.outputs import check_paths
 
 #: subcommand -> (report module, writer, help)
@@ -68,9 +68,9 @@ def _seconds(text: str) -> float:
 
 
 def register(subparsers) -> None:
-    parser = subparsers.add_parser(
+    parser = add_command(
+        subparsers,
         "study",
-        help="rerun a study behind reports/ and write its report",
         description=__doc__.split("\n\n")[0],
     )
     studies = parser.add_subparsers(dest="study", metavar="NAME")

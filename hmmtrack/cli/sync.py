@@ -21,16 +21,16 @@ import time
 from pathlib import Path
 
 from hmmtrack import io
-from hmmtrack.cli import add_time_unit
+from hmmtrack.cli import add_command, add_time_unit
 from hmmtrack.io.outputs import atomic_files, check_paths
 from hmmtrack.sync import apply_clocks, fit_clocks, write_clocks
 from hmmtrack.tracking.measurement.ranging import check_sound_speed
 
 
 def register(subparsers) -> None:
-    parser = subparsers.add_parser(
+    parser = add_command(
+        subparsers,
         "sync",
-        help="fit receiver clocks from sync tags (clock file for tracking)",
         description=(
             "Synchronise a moored receiver array: fit every receiver's clock (offset, drift, "
             "drift rate per segment) relative to a time keeper from the detections of sync "

@@ -37,7 +37,7 @@ import pandas as pd
 
 from hmmtrack import io
 from hmmtrack.analysis import metrics
-from hmmtrack.cli import UserInputError, add_time_unit
+from hmmtrack.cli import UserInputError, add_command, add_time_unit
 from hmmtrack.io.outputs import atomic_files, check_paths
 from hmmtrack.tracking import pipeline as tracking
 from hmmtrack.tracking.config import (
@@ -181,9 +181,9 @@ def _checked_word(parse):
 
 
 def register(subparsers) -> None:
-    parser = subparsers.add_parser(
+    parser = add_command(
+        subparsers,
         "track",
-        help="estimate positions of a tag from detection logs (particle filter)",
         description=(
             "Track an acoustic tag from the detection times logged by hydrophones: ranges "
             "from the tag period (the paper's ΔTOF), a particle filter with the chosen "
