@@ -21,6 +21,13 @@
    the same one moveHMM reaches;
 3. states are reordered by increasing mean step so labels are stable.
 
+Fixed parameters, equality constraints and a stationary initial distribution
+(:mod:`~hmmtrack.hmm.constraints`) hold in every start, in EM (a constrained M-step,
+:func:`_constrained_m_step`) and in the polish (BFGS over the free parameters,
+:class:`ConstrainedLikelihood`). With a stationary initial distribution EM is not exact (its
+initial distribution follows the transition matrix instead of maximising its own term), so
+the direct maximisation of the polish always runs and gives the optimum.
+
 The working-scale log-likelihood and its gradient (:class:`WorkingLikelihood`) are also what
 :mod:`hmmtrack.hmm.diagnostics` differentiates for Wald intervals.
 
@@ -41,6 +48,7 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import minimize
 
+from hmmtrack.hmm import constraints as con
 from hmmtrack.hmm import covariates as cov
 from hmmtrack.hmm import distributions, em_kernels, emission
 from hmmtrack.hmm import formula as formulas
@@ -292,26 +300,108 @@ class WorkingLikelihood:
         The gradient of the log-likelihood equals the expected gradient of the complete-data
         log-likelihood under the posterior at ``theta``, all in closed form: the emission
         families' ``working_score`` of the posterior-weighted log densities, and the
-        initial and transition parts.
+        initial and transition parts (:func:`_scores`).
         """
         params = self.unpack(theta)
         post = _posterior(params, self.data)
-        weights = post.posterior
-        data = self.data
-        gradient = np.empty_like(theta)
-        for name, i, j in self._blocks():
-            gradient[i:j] = params.emissions[name].working_score(data.inputs[name], weights)
         b = self.n_emission
         c = b + int(np.prod(self.coefficient_shape))
-        if data.design is None:
-            xi, design = post.pair_counts[None], np.ones((1, 1))
-        else:
-            xi, design = post.pair_counts, data.design[1:]
         coefficients = theta[b:c].reshape(self.coefficient_shape)
-        gradient[b:c] = cov.expected_log_likelihood(coefficients, xi, design)[1].ravel()
-        first = weights[data.starts].sum(axis=0)
+        emission_scores, coefficient_score, first = _scores(params, self.data, post, coefficients)
+        gradient = np.empty_like(theta)
+        for name, i, j in self._blocks():
+            gradient[i:j] = emission_scores[name]
+        gradient[b:c] = coefficient_score.ravel()
         gradient[c:] = first[1:] - first.sum() * params.initial[1:]
         return post.log_likelihood, gradient
+
+
+class ConstrainedLikelihood(WorkingLikelihood):
+    """Log-likelihood as a function of the free parameters of a constrained fit.
+
+    The vector is :class:`~hmmtrack.hmm.constraints.Constraints`' ``phi``: the parameters on
+    their link scale with the fixed ones left out and the tied ones once. The gradient is
+    Fisher's identity as in :class:`WorkingLikelihood`, taken to the link scale through
+    each stream's ``d working / d link`` Jacobian, to ``phi`` by summing tied entries; a
+    stationary initial distribution adds ``sum_k (first_k / delta_k) d delta_k / d beta`` to
+    the transition coefficients (``first``: posterior at the first rows).
+
+    Parameters
+    ----------
+    template : Parameters
+    data : FitData
+    constraints : Constraints
+    """
+
+    def __init__(self, template: Parameters, data: FitData, constraints: con.Constraints):
+        super().__init__(template, data)
+        self.constraints = constraints
+        self.size = constraints.size
+
+    def pack(self, params: Parameters) -> np.ndarray:
+        """Free vector of ``params`` (projected onto the constraints)."""
+        return self.constraints.pack(params)
+
+    def unpack(self, theta: np.ndarray) -> Parameters:
+        """Parameters of a free vector."""
+        return self.constraints.unpack(theta)
+
+    def value_and_gradient(self, theta: np.ndarray) -> tuple[float, np.ndarray]:
+        """Log-likelihood and its gradient by the free vector ``theta``."""
+        constraints = self.constraints
+        z = constraints.expand(theta)
+        params = constraints.parameters(z)
+        post = _posterior(params, self.data)
+        coefficients = z[constraints.blocks["transition"]].reshape(self.coefficient_shape)
+        emission_scores, coefficient_score, first = _scores(params, self.data, post, coefficients)
+        gradient = np.zeros(constraints.size_z)
+        for name, dist in params.emissions.items():
+            block = constraints.blocks[name]
+            gradient[block] = con.link_jacobian(dist, z[block]).T @ emission_scores[name]
+        coefficient_score = coefficient_score.ravel()
+        if constraints.control.stationary:
+            jacobian = constraints.stationary_jacobian(coefficients)
+            coefficient_score = coefficient_score + jacobian.T @ (
+                first / np.maximum(params.initial, _TINY)
+            )
+        else:
+            gradient[constraints.blocks["initial"]] = first[1:] - first.sum() * params.initial[1:]
+        gradient[constraints.blocks["transition"]] = coefficient_score
+        return post.log_likelihood, constraints.reduce_gradient(gradient)
+
+
+def working_likelihood(
+    template: Parameters, data: FitData, constraints: con.Constraints | None = None
+) -> WorkingLikelihood:
+    """The likelihood on the working scale, or on the free vector of ``constraints``."""
+    if constraints is None:
+        return WorkingLikelihood(template, data)
+    return ConstrainedLikelihood(template, data, constraints)
+
+
+def _scores(params: Parameters, data: FitData, post, coefficients: np.ndarray):
+    """The parts of the likelihood gradient by Fisher's identity at ``params``.
+
+    Returns
+    -------
+    emission : dict of str to ndarray
+        Each stream's ``working_score`` of the posterior-weighted log densities.
+    coefficients : ndarray, shape (K*(K-1), p)
+        Gradient by the transition coefficients ``coefficients`` (those of ``params``).
+    first : ndarray, shape (K,)
+        Posterior state probabilities at the first rows of the sequences, summed.
+    """
+    weights = post.posterior
+    emission_scores = {
+        name: dist.working_score(data.inputs[name], weights)
+        for name, dist in params.emissions.items()
+    }
+    if data.design is None:
+        xi, design = post.pair_counts[None], np.ones((1, 1))
+    else:
+        xi, design = post.pair_counts, data.design[1:]
+    coefficient_score = cov.expected_log_likelihood(coefficients, xi, design)[1]
+    return emission_scores, coefficient_score, weights[data.starts].sum(axis=0)
 
 
 def _posterior(params: Parameters, data: FitData):
@@ -375,8 +465,11 @@ class StartResult:
     error: str | None = None
 
 
-def m_step(params: Parameters, data: FitData, post) -> Parameters:
-    """One weighted maximum-likelihood M-step from a forward-backward result."""
+def m_step(
+    params: Parameters, data: FitData, post, constraints: con.Constraints | None = None
+) -> Parameters:
+    """One weighted maximum-likelihood M-step from a forward-backward result (under
+    ``constraints``: :func:`_constrained_m_step`)."""
     weights = post.posterior
     first = weights[data.starts].sum(axis=0)
     initial = first / first.sum()
@@ -389,7 +482,7 @@ def m_step(params: Parameters, data: FitData, post) -> Parameters:
         )
     else:
         coefficients = cov.fit_coefficients(post.pair_counts, data.design[1:], params.coefficients)
-    return replace(
+    free = replace(
         params, initial=initial, transition=transition, coefficients=coefficients
     ).with_emissions(
         {
@@ -397,13 +490,71 @@ def m_step(params: Parameters, data: FitData, post) -> Parameters:
             for name, dist in params.emissions.items()
         }
     )
+    if constraints is None:
+        return free
+    return _constrained_m_step(params, free, data, post, constraints)
 
 
-def _em_steps(params: Parameters, data: FitData):
+def _constrained_m_step(
+    params: Parameters, free: Parameters, data: FitData, post, constraints: con.Constraints
+) -> Parameters:
+    """The M-step under fixed parameters, ties and a stationary initial distribution.
+
+    Streams and transition coefficients without a fixed or tied entry take the free M-step's
+    values ``free``. Each other block maximises its expected complete-data log-likelihood
+    (``sum(w * logpdf)``, or the transitions' :func:`~.covariates.expected_log_likelihood`)
+    over its free entries with BFGS from ``free`` projected onto the constraints, and keeps
+    ``params``' values unless that is better (so the EM stays monotone): tied states share
+    one parameter whose score is the sum of theirs, which pools the tied states' weighted
+    observations -- their sufficient statistics (weighted sums of x and log x for gamma
+    steps, of cos and sin for angles, counts for Poisson...) -- for every family alike; a
+    formula parameter ties its coefficients. A fixed initial distribution stays; a stationary
+    one follows the new transition matrix, which is not the exact M-step of the
+    initial-distribution term (the fit polishes on the full likelihood afterwards).
+    """
+    weights = post.posterior
+    z = constraints.z_of(params)
+    start = constraints.z_of(free)
+    for name, dist in params.emissions.items():
+        block = constraints.blocks[name]
+        if not constraints.touches(name):
+            z[block] = start[block]
+            continue
+        x = data.inputs[name]
+
+        def objective(values, dist=dist, x=x):
+            member = con.from_link_vector(dist, values)
+            value = float(np.sum(weights * member.logpdf(x)))
+            return value, con.link_jacobian(member, values).T @ member.working_score(x, weights)
+
+        z = constraints.maximise_block(name, z, objective, start)
+    block = constraints.blocks["transition"]
+    if constraints.touches("transition"):
+        if data.design is None:
+            xi, design = post.pair_counts[None], np.ones((1, 1))
+        else:
+            xi, design = post.pair_counts, data.design[1:]
+        shape = (params.n_states * (params.n_states - 1), -1)
+
+        def transitions(values):
+            value, gradient = cov.expected_log_likelihood(values.reshape(shape), xi, design)
+            return value, gradient.ravel()
+
+        z = constraints.maximise_block("transition", z, transitions, start)
+    else:
+        z[block] = start[block]
+    initial = constraints.blocks["initial"]
+    if not constraints.touches("initial"):
+        z[initial] = start[initial]
+    return constraints.parameters(z)
+
+
+def _em_steps(params: Parameters, data: FitData, constraints: con.Constraints | None = None):
     """The E-step ``params -> result with .log_likelihood`` and M-step ``(params, result) ->
     params`` of a fit: the fused kernel of :mod:`~hmmtrack.hmm.em_kernels` when the model
-    allows it (gamma / von Mises, no covariates), else forward-backward and :func:`m_step`."""
-    fused = em_kernels.fused_em(params, data)
+    allows it (gamma / von Mises, no covariates, no constraints), else forward-backward and
+    :func:`m_step`."""
+    fused = None if constraints is not None else em_kernels.fused_em(params, data)
     if fused is not None:
         return fused.expectation, fused.maximisation
 
@@ -411,12 +562,18 @@ def _em_steps(params: Parameters, data: FitData):
         return _posterior(params, data)
 
     def maximisation(params, post):
-        return m_step(params, data, post)
+        return m_step(params, data, post, constraints)
 
     return expectation, maximisation
 
 
-def run_em(params: Parameters, data: FitData, max_iter: int, tol: float):
+def run_em(
+    params: Parameters,
+    data: FitData,
+    max_iter: int,
+    tol: float,
+    constraints: con.Constraints | None = None,
+):
     """Baum-Welch from ``params`` until the gain per observation is below ``tol``.
 
     Plain EM for the first :data:`ACCELERATE_AFTER` iterations (most fits converge within
@@ -425,7 +582,8 @@ def run_em(params: Parameters, data: FitData, max_iter: int, tol: float):
     and ``v`` give the extrapolation ``theta0 - 2 alpha r + alpha^2 v``, kept only when its
     log-likelihood is at least that of the second EM step, so that every value in the
     history is at least the one before. Each E-step counts as one iteration. The E- and
-    M-steps are the fused kernel's where the model allows (see :func:`_em_steps`).
+    M-steps are the fused kernel's where the model allows (see :func:`_em_steps`). Under
+    ``constraints`` the M-step is constrained and SQUAREM extrapolates the free vector.
 
     Returns
     -------
@@ -436,7 +594,7 @@ def run_em(params: Parameters, data: FitData, max_iter: int, tol: float):
     monitor : ConvergenceMonitor
     """
     history = []
-    expectation, maximisation = _em_steps(params, data)
+    expectation, maximisation = _em_steps(params, data, constraints)
     post = expectation(params)
 
     def step(params, post):
@@ -450,7 +608,7 @@ def run_em(params: Parameters, data: FitData, max_iter: int, tol: float):
     done = max_iter < 1
     while not done and len(history) < ACCELERATE_AFTER:
         params, post, done = step(params, post)
-    working = WorkingLikelihood(params, data)
+    working = working_likelihood(params, data, constraints)
     step_max = 1.0
     while not done:
         start = working.pack(params)
@@ -471,10 +629,10 @@ def run_em(params: Parameters, data: FitData, max_iter: int, tol: float):
             step_max *= 4.0
         if alpha == -1.0:  # the extrapolation is the second EM step itself
             continue
-        candidate = working.unpack(start - 2.0 * alpha * r + alpha * alpha * v)
         try:
+            candidate = working.unpack(start - 2.0 * alpha * r + alpha * alpha * v)
             candidate_post = expectation(candidate)
-        except ValueError:  # some observation impossible under every state path
+        except ValueError:  # parameters out of range, or an observation impossible throughout
             continue
         if candidate_post.log_likelihood >= second_post.log_likelihood:
             history.append(second_post.log_likelihood)
@@ -485,15 +643,21 @@ def run_em(params: Parameters, data: FitData, max_iter: int, tol: float):
     return params, float(post.log_likelihood), monitor
 
 
-def polish(params: Parameters, data: FitData, max_iter: int = 500):
-    """Maximise the full log-likelihood over the working parameters with BFGS.
+def polish(
+    params: Parameters,
+    data: FitData,
+    max_iter: int = 500,
+    constraints: con.Constraints | None = None,
+):
+    """Maximise the full log-likelihood over the working parameters with BFGS (over the free
+    vector of ``constraints`` when given: :class:`ConstrainedLikelihood`).
 
     BFGS rather than L-BFGS: a transition probability that tends to 0 with a covariate sends
     a coefficient off towards -inf, along which L-BFGS crawls for hundreds of iterations.
     Returns the polished parameters and log-likelihood, or the inputs if BFGS did not
     improve on them.
     """
-    likelihood = WorkingLikelihood(params, data)
+    likelihood = working_likelihood(params, data, constraints)
     start = likelihood.pack(params)
     scale = 1.0 / data.n_obs  # per-row log-likelihood: one gradient tolerance for any size
 
@@ -549,6 +713,13 @@ class FitSpec:
     emission_designs: dict = field(default_factory=dict)  # {stream: {parameter: Design}}
     stream_families: dict = field(default_factory=dict)  # {further stream: family name}
     start: Parameters | None = None  # the user's starting values of start 0
+    constraints: con.Constraints | None = None  # fixed, tied, stationary (None: none)
+
+    @property
+    def keeps_labels(self) -> bool:
+        """True when the constraints name states, which the fit then keeps as numbered
+        instead of ordering them by mean step."""
+        return self.constraints is not None and self.constraints.control.labels_states
 
 
 def initial_parameters(rng: np.random.Generator | None, data: FitData, spec: FitSpec) -> Parameters:
@@ -560,7 +731,8 @@ def initial_parameters(rng: np.random.Generator | None, data: FitData, spec: Fit
     the rest of each row spread evenly; covariate slopes start at 0 (transition and emission
     formulas alike); the initial distribution is uniform. A further stream starts at its
     weighted fit with each row's state probabilities under the starting step distribution
-    alone (equal prior), so that its states follow the steps'.
+    alone (equal prior), so that its states follow the steps'. Under ``spec.constraints``
+    the values are projected onto them (fixed values set, ties averaged).
     """
     k = spec.n_states
     step, angle = distributions.initial_guess(
@@ -592,27 +764,35 @@ def initial_parameters(rng: np.random.Generator | None, data: FitData, spec: Fit
     if data.design is not None:
         coefficients = cov.coefficients_from_matrix(transition, data.design.shape[1])
         transition = None
-    return Parameters(np.full(k, 1.0 / k), transition, coefficients, step, angle, emissions)
+    params = Parameters(np.full(k, 1.0 / k), transition, coefficients, step, angle, emissions)
+    return params if spec.constraints is None else spec.constraints.project(params)
 
 
 def run_start(index: int, seed: np.random.SeedSequence, data: FitData, spec: FitSpec):
     """One start, then EM; states ordered by mean step.
 
-    Start 0 uses the user's starting values (``spec.start``) or the deterministic
-    equal-count ones, the others random ones drawn with a generator from ``seed``.
+    Start 0 uses the user's starting values (``spec.start``, projected onto the
+    constraints) or the deterministic equal-count ones, the others random ones drawn with a
+    generator from ``seed``. States keep their numbers when the constraints name them.
     """
     if index == 0 and spec.start is not None:
         start = spec.start
+        if spec.constraints is not None:
+            start = spec.constraints.project(start)
     else:
         start = initial_parameters(None if index == 0 else as_generator(seed), data, spec)
     try:
-        params, log_likelihood, monitor = run_em(start, data, spec.max_iter, spec.tol)
+        params, log_likelihood, monitor = run_em(
+            start, data, spec.max_iter, spec.tol, spec.constraints
+        )
     except (ValueError, FloatingPointError, np.linalg.LinAlgError) as exc:
         monitor = ConvergenceMonitor((), 0, False, spec.tol)
         return StartResult(index, start, -np.inf, monitor, error=f"{type(exc).__name__}: {exc}")
     if not np.isfinite(log_likelihood):
         return StartResult(index, params, -np.inf, monitor, error="log-likelihood not finite")
-    return StartResult(index, order_by_mean_step(params), log_likelihood, monitor)
+    if not spec.keeps_labels:
+        params = order_by_mean_step(params)
+    return StartResult(index, params, log_likelihood, monitor)
 
 
 _worker_data: FitData | None = None  # the data of a worker process, set once when it starts
@@ -821,6 +1001,23 @@ class MovementHMMEstimator:
         A column of the table with the state of each row where it is known (1..K, as users
         number states; NaN where unknown): the fit allows only that state there. The
         fitted model does not keep it (decoding and intervals see the data alone).
+    fixed : dict of str to float, or None
+        Parameters held at a value during EM and the polish, by name, states from 1
+        (``{"step.mean[1]": 50, "transition[1,2]": 0.05, "initial[1]": 1}``; the names of
+        :mod:`hmmtrack.hmm.constraints`). They are not counted as free parameters, have no
+        standard error, and are saved in the model file.
+    equal : sequence of str
+        Parameters held equal: ``["angle.concentration[1]==angle.concentration[2]"]`` (the
+        same parameter of one stream in several states; coefficients of a formula parameter
+        are tied together).
+    stationary : bool
+        The initial distribution is the stationary distribution of the transition matrix (at
+        the first row's covariates with a transition formula) rather than a parameter; the
+        fit then always polishes on the full likelihood.
+    state_names : sequence of str or None
+        Names of the states (``["encamped", "exploratory"]``), saved in the model file;
+        with names the states are in the order fitted (ascending mean step unless ``fixed``
+        or ``equal`` name states, which then keep their numbers).
     zero_inflation : "auto" or bool
         "auto" switches zero-inflated steps on when a step is exactly 0.
     n_starts : int
@@ -836,7 +1033,8 @@ class MovementHMMEstimator:
     polish : "auto" or bool
         Maximise the full likelihood with BFGS from the best EM result: "auto" when that EM
         stopped at ``max_iter`` before converging (a converged EM is within a few 1e-6 nats of
-        the optimum; reports/decisions.md, HMM fitting), True always, False never.
+        the optimum; reports/decisions.md, HMM fitting) or the initial distribution is
+        stationary, True always, False never.
     dt : float or None
         Time step of the data (s); None takes the median of the table's ``dt`` column (NaN
         if it has none).
@@ -868,6 +1066,10 @@ class MovementHMMEstimator:
         streams: dict | None = None,
         start=None,
         known_states: str | None = None,
+        fixed: dict | None = None,
+        equal=(),
+        stationary: bool = False,
+        state_names=None,
         zero_inflation="auto",
         n_starts: int = 1,
         seed=None,
@@ -888,6 +1090,10 @@ class MovementHMMEstimator:
         self.streams = streams
         self.start = start
         self.known_states = known_states
+        self.fixed = fixed
+        self.equal = equal
+        self.stationary = stationary
+        self.state_names = state_names
         self.zero_inflation = zero_inflation
         self.n_starts = n_starts
         self.seed = seed
@@ -1019,6 +1225,11 @@ class MovementHMMEstimator:
             raise ValueError("no observed step in the data")
         spec = self._spec(data, emission_designs)
         template = initial_parameters(None, data, spec)  # refuses unknown parameters early
+        control = con.FitControl(self.fixed or {}, tuple(self.equal or ()), self.stationary)
+        if control:
+            columns = ("Intercept",) if design is None else design.columns
+            first = None if data.design is None else data.design[:1]
+            spec = replace(spec, constraints=con.Constraints(control, template, columns, first))
         if self.start is not None:
             spec = replace(spec, start=_matching_start(parameters_of(self.start), template))
         starts = run_starts(data, spec, int(self.n_starts), self.seed, int(self.n_jobs))
@@ -1030,11 +1241,13 @@ class MovementHMMEstimator:
             logger.warning("EM start %d failed and is left out: %s", s.index, s.error)
         best = max(starts, key=lambda s: (s.log_likelihood, -s.index))
         params, log_likelihood = best.parameters, best.log_likelihood
-        if self.polish is True or (self.polish == "auto" and not best.monitor.converged):
-            params, log_likelihood = polish(params, data)
-            params = order_by_mean_step(params)
+        unconverged = not best.monitor.converged or control.stationary
+        if self.polish is True or (self.polish == "auto" and unconverged):
+            params, log_likelihood = polish(params, data, constraints=spec.constraints)
+            if not spec.keeps_labels:
+                params = order_by_mean_step(params)
             best = replace(best, parameters=params, log_likelihood=log_likelihood, polished=True)
-        n_parameters = WorkingLikelihood(params, data).size
+        n_parameters = working_likelihood(params, data, spec.constraints).size
         aic, bic = information_criteria(log_likelihood, n_parameters, data.n_obs)
         self.model_ = MovementHMM(
             initial=params.initial,
@@ -1050,6 +1263,8 @@ class MovementHMMEstimator:
             n_obs=data.n_obs,
             aic=aic,
             bic=bic,
+            control=control,
+            state_names=None if self.state_names is None else tuple(self.state_names),
         )
         self.starts_ = starts
         self.best_start_ = best.index

@@ -8,9 +8,11 @@ about it: transition matrices, the stationary distribution, state
 probabilities and Viterbi paths for data, simulation -- and builds the model with a
 resting state added for tracking (:meth:`MovementHMM.with_resting_state`).
 :meth:`MovementHMM.save` / :meth:`MovementHMM.load` write and read the JSON schema
-``"hmmtrack.movement_hmm"``: version 2, or version 3 for a model with emission formulas
-(:mod:`hmmtrack.hmm.emission`: a distribution block with a ``formulas`` block; written only
-then, so that older readers keep reading every other model). Version 1 files, whose
+``"hmmtrack.movement_hmm"``: version 2, version 3 for a model with emission formulas
+(:mod:`hmmtrack.hmm.emission`: a distribution block with a ``formulas`` block) or further
+streams, version 4 for a model with state names or fit control (fixed parameters, equality
+constraints, a stationary initial distribution: :mod:`hmmtrack.hmm.constraints`); each is
+written only when needed, so that older readers keep reading every other model. Version 1 files, whose
 covariates were plain columns, still load; loading validates every field and refuses
 anything it does not understand. There is no pickle.
 
@@ -32,18 +34,22 @@ import pandas as pd
 from hmmtrack import __version__
 from hmmtrack.hmm import covariates as cov
 from hmmtrack.hmm import distributions, emission
+from hmmtrack.hmm.constraints import FitControl, stationary_distribution
 from hmmtrack.hmm.formula import Design, design_rows, of_columns
 from hmmtrack.hmm.inference import forward_backward, viterbi
 
 SCHEMA = "hmmtrack.movement_hmm"
-VERSION = 3  # written for models with emission formulas; the others stay version 2
+VERSION = 4  # written for models with state names or fit control
+_FORMULA_VERSION = 3  # models with emission formulas or further streams
 _PLAIN_VERSION = 2
-_READABLE_VERSIONS = (1, 2, 3)
+_READABLE_VERSIONS = (1, 2, 3, 4)
 # The fields of a model document (see MovementHMM.to_dict), in file order; no others are read.
 _FIELDS = (
     "schema", "version", "package_version", "units", "n_states", "dt", "initial", "transition",
     "coefficients", "step", "angle", "streams", "log_likelihood", "n_obs", "aic", "bic",
+    "state_names", "control",
 )  # fmt: skip
+_VERSION_4_FIELDS = ("state_names", "control")  # refused in files of an older version
 _UNITS = {"step": "m", "angle": "rad", "dt": "s"}
 DT_TOLERANCE = 0.1  # a time step more than 10 % from the reference one is another step
 # the fields of the coefficients block, by file version
@@ -51,7 +57,7 @@ _COEFFICIENT_FIELDS = {
     1: ("covariates", "scaling", "values", "layout"),
     2: ("formula", "columns", "scaling", "levels", "values", "values_data_scale", "layout"),
 }
-_COEFFICIENT_FIELDS[3] = _COEFFICIENT_FIELDS[2]
+_COEFFICIENT_FIELDS[3] = _COEFFICIENT_FIELDS[4] = _COEFFICIENT_FIELDS[2]
 
 
 @dataclass(frozen=True)
@@ -193,6 +199,12 @@ class MovementHMM:
     aic, bic : float
         ``-2 logL + 2 p`` and ``-2 logL + p log(n_obs)`` for ``p`` free parameters (NaN if
         unknown); the constructor refuses values that do not follow from ``log_likelihood``.
+    control : FitControl
+        The fixed parameters, equality constraints and stationary initial distribution the
+        model was fitted under (:mod:`hmmtrack.hmm.constraints`; empty without); intervals
+        and refits hold them.
+    state_names : tuple of str or None
+        A name per state (``("encamped", "exploratory")``), in state order; None without.
 
     Raises
     ------
@@ -214,10 +226,24 @@ class MovementHMM:
     aic: float = math.nan
     bic: float = math.nan
     streams: dict = field(default_factory=dict)
+    control: FitControl = field(default_factory=FitControl)
+    state_names: tuple[str, ...] | None = None
 
     def __post_init__(self):
         initial = np.asarray(self.initial, dtype=float)
         object.__setattr__(self, "initial", initial)
+        if self.state_names is not None:
+            names = tuple(self.state_names)
+            if (
+                len(names) != initial.shape[0]
+                or not all(isinstance(n, str) and n.strip() for n in names)
+                or len(set(names)) != len(names)
+            ):
+                raise ValueError(
+                    f"state_names must be {initial.shape[0]} different non-empty names, one "
+                    f"per state; got {list(names)}"
+                )
+            object.__setattr__(self, "state_names", names)
         if (self.transition is None) == (self.coefficients is None):
             raise ValueError("give exactly one of 'transition' and 'coefficients'")
         if self.transition is not None:
@@ -297,10 +323,7 @@ class MovementHMM:
         -------
         ndarray, shape (K,) or (T, K)
         """
-        gamma = self.transition_matrix(covariates)
-        k = self.n_states
-        system = np.swapaxes(np.eye(k) - gamma + 1.0, -1, -2)
-        return np.linalg.solve(system, np.ones(gamma.shape[:-1])[..., None])[..., 0]
+        return stationary_distribution(self.transition_matrix(covariates))
 
     def log_transition_for(self, observations: Observations) -> np.ndarray:
         """Log transition argument for the recursions: ``(K, K)`` or ``(T-1, K, K)``.
@@ -566,9 +589,15 @@ class MovementHMM:
 
     def to_dict(self) -> dict:
         """The JSON document of this model (plain Python types)."""
+        if self.state_names is not None or self.control:
+            version = VERSION
+        elif self.emission_designs or self.streams:
+            version = _FORMULA_VERSION
+        else:
+            version = _PLAIN_VERSION
         return {
             "schema": SCHEMA,
-            "version": VERSION if self.emission_designs or self.streams else _PLAIN_VERSION,
+            "version": version,
             "package_version": __version__,
             "units": {"step": self.step_unit, "angle": "rad", "dt": "s"},
             "n_states": self.n_states,
@@ -596,11 +625,14 @@ class MovementHMM:
             "n_obs": int(self.n_obs),
             "aic": _float_or_none(self.aic),
             "bic": _float_or_none(self.bic),
+            **({"state_names": list(self.state_names)} if self.state_names is not None else {}),
+            **({"control": self.control.to_dict()} if self.control else {}),
         }
 
     def save(self, path: str | Path) -> None:
         """Write the model as JSON (schema ``hmmtrack.movement_hmm``, version 2; version 3
-        when it has emission formulas, which older readers do not know)."""
+        when it has emission formulas or further streams, version 4 with state names or fit
+        control, which older readers do not know)."""
         Path(path).write_text(json.dumps(self.to_dict(), indent=2) + "\n", encoding="utf-8")
 
     @classmethod
@@ -636,7 +668,8 @@ class MovementHMM:
             reader.fail(
                 "version", f"is {version}; this hmmtrack reads versions {_READABLE_VERSIONS}"
             )
-        reader.known_keys("", document, _FIELDS)
+        valid = [f for f in _FIELDS if version >= VERSION or f not in _VERSION_4_FIELDS]
+        reader.known_keys("", document, valid)
         n_states = reader.get("n_states", int)
         if n_states < 1:
             reader.fail("n_states", f"is {n_states}; expected a positive integer")
@@ -678,6 +711,17 @@ class MovementHMM:
                     "coefficients.values",
                     f"has shape {coefficients.shape}; expected {expected} finite numbers",
                 )
+        control = FitControl()
+        if "control" in document:
+            try:
+                control = FitControl.from_dict(document["control"])
+            except ValueError as exc:
+                reader.fail("control", f"is malformed ({exc})")
+        state_names = document.get("state_names")
+        if "state_names" in document and not (
+            isinstance(state_names, list) and all(isinstance(n, str) for n in state_names)
+        ):
+            reader.fail("state_names", f"is {state_names!r}; expected a list of names")
         dt = document.get("dt")
         if dt is not None and not (isinstance(dt, int | float) and dt > 0):
             reader.fail("dt", f"is {dt!r}; expected a positive number of seconds or null")
@@ -696,6 +740,8 @@ class MovementHMM:
                 aic=reader.number("aic"),
                 bic=reader.number("bic"),
                 streams=streams,
+                control=control,
+                state_names=None if state_names is None else tuple(state_names),
             )
         except ValueError as exc:
             raise ValueError(f"{source}: {exc}") from exc
