@@ -186,9 +186,7 @@ def _layout(dist) -> dict[str, list[np.ndarray]]:
     names = dist.link_names()
     k = dist.n_states
     if not isinstance(dist, emission.CovariateEmission):
-        return {
-            name: [np.array([j * k + s]) for s in range(k)] for j, name in enumerate(names)
-        }
+        return {name: [np.array([j * k + s]) for s in range(k)] for j, name in enumerate(names)}
     sizes = [len(dist.designs[n].columns) if n in dist.designs else 1 for n in names]
     block = sum(sizes)
     offsets = np.concatenate([[0], np.cumsum(sizes)[:-1]])
@@ -357,8 +355,10 @@ class Constraints:
         expected = [diagonal] if diagonal is not None else free[:1]
         total = sum(entries.values())
         if len(free) > 1 or (diagonal is not None and free != expected):
-            given = ", ".join(f"{name}[{'' if diagonal is None else f'{diagonal + 1},'}{j + 1}]"
-                              for j in sorted(entries))
+            given = ", ".join(
+                f"{name}[{'' if diagonal is None else f'{diagonal + 1},'}{j + 1}]"
+                for j in sorted(entries)
+            )
             raise ValueError(
                 f"{given}: fix the whole row {form} ({k - 1} of its {k} probabilities, the "
                 "last is what remains): one probability of a row is not one parameter"

@@ -112,15 +112,16 @@ def working_covariance(model: MovementHMM, data: pd.DataFrame):
     Returns
     -------
     likelihood : WorkingLikelihood
-        Of ``data``, with the model's structure (its ``unpack`` maps working vectors back).
+        Of ``data``, with the model's structure (its ``unpack`` maps working vectors back;
+        the free vector of a model fitted with fixed or tied parameters:
+        :func:`~hmmtrack.hmm.fit.model_likelihood`).
     theta : ndarray, shape (n_parameters,)
         The model's working vector.
     covariance : ndarray, shape (n_parameters, n_parameters)
         Pseudo-inverse of minus the Hessian of the log-likelihood at ``theta``.
     """
-    params = fit.parameters_of(model)
-    likelihood = fit.WorkingLikelihood(params, fit.fit_data(model.observations(data)))
-    theta = likelihood.pack(params)
+    likelihood = fit.model_likelihood(model, data)
+    theta = likelihood.pack(fit.parameters_of(model))
     return likelihood, theta, np.linalg.pinv(-working_hessian(likelihood, theta))
 
 
@@ -204,9 +205,12 @@ def confidence_intervals(model: MovementHMM, data: pd.DataFrame, level: float = 
     Returns
     -------
     DataFrame
-        Columns ``parameter``, ``index``, ``estimate``, ``se``, ``lower``, ``upper``.
-        Coefficient rows are named ``beta.intercept`` and ``beta.<covariate>``. A parameter
-        on the boundary (e.g. a zero mass of 0) gets a degenerate interval.
+        Columns ``parameter``, ``index``, ``estimate``, ``se``, ``lower``, ``upper``,
+        ``fixed``. Coefficient rows are named ``beta.intercept`` and ``beta.<covariate>``. A
+        parameter on the boundary (e.g. a zero mass of 0) gets a degenerate interval. A
+        parameter the model's fit control holds fixed (it does not depend on any free
+        parameter: a fixed value, a fixed transition row or initial distribution) has
+        ``fixed`` True and no standard error or interval (NaN); tied parameters share theirs.
     """
     params = fit.parameters_of(model)
     likelihood, theta, covariance = working_covariance(model, data)
@@ -216,6 +220,10 @@ def confidence_intervals(model: MovementHMM, data: pd.DataFrame, level: float = 
         lambda t: natural_parameters(likelihood.unpack(t), columns)[1], theta, covariance
     )
     lower, upper = _interval(names, values, se, stats.norm.ppf(0.5 + level / 2))
+    fixed = np.zeros(values.size, dtype=bool)
+    if model.control.fixed:
+        fixed = se == 0.0  # the delta method's Jacobian row is exactly 0
+        se, lower, upper = (np.where(fixed, np.nan, a) for a in (se, lower, upper))
     return pd.DataFrame(
         {
             "parameter": [n for n, _ in names],
@@ -224,6 +232,7 @@ def confidence_intervals(model: MovementHMM, data: pd.DataFrame, level: float = 
             "se": se,
             "lower": lower,
             "upper": upper,
+            "fixed": fixed,
         }
     )
 
@@ -318,7 +327,8 @@ def summary(model: MovementHMM, intervals: pd.DataFrame | None = None) -> str:
     ----------
     model : MovementHMM
     intervals : DataFrame, optional
-        Output of :func:`confidence_intervals`; without it only estimates are shown.
+        Output of :func:`confidence_intervals`; without it only estimates are shown. Fixed
+        parameters show "fixed" instead of a standard error.
     """
     lines = [
         f"{model.n_states}-state movement HMM: step {model.step.name} ({model.step_unit}), "
@@ -326,6 +336,7 @@ def summary(model: MovementHMM, intervals: pd.DataFrame | None = None) -> str:
         + (f"time step {model.dt:g} s" if np.isfinite(model.dt) else "no time step (no times)"),
         f"log-likelihood {model.log_likelihood:.4f}   AIC {model.aic:.4f}   BIC {model.bic:.4f}"
         f"   rows {model.n_obs}",
+        *_control_lines(model),
         "",
     ]
     if intervals is None:
@@ -333,7 +344,13 @@ def summary(model: MovementHMM, intervals: pd.DataFrame | None = None) -> str:
         intervals = pd.DataFrame(
             {"parameter": [n for n, _ in names], "index": [i for _, i in names], "estimate": values}
         )
-    lines.append(intervals.to_string(index=False, float_format=lambda v: f"{v:.6g}"))
+    shown = intervals
+    if "fixed" in intervals.columns:
+        shown = intervals.drop(columns="fixed")
+        if intervals["fixed"].any() and "se" in shown.columns:
+            shown = shown.astype({"se": object})
+            shown.loc[intervals["fixed"].to_numpy(), "se"] = "fixed"
+    lines.append(shown.to_string(index=False, float_format=lambda v: f"{v:.6g}"))
     lines.append("")
     if model.transition_design is not None:
         lines.append("")
@@ -362,10 +379,28 @@ def summary(model: MovementHMM, intervals: pd.DataFrame | None = None) -> str:
     )
     gamma = model.transition_matrix()
     labels = [f"state {k + 1}" for k in range(model.n_states)]
+    if model.state_names is not None:
+        labels = [f"{k + 1} {name}" for k, name in enumerate(model.state_names)]
     lines.append(pd.DataFrame(gamma, index=labels, columns=labels).to_string(float_format="%.4f"))
     stationary = "  ".join(f"{p:.4f}" for p in model.stationary())
     lines.append(f"stationary distribution: {stationary}")
     return "\n".join(lines)
+
+
+def _control_lines(model: MovementHMM) -> list[str]:
+    """The summary's lines on state names and the fit control (none without)."""
+    lines = []
+    if model.state_names is not None:
+        names = ", ".join(f"{k + 1} {n}" for k, n in enumerate(model.state_names))
+        lines.append(f"states: {names}")
+    control = model.control
+    if control.fixed:
+        lines.append("fixed: " + ", ".join(f"{k}={v:g}" for k, v in control.fixed.items()))
+    if control.equal:
+        lines.append("equal: " + ", ".join(control.equal))
+    if control.stationary:
+        lines.append("initial distribution: stationary (of the transition matrix)")
+    return lines
 
 
 # ---------------------------------------------------------------------------------------------

@@ -874,6 +874,21 @@ def known_state_terms(states, n_states: int) -> np.ndarray:
     return terms
 
 
+def model_likelihood(model: MovementHMM, data: pd.DataFrame) -> WorkingLikelihood:
+    """The likelihood of ``data`` (a prepared-track table) with ``model``'s structure, on the
+    working scale or, for a model fitted under :attr:`~MovementHMM.control`, on the free
+    vector of its constraints (fixed parameters held, ties shared)."""
+    params = parameters_of(model)
+    data = fit_data(model.observations(data))
+    constraints = None
+    if model.control:
+        design = model.transition_design
+        columns = ("Intercept",) if design is None else design.columns
+        first = None if data.design is None else data.design[:1]
+        constraints = con.Constraints(model.control, params, columns, first)
+    return working_likelihood(params, data, constraints)
+
+
 def parameters_of(model: MovementHMM) -> Parameters:
     """The :class:`Parameters` of a fitted model."""
     return Parameters(

@@ -12,8 +12,8 @@ resting state added for tracking (:meth:`MovementHMM.with_resting_state`).
 (:mod:`hmmtrack.hmm.emission`: a distribution block with a ``formulas`` block) or further
 streams, version 4 for a model with state names or fit control (fixed parameters, equality
 constraints, a stationary initial distribution: :mod:`hmmtrack.hmm.constraints`); each is
-written only when needed, so that older readers keep reading every other model. Version 1 files, whose
-covariates were plain columns, still load; loading validates every field and refuses
+written only when needed, so that older readers keep reading every other model. Version 1
+files, whose covariates were plain columns, still load; loading validates every field and refuses
 anything it does not understand. There is no pickle.
 
 This module is not for fitting (see :mod:`hmmtrack.hmm.fit`) nor for the recursions (see
