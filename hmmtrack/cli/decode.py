@@ -10,10 +10,10 @@ refuses tracks whose time step is not the model's (``--regularise`` the tracks t
 of the track file, in file order (``line`` = its line in the file), the track columns,
 ``segment``, ``step``, ``angle``, the Viterbi ``state`` (1 = the state with the smallest mean
 step, as moveHMM numbers them; empty for rows without a fix removed by ``--missing drop``),
-``state_name`` (with ``--state-names``) and ``p_state1`` ... ``p_stateK`` (posterior
-probabilities). With ``--regularise`` the rows are the regular grid's instead. Times are written
-as ISO 8601 UTC; lengths (``x``, ``y``, ``step``) are in the unit set by ``--scale`` (metres by
-default), as the model was fitted.
+``state_name`` (with ``--state-names`` or names in the model file) and ``p_state1`` ...
+``p_stateK`` (posterior probabilities). With ``--regularise`` the rows are the regular grid's
+instead. Times are written as ISO 8601 UTC; lengths (``x``, ``y``, ``step``) are in the unit
+set by ``--scale`` (metres by default), as the model was fitted.
 """
 
 from __future__ import annotations
@@ -82,18 +82,16 @@ def run(args: argparse.Namespace) -> int:
     check_paths({"tracks": args.tracks, "--model": args.model}, outputs={"-o": args.output})
     model = load_model_for(args)
     check_state_names_option(model.n_states, args.state_names)
+    names = args.state_names or model.state_names
     prepared = read_prepared(args)
-    out = decode_table(
-        model, prepared, state_names=args.state_names, allow_other_step=args.allow_other_step
-    )
+    out = decode_table(model, prepared, state_names=names, allow_other_step=args.allow_other_step)
     if "time" in out.columns:
         out["time"] = calendar_times(out["time"].to_numpy(dtype=float))
     with atomic_files(args.output) as (written,):
         out.to_csv(written, index=out.index.name == "line")
     counts = out["state"].value_counts().sort_index()
     listed = ", ".join(
-        f"state {k}" + (f" ({args.state_names[k - 1]})" if args.state_names else "") + f": {n}"
-        for k, n in counts.items()
+        f"state {k}" + (f" ({names[k - 1]})" if names else "") + f": {n}" for k, n in counts.items()
     )
     print(f"{args.tracks}: {len(out)} rows decoded ({listed}); wrote {args.output}")
     return 0

@@ -29,7 +29,7 @@ import pandas as pd
 from hmmtrack import io, tracks
 from hmmtrack.cli import add_command
 from hmmtrack.hmm import MovementHMMEstimator, crw, diagnostics, distributions, imputation
-from hmmtrack.hmm.decoding import check_state_names
+from hmmtrack.hmm.model import check_state_names
 from hmmtrack.io.geo import Projection
 from hmmtrack.io.outputs import atomic_files, check_paths, staged_folder
 

@@ -53,6 +53,7 @@ def run(args: argparse.Namespace) -> int:
     check_state_names_option(model.n_states, args.state_names)
     prepared = read_prepared(args)
     states = model.viterbi(prepared, allow_other_step=args.allow_other_step)
-    figures = write_figures(args.output, model, prepared, states, args.state_names)
+    names = args.state_names or model.state_names
+    figures = write_figures(args.output, model, prepared, states, names)
     print(f"wrote {', '.join(figures)} in {args.output}")
     return 0

@@ -19,19 +19,7 @@ from collections.abc import Sequence
 import numpy as np
 import pandas as pd
 
-from hmmtrack.hmm.model import MovementHMM
-
-
-def check_state_names(n_states: int, state_names: Sequence[str] | None) -> None:
-    """Refuse state names that are not one distinct, non-empty name per state."""
-    if state_names is None:
-        return
-    names = [str(n).strip() for n in state_names]
-    if len(names) != n_states or len(set(names)) != n_states or not all(names):
-        raise ValueError(
-            f"state names {list(state_names)} for {n_states} states: give {n_states} distinct "
-            "non-empty names, in state order (1 = the smallest mean step)"
-        )
+from hmmtrack.hmm.model import MovementHMM, check_state_names
 
 
 def decode_table(
@@ -50,7 +38,8 @@ def decode_table(
         Prepared track (:func:`hmmtrack.tracks.prepare`); read by :mod:`hmmtrack.io`, its
         index holds the file lines and ``attrs["dropped"]`` the lines removed on reading.
     state_names : sequence of str, optional
-        One name per state (state 1 first), written in a ``state_name`` column.
+        One name per state (state 1 first), written in a ``state_name`` column; default the
+        model's own (:attr:`~hmmtrack.hmm.model.MovementHMM.state_names`), if any.
     allow_other_step : bool
         Decode a track whose time step is not the model's
         (:meth:`~hmmtrack.hmm.model.MovementHMM.check_time_step`).
@@ -63,6 +52,8 @@ def decode_table(
         dropped lines included with missing values (their ``state`` is ``<NA>``); the index
         is ``prepared``'s (file lines when read from a file).
     """
+    if state_names is None:
+        state_names = model.state_names
     check_state_names(model.n_states, state_names)
     states = model.viterbi(prepared, allow_other_step=allow_other_step)
     probabilities = model.state_probabilities(prepared, allow_other_step=True)

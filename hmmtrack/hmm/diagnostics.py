@@ -12,6 +12,9 @@
 * :func:`model_selection_table` -- log-likelihood, parameters, AIC and BIC of several models.
 * :func:`covariate_effects` -- transition and stationary probabilities against a covariate
   of the transition formula, with delta-method bands (on :func:`covariate_grid`).
+* :func:`check_starts`, :func:`starts_table` -- fits from many random starting values: the
+  log-likelihood and parameters each reached, and which reached the best optimum (what
+  moveHMM users do by hand to trust a fit).
 
 Not for fitting (:mod:`hmmtrack.hmm.fit`) or drawing (:mod:`hmmtrack.plots.hmm`).
 """
@@ -385,6 +388,90 @@ def summary(model: MovementHMM, intervals: pd.DataFrame | None = None) -> str:
     stationary = "  ".join(f"{p:.4f}" for p in model.stationary())
     lines.append(f"stationary distribution: {stationary}")
     return "\n".join(lines)
+
+
+def starts_table(starts, tolerance: float = 1e-3, columns=()) -> pd.DataFrame:
+    """Where each start of a multi-start fit ended.
+
+    Parameters
+    ----------
+    starts : list of StartResult
+        A fit's ``starts_`` (:class:`hmmtrack.hmm.fit.MovementHMMEstimator`): each start's EM
+        result, states ordered by mean step (unless the fit control names states).
+    tolerance : float
+        A start reached the best optimum when its log-likelihood is within this of the best
+        start's (nats; EM converged to ``tol`` per row stops within ~1e-5 of its optimum).
+    columns : sequence of str
+        Names of the transition design's columns (:func:`coefficient_names`); empty
+        without transition covariates.
+
+    Returns
+    -------
+    DataFrame
+        One row per start: ``start`` (from 1), ``log_likelihood`` (NaN for a start that
+        failed), ``n_iter``, ``converged``, ``best`` (reached the best optimum), ``error``,
+        then one column per natural parameter named as ``--fix`` names them
+        (``step.mean[1]``, ``transition[1,2]``, ``initial[1]``; coefficients
+        ``beta.<column>[1,2]``); rows in start order.
+    """
+    ok = [s for s in starts if s.error is None]
+    best = max((s.log_likelihood for s in ok), default=np.nan)
+    rows = []
+    for s in starts:
+        row = {
+            "start": s.index + 1,
+            "log_likelihood": s.log_likelihood if s.error is None else np.nan,
+            "n_iter": s.monitor.n_iter,
+            "converged": s.monitor.converged,
+            "best": s.error is None and bool(s.log_likelihood >= best - tolerance),
+            "error": s.error or "",
+        }
+        names, values = natural_parameters(s.parameters, columns)
+        for (name, index), value in zip(names, values, strict=True):
+            row[f"{name}[{index.replace('->', ',')}]"] = value if s.error is None else np.nan
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def check_starts(
+    data: pd.DataFrame,
+    n_states: int = 2,
+    *,
+    n_starts: int = 20,
+    rng=None,
+    tolerance=1e-3,
+    **options,
+) -> pd.DataFrame:
+    """Fit from ``n_starts`` random starting values and tabulate where each start ended.
+
+    The first start uses the deterministic starting values, the others random ones
+    (:func:`hmmtrack.hmm.fit.initial_parameters`) from seeds spawned from ``rng``. A fit
+    whose starts mostly reach the best log-likelihood with the same parameters is
+    trustworthy; a spread of optima says the likelihood is multimodal (or the model is
+    poorly identified) and more starts are needed.
+
+    Parameters
+    ----------
+    data : DataFrame
+        A prepared track (as :meth:`~hmmtrack.hmm.fit.MovementHMMEstimator.fit` takes).
+    n_states : int
+    n_starts : int
+    rng : int, SeedSequence or None
+        Seed of the starts.
+    tolerance : float
+        See :func:`starts_table`.
+    **options
+        Further options of :class:`~hmmtrack.hmm.fit.MovementHMMEstimator` (families,
+        formulas, ``fixed``...).
+
+    Returns
+    -------
+    DataFrame
+        :func:`starts_table` of the fit's starts (EM results before any polish).
+    """
+    estimator = fit.MovementHMMEstimator(n_states, n_starts=n_starts, seed=rng, **options)
+    model = estimator.fit(data).model_
+    return starts_table(estimator.starts_, tolerance, coefficient_names(model))
 
 
 def _control_lines(model: MovementHMM) -> list[str]:

@@ -25,6 +25,7 @@ from __future__ import annotations
 import difflib
 import json
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -233,16 +234,8 @@ class MovementHMM:
         initial = np.asarray(self.initial, dtype=float)
         object.__setattr__(self, "initial", initial)
         if self.state_names is not None:
-            names = tuple(self.state_names)
-            if (
-                len(names) != initial.shape[0]
-                or not all(isinstance(n, str) and n.strip() for n in names)
-                or len(set(names)) != len(names)
-            ):
-                raise ValueError(
-                    f"state_names must be {initial.shape[0]} different non-empty names, one "
-                    f"per state; got {list(names)}"
-                )
+            names = tuple(str(name).strip() for name in self.state_names)
+            check_state_names(initial.shape[0] if initial.ndim == 1 else -1, names)
             object.__setattr__(self, "state_names", names)
         if (self.transition is None) == (self.coefficients is None):
             raise ValueError("give exactly one of 'transition' and 'coefficients'")
@@ -758,6 +751,18 @@ def _version_1_design(block: dict) -> dict:
         "columns": ["Intercept", *names],
         "scaling": {n: {"centre": scaling[n]["mean"], "sd": scaling[n]["sd"]} for n in names},
     }
+
+
+def check_state_names(n_states: int, state_names: Sequence[str] | None) -> None:
+    """Refuse state names that are not one distinct, non-empty name per state."""
+    if state_names is None:
+        return
+    names = [str(n).strip() for n in state_names]
+    if len(names) != n_states or len(set(names)) != n_states or not all(names):
+        raise ValueError(
+            f"state names {list(state_names)} for {n_states} states: give {n_states} distinct "
+            "non-empty names, in state order (state 1 first)"
+        )
 
 
 def time_steps(table: pd.DataFrame) -> np.ndarray:

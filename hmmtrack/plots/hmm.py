@@ -34,8 +34,7 @@ from matplotlib.collections import LineCollection
 
 from hmmtrack import tracks
 from hmmtrack.hmm import diagnostics
-from hmmtrack.hmm.decoding import check_state_names
-from hmmtrack.hmm.model import MovementHMM
+from hmmtrack.hmm.model import MovementHMM, check_state_names
 
 
 def _axes(ax):
