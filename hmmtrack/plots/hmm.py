@@ -11,6 +11,9 @@
   pseudo-residual checks: time series, normal QQ plot, autocorrelation.
 * :func:`decoded_track_plot` -- a track coloured by decoded state; :func:`animal_tracks_figure`
   one panel per animal.
+* :func:`starts_figure` -- a check of starting values
+  (:func:`hmmtrack.hmm.diagnostics.check_starts`): the log-likelihood each start reached and
+  the spread of each parameter over the starts.
 * :func:`hmm_figures` -- the standard set of figures of a fit (what ``hmmtrack fit --plot``
   and ``hmmtrack plot`` write).
 
@@ -384,6 +387,64 @@ def animal_tracks_figure(
         ax.set_title(str(animal))
     for ax in axes.flat[animals.size :]:
         ax.set_visible(False)
+    fig.tight_layout()
+    return fig
+
+
+def starts_figure(table: pd.DataFrame) -> plt.Figure:
+    """Two panels of a check of starting values (:func:`~hmmtrack.hmm.diagnostics.starts_table`).
+
+    Left: each start's log-likelihood after EM, starts sorted from the best, those that
+    reached the best optimum in one colour; the gap to the best on a symmetric-log axis so
+    that both 1e-3 and 100 nats show. Right: every parameter's value at each start relative
+    to the best start's (``value / best - 1``; the difference for angle means, in rad), one
+    row per parameter, so that a parameter the starts disagree on stands out.
+
+    Returns
+    -------
+    Figure
+    """
+    ok = table[np.isfinite(table["log_likelihood"])]
+    if ok.empty:
+        raise ValueError("starts_figure: every start failed; nothing to draw")
+    fig, (left, right) = plt.subplots(
+        1, 2, figsize=(12, 4.5), gridspec_kw={"width_ratios": [1, 1.3]}
+    )
+    ordered = ok.sort_values("log_likelihood", ascending=False, kind="stable")
+    best_value = ordered["log_likelihood"].iloc[0]
+    gap = best_value - ordered["log_likelihood"].to_numpy()
+    colours = np.where(ordered["best"].to_numpy(), "tab:blue", "tab:orange")
+    rank = np.arange(1, len(ordered) + 1)
+    left.scatter(rank, gap, c=colours, zorder=3)
+    left.set_yscale("symlog", linthresh=1e-3)
+    left.set_xlabel("start, sorted by log-likelihood")
+    left.set_ylabel("log-likelihood below the best (nats)")
+    n_best = int(ordered["best"].sum())
+    left.set_title(f"{n_best} of {len(table)} starts at the best {best_value:.5f}")
+    left.grid(alpha=0.3)
+
+    parameters = [c for c in table.columns[6:] if not c.startswith("initial")]
+    best_row = ordered.iloc[0]
+    for y, name in enumerate(parameters):
+        values = ok[name].to_numpy(dtype=float)
+        reference = float(best_row[name])
+        if name.startswith("angle.mean") or reference == 0:
+            spread = values - reference
+        else:
+            spread = values / reference - 1.0
+        right.scatter(
+            spread,
+            np.full(values.size, y),
+            c=np.where(ok["best"], "tab:blue", "tab:orange"),
+            s=18,
+            alpha=0.7,
+        )
+    right.set_yticks(range(len(parameters)), parameters, fontsize=8)
+    right.invert_yaxis()
+    right.set_xscale("symlog", linthresh=1e-3)
+    right.axvline(0, color="0.5", lw=0.8)
+    right.set_xlabel("relative to the best start (angle means: difference, rad)")
+    right.set_title("parameters by start (blue: at the best optimum)")
     fig.tight_layout()
     return fig
 
