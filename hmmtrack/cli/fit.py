@@ -13,9 +13,14 @@ on a parameter of a stream's distribution, ``--stream depth=normal`` for a furth
 stream), prints the parameters with Wald intervals,
 the coefficients on the data's scale, the transition matrix, the log-likelihood
 and AIC, and writes the model file; ``--plot DIR`` also writes the standard figures
-(:func:`hmmtrack.plots.hmm.hmm_figures`). States are numbered from 1 (the smallest mean step);
-``--state-names`` labels them in the output. The reading options defined here are shared with
-``hmmtrack decode`` and ``hmmtrack plot``.
+(:func:`hmmtrack.plots.hmm.hmm_figures`). States are numbered from 1 (the smallest mean step,
+unless ``--fix`` or ``--equal`` name states, which then keep their numbers); ``--state-names``
+labels them in the output and is saved in the model file. ``--fix 'step.mean[1]=50'``,
+``--equal 'angle.concentration[1]==angle.concentration[2]'`` and ``--stationary`` constrain
+the fit (:mod:`hmmtrack.hmm.constraints`); ``--check-starts N`` fits from N starting values
+and prints where each ended (:func:`hmmtrack.hmm.diagnostics.starts_table`; ``starts.png``
+with ``--plot``). The reading options defined here are shared with ``hmmtrack decode`` and
+``hmmtrack plot``.
 """
 
 from __future__ import annotations
@@ -211,6 +216,38 @@ def register(subparsers) -> None:
         + ", ".join(sorted(distributions.VALUE_FAMILIES))
         + "), e.g. depth=normal; repeat for several; NaN = missing",
     )
+    parser.add_argument(
+        "--fix",
+        action="append",
+        default=[],
+        metavar="'PARAMETER=VALUE'",
+        help="hold a parameter at a value (states from 1): 'step.mean[1]=50' (a stream's "
+        "parameter, in the data's units), 'transition[1,2]=0.05' (a probability; with 3+ "
+        "states fix the row's other off-diagonal entries too), 'transition.dist_water[1,2]=0' "
+        "(a logit coefficient), 'initial[1]=1'; repeat for several; saved in the model file",
+    )
+    parser.add_argument(
+        "--equal",
+        action="append",
+        default=[],
+        metavar="'A==B'",
+        help="hold two states' parameter equal: 'angle.concentration[1]==angle.concentration[2]'"
+        " (a parameter with a formula ties its coefficients); repeat for several",
+    )
+    parser.add_argument(
+        "--stationary",
+        action="store_true",
+        help="the initial distribution is the stationary distribution of the transition "
+        "matrix (at the first row's covariates), not a parameter",
+    )
+    parser.add_argument(
+        "--check-starts",
+        type=int,
+        metavar="N",
+        help="fit from N starting values (instead of --starts) and print each start's "
+        "log-likelihood, iterations and whether it reached the best optimum; with --plot "
+        "also starts.png (log-likelihood per start, parameter spread)",
+    )
     parser.add_argument("--starts", type=int, default=5, help="EM starts (default 5)")
     parser.add_argument("--seed", type=int, default=1, help="seed of the starts (default 1)")
     parser.add_argument("--jobs", type=int, default=1, help="processes for the starts")
@@ -234,7 +271,8 @@ def add_state_names_argument(parser: argparse.ArgumentParser) -> None:
         type=lambda text: [name.strip() for name in text.split(",")],
         metavar="NAME,NAME",
         help="names of the states in order, state 1 (the smallest mean step) first, e.g. "
-        "encamped,exploratory: shown in tables and figures (the model file keeps numbers)",
+        "encamped,exploratory: shown in tables and figures (fit: saved in the model file; "
+        "decode, plot: default the model file's names)",
     )
 
 
@@ -246,17 +284,22 @@ def check_state_names_option(n_states: int, names: list[str] | None) -> None:
         raise ValueError(f"--state-names: {exc}") from None
 
 
-def write_figures(folder: str, model, prepared: pd.DataFrame, states, state_names) -> list[str]:
-    """Draw :func:`hmmtrack.plots.hmm.hmm_figures` and write them into ``folder`` (created,
-    written as one set: a failure leaves the previous set)."""
+def write_figures(
+    folder: str, model, prepared: pd.DataFrame, states, state_names, starts=None
+) -> list[str]:
+    """Draw :func:`hmmtrack.plots.hmm.hmm_figures` (and ``starts.png`` of a
+    :func:`~hmmtrack.hmm.diagnostics.starts_table` ``starts``) and write them into ``folder``
+    (created, written as one set: a failure leaves the previous set)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from hmmtrack.plots.hmm import hmm_figures
+    from hmmtrack.plots.hmm import hmm_figures, starts_figure
 
     figures = hmm_figures(model, prepared, states, state_names)
+    if starts is not None:
+        figures["starts.png"] = starts_figure(starts)
     with staged_folder(folder, "densities.png") as stage:
         for name, figure in figures.items():
             figure.savefig(stage / name, dpi=110)
@@ -288,6 +331,34 @@ def parse_formulas(texts: list[str]) -> dict[str, str]:
     return out
 
 
+def parse_fixed(texts: list[str]) -> dict[str, float]:
+    """``{parameter: value}`` of ``--fix 'PARAMETER=VALUE'`` options.
+
+    Raises
+    ------
+    ValueError
+        For an option without ``=``, a value that is not a number or a parameter given
+        twice.
+    """
+    out: dict[str, float] = {}
+    for text in texts:
+        name, equals, value = text.rpartition("=")
+        name = name.strip()
+        try:
+            number = float(value)
+        except ValueError:
+            number = None
+        if not equals or not name or name.endswith("=") or number is None:
+            raise ValueError(
+                f"--fix {text!r}: expected PARAMETER=NUMBER ('step.mean[1]=50', "
+                "'transition[1,2]=0.05')"
+            )
+        if name in out:
+            raise ValueError(f"--fix: {name!r} given twice")
+        out[name] = number
+    return out
+
+
 def parse_streams(texts: list[str]) -> dict[str, str]:
     """``{column: family}`` of ``--stream COLUMN=FAMILY`` options.
 
@@ -311,6 +382,8 @@ def run(args: argparse.Namespace) -> int:
     check_paths({"tracks": args.tracks}, outputs={"-o": args.output}, folders={"--plot": args.plot})
     formulas = parse_formulas(args.formula)
     check_state_names_option(args.states, args.state_names)
+    if args.check_starts is not None and args.check_starts < 1:
+        raise ValueError(f"--check-starts must be a positive number, got {args.check_starts}")
     options = {
         "step": args.step,
         "angle": args.angle,
@@ -318,7 +391,11 @@ def run(args: argparse.Namespace) -> int:
         "covariates": tuple(args.covariates),
         "formulas": formulas,
         "streams": parse_streams(args.stream),
-        "n_starts": args.starts,
+        "fixed": parse_fixed(args.fix),
+        "equal": tuple(args.equal),
+        "stationary": args.stationary,
+        "state_names": args.state_names,
+        "n_starts": args.starts if args.check_starts is None else args.check_starts,
         "n_jobs": args.jobs,
         "step_unit": tracks.length_unit(args.scale),
     }
@@ -328,21 +405,38 @@ def run(args: argparse.Namespace) -> int:
     estimator = MovementHMMEstimator(n_states=args.states, seed=args.seed, **options)
     model = estimator.fit(prepared).model_
     intervals = diagnostics.confidence_intervals(model, prepared, level=args.level)
+    starts = None
+    if args.check_starts is not None:
+        columns = diagnostics.coefficient_names(model)
+        starts = diagnostics.starts_table(estimator.starts_, columns=columns)
     with atomic_files(args.output) as (written,):
         model.save(written)
         if args.plot:
             states = model.viterbi(prepared, allow_other_step=True)
-            figures = write_figures(args.plot, model, prepared, states, args.state_names)
+            figures = write_figures(args.plot, model, prepared, states, args.state_names, starts)
     print(f"{args.tracks}: {len(prepared)} rows, {prepared['segment'].nunique()} segments")
     print(diagnostics.summary(model, intervals))
-    if args.state_names:
-        print("states: " + ", ".join(f"{k + 1} = {n}" for k, n in enumerate(args.state_names)))
-    starts = ", ".join(f"{s.log_likelihood:.4f}" for s in estimator.starts_)
-    print(f"starts (log-likelihood after EM): {starts}")
+    if starts is None:
+        values = ", ".join(f"{s.log_likelihood:.4f}" for s in estimator.starts_)
+        print(f"starts (log-likelihood after EM): {values}")
+    else:
+        print(_starts_summary(starts))
     print(f"wrote {args.output}")
     if args.plot:
         print(f"wrote {', '.join(figures)} in {args.plot}")
     return 0
+
+
+def _starts_summary(starts: pd.DataFrame) -> str:
+    """The ``--check-starts`` report: how many starts reached the best optimum, then each
+    start's log-likelihood, iterations and convergence."""
+    best = starts.loc[starts["best"], "log_likelihood"]
+    head = (
+        f"check of starting values: {len(best)} of {len(starts)} starts reached the best "
+        f"log-likelihood {best.max():.5f} (within 1e-3)"
+    )
+    shown = starts[["start", "log_likelihood", "n_iter", "converged", "best", "error"]]
+    return head + "\n" + shown.to_string(index=False, float_format=lambda v: f"{v:.5f}")
 
 
 def run_imputed(args: argparse.Namespace, options: dict) -> int:

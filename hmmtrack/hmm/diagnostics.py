@@ -478,7 +478,7 @@ def _control_lines(model: MovementHMM) -> list[str]:
     """The summary's lines on state names and the fit control (none without)."""
     lines = []
     if model.state_names is not None:
-        names = ", ".join(f"{k + 1} {n}" for k, n in enumerate(model.state_names))
+        names = ", ".join(f"{k + 1} = {n}" for k, n in enumerate(model.state_names))
         lines.append(f"states: {names}")
     control = model.control
     if control.fixed:

@@ -26,7 +26,7 @@ Fixed parameters, equality constraints and a stationary initial distribution
 :func:`_constrained_m_step`) and in the polish (BFGS over the free parameters,
 :class:`ConstrainedLikelihood`). With a stationary initial distribution EM is not exact (its
 initial distribution follows the transition matrix instead of maximising its own term), so
-the direct maximisation of the polish always runs and gives the optimum.
+every start is polished: the direct maximisation gives the optimum.
 
 The working-scale log-likelihood and its gradient (:class:`WorkingLikelihood`) are also what
 :mod:`hmmtrack.hmm.diagnostics` differentiates for Wald intervals.
@@ -510,7 +510,7 @@ def _constrained_m_step(
     steps, of cos and sin for angles, counts for Poisson...) -- for every family alike; a
     formula parameter ties its coefficients. A fixed initial distribution stays; a stationary
     one follows the new transition matrix, which is not the exact M-step of the
-    initial-distribution term (the fit polishes on the full likelihood afterwards).
+    initial-distribution term (each start is polished on the full likelihood afterwards).
     """
     weights = post.posterior
     z = constraints.z_of(params)
@@ -773,7 +773,9 @@ def run_start(index: int, seed: np.random.SeedSequence, data: FitData, spec: Fit
 
     Start 0 uses the user's starting values (``spec.start``, projected onto the
     constraints) or the deterministic equal-count ones, the others random ones drawn with a
-    generator from ``seed``. States keep their numbers when the constraints name them.
+    generator from ``seed``. States keep their numbers when the constraints name them. With
+    a stationary initial distribution every start is polished (EM alone does not reach the
+    optimum then).
     """
     if index == 0 and spec.start is not None:
         start = spec.start
@@ -790,9 +792,12 @@ def run_start(index: int, seed: np.random.SeedSequence, data: FitData, spec: Fit
         return StartResult(index, start, -np.inf, monitor, error=f"{type(exc).__name__}: {exc}")
     if not np.isfinite(log_likelihood):
         return StartResult(index, params, -np.inf, monitor, error="log-likelihood not finite")
+    polished = spec.constraints is not None and spec.constraints.control.stationary
+    if polished:  # EM is not exact with a stationary initial distribution: maximise directly
+        params, log_likelihood = polish(params, data, constraints=spec.constraints)
     if not spec.keeps_labels:
         params = order_by_mean_step(params)
-    return StartResult(index, params, log_likelihood, monitor)
+    return StartResult(index, params, log_likelihood, monitor, polished)
 
 
 _worker_data: FitData | None = None  # the data of a worker process, set once when it starts
@@ -1027,8 +1032,8 @@ class MovementHMMEstimator:
         are tied together).
     stationary : bool
         The initial distribution is the stationary distribution of the transition matrix (at
-        the first row's covariates with a transition formula) rather than a parameter; the
-        fit then always polishes on the full likelihood.
+        the first row's covariates with a transition formula) rather than a parameter; each
+        start then ends with a polish on the full likelihood.
     state_names : sequence of str or None
         Names of the states (``["encamped", "exploratory"]``), saved in the model file;
         with names the states are in the order fitted (ascending mean step unless ``fixed``
@@ -1048,8 +1053,8 @@ class MovementHMMEstimator:
     polish : "auto" or bool
         Maximise the full likelihood with BFGS from the best EM result: "auto" when that EM
         stopped at ``max_iter`` before converging (a converged EM is within a few 1e-6 nats of
-        the optimum; reports/decisions.md, HMM fitting) or the initial distribution is
-        stationary, True always, False never.
+        the optimum; reports/decisions.md, HMM fitting), True always, False never. With
+        ``stationary`` every start is polished whatever this says.
     dt : float or None
         Time step of the data (s); None takes the median of the table's ``dt`` column (NaN
         if it has none).
@@ -1256,7 +1261,7 @@ class MovementHMMEstimator:
             logger.warning("EM start %d failed and is left out: %s", s.index, s.error)
         best = max(starts, key=lambda s: (s.log_likelihood, -s.index))
         params, log_likelihood = best.parameters, best.log_likelihood
-        unconverged = not best.monitor.converged or control.stationary
+        unconverged = not best.monitor.converged and not best.polished
         if self.polish is True or (self.polish == "auto" and unconverged):
             params, log_likelihood = polish(params, data, constraints=spec.constraints)
             if not spec.keeps_labels:
