@@ -112,7 +112,7 @@ def _write(path, document):
 @pytest.mark.parametrize(
     ("change", "field", "words"),
     [
-        (lambda d: d.update(version=4), "version", "versions (1, 2, 3)"),
+        (lambda d: d.update(version=5), "version", "versions (1, 2, 3, 4)"),
         (lambda d: d.update(schema="other"), "schema", "expected 'hmmtrack.movement_hmm'"),
         (lambda d: d.pop("initial"), "initial", "missing"),
         (lambda d: d.update(initial=[0.5, 0.6]), "initial", "summing to 1"),

@@ -183,10 +183,11 @@ def link_jacobian(dist, z: np.ndarray) -> np.ndarray:
 def _layout(dist) -> dict[str, list[np.ndarray]]:
     """Where each parameter of each state sits in :func:`link_vector`:
     ``{parameter: [indices of state 0, state 1, ...]}``."""
-    names = dist.link_names()
     k = dist.n_states
     if not isinstance(dist, emission.CovariateEmission):
+        names = dist.link_names()
         return {name: [np.array([j * k + s]) for s in range(k)] for j, name in enumerate(names)}
+    names = dist.base.link_names()
     sizes = [len(dist.designs[n].columns) if n in dist.designs else 1 for n in names]
     block = sum(sizes)
     offsets = np.concatenate([[0], np.cumsum(sizes)[:-1]])
