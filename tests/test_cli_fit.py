@@ -324,3 +324,25 @@ def test_irregular_fixes_warn_and_the_named_cli_fixes_work(track_file, tmp_path,
     np.testing.assert_allclose(pooled.step.mean, direct.step.mean, rtol=1e-9)
     np.testing.assert_allclose(pooled.transition, direct.transition, rtol=1e-9)
     assert pooled.step.mean[0] < TRUE.step.mean[1] < pooled.step.mean[1] * 1.3
+
+
+def test_fit_control_check_starts_and_stored_state_names(track_file, tmp_path, capsys):
+    """--fix, --equal, --stationary and --state-names reach the model file; --check-starts
+    prints each start (starts.png with --plot: starts_figure is tested in test_constraints;
+    the standard figures take 10 s); decode takes the stored names."""
+    model_path = tmp_path / "m.json"
+    argv = ["fit", str(track_file), "--check-starts", "3", "--fix", "step.mean[1]=20"]
+    argv += ["--equal", "angle.mean[1]==angle.mean[2]", "--stationary"]
+    argv += ["--state-names", "slow,fast", "-o", str(model_path)]
+    assert main(argv) == 0
+    printed = capsys.readouterr().out
+    assert "check of starting values: " in printed and "of 3 starts reached the best" in printed
+    assert "fixed: step.mean[1]=20" in printed and "states: 1 = slow, 2 = fast" in printed
+    model = MovementHMM.load(model_path)
+    assert model.step.mean[0] == pytest.approx(20.0) and model.state_names == ("slow", "fast")
+    assert model.angle.mean[0] == model.angle.mean[1] and model.control.stationary
+    np.testing.assert_allclose(model.initial, model.stationary(), atol=1e-10)
+    states = tmp_path / "states.csv"
+    assert main(["decode", str(track_file), "--model", str(model_path), "-o", str(states)]) == 0
+    assert set(pd.read_csv(states)["state_name"]) == {"slow", "fast"}
+    assert "(slow)" in capsys.readouterr().out

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-from scipy import optimize, special, stats
+from scipy import optimize, special
 
 from hmmtrack import tracks
 from hmmtrack.hmm import diagnostics, fit
@@ -33,24 +33,32 @@ TRUE = MovementHMM(
 
 @pytest.fixture(scope="module")
 def small() -> pd.DataFrame:
-    """400 rows of one track (angle means fixed at 0: fewer free parameters)."""
-    return TRUE.simulate(np.random.default_rng(11), 400)[["step", "angle"]]
+    """300 rows of one track (angle means fixed at 0: fewer free parameters)."""
+    return TRUE.simulate(np.random.default_rng(11), 300)[["step", "angle"]]
 
 
 def oracle_log_likelihood(data, mean, sd, kappa, gamma, delta) -> float:
-    """Log-likelihood by the scaled forward recursion with scipy's densities."""
-    step, angle = data["step"].to_numpy(), data["angle"].to_numpy()
+    """Log-likelihood by the scaled forward recursion, with the gamma (mean, sd) and von Mises
+    (mean 0) densities written out (scipy's special functions)."""
+    step, angle = data["step"].to_numpy()[:, None], data["angle"].to_numpy()[:, None]
     shape, scale = (mean / sd) ** 2, sd**2 / mean
-    density = stats.gamma.pdf(step[:, None], shape, scale=scale) * stats.vonmises.pdf(
-        angle[:, None], kappa
+    log_density = (
+        (shape - 1) * np.log(step)
+        - step / scale
+        - special.gammaln(shape)
+        - shape * np.log(scale)
+        + kappa * np.cos(angle)
+        - np.log(2 * np.pi * special.i0(kappa))
     )
+    density = np.exp(log_density)
     alpha = delta * density[0]
     total = np.log(alpha.sum())
     alpha /= alpha.sum()
     for row in density[1:]:
         alpha = (alpha @ gamma) * row
-        total += np.log(alpha.sum())
-        alpha /= alpha.sum()
+        norm = alpha.sum()
+        total += np.log(norm)
+        alpha /= norm
     return float(total)
 
 
@@ -70,9 +78,7 @@ def maximise(negative, start) -> optimize.OptimizeResult:
 
 
 def fit_small(data, **options) -> MovementHMMEstimator:
-    return MovementHMMEstimator(2, estimate_angle_mean=False, n_starts=2, seed=3, **options).fit(
-        data
-    )
+    return MovementHMMEstimator(2, estimate_angle_mean=False, seed=3, **options).fit(data)
 
 
 def test_a_fixed_parameter_keeps_its_value_and_the_rest_is_the_reduced_optimum(small):
@@ -96,17 +102,16 @@ def test_a_fixed_parameter_keeps_its_value_and_the_rest_is_the_reduced_optimum(s
     np.testing.assert_allclose(model.step.sd, np.exp(oracle.x[1:3]), rtol=1e-3)
     np.testing.assert_allclose(model.angle.concentration, np.exp(oracle.x[3:5]), rtol=1e-3)
     np.testing.assert_allclose(model.transition, two_state_gamma(oracle.x[5:7]), atol=1e-4)
-    # the fixed parameters (and the angle means, fixed at 0) have no standard error
+    # the fixed parameters have no standard error (the angle means' is 0: not estimated)
     intervals = diagnostics.confidence_intervals(model, small)
     fixed = intervals[intervals["fixed"]]
     assert set(zip(fixed["parameter"], fixed["index"], strict=True)) == {
         ("step.mean", "1"),
         ("initial", "1"),
         ("initial", "2"),
-        ("angle.mean", "1"),
-        ("angle.mean", "2"),
     }
-    assert fixed["se"].isna().all() and intervals.loc[~intervals["fixed"], "se"].gt(0).all()
+    estimated = intervals[~intervals["fixed"] & (intervals["parameter"] != "angle.mean")]
+    assert fixed["se"].isna().all() and estimated["se"].gt(0).all()
     text = diagnostics.summary(model, intervals)
     assert "fixed: step.mean[1]=2.5, initial[1]=0.5" in text
     assert any(line.split()[:4] == ["step.mean", "1", "2.5", "fixed"] for line in text.split("\n"))
@@ -199,7 +204,10 @@ def test_constrained_gradient_matches_finite_differences(small):
         ({"fixed": {"initial[1]": 0.5}, "stationary": True}, "stationary, not fixed"),
         ({"equal": ["step.mean[1]==step.sd[2]"]}, "the same parameter of the same stream"),
         (
-            {"fixed": {"step.mean[1]": 1.0, "step.mean[2]": 2.0}, "equal": ["step.mean[1]==step.mean[2]"]},
+            {
+                "fixed": {"step.mean[1]": 1.0, "step.mean[2]": 2.0},
+                "equal": ["step.mean[1]==step.mean[2]"],
+            },
             "both sides are fixed at other values",
         ),
         ({"equal": ["step.mean[1]"]}, "expected 'a==b'"),

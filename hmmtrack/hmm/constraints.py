@@ -100,6 +100,34 @@ class FitControl:
         the states as numbered rather than ordering them by mean step."""
         return bool(self.fixed or self.equal)
 
+    def fixed_names(self, n_states: int) -> set[tuple[str, str]]:
+        """The natural parameters held fixed, as :func:`hmmtrack.hmm.diagnostics.
+        natural_parameters` names them (``("step.mean", "1")``, ``("transition", "1->2")``,
+        ``("beta.x", "1->2")``): the fixed ones, whole transition rows and initial
+        distributions, and parameters tied to a fixed one."""
+        names: set[tuple[str, str]] = set()
+        for key in self.fixed:
+            if match := _TRANSITION_KEY.match(key):
+                i = match.group(1)
+                names |= {("transition", f"{i}->{j}") for j in range(1, n_states + 1)}
+            elif match := _COEFFICIENT_KEY.match(key):
+                column = "intercept" if match.group(1) == "Intercept" else match.group(1)
+                names.add((f"beta.{column}", f"{match.group(2)}->{match.group(3)}"))
+            elif _INITIAL_KEY.match(key):
+                names |= {("initial", str(k)) for k in range(1, n_states + 1)}
+            elif match := _EMISSION_KEY.match(key):
+                names.add((f"{match.group(1)}.{match.group(2)}", match.group(3)))
+        pairs = []
+        for tie in self.equal:
+            matches = [_EMISSION_KEY.match(side) for side in tie.split("==")]
+            if all(matches):
+                pairs.append([(f"{m.group(1)}.{m.group(2)}", m.group(3)) for m in matches])
+        for _ in pairs:  # each pass carries fixedness one tie further
+            for a, b in pairs:
+                if a in names or b in names:
+                    names |= {a, b}
+        return names
+
     def to_dict(self) -> dict:
         """``{"fixed": {...}, "equal": [...], "stationary": bool}`` (the model file's block)."""
         return {"fixed": dict(self.fixed), "equal": list(self.equal), "stationary": self.stationary}

@@ -214,6 +214,7 @@ def confidence_intervals(model: MovementHMM, data: pd.DataFrame, level: float = 
         parameter the model's fit control holds fixed (it does not depend on any free
         parameter: a fixed value, a fixed transition row or initial distribution) has
         ``fixed`` True and no standard error or interval (NaN); tied parameters share theirs.
+        A formula parameter's value at the intercept is not marked (its coefficients are).
     """
     params = fit.parameters_of(model)
     likelihood, theta, covariance = working_covariance(model, data)
@@ -223,10 +224,9 @@ def confidence_intervals(model: MovementHMM, data: pd.DataFrame, level: float = 
         lambda t: natural_parameters(likelihood.unpack(t), columns)[1], theta, covariance
     )
     lower, upper = _interval(names, values, se, stats.norm.ppf(0.5 + level / 2))
-    fixed = np.zeros(values.size, dtype=bool)
-    if model.control.fixed:
-        fixed = se == 0.0  # the delta method's Jacobian row is exactly 0
-        se, lower, upper = (np.where(fixed, np.nan, a) for a in (se, lower, upper))
+    held = model.control.fixed_names(model.n_states)
+    fixed = np.array([name in held for name in names], dtype=bool)
+    se, lower, upper = (np.where(fixed, np.nan, a) for a in (se, lower, upper))
     return pd.DataFrame(
         {
             "parameter": [n for n, _ in names],
