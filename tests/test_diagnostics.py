@@ -98,7 +98,10 @@ def test_confidence_interval_table_layout_and_ranges():
     data = simulate(TRUE, 2, 500, seed=5)
     model = MovementHMMEstimator(2, seed=1).fit(data).model_
     table = diagnostics.confidence_intervals(model, data, level=0.9)
-    assert list(table.columns) == ["parameter", "index", "estimate", "se", "lower", "upper"]
+    assert list(table.columns) == [
+        "parameter", "index", "estimate", "se", "lower", "upper", "fixed"
+    ]  # fmt: skip
+    assert not table["fixed"].any()  # nothing is fixed without fit control
     probabilities = table[table["parameter"].isin(["transition", "initial"])]
     assert (probabilities["lower"] >= 0).all() and (probabilities["upper"] <= 1).all()
     assert (table["lower"] <= table["estimate"]).all() and (
