@@ -21,7 +21,9 @@ Submodules: :mod:`~hmmtrack.hmm.distributions` (emission families),
 regularisation and imputed tracks), :mod:`~hmmtrack.hmm.imputation` (fits to imputed tracks
 pooled by Rubin's rules), :mod:`~hmmtrack.hmm.formula` (formula design matrices),
 :mod:`~hmmtrack.hmm.decoding` (decoded states as a table aligned to the input rows),
-:mod:`~hmmtrack.hmm.emission` (emission formulas: covariates on a stream's distribution).
+:mod:`~hmmtrack.hmm.emission` (emission formulas: covariates on a stream's distribution),
+:mod:`~hmmtrack.hmm.constraints` (fixed parameters, equality constraints, a stationary
+initial distribution).
 """
 
 from hmmtrack.hmm.distributions import (
