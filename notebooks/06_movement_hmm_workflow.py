@@ -24,7 +24,9 @@
 # 3. draw the standard figures: state densities, pseudo-residuals, decoded track and the
 #    transition and stationary probabilities against the hour with 95 % bands;
 # 4. carry the positions' uncertainty into the estimates by multiple imputation
-#    (`hmmtrack.hmm.crw.impute` + `hmmtrack.hmm.imputation.fit_imputed`, Rubin's rules).
+#    (`hmmtrack.hmm.crw.impute` + `hmmtrack.hmm.imputation.fit_imputed`, Rubin's rules);
+# 5. check the fit from many starting values, and refit with a parameter fixed, a
+#    stationary initial distribution and the state names saved in the model.
 
 # %% tags=["parameters"]
 seed = 1
@@ -32,6 +34,7 @@ n_steps = 1440  # 10 days at one fix per 10 min
 fraction_kept = 0.5  # share of the scheduled fixes received
 n_draws = 3  # imputed tracks of the multiple imputation
 n_starts = 2  # EM starts of each fit
+n_check = 8  # starts of the check of starting values
 out = None  # folder to save the figures in, or None
 
 # %%
@@ -170,6 +173,39 @@ imputed = fit_imputed(tables, 2, seed=1, formula=FORMULA, n_starts=n_starts)
 print("step means: smoothed track", model.step.mean.round(1), "; pooled over imputations",
       imputed.model.step.mean.round(1), "; truth", truth.step.mean)  # fmt: skip
 pooled_table(imputed).round(3).head(6)
+
+# %% [markdown]
+# ## Trusting the fit, and constraining it
+#
+# EM climbs to a local maximum. `diagnostics.check_starts` fits from many random starting
+# values (`hmmtrack fit --check-starts N`) and tabulates where each start ended; the figure
+# shows the log-likelihood each reached and how far each parameter lies from the best start's.
+# Starts that agree on the best optimum with the same parameters make the fit trustworthy.
+
+# %%
+starts = diagnostics.check_starts(prepared, 2, n_starts=n_check, rng=seed, formula=FORMULA)
+figure = plots.starts_figure(starts)
+if out is not None:
+    figure.savefig(Path(out) / "starts.png", dpi=100)
+starts[["start", "log_likelihood", "n_iter", "best", "step.mean[1]", "step.mean[2]"]]
+
+# %% [markdown]
+# The travelling state was simulated going straight on (turning-angle mean 0). Fixing that
+# mean (`fixed={"angle.mean[2]": 0}`, states numbered from 1; `--fix 'angle.mean[2]=0'`)
+# removes a parameter, and `stationary=True` makes the initial distribution the stationary
+# distribution of the transition matrix at the first row's hour rather than a parameter
+# (momentuHMM's `stationary = TRUE`). The fixed parameter prints "fixed" instead of a standard
+# error; the control and the state names are saved in the model file.
+
+# %%
+constrained = MovementHMMEstimator(
+    2, formula=FORMULA, fixed={"angle.mean[2]": 0.0}, stationary=True, state_names=NAMES,
+    n_starts=n_starts, seed=1,
+).fit(prepared).model_  # fmt: skip
+print(diagnostics.summary(constrained, diagnostics.confidence_intervals(constrained, prepared)))
+print(f"AIC free {model.aic:.2f}, constrained {constrained.aic:.2f}")
+reloaded = MovementHMM.from_dict(constrained.to_dict())
+print("saved:", reloaded.state_names, reloaded.control)
 
 # %% [markdown]
 # The share of time in each state against the hour, from the fit to the smoothed track, with

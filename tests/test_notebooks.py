@@ -45,8 +45,8 @@ CASES = {
         ["tag_clock.png", "clock_aware_tracking.png"],
     ),
     "06_movement_hmm_workflow.py": (
-        {"seed": 1, "n_steps": 720, "n_draws": 2, "n_starts": 1},
-        ["densities.png", "residuals.png", "tracks.png", "transition_hour.png"],
+        {"seed": 1, "n_steps": 720, "n_draws": 2, "n_starts": 1, "n_check": 3},
+        ["densities.png", "residuals.png", "tracks.png", "transition_hour.png", "starts.png"],
     ),
 }
 

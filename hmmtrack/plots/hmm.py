@@ -417,14 +417,17 @@ def starts_figure(table: pd.DataFrame) -> plt.Figure:
     rank = np.arange(1, len(ordered) + 1)
     left.scatter(rank, gap, c=colours, zorder=3)
     left.set_yscale("symlog", linthresh=1e-3)
+    left.set_ylim(-2e-4, max(1.0, 2.0 * gap.max()))  # agreeing starts sit on 0, not zoomed
     left.set_xlabel("start, sorted by log-likelihood")
     left.set_ylabel("log-likelihood below the best (nats)")
     n_best = int(ordered["best"].sum())
     left.set_title(f"{n_best} of {len(table)} starts at the best {best_value:.5f}")
     left.grid(alpha=0.3)
 
-    parameters = [c for c in table.columns[6:] if not c.startswith("initial")]
+    first = list(table.columns).index("error") + 1  # the parameters follow the error column
+    parameters = [c for c in table.columns[first:] if not c.startswith("initial")]
     best_row = ordered.iloc[0]
+    widest = 0.1
     for y, name in enumerate(parameters):
         values = ok[name].to_numpy(dtype=float)
         reference = float(best_row[name])
@@ -432,6 +435,7 @@ def starts_figure(table: pd.DataFrame) -> plt.Figure:
             spread = values - reference
         else:
             spread = values / reference - 1.0
+        widest = max(widest, float(np.nanmax(np.abs(spread))))
         right.scatter(
             spread,
             np.full(values.size, y),
@@ -442,6 +446,7 @@ def starts_figure(table: pd.DataFrame) -> plt.Figure:
     right.set_yticks(range(len(parameters)), parameters, fontsize=8)
     right.invert_yaxis()
     right.set_xscale("symlog", linthresh=1e-3)
+    right.set_xlim(-1.5 * widest, 1.5 * widest)
     right.axvline(0, color="0.5", lw=0.8)
     right.set_xlabel("relative to the best start (angle means: difference, rad)")
     right.set_title("parameters by start (blue: at the best optimum)")
