@@ -109,7 +109,9 @@ def fit_imputed(tables, n_states: int = 2, *, seed=None, **options) -> ImputedFi
     seed : int, SeedSequence or None
         Seed of every fit's starts (each fit uses the same seed).
     **options
-        Further :class:`~hmmtrack.hmm.fit.MovementHMMEstimator` options.
+        Further :class:`~hmmtrack.hmm.fit.MovementHMMEstimator` options; with ``fixed``,
+        ``equal`` or ``stationary`` the pooled vector is the free one (fixed parameters stay
+        fixed) and the pooled model keeps the fit control and the state names.
 
     Returns
     -------
@@ -143,6 +145,8 @@ def fit_imputed(tables, n_states: int = 2, *, seed=None, **options) -> ImputedFi
         transition_design=first.transition_design,
         step_unit=first.step_unit,
         n_obs=first.n_obs,
+        control=first.control,
+        state_names=first.state_names,
     )
     return ImputedFit(model, pooled, tuple(models))
 
