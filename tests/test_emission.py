@@ -147,7 +147,7 @@ FAMILIES = [
 
 
 @pytest.mark.parametrize(("family", "n_links", "structure"), FAMILIES)
-def test_row_scores_are_the_derivatives_of_row_densities(family, n_links, structure):
+def test_row_derivatives_are_those_of_row_densities(family, n_links, structure):
     rng = np.random.default_rng(3)
     size = 9
     if "zero_inflated" in structure:
@@ -162,12 +162,20 @@ def test_row_scores_are_the_derivatives_of_row_densities(family, n_links, struct
         eta[-1] -= 2.0  # zero mass about 0.1
     row = family.from_links(eta, **structure)
     score = row.row_score(x)
+    value, same_score, second = row.row_derivatives(x)
+    np.testing.assert_allclose(value, row.row_logpdf(x), rtol=1e-13)
+    np.testing.assert_allclose(same_score, score, rtol=1e-13)
+    np.testing.assert_array_equal(second, second.transpose(1, 0, 2))
     for j in range(n_links):
         shift = np.zeros_like(eta)
         shift[j] = 1e-6
         up = family.from_links(eta + shift, **structure).row_logpdf(x)
         down = family.from_links(eta - shift, **structure).row_logpdf(x)
         np.testing.assert_allclose(score[j], (up - down) / 2e-6, atol=1e-7)
+        # the second derivatives against central differences of the scores
+        up = family.from_links(eta + shift, **structure).row_score(x)
+        down = family.from_links(eta - shift, **structure).row_score(x)
+        np.testing.assert_allclose(second[:, j], (up - down) / 2e-6, atol=1e-6)
     # row t's density is the density of a one-state member with row t's parameters
     one_state = [
         family.from_links(eta[:, [t]], **structure).logpdf(x[[t]])[0, 0] for t in range(size)
@@ -206,9 +214,10 @@ def test_constant_formulas_reach_the_movehmm_optimum_on_elk():
         .fit(elk)
         .model_
     )
-    # moveHMM's optimum; the zero mass of state 2 tends to 0 on the logit scale, whose last
-    # 2e-4 of log-likelihood BFGS leaves
-    assert model.log_likelihood == pytest.approx(-1892.97445, abs=1e-3)
+    # moveHMM's optimum (the Newton M-step reaches it: -1892.9744502, the plain fit
+    # -1892.9744495); the zero mass of state 2 tends to 0 on the logit scale, a direction so
+    # flat that 1e-6 of log-likelihood moves the state-2 parameters by 3e-4 relative
+    assert model.log_likelihood == pytest.approx(-1892.97445, abs=1e-5)
     assert model.n_obs == len(elk)
-    np.testing.assert_allclose(model.step.base.mean, [0.373776, 3.247479], rtol=1e-4)
-    np.testing.assert_allclose(model.angle.base.concentration, [0.592387, 0.207992], rtol=1e-4)
+    np.testing.assert_allclose(model.step.base.mean, [0.373776, 3.247479], rtol=5e-4)
+    np.testing.assert_allclose(model.angle.base.concentration, [0.592387, 0.207992], rtol=1e-3)

@@ -13,9 +13,10 @@ working scale, ``to_dict``...) with one difference: its observations are
 :class:`EmissionRows`, the prepared observations together with the design matrices of its
 formulas, because each row has its own parameters. The parameters without a formula stay
 one value per state. The M-step is a weighted maximum likelihood per state over that
-state's coefficients and constant parameters (BFGS with the analytic gradient
-``X^T (w * d log f / d eta)`` from the families' ``row_score``; the E-step's posteriors are
-the weights), warm-started at the current values.
+state's coefficients and constant parameters (Newton's method with the closed-form
+gradient ``X^T (w * d log f / d eta)`` and Hessian ``X^T diag(w * d2 log f / d eta2) X``
+from the families' ``row_derivatives``; the E-step's posteriors are the weights),
+warm-started at the current values.
 
 The design matrices are standardised (:mod:`hmmtrack.hmm.formula`): the intercept is the
 parameter at the covariate means (factors at their reference levels), which is what
@@ -28,11 +29,11 @@ Not for the families' maths (:mod:`hmmtrack.hmm.distributions`), design matrices
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
-from scipy.optimize import minimize
 
 from hmmtrack.hmm import distributions
 from hmmtrack.hmm.distributions import PreparedAngles, PreparedSteps
@@ -41,8 +42,11 @@ from hmmtrack.hmm.formula import Design, design_rows
 STREAMS = ("step", "angle")  # the streams of every movement HMM
 _INTERCEPT = "Intercept"
 _MIN_STATE_WEIGHT = 1e-10  # a state with less total weight keeps its parameters
-_M_STEP_MAX_ITER = 200  # BFGS iterations per state and M-step (warm-started)
-_M_STEP_GTOL = 1e-6  # M-step stops when no gradient entry of the per-weight log-lik exceeds this
+_NEWTON_MAX_ITER = 50  # Newton iterations per state and M-step (warm-started: 1 to 3 used)
+# the M-step stops when the Newton step would gain less than this per unit weight (the
+# log-likelihood per row): at 1e-14, below 1e-8 in total for 1e6 rows
+_NEWTON_GAIN = 1e-14
+_NEWTON_HALVINGS = 30  # step halvings before a state's M-step gives up
 _BLOCK_FIELDS = ("formula", "columns", "scaling", "levels", "values", "values_data_scale", "layout")
 _LAYOUT = (
     "rows: states; columns: 'columns' of the formula's design; on the parameter's link scale "
@@ -71,6 +75,26 @@ class EmissionRows:
     def n_obs(self) -> int:
         """Number of rows T."""
         return self.observations.n_obs
+
+    @functools.cached_property
+    def columns(self) -> dict[str, np.ndarray]:
+        """Each design matrix transposed, (p_j, T) C-contiguous: the M-step's sums over the
+        rows run along contiguous memory, several times faster than on (T, p_j)."""
+        return {name: np.ascontiguousarray(m.T) for name, m in self.matrices.items()}
+
+    @functools.cached_property
+    def _products(self) -> dict:
+        return {}
+
+    def products(self, left: str, right: str) -> np.ndarray:
+        """Row-wise products of the columns of two designs, (p_left * p_right, T): the
+        Hessian blocks ``X_l^T diag(v) X_r`` are then one sum over rows per entry. Built on
+        first use and kept (the data of a fit do not change)."""
+        key = (left, right)
+        if key not in self._products:
+            a, b = self.columns[left], self.columns[right]
+            self._products[key] = (a[:, None, :] * b[None, :, :]).reshape(-1, self.n_obs)
+        return self._products[key]
 
 
 @dataclass(frozen=True, eq=False)
@@ -179,7 +203,7 @@ class CovariateEmission:
     def _row_distribution(self, k: int, rows: EmissionRows, theta: np.ndarray | None = None):
         """The row distribution of state ``k``: its parameters at every row, from the state's
         working block ``theta`` (default: the current one)."""
-        eta = self._row_links(self._state_blocks(k, theta), rows.matrices, rows.n_obs)
+        eta = self._row_links(self._state_blocks(k, theta), rows.columns, rows.n_obs)
         return self.base.from_links(eta, **self.base._structure())
 
     def _state_blocks(self, k: int, theta: np.ndarray | None) -> list[np.ndarray]:
@@ -203,28 +227,48 @@ class CovariateEmission:
             ]
         )
 
-    def _row_links(self, blocks: list[np.ndarray], matrices: dict, n_obs: int) -> np.ndarray:
-        """Link values (n_links, T) of the working blocks at the rows of ``matrices``."""
+    def _row_links(self, blocks: list[np.ndarray], columns: dict, n_obs: int) -> np.ndarray:
+        """Link values (n_links, T) of the working blocks at the rows of the transposed
+        design matrices ``columns`` ({parameter: (p_j, T)})."""
         eta = np.empty((len(blocks), n_obs))
         for j, (name, block) in enumerate(zip(self.base.link_names(), blocks, strict=True)):
             if name in self.designs:
-                eta[j] = np.einsum("tp,p->t", matrices[name], block)
+                eta[j] = np.einsum("pt,p->t", columns[name], block)
             else:
                 eta[j] = block[0]
         return eta
 
-    def _state_score(self, k: int, rows: EmissionRows, w: np.ndarray, theta=None):
-        """Weighted log-likelihood of state ``k`` and its gradient by the working block."""
+    def _state_score(self, k: int, rows: EmissionRows, w: np.ndarray):
+        """Gradient (p,) of state ``k``'s weighted log-likelihood by its working block."""
+        weighted = self._row_distribution(k, rows).row_score(rows.observations) * w
+        return np.concatenate(
+            [_cross(rows, name, weighted[j], None)[:, 0] for j, name in self._formula_names()]
+        )
+
+    def _state_derivatives(self, k: int, rows: EmissionRows, w: np.ndarray, theta: np.ndarray):
+        """Weighted log-likelihood of state ``k`` at its working block ``theta`` (p,), with
+        its gradient (p,) and Hessian (p, p): ``X_j^T (w d log f / d eta_j)`` and
+        ``X_j^T diag(w d2 log f / d eta_j d eta_l) X_l`` over the links j, l."""
         row = self._row_distribution(k, rows, theta)
-        value = float(np.einsum("t,t->", w, row.row_logpdf(rows.observations)))
-        weighted = row.row_score(rows.observations) * w
-        gradient = [
-            np.einsum("tp,t->p", rows.matrices[name], weighted[j])
-            if name in self.designs
-            else weighted[j].sum(keepdims=True)
+        value, score, second = row.row_derivatives(rows.observations)
+        names = [name for _, name in self._formula_names()]
+        gradient = np.concatenate(
+            [_cross(rows, name, w * score[j], None)[:, 0] for j, name in enumerate(names)]
+        )
+        hessian = np.block(
+            [
+                [_cross(rows, left, w * second[j, i], right) for i, right in enumerate(names)]
+                for j, left in enumerate(names)
+            ]
+        )
+        return float(np.einsum("t,t->", w, value)), gradient, hessian
+
+    def _formula_names(self) -> list[tuple[int, str | None]]:
+        """Per link in order: (index, the parameter's name if it has a formula, else None)."""
+        return [
+            (j, name if name in self.designs else None)
             for j, name in enumerate(self.base.link_names())
         ]
-        return value, np.concatenate(gradient)
 
     def logpdf(self, rows: EmissionRows) -> np.ndarray:
         """Log-density of every row in every state, shape (T, K); missing rows 0.0."""
@@ -247,7 +291,8 @@ class CovariateEmission:
         for k in range(self.n_states):
             here = states == k
             if here.any():
-                links = self._row_links(self._state_blocks(k, None), matrices, states.size)
+                columns = {name: m.T for name, m in matrices.items()}
+                links = self._row_links(self._state_blocks(k, None), columns, states.size)
                 eta[:, here] = links[:, here]
         row = self.base.from_links(eta, **self.base._structure())
         return row.sample(rng, np.arange(states.size))
@@ -255,39 +300,50 @@ class CovariateEmission:
     def fit_weighted(self, rows: EmissionRows, w: np.ndarray) -> CovariateEmission:
         """Weighted maximum likelihood per state (``w`` (T, K)): the EM M-step.
 
-        Each state's working block (constants and coefficients) is maximised by BFGS from
-        its current value with the analytic gradient; a state with (almost) no weight, or
-        whose optimum is not better than its start, keeps its values.
+        Each state's working block (constants and coefficients) is maximised by Newton's
+        method from its current value, with the closed-form gradient and Hessian (each
+        family's ``row_derivatives``): quadratic convergence takes 2 to 4 evaluations per
+        state, where BFGS took about 11. Where the Hessian is not negative definite, the
+        step uses its eigenvalues' absolute values (still an ascent direction); a step that
+        lowers the value is halved. A state with (almost) no weight keeps its values.
         """
         theta = self.to_working_by_state()
         for k in range(self.n_states):
             weights = np.ascontiguousarray(w[:, k])
             total = weights.sum()
-            if total <= _MIN_STATE_WEIGHT:
-                continue
-            weights = weights / total
-
-            def objective(block, k=k, weights=weights):
-                try:
-                    value, gradient = self._state_score(k, rows, weights, block)
-                except (ValueError, FloatingPointError):
-                    return np.inf, np.zeros_like(block)
-                if not np.isfinite(value):
-                    return np.inf, np.zeros_like(block)
-                return -value, -gradient
-
-            start_value = objective(theta[k])[0]
-            with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-                result = minimize(
-                    objective,
-                    theta[k],
-                    jac=True,
-                    method="BFGS",
-                    options={"maxiter": _M_STEP_MAX_ITER, "gtol": _M_STEP_GTOL},
-                )
-            if np.isfinite(result.fun) and result.fun < start_value:
-                theta[k] = result.x
+            if total > _MIN_STATE_WEIGHT:
+                theta[k] = self._newton(k, rows, weights / total, theta[k])
         return self._from_state_working(theta)
+
+    def _newton(self, k: int, rows: EmissionRows, w: np.ndarray, theta: np.ndarray):
+        """State ``k``'s working block maximising its log-likelihood with weights ``w`` (T,)
+        summing to 1, by Newton's method from ``theta``."""
+
+        def evaluate(block):
+            try:
+                with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+                    value, gradient, hessian = self._state_derivatives(k, rows, w, block)
+            except (ValueError, FloatingPointError):
+                return -np.inf, None, None
+            if np.isfinite(value) and np.isfinite(gradient).all() and np.isfinite(hessian).all():
+                return value, gradient, hessian
+            return -np.inf, None, None
+
+        value, gradient, hessian = evaluate(theta)
+        for _ in range(_NEWTON_MAX_ITER if np.isfinite(value) else 0):
+            step = _ascent_direction(gradient, hessian)
+            if gradient @ step <= _NEWTON_GAIN:
+                break
+            for _ in range(_NEWTON_HALVINGS):
+                trial = evaluate(theta + step)
+                if trial[0] >= value:
+                    break
+                step = step / 2.0
+            else:
+                break
+            theta = theta + step
+            value, gradient, hessian = trial
+        return theta
 
     # -- working scale ------------------------------------------------------------------------
 
@@ -323,7 +379,7 @@ class CovariateEmission:
         """Gradient of ``sum(w * logpdf(rows))`` by :meth:`to_working`, (n_working,)."""
         return np.concatenate(
             [
-                self._state_score(k, rows, np.ascontiguousarray(w[:, k]))[1]
+                self._state_score(k, rows, np.ascontiguousarray(w[:, k]))
                 for k in range(self.n_states)
             ]
         )
@@ -385,6 +441,28 @@ class CovariateEmission:
             except (KeyError, TypeError, ValueError) as exc:
                 raise ValueError(f"formulas.{name} malformed ({exc!r})") from exc
         return cls(base, designs, coefficients)
+
+
+def _cross(rows: EmissionRows, left: str | None, weights: np.ndarray, right: str | None):
+    """``X_left^T diag(weights) X_right`` (p, q) of the design matrices of two parameters
+    (by name; None stands for a column of ones, a parameter without a formula)."""
+    if left is None and right is None:
+        return np.array([[weights.sum()]])
+    if left is None:
+        return np.einsum("qt,t->q", rows.columns[right], weights)[None, :]
+    if right is None:
+        return np.einsum("pt,t->p", rows.columns[left], weights)[:, None]
+    product = np.einsum("kt,t->k", rows.products(left, right), weights)
+    return product.reshape(rows.columns[left].shape[0], -1)
+
+
+def _ascent_direction(gradient: np.ndarray, hessian: np.ndarray) -> np.ndarray:
+    """Newton's step ``-H^-1 g`` with the eigenvalues of ``-H`` replaced by their absolute
+    values (floored at 1e-10 of the largest), an ascent direction even where the log-
+    likelihood is not concave."""
+    values, vectors = np.linalg.eigh(-(hessian + hessian.T) / 2.0)
+    values = np.maximum(np.abs(values), 1e-10 * max(np.abs(values).max(), np.finfo(float).tiny))
+    return vectors @ ((vectors.T @ gradient) / values)
 
 
 def from_dict(document: dict):

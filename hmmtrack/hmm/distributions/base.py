@@ -26,6 +26,7 @@ _MIN_STATE_WEIGHT = 1e-10  # a state with less total weight keeps its current pa
 _TINY = 1e-12  # floor for quantities whose log is taken (degenerate fits, working scale)
 _NEWTON_TOL = 1e-12
 _NEWTON_MAX_ITER = 100
+_HESSIAN_STEP = 1e-5  # link-scale step of the central differences of row scores
 
 D = TypeVar("D", bound="_Family")
 
@@ -57,6 +58,8 @@ class StateDistribution(Protocol):
       its own parameters); ``eta`` holds each parameter on its link scale (log for positive
       parameters, logit for probabilities, identity for locations and angle means), and
       ``row_score`` is the derivative of each row's log-density by its link values;
+      ``row_derivatives(x)`` gives the log-density, that score and the second derivatives
+      ``(n_links, n_links, T)`` at once (the Newton M-step of emission formulas);
     * ``prepare(x)``: the observations validated once with their transforms (log x; cos x
       and sin x), a :class:`PreparedSteps` / :class:`PreparedAngles` accepted wherever ``x``
       is. Callers that evaluate the same data many times (EM, numerical derivatives) should
@@ -449,6 +452,25 @@ class _Family:
     @classmethod
     def from_working(cls: type[D], theta: np.ndarray, n_states: int, **structure: Any) -> D:
         raise NotImplementedError
+
+    def row_derivatives(self, x) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Of a row distribution (K = T): each row's log-density (T,), its derivatives by the
+        row's link values (n_links, T) and its second derivatives (n_links, n_links, T).
+
+        Here the second derivatives are central differences (step 1e-5 on the link scale)
+        of the closed-form ``row_score``; families with closed-form second derivatives
+        override this. Missing rows have 0 everywhere.
+        """
+        eta, structure = self.to_links(), self._structure()
+        hessian = np.empty((eta.shape[0], *eta.shape))
+        for j in range(eta.shape[0]):
+            shift = np.zeros_like(eta)
+            shift[j] = _HESSIAN_STEP
+            up = self.from_links(eta + shift, **structure).row_score(x)  # type: ignore[attr-defined]
+            down = self.from_links(eta - shift, **structure).row_score(x)  # type: ignore[attr-defined]
+            hessian[:, j] = (up - down) / (2.0 * _HESSIAN_STEP)
+        hessian = (hessian + hessian.transpose(1, 0, 2)) / 2.0
+        return self.row_logpdf(x), self.row_score(x), hessian  # type: ignore[attr-defined]
 
 
 def _split_working(theta: np.ndarray, n_states: int, n_blocks: int, who: str) -> np.ndarray:

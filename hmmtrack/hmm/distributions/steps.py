@@ -9,10 +9,12 @@ data (m, or km for the elk example), >= 0, NaN when missing.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
+from numba import njit
 from scipy import special
 
 from hmmtrack.hmm.distributions.base import (
@@ -257,7 +259,12 @@ class _StepFamily(_Family):
         distribution, K = T); missing rows 0.0, zero steps ``log zero_mass``."""
         data = self._prepared(x)
         self._check_rows(data)
-        out = self._state_logpdf(slice(None), data.safe, data.log_safe)  # type: ignore[arg-type]
+        positive = self._state_logpdf(slice(None), data.safe, data.log_safe)  # type: ignore[arg-type]
+        return self._row_value(data, positive)
+
+    def _row_value(self, data: PreparedSteps, out: np.ndarray) -> np.ndarray:
+        """Row log-densities from those of the positive part ``out`` (T, overwritten): the
+        zero mass added, missing rows 0."""
         if self.zero_mass is not None:
             out += np.log1p(-self.zero_mass)
             with np.errstate(divide="ignore"):
@@ -271,19 +278,104 @@ class _StepFamily(_Family):
         The positive part's derivatives vanish on zero and missing rows; the zero mass's is
         ``1 - z`` at a zero step and ``-z`` at a positive one (logit link).
         """
+        return self.row_derivatives(x)[1]
+
+    def row_derivatives(
+        self, x: np.ndarray | PreparedSteps
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`row_logpdf`, :meth:`row_score` and the second derivatives (n_links, n_links,
+        T) of each row's log-density by its link values, all in closed form.
+
+        The zero mass's second derivative is ``-z (1 - z)`` on every observed row; it has
+        no cross term with the positive part's parameters.
+        """
         data = self._prepared(x)
         self._check_rows(data)
-        blocks = self._row_positive_score(data.safe, data.log_safe)
-        blocks[:, ~data.positive] = 0.0
+        value, score, hessian = self._row_positive_derivatives(data.safe, data.log_safe)
+        score[:, ~data.positive] = 0.0
+        hessian[:, :, ~data.positive] = 0.0
         if self.zero_mass is not None:
-            zero = np.where(data.zero, 1.0 - self.zero_mass, -self.zero_mass)
-            zero[data.missing] = 0.0
-            blocks = np.vstack([blocks, zero])
-        return blocks
+            z = self.zero_mass
+            by_zero = np.where(data.zero, 1.0 - z, -z)
+            by_zero[data.missing] = 0.0
+            score = np.vstack([score, by_zero])
+            n = hessian.shape[0]
+            padded = np.zeros((n + 1, n + 1, data.n_obs))
+            padded[:n, :n] = hessian
+            padded[n, n] = np.where(data.missing, 0.0, -z * (1.0 - z))
+            hessian = padded
+        return self._row_value(data, value), score, hessian
 
-    def _row_positive_score(self, x: np.ndarray, log_x: np.ndarray) -> np.ndarray:
-        """Derivatives (n_parameters, T) of each row's ``log f(x_t)`` by its link values."""
+    def _row_positive_derivatives(
+        self, x: np.ndarray, log_x: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Each row's ``log f(x_t)`` (T,) for x > 0 and its first (n_parameters, T) and
+        second (n_parameters, n_parameters, T) derivatives by the row's link values."""
         raise NotImplementedError
+
+
+@njit(cache=True, nogil=True)
+def _digamma_trigamma(a: float) -> tuple[float, float]:
+    """digamma(a) and trigamma(a) for a > 0, to about 1e-15 relative: the recurrences
+    ``psi(a) = psi(a + 1) - 1/a``, ``psi'(a) = psi'(a + 1) + 1/a**2`` up to a >= 10, then
+    the asymptotic series (their next terms are below 1e-16 there)."""
+    psi, tri = 0.0, 0.0
+    while a < 10.0:
+        psi -= 1.0 / a
+        tri += 1.0 / (a * a)
+        a += 1.0
+    inverse = 1.0 / a
+    square = inverse * inverse
+    psi += (
+        math.log(a)
+        - 0.5 * inverse
+        - square
+        * (1 / 12 - square * (1 / 120 - square * (1 / 252 - square * (1 / 240 - square / 132))))
+    )
+    tri += (
+        inverse
+        + 0.5 * square
+        + inverse
+        * square
+        * (1 / 6 - square * (1 / 30 - square * (1 / 42 - square * (1 / 30 - square * 5 / 66))))
+    )
+    return psi, tri
+
+
+@njit(cache=True, nogil=True)
+def _gamma_row_derivatives(x, log_x, mean, sd):
+    """Of gamma rows with their own ``mean`` and ``sd`` (T,) at steps ``x`` > 0 (T,): the
+    log-density (T,), its derivatives by (log mean, log sd) (2, T) and its second
+    derivatives (2, 2, T), in one compiled pass.
+
+    scipy's ``polygamma(1, a)`` (a Hurwitz zeta) alone took 0.1 s for 124,000 rows, as long
+    as the rest of a Newton step of an emission formula.
+
+    With shape a = (mean / sd)**2 and rate b = mean / sd**2: d a / d log mean = 2a,
+    d b / d log mean = b, and d / d log sd = -2 d / d log mean for both; S = d log f / d a =
+    log x + log b - digamma(a), so dS / d log mean = 1 - 2a trigamma(a).
+    """
+    n = x.size
+    value = np.empty(n)
+    score = np.empty((2, n))
+    hessian = np.empty((2, 2, n))
+    for t in range(n):
+        ratio = mean[t] / sd[t]
+        a = ratio * ratio
+        b = ratio / sd[t]
+        log_b = math.log(b)
+        psi, tri = _digamma_trigamma(a)
+        bx = b * x[t]
+        value[t] = (a - 1.0) * log_x[t] - bx + a * log_b - math.lgamma(a)
+        by_shape = 2.0 * a * (log_x[t] + log_b - psi)  # 2a S
+        by_rate = a - bx
+        score[0, t] = by_shape + by_rate
+        score[1, t] = -by_shape - 2.0 * by_rate
+        common = 2.0 * by_shape + 4.0 * a - 4.0 * a * a * tri
+        hessian[0, 0, t] = common - bx
+        hessian[0, 1, t] = hessian[1, 0, t] = -common - 2.0 * a + 2.0 * bx
+        hessian[1, 1, t] = common + 4.0 * a - 4.0 * bx
+    return value, score, hessian
 
 
 def _gamma_shape_mle(s: np.ndarray) -> np.ndarray:
@@ -371,12 +463,8 @@ class Gamma(_StepFamily):
         by_rate = a * total - b * _weighted_sums(x, w)
         return np.concatenate([by_shape + by_rate, -by_shape - 2.0 * by_rate])
 
-    def _row_positive_score(self, x: np.ndarray, log_x: np.ndarray) -> np.ndarray:
-        # the derivatives of _positive_score, row by row
-        a, b = self.shape, self.mean / self.sd**2
-        by_shape = 2.0 * a * (log_x + np.log(b) - special.digamma(a))
-        by_rate = a - b * x
-        return np.vstack([by_shape + by_rate, -by_shape - 2.0 * by_rate])
+    def _row_positive_derivatives(self, x, log_x):
+        return _gamma_row_derivatives(x, log_x, self.mean, self.sd)
 
     def _cdf_positive(self, x: np.ndarray, log_x: np.ndarray) -> np.ndarray:
         return special.gammainc(self.shape, np.divide.outer(x, self.scale))
@@ -469,10 +557,18 @@ class Weibull(_StepFamily):
             by_scale[k] = self.shape[k] * _dot(excess, w[:, k])
         return np.concatenate([by_shape, by_scale])
 
-    def _row_positive_score(self, x: np.ndarray, log_x: np.ndarray) -> np.ndarray:
-        z = self.shape * (log_x - np.log(self.scale))
-        excess = np.expm1(z)
-        return np.vstack([1.0 - z * excess, self.shape * excess])
+    def _row_positive_derivatives(self, x, log_x):
+        # z depends on log k as z and on log l as -k
+        k = self.shape
+        z = k * (log_x - np.log(self.scale))
+        excess = np.expm1(z)  # e^z - 1
+        growth = excess + z * (excess + 1.0)  # e^z - 1 + z e^z
+        hessian = np.empty((2, 2, x.size))
+        hessian[0, 0] = -z * growth
+        hessian[0, 1] = hessian[1, 0] = k * growth
+        hessian[1, 1] = -(k**2) * (excess + 1.0)
+        value = self._state_logpdf(slice(None), x, log_x)  # type: ignore[arg-type]
+        return value, np.vstack([1.0 - z * excess, k * excess]), hessian
 
     def _cdf_positive(self, x: np.ndarray, log_x: np.ndarray) -> np.ndarray:
         z = np.multiply.outer(log_x, self.shape) - self.shape * np.log(self.scale)
@@ -543,9 +639,14 @@ class LogNormal(_StepFamily):
         variance = self.scale**2
         return np.concatenate([first / variance, second / variance - total])
 
-    def _row_positive_score(self, x: np.ndarray, log_x: np.ndarray) -> np.ndarray:
+    def _row_positive_derivatives(self, x, log_x):
         z = (log_x - self.location) / self.scale
-        return np.vstack([z / self.scale, z**2 - 1.0])
+        hessian = np.empty((2, 2, x.size))
+        hessian[0, 0] = -1.0 / self.scale**2
+        hessian[0, 1] = hessian[1, 0] = -2.0 * z / self.scale
+        hessian[1, 1] = -2.0 * z**2
+        value = self._state_logpdf(slice(None), x, log_x)  # type: ignore[arg-type]
+        return value, np.vstack([z / self.scale, z**2 - 1.0]), hessian
 
     def _cdf_positive(self, x: np.ndarray, log_x: np.ndarray) -> np.ndarray:
         return special.ndtr(np.subtract.outer(log_x, self.location) / self.scale)
@@ -590,8 +691,9 @@ class Exponential(_StepFamily):
         # d/d log rate of (log rate - rate x) = 1 - rate x
         return _column_sums(w) - self.rate * _weighted_sums(x, w)
 
-    def _row_positive_score(self, x: np.ndarray, log_x: np.ndarray) -> np.ndarray:
-        return (1.0 - self.rate * x)[None, :]
+    def _row_positive_derivatives(self, x, log_x):
+        rx = self.rate * x
+        return np.log(self.rate) - rx, (1.0 - rx)[None, :], -rx[None, None, :]
 
     def _cdf_positive(self, x: np.ndarray, log_x: np.ndarray) -> np.ndarray:
         return -np.expm1(np.multiply.outer(x, -self.rate))
