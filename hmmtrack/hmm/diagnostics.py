@@ -143,7 +143,8 @@ def natural_parameters(
     -------
     names : list of (parameter, index) tuples
         ``("step.mean", "1")``, ``("transition", "1->2")``, ``("beta.intercept", "1->2")``,
-        ``("beta.dist_water", "1->2")``...; states numbered from 1 as moveHMM prints them.
+        ``("beta.dist_water", "1->2")``...; states numbered from 1 as moveHMM prints them;
+        a categorical stream's probabilities per category (``("behaviour.prob2", "1")``).
         A parameter with an emission formula has its value at the intercept
         (``("step.mean", "1")``) and its coefficients on the link scale
         (``("step.mean.beta.cosT", "1")``, ``"intercept"`` for formulaic's ``"Intercept"``).
@@ -154,8 +155,11 @@ def natural_parameters(
         for key, value in dist.to_dict().items():
             if isinstance(value, list):
                 for k, v in enumerate(value):
-                    names.append((f"{prefix}.{key}", str(k + 1)))
-                    values.append(v)
+                    # a categorical's probabilities: one entry per category c, "prob<c>"
+                    entries = enumerate(v, 1) if isinstance(v, list) else [("", v)]
+                    for c, entry in entries:
+                        names.append((f"{prefix}.{key}{c}", str(k + 1)))
+                        values.append(entry)
         if isinstance(dist, emission.CovariateEmission):
             for key, design in dist.designs.items():
                 for c, column in enumerate(_column_names(design.columns)):

@@ -16,7 +16,8 @@ Modules: :mod:`.base` (the protocol, prepared observations, the shared family ma
 :mod:`.steps` (step families), :mod:`.angles` (angle families), :mod:`.families` (the
 registries ``STEP_FAMILIES`` / ``ANGLE_FAMILIES`` / ``VALUE_FAMILIES``, :func:`from_dict`,
 :func:`initial_guess`), :mod:`.values` (families of further data streams: ``Normal``,
-``Beta``, ``Poisson``, ``NegativeBinomial``, ``Bernoulli``).
+``Beta``, ``Poisson``, ``NegativeBinomial``, ``Bernoulli``, ``Categorical`` and the inflated
+``ZeroOneInflatedBeta``, ``ZeroInflatedPoisson``, ``ZeroInflatedNegativeBinomial``).
 The names below are the package's public face.
 
 Not for: hidden-state inference (``hmmtrack.hmm.inference``), transition matrices or EM
@@ -42,10 +43,14 @@ from hmmtrack.hmm.distributions.steps import Exponential, Gamma, LogNormal, Weib
 from hmmtrack.hmm.distributions.values import (
     Bernoulli,
     Beta,
+    Categorical,
     NegativeBinomial,
     Normal,
     Poisson,
     PreparedValues,
+    ZeroInflatedNegativeBinomial,
+    ZeroInflatedPoisson,
+    ZeroOneInflatedBeta,
     prepare_values,
 )
 
@@ -55,6 +60,7 @@ __all__ = [
     "VALUE_FAMILIES",
     "Bernoulli",
     "Beta",
+    "Categorical",
     "Exponential",
     "Gamma",
     "LogNormal",
@@ -68,6 +74,9 @@ __all__ = [
     "VonMises",
     "Weibull",
     "WrappedCauchy",
+    "ZeroInflatedNegativeBinomial",
+    "ZeroInflatedPoisson",
+    "ZeroOneInflatedBeta",
     "from_dict",
     "initial_guess",
     "prepare_angles",

@@ -16,9 +16,13 @@ from hmmtrack.hmm.distributions.steps import (
 from hmmtrack.hmm.distributions.values import (
     Bernoulli,
     Beta,
+    Categorical,
     NegativeBinomial,
     Normal,
     Poisson,
+    ZeroInflatedNegativeBinomial,
+    ZeroInflatedPoisson,
+    ZeroOneInflatedBeta,
     _ValueFamily,
 )
 
@@ -28,7 +32,18 @@ STEP_FAMILIES: dict[str, type[_StepFamily]] = {
 ANGLE_FAMILIES: dict[str, type[_AngleFamily]] = {cls.name: cls for cls in (VonMises, WrappedCauchy)}
 #: families of further data streams (a third stream and more): any of these or of the above
 VALUE_FAMILIES: dict[str, type[_ValueFamily]] = {
-    cls.name: cls for cls in (Normal, Beta, Poisson, NegativeBinomial, Bernoulli)
+    cls.name: cls
+    for cls in (
+        Normal,
+        Beta,
+        ZeroOneInflatedBeta,
+        Poisson,
+        ZeroInflatedPoisson,
+        NegativeBinomial,
+        ZeroInflatedNegativeBinomial,
+        Bernoulli,
+        Categorical,
+    )
 }
 
 
