@@ -346,3 +346,28 @@ def test_fit_control_check_starts_and_stored_state_names(track_file, tmp_path, c
     assert main(["decode", str(track_file), "--model", str(model_path), "-o", str(states)]) == 0
     assert set(pd.read_csv(states)["state_name"]) == {"slow", "fast"}
     assert "(slow)" in capsys.readouterr().out
+
+
+def test_fit_with_categorical_and_zero_inflated_count_streams(track_file, tmp_path):
+    """--stream COL=categorical (codes 1..C) and COL=zipoisson, saved and read back."""
+    table = pd.read_csv(track_file)
+    rng = np.random.default_rng(2)
+    table["behaviour"] = rng.integers(1, 4, len(table)).astype(float)
+    table.loc[::50, "behaviour"] = np.nan
+    table["dives"] = np.where(rng.random(len(table)) < 0.3, 0, rng.poisson(4.0, len(table)))
+    table.to_csv(track_file, index=False)
+    model_path = tmp_path / "model.json"
+    arguments = ["fit", str(track_file), "--starts", "1", "-o", str(model_path)]
+    streams = ["--stream", "behaviour=categorical", "--stream", "dives=zipoisson"]
+    assert main([*arguments, *streams]) == 0
+    document = json.loads(model_path.read_text())
+    assert document["version"] == 3
+    assert document["streams"]["behaviour"]["family"] == "categorical"
+    prob = np.array(document["streams"]["behaviour"]["prob"])
+    assert prob.shape == (2, 3)
+    np.testing.assert_allclose(prob.sum(axis=1), 1.0)
+    np.testing.assert_allclose(prob, 1 / 3, atol=0.06)  # the codes were drawn uniformly
+    dives = document["streams"]["dives"]
+    assert dives["family"] == "zipoisson"
+    assert np.all((np.array(dives["zero_mass"]) > 0.15) & (np.array(dives["zero_mass"]) < 0.45))
+    assert MovementHMM.load(model_path).to_dict() == document

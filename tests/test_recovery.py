@@ -11,18 +11,16 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from hmmtrack.hmm import (
+from hmmtrack.hmm import MovementHMM, MovementHMMEstimator, diagnostics
+from hmmtrack.hmm.distributions import (
+    Categorical,
     Exponential,
     Gamma,
     LogNormal,
-    MovementHMM,
-    MovementHMMEstimator,
     VonMises,
     Weibull,
     WrappedCauchy,
-    diagnostics,
 )
-from hmmtrack.hmm.distributions import Categorical
 from hmmtrack.hmm.emission import CovariateEmission
 from hmmtrack.hmm.formula import design
 
