@@ -11,33 +11,24 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from hmmtrack.hmm import MovementHMM, MovementHMMEstimator, diagnostics
-from hmmtrack.hmm.distributions import (
-    Categorical,
-    Exponential,
-    Gamma,
-    LogNormal,
-    VonMises,
-    Weibull,
-    WrappedCauchy,
-)
+from hmmtrack.hmm import MovementHMM, MovementHMMEstimator, diagnostics, distributions
 from hmmtrack.hmm.emission import CovariateEmission
 from hmmtrack.hmm.formula import design
 
 N = 20_000
 TRANSITION = np.array([[0.9, 0.1], [0.15, 0.85]])
-STEP = Gamma(np.array([1.0, 6.0]), np.array([0.8, 3.0]))
-ANGLE = VonMises(np.array([0.8, -0.3]), np.array([1.0, 4.0]))
+STEP = distributions.Gamma(np.array([1.0, 6.0]), np.array([0.8, 3.0]))
+ANGLE = distributions.VonMises(np.array([0.8, -0.3]), np.array([1.0, 4.0]))
 ZERO_MASS = np.array([0.2, 0.2])
 STEPS = {
-    "gamma": Gamma(STEP.mean, STEP.sd, ZERO_MASS),
-    "weibull": Weibull(np.array([1.5, 3.0]), np.array([1.0, 6.0]), ZERO_MASS),
-    "lognormal": LogNormal(np.array([-0.5, 1.8]), np.array([0.6, 0.4]), ZERO_MASS),
-    "exponential": Exponential(np.array([1.0, 1 / 6]), ZERO_MASS),
+    "gamma": distributions.Gamma(STEP.mean, STEP.sd, ZERO_MASS),
+    "weibull": distributions.Weibull(np.array([1.5, 3.0]), np.array([1.0, 6.0]), ZERO_MASS),
+    "lognormal": distributions.LogNormal(np.array([-0.5, 1.8]), np.array([0.6, 0.4]), ZERO_MASS),
+    "exponential": distributions.Exponential(np.array([1.0, 1 / 6]), ZERO_MASS),
 }
 ANGLES = {
     "vonmises": ANGLE,
-    "wrappedcauchy": WrappedCauchy(np.array([0.8, -0.3]), np.array([0.3, 0.8])),
+    "wrappedcauchy": distributions.WrappedCauchy(np.array([0.8, -0.3]), np.array([0.3, 0.8])),
 }
 
 
@@ -74,7 +65,7 @@ def test_three_streams_with_formulas_are_recovered():
         }
     )
     step_coefficients = np.array([[0.0, 0.3, -0.2], [np.log(6.0), 0.2, 0.3]])
-    behaviour = Categorical(np.array([[0.6, 0.3, 0.1], [0.1, 0.2, 0.7]]))
+    behaviour = distributions.Categorical(np.array([[0.6, 0.3, 0.1], [0.1, 0.2, 0.7]]))
     odds = behaviour.to_links()[0]  # log(p2 / p1) at the mean temperature, per state
     behaviour_coefficients = np.column_stack([odds, [0.5, -0.4]])
     truth = MovementHMM(
