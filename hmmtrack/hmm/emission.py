@@ -44,7 +44,7 @@ _INTERCEPT = "Intercept"
 _MIN_STATE_WEIGHT = 1e-10  # a state with less total weight keeps its parameters
 _NEWTON_MAX_ITER = 50  # Newton iterations per state and M-step (warm-started: 1 to 3 used)
 # the M-step stops when the Newton step would gain less than this per unit weight (the
-# log-likelihood per row): at 1e-14, below 1e-8 in total for 1e6 rows
+# log-likelihood per row): below 1e-8 in total for 1e6 rows
 _NEWTON_GAIN = 1e-14
 _NEWTON_HALVINGS = 30  # step halvings before a state's M-step gives up
 _BLOCK_FIELDS = ("formula", "columns", "scaling", "levels", "values", "values_data_scale", "layout")
@@ -302,10 +302,11 @@ class CovariateEmission:
 
         Each state's working block (constants and coefficients) is maximised by Newton's
         method from its current value, with the closed-form gradient and Hessian (each
-        family's ``row_derivatives``): quadratic convergence takes 2 to 4 evaluations per
-        state, where BFGS took about 11. Where the Hessian is not negative definite, the
-        step uses its eigenvalues' absolute values (still an ascent direction); a step that
-        lowers the value is halved. A state with (almost) no weight keeps its values.
+        family's ``row_derivatives``): quadratic convergence needs few evaluations per
+        state (reports/decisions.md, emission M-step). Where the Hessian is not negative
+        definite, the step uses its eigenvalues' absolute values (still an ascent
+        direction); a step that lowers the value is halved. A state with (almost) no weight
+        keeps its values.
         """
         theta = self.to_working_by_state()
         for k in range(self.n_states):

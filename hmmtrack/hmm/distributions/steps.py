@@ -348,8 +348,8 @@ def _gamma_row_derivatives(x, log_x, mean, sd):
     log-density (T,), its derivatives by (log mean, log sd) (2, T) and its second
     derivatives (2, 2, T), in one compiled pass.
 
-    scipy's ``polygamma(1, a)`` (a Hurwitz zeta) alone took 0.1 s for 124,000 rows, as long
-    as the rest of a Newton step of an emission formula.
+    Compiled because scipy's trigamma is far slower than the rest of a Newton step
+    (reports/decisions.md, emission M-step).
 
     With shape a = (mean / sd)**2 and rate b = mean / sd**2: d a / d log mean = 2a,
     d b / d log mean = b, and d / d log sd = -2 d / d log mean for both; S = d log f / d a =

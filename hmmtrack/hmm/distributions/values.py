@@ -626,8 +626,8 @@ class _ZeroInflatedCounts:
     def fit_weighted(self, x, w):
         """One step (``w`` (T, K)) of the inner EM of the class docstring from the current
         values: it raises the weighted log-likelihood (a generalised EM M-step), at the cost
-        of one fit of the count family; iterating it to convergence in every M-step took
-        minutes for the negative binomial at 20,000 rows."""
+        of one fit of the count family (iterating it to convergence in every M-step is far
+        slower: reports/decisions.md, emission M-step)."""
         data = self.prepare(x)  # type: ignore[attr-defined]
         w = self._observed_weights(data, w)  # type: ignore[attr-defined]
         zero = data.observed == 0
