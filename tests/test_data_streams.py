@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from hmmtrack.hmm import Gamma, MovementHMM, MovementHMMEstimator, VonMises
+from hmmtrack.hmm import Gamma, MovementHMM, MovementHMMEstimator, VonMises, diagnostics
 from hmmtrack.hmm.distributions import (
     VALUE_FAMILIES,
     Bernoulli,
@@ -188,3 +188,21 @@ def test_two_further_streams_with_a_formula_saved_and_read_back(tmp_path):
         MovementHMMEstimator(2, streams={"depth": "gaussian"}).fit(data)
     simulated = loaded.simulate(rng, 5, data.iloc[:5])
     assert list(simulated.columns) == ["state", "step", "angle", "depth", "dives"]
+
+
+@pytest.mark.parametrize("name", sorted(STREAMS))
+def test_pseudo_residuals_of_every_further_family_are_standard_normal(name):
+    """Forecast pseudo-residuals under the true model (randomised where the family has
+    point masses) are N(0, 1); NaN where the value is missing."""
+    truth = MovementHMM(np.array([0.5, 0.5]), TRANSITION, STEP, ANGLE, streams={"z": STREAMS[name]})
+    data = truth.simulate(np.random.default_rng(7), 5000)
+    data.loc[::40, "z"] = np.nan
+    residuals = diagnostics.pseudo_residuals(truth, data)["z_residual"]
+    assert residuals.isna().sum() == 125
+    assert stats.kstest(residuals.dropna(), "norm").pvalue > 1e-3
+    if name == "zipoisson":  # a Poisson without the structural zeros is rejected
+        plain = MovementHMM(
+            truth.initial, TRANSITION, STEP, ANGLE, streams={"z": Poisson(STREAMS[name].rate)}
+        )
+        wrong = diagnostics.pseudo_residuals(plain, data)["z_residual"]
+        assert stats.kstest(wrong.dropna(), "norm").pvalue < 1e-10

@@ -38,20 +38,29 @@ from hmmtrack.hmm.model import MovementHMM
 # ---------------------------------------------------------------------------------------------
 
 
-def pseudo_residuals(model: MovementHMM, data: pd.DataFrame) -> pd.DataFrame:
-    """Forecast pseudo-residuals of steps and angles (moveHMM's ``pseudoRes``).
+def pseudo_residuals(model: MovementHMM, data: pd.DataFrame, seed: int = 0) -> pd.DataFrame:
+    """Forecast pseudo-residuals of steps, angles and further streams (moveHMM's
+    ``pseudoRes``).
+
+    A further stream's residuals are randomised quantile residuals (Dunn & Smyth 1996)
+    where its family has point masses (counts, categories, 0 / 1 of a proportion): ``u``
+    is drawn uniformly between the forecast P(X < x) and P(X <= x), so that the residuals
+    of a correct model are standard normal for discrete data too. A further stream with
+    an emission formula has no column (its CDF is not available).
 
     Parameters
     ----------
     model : MovementHMM
     data : DataFrame
-        Prepared track (``step``, ``angle``, ``segment``, covariates).
+        Prepared track (``step``, ``angle``, ``segment``, covariates, further streams).
+    seed : int
+        Seed of the uniform draws of the randomised residuals.
 
     Returns
     -------
     DataFrame
-        Columns ``step_residual`` and ``angle_residual``, one row per data row; NaN where
-        the observation is missing.
+        Columns ``step_residual``, ``angle_residual`` and ``<stream>_residual`` per further
+        stream, one row per data row; NaN where the observation is missing.
     """
     observations = model.observations(data)
     log_lik = model.log_likelihood_matrix(observations)
@@ -67,6 +76,15 @@ def pseudo_residuals(model: MovementHMM, data: pd.DataFrame) -> pd.DataFrame:
         ("angle", model.angle, observations.angle),
     ):
         u = np.sum(forecast * dist.cdf(x), axis=1)
+        out[f"{name}_residual"] = stats.norm.ppf(np.clip(u, 1e-300, 1 - 1e-16))
+    rng = np.random.default_rng(seed)
+    for name, dist in model.streams.items():
+        if isinstance(dist, emission.CovariateEmission):
+            continue
+        x = observations.streams[name]
+        upper = np.sum(forecast * dist.cdf(x), axis=1)
+        lower = np.sum(forecast * dist.cdf_below(x), axis=1)
+        u = lower + rng.random(x.size) * (upper - lower)
         out[f"{name}_residual"] = stats.norm.ppf(np.clip(u, 1e-300, 1 - 1e-16))
     return pd.DataFrame(out, index=data.index)
 

@@ -95,6 +95,8 @@ class _ValueFamily(_Family):
     _links: ClassVar[tuple[str, ...]]
     _support: ClassVar[str]  # what the observations must be, for error messages
     _start: ClassVar[dict[str, float]]  # parameter values before a first weighted fit
+    # the smallest value of a discrete family (counts 0, categories 1); None when continuous
+    _lowest: ClassVar[float | None] = None
 
     # --- to be provided by each family ---------------------------------------------------
     def _in_support(self, x: np.ndarray) -> np.ndarray:
@@ -168,6 +170,23 @@ class _ValueFamily(_Family):
         out = self._cdf_values(data.safe)
         out[data.missing] = np.nan
         return out
+
+    def cdf_below(self, x: np.ndarray | PreparedValues) -> np.ndarray:
+        """P(X < x) in every state -> (T, K); NaN -> NaN row. It differs from :meth:`cdf`
+        at the point masses (every value of a discrete family), where the randomised
+        quantile residuals of :func:`hmmtrack.hmm.diagnostics.pseudo_residuals` draw
+        between the two."""
+        data = self.prepare(x)
+        out = self._cdf_below_values(data.safe)
+        out[data.missing] = np.nan
+        return out
+
+    def _cdf_below_values(self, x: np.ndarray) -> np.ndarray:
+        if self._lowest is None:
+            return self._cdf_values(x)
+        above = x > self._lowest
+        below = self._cdf_values(np.where(above, x - 1.0, self._lowest))
+        return np.where(above[:, None], below, 0.0)
 
     def fit_weighted(self: D, x: np.ndarray | PreparedValues, w: np.ndarray) -> D:
         """Weighted MLE per state (``w`` (T, K)); NaN rows ignored; a state with (almost) no
@@ -428,6 +447,7 @@ class Poisson(_ValueFamily):
     _links: ClassVar[tuple[str, ...]] = ("log",)
     _support: ClassVar[str] = "non-negative whole numbers"
     _start: ClassVar[dict[str, float]] = {"rate": 1.0}
+    _lowest: ClassVar[float | None] = 0.0
 
     def _in_support(self, x):
         return _is_count(x)
@@ -476,6 +496,7 @@ class NegativeBinomial(_ValueFamily):
     _links: ClassVar[tuple[str, ...]] = ("log", "log")
     _support: ClassVar[str] = "non-negative whole numbers"
     _start: ClassVar[dict[str, float]] = {"mean": 1.0, "size": 1.0}
+    _lowest: ClassVar[float | None] = 0.0
 
     def _in_support(self, x):
         return _is_count(x)
@@ -565,6 +586,7 @@ class Bernoulli(_ValueFamily):
     _links: ClassVar[tuple[str, ...]] = ("logit",)
     _support: ClassVar[str] = "0 or 1"
     _start: ClassVar[dict[str, float]] = {"prob": 0.5}
+    _lowest: ClassVar[float | None] = 0.0
 
     def _in_support(self, x):
         return (x == 0) | (x == 1)
@@ -775,6 +797,11 @@ class ZeroOneInflatedBeta(Beta):
         out = self.zero_mass + (1.0 - self._masses()) * beta
         return np.where(x[:, None] >= 1, 1.0, out)
 
+    def _cdf_below_values(self, x):
+        out = self._cdf_values(x)
+        out[x == 0] = 0.0
+        return np.where((x == 1)[:, None], 1.0 - self.one_mass, out)
+
     def sample(self, rng: np.random.Generator, states: np.ndarray) -> np.ndarray:
         """Draw one value per entry of ``states`` (n,) -> (n,)."""
         out = super().sample(rng, states)
@@ -808,6 +835,7 @@ class Categorical(_ValueFamily):
     name: ClassVar[str] = "categorical"
     _parameters: ClassVar[tuple[str, ...]] = ("prob",)
     _support: ClassVar[str] = "whole numbers 1..C (the categories)"
+    _lowest: ClassVar[float | None] = 1.0
 
     def __post_init__(self) -> None:
         try:
