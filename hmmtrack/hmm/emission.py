@@ -47,6 +47,7 @@ _NEWTON_MAX_ITER = 50  # Newton iterations per state and M-step (warm-started: 1
 # log-likelihood per row): below 1e-8 in total for 1e6 rows
 _NEWTON_GAIN = 1e-14
 _NEWTON_HALVINGS = 30  # step halvings before a state's M-step gives up
+_REMEMBERED = 8  # row derivatives kept per stream: the last few Newton points of each state
 _BLOCK_FIELDS = ("formula", "columns", "scaling", "levels", "values", "values_data_scale", "layout")
 _LAYOUT = (
     "rows: states; columns: 'columns' of the formula's design; on the parameter's link scale "
@@ -85,6 +86,25 @@ class EmissionRows:
     @functools.cached_property
     def _products(self) -> dict:
         return {}
+
+    @functools.cached_property
+    def _memory(self) -> dict:
+        return {}
+
+    def remembered(self, key: tuple):
+        """What :meth:`remember` kept under ``key``, or None."""
+        return self._memory.get(key)
+
+    def remember(self, key: tuple, arrays: tuple) -> tuple:
+        """Keep ``arrays`` (made read-only) under ``key``, the last 8 only: the row
+        densities and derivatives of a state's row distribution (key: the distribution's
+        structure and working block), which the next M-step and E-step ask for again."""
+        for array in arrays:
+            array.setflags(write=False)
+        self._memory[key] = arrays
+        while len(self._memory) > _REMEMBERED:
+            self._memory.pop(next(iter(self._memory)))
+        return arrays
 
     def products(self, left: str, right: str) -> np.ndarray:
         """Row-wise products of the columns of two designs, (p_left * p_right, T): the
@@ -249,8 +269,7 @@ class CovariateEmission:
         """Weighted log-likelihood of state ``k`` at its working block ``theta`` (p,), with
         its gradient (p,) and Hessian (p, p): ``X_j^T (w d log f / d eta_j)`` and
         ``X_j^T diag(w d2 log f / d eta_j d eta_l) X_l`` over the links j, l."""
-        row = self._row_distribution(k, rows, theta)
-        value, score, second = row.row_derivatives(rows.observations)
+        value, score, second = self._row_derivatives(k, rows, theta)
         names = [name for _, name in self._formula_names()]
         gradient = np.concatenate(
             [_cross(rows, name, w * score[j], None)[:, 0] for j, name in enumerate(names)]
@@ -263,6 +282,22 @@ class CovariateEmission:
         )
         return float(np.einsum("t,t->", w, value)), gradient, hessian
 
+    def _row_derivatives(self, k: int, rows: EmissionRows, theta: np.ndarray):
+        """``row_derivatives`` of state ``k``'s row distribution at working block ``theta``,
+        kept on ``rows`` (:meth:`EmissionRows.remembered`): an M-step starts where the last
+        one ended, and the E-step between them needs the same row densities."""
+        key = (self._key(), theta.tobytes())
+        found = rows.remembered(key)
+        if found is None:
+            row = self._row_distribution(k, rows, theta)
+            found = rows.remember(key, row.row_derivatives(rows.observations))
+        return found
+
+    def _key(self) -> tuple:
+        """What fixes the row distribution besides the working block: family, structure and
+        the parameters that have formulas."""
+        return (type(self.base), tuple(sorted(self.base._structure().items())), tuple(self.designs))
+
     def _formula_names(self) -> list[tuple[int, str | None]]:
         """Per link in order: (index, the parameter's name if it has a formula, else None)."""
         return [
@@ -274,7 +309,12 @@ class CovariateEmission:
         """Log-density of every row in every state, shape (T, K); missing rows 0.0."""
         out = np.empty((rows.n_obs, self.n_states))
         for k in range(self.n_states):
-            out[:, k] = self._row_distribution(k, rows).row_logpdf(rows.observations)
+            theta = self._state_working(k)
+            found = rows.remembered((self._key(), theta.tobytes()))
+            if found is None:
+                out[:, k] = self._row_distribution(k, rows, theta).row_logpdf(rows.observations)
+            else:
+                out[:, k] = found[0]
         return out
 
     def cdf(self, rows: EmissionRows) -> np.ndarray:
