@@ -164,10 +164,12 @@ def test_covariate_effects_are_recovered():
     )
 
 
-def test_serial_and_parallel_multistart_agree_bit_for_bit(simulated):
+@pytest.mark.parametrize("angle", ["vonmises", "wrappedcauchy"])  # threads, processes
+def test_serial_and_parallel_multistart_agree_bit_for_bit(simulated, angle):
     data = simulated.iloc[:3000]
-    serial = MovementHMMEstimator(2, n_starts=4, seed=99, n_jobs=1, polish=False).fit(data)
-    parallel = MovementHMMEstimator(2, n_starts=4, seed=99, n_jobs=2, polish=False).fit(data)
+    options = {"n_starts": 4, "seed": 99, "polish": False, "angle": angle}
+    serial = MovementHMMEstimator(2, n_jobs=1, **options).fit(data)
+    parallel = MovementHMMEstimator(2, n_jobs=2, **options).fit(data)
     assert serial.model_.to_dict() == parallel.model_.to_dict()
     for a, b in zip(serial.starts_, parallel.starts_, strict=True):
         assert a.log_likelihood == b.log_likelihood and a.monitor.history == b.monitor.history

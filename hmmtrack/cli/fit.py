@@ -250,7 +250,12 @@ def register(subparsers) -> None:
     )
     parser.add_argument("--starts", type=int, default=5, help="EM starts (default 5)")
     parser.add_argument("--seed", type=int, default=1, help="seed of the starts (default 1)")
-    parser.add_argument("--jobs", type=int, default=1, help="processes for the starts")
+    parser.add_argument(
+        "--jobs",
+        type=int,
+        default=1,
+        help="workers for the starts (threads for the fused EM, else processes)",
+    )
     parser.add_argument("--level", type=float, default=0.95, help="confidence level")
     add_state_names_argument(parser)
     parser.add_argument("-o", "--output", required=True, help="model JSON file to write")

@@ -49,6 +49,7 @@ __all__ = [
     "features_of",
     "fused_em",
     "load_kernel",
+    "takes_fused_path",
 ]
 
 #: features of the gamma / von Mises model, in column order before identical ones are merged
@@ -410,8 +411,8 @@ class FusedEM:
         )
 
 
-def fused_em(params, data) -> FusedEM | None:
-    """The fused EM of a fit starting at ``params`` on ``data``, or None for the general path.
+def takes_fused_path(params, data) -> bool:
+    """Whether a fit starting at ``params`` on ``data`` takes the fused EM.
 
     Parameters
     ----------
@@ -424,14 +425,20 @@ def fused_em(params, data) -> FusedEM | None:
     have other types) and no known states.
     """
     if params.n_states not in KERNELS or params.coefficients is not None:
-        return None
+        return False
     if data.design is not None:
-        return None
+        return False
     if type(params.step) is not Gamma or type(params.angle) is not VonMises:
-        return None
+        return False
     if params.streams or data.known is not None:
+        return False
+    # the general path refuses zero steps without zero-inflation
+    return params.step.zero_mass is not None or not data.prepared["step"].zero.any()
+
+
+def fused_em(params, data) -> FusedEM | None:
+    """The fused EM of a fit starting at ``params`` on ``data``, or None for the general path
+    (see :func:`takes_fused_path`)."""
+    if not takes_fused_path(params, data):
         return None
-    steps, angles = data.prepared["step"], data.prepared["angle"]
-    if params.step.zero_mass is None and steps.zero.any():
-        return None  # the general path refuses zero steps without zero-inflation
-    return FusedEM(steps, angles, data.lengths, params.n_states)
+    return FusedEM(data.prepared["step"], data.prepared["angle"], data.lengths, params.n_states)

@@ -6,9 +6,9 @@
 ``starts_``, ``monitor_``; ``predict``, ``predict_proba``, ``score``, ``sample``) and
 :func:`fit_movement_hmm` the one-call convenience. One fit is:
 
-1. for each of ``n_starts`` starts (seeds from ``SeedSequence.spawn``, run serially or in
-   ``n_jobs`` processes with identical results): random initial values, then EM -- the
-   E-step is :func:`hmmtrack.hmm.inference.forward_backward`, the M-step the weighted
+1. for each of ``n_starts`` starts (seeds from ``SeedSequence.spawn``, run serially or on
+   ``n_jobs`` threads or processes with identical results): random initial values, then EM --
+   the E-step is :func:`hmmtrack.hmm.inference.forward_backward`, the M-step the weighted
    maximum-likelihood fits of the emission families, the initial distribution and the
    transition matrix (closed form) or its logit coefficients (:mod:`~hmmtrack.hmm.covariates`);
    2-3 state gamma / von Mises models without covariates take one fused compiled pass per
@@ -712,7 +712,8 @@ class FitSpec:
     tol: float
     emission_designs: dict = field(default_factory=dict)  # {stream: {parameter: Design}}
     stream_families: dict = field(default_factory=dict)  # {further stream: family name}
-    start: Parameters | None = None  # the user's starting values of start 0
+    #: starting values of start 0 (the user's, or the deterministic ones a fit builds first)
+    start: Parameters | None = None
     constraints: con.Constraints | None = None  # fixed, tied, stationary (None: none)
 
     @property
@@ -771,11 +772,11 @@ def initial_parameters(rng: np.random.Generator | None, data: FitData, spec: Fit
 def run_start(index: int, seed: np.random.SeedSequence, data: FitData, spec: FitSpec):
     """One start, then EM; states ordered by mean step.
 
-    Start 0 uses the user's starting values (``spec.start``, projected onto the
-    constraints) or the deterministic equal-count ones, the others random ones drawn with a
-    generator from ``seed``. States keep their numbers when the constraints name them. With
-    a stationary initial distribution every start is polished (EM alone does not reach the
-    optimum then).
+    Start 0 uses ``spec.start`` (the user's starting values or the deterministic equal-count
+    ones a fit has built already; projected onto the constraints) or, without it, the
+    deterministic ones; the others random ones drawn with a generator from ``seed``. States
+    keep their numbers when the constraints name them. With a stationary initial
+    distribution every start is polished (EM alone does not reach the optimum then).
     """
     if index == 0 and spec.start is not None:
         start = spec.start
@@ -814,21 +815,33 @@ def _run_start_in_worker(task) -> StartResult:
 
 
 def run_starts(data: FitData, spec: FitSpec, n_starts: int, seed, n_jobs: int = 1):
-    """All starts, serially or in ``n_jobs`` processes; the same list either way.
+    """All starts, serially or on ``n_jobs`` workers; the same list either way.
 
-    Worker processes are forked where the platform allows (no re-import, no copy of the
-    data: they inherit it, and the compiled kernels, loaded first) and receive the data
-    once, through the pool's initializer, rather than with every start.
+    Fits that take the fused EM (no constraints and
+    :func:`~hmmtrack.hmm.em_kernels.takes_fused_path`, as in :func:`_em_steps`) run their
+    starts on threads: the fused kernel, most of an iteration's time, releases the GIL, and
+    threads start in microseconds where a process pool takes tens of milliseconds to fork
+    and to return its results. Other fits use worker processes, forked where the platform
+    allows (no re-import, no copy of the data: they inherit it, and the compiled kernels,
+    loaded first), which receive the data once, through the pool's initializer, rather than
+    with every start.
     """
     seeds = spawn(seed, n_starts)
     if n_jobs == 1 or n_starts == 1:
         return [run_start(i, s, data, spec) for i, s in enumerate(seeds)]
+    workers = min(n_jobs, n_starts)
+    template = spec.start if spec.start is not None else initial_parameters(None, data, spec)
+    if spec.constraints is None and em_kernels.takes_fused_path(template, data):
+        em_kernels.load_kernel(spec.n_states)
+        em_kernels.features_of(data.prepared["step"], data.prepared["angle"])  # shared, once
+        with concurrent.futures.ThreadPoolExecutor(workers) as pool:
+            return list(pool.map(lambda i, s: run_start(i, s, data, spec), range(n_starts), seeds))
     methods = multiprocessing.get_all_start_methods()
     context = multiprocessing.get_context("fork" if "fork" in methods else None)
     load_kernels()
     em_kernels.load_kernel(spec.n_states)
     with concurrent.futures.ProcessPoolExecutor(
-        min(n_jobs, n_starts), mp_context=context, initializer=_set_worker_data, initargs=(data,)
+        workers, mp_context=context, initializer=_set_worker_data, initargs=(data,)
     ) as pool:
         return list(pool.map(_run_start_in_worker, [(i, s, spec) for i, s in enumerate(seeds)]))
 
@@ -1045,7 +1058,8 @@ class MovementHMMEstimator:
     seed : int, SeedSequence or None
         Seed of the starts (children by ``SeedSequence.spawn``).
     n_jobs : int
-        Processes for the starts; results do not depend on it.
+        Workers for the starts (threads when the fit takes the fused EM, else processes;
+        :func:`run_starts`); results do not depend on it.
     max_iter : int
         EM iterations per start.
     tol : float
@@ -1251,7 +1265,8 @@ class MovementHMMEstimator:
             first = None if data.design is None else data.design[:1]
             spec = replace(spec, constraints=con.Constraints(control, template, columns, first))
         if self.start is not None:
-            spec = replace(spec, start=_matching_start(parameters_of(self.start), template))
+            template = _matching_start(parameters_of(self.start), template)
+        spec = replace(spec, start=template)
         starts = run_starts(data, spec, int(self.n_starts), self.seed, int(self.n_jobs))
         failed = [s for s in starts if s.error is not None]
         if len(failed) == len(starts):
