@@ -388,7 +388,7 @@ def _gamma_shape_mle(s: np.ndarray) -> np.ndarray:
     k = (3.0 - s + np.sqrt((s - 3.0) ** 2 + 24.0 * s)) / (12.0 * s)
     for _ in range(_NEWTON_MAX_ITER):
         f = np.log(k) - special.digamma(k) - s
-        fprime = 1.0 / k - special.polygamma(1, k)
+        fprime = 1.0 / k - special.zeta(2.0, k)  # trigamma: polygamma(1, k) without its wrapper
         k_new = k - f / fprime
         k_new = np.where(k_new > 0, k_new, k / 2.0)
         done = np.all(np.abs(k_new - k) <= _NEWTON_TOL * k_new)
