@@ -1,5 +1,8 @@
 """Tests of hmmtrack.hmm.em_kernels: the fused E-step against forward-backward (and
-hmmlearn), its closed-form M-step against the general M-step, the dispatch and whole fits."""
+hmmlearn), the 2-state kernel against the general one, its closed-form M-step against the
+general M-step, the dispatch and whole fits."""
+
+import functools
 
 import numpy as np
 import pandas as pd
@@ -58,10 +61,13 @@ def reference_features(data) -> dict:
     }
 
 
+STATES = st.sampled_from([2, 3])
+
+
 @st.composite
-def cases(draw):
+def cases(draw, n_states=STATES):
     seed = draw(st.integers(0, 2**32 - 1))
-    n_states = draw(st.sampled_from([2, 3]))
+    n_states = draw(n_states)
     lengths = draw(st.lists(st.integers(1, 40), min_size=1, max_size=4))
     options = draw(st.tuples(st.booleans(), st.booleans(), st.booleans()))
     return random_case(np.random.default_rng(seed), n_states, lengths, *options)
@@ -122,6 +128,45 @@ def test_fused_e_step_agrees_with_hmmlearn():
         totals.append(total)
     statistics = em_kernels.fused_em(params, data).expectation(params)
     assert statistics.log_likelihood == pytest.approx(sum(totals), rel=1e-10)
+
+
+@functools.cache
+def general_kernel(n_states):
+    """The loop kernel of :func:`em_kernels._compile_pass`, which 2 states do not use."""
+    return em_kernels._compile_pass(n_states)
+
+
+@settings(max_examples=40, deadline=None)
+@given(cases(st.just(2)), st.sampled_from([(), (0,), (0, 1)]))
+def test_two_state_kernel_gives_the_general_kernels_bits(case, impossible_zero):
+    data, params = case
+    if params.step.zero_mass is not None:  # zero steps impossible in no, one or both states
+        zero_mass = params.step.zero_mass.copy()
+        zero_mass[list(impossible_zero)] = 0.0
+        step = Gamma(params.step.mean, params.step.sd, zero_mass)
+        params = fitting.Parameters(params.initial, params.transition, None, step, params.angle)
+    fused = em_kernels.fused_em(params, data)
+    coefficients = fused.coefficients(params.step, params.angle)
+    outputs = [
+        kernel(
+            fused.features,
+            coefficients,
+            np.array(params.initial),
+            np.array(params.transition),
+            fused.starts,
+            fused.ends,
+            np.empty_like(fused.lik),
+            np.empty_like(fused.filtered),
+            np.empty_like(fused.scale),
+            bool(np.isneginf(coefficients).any()),
+        )
+        for kernel in (em_kernels.KERNELS[2], general_kernel(2))
+    ]
+    two, general = outputs
+    np.testing.assert_array_equal(two[0], general[0])  # log-likelihood
+    for a, b in zip(two[1:4], general[1:4], strict=True):
+        np.testing.assert_array_equal(a, b)
+    assert two[4:] == general[4:]  # the same bad or impossible row, or none
 
 
 def test_features_merge_equal_indicators_and_drop_empty_ones():
