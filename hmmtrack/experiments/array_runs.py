@@ -160,8 +160,11 @@ def _config(measurement, case: TaggedArray, clocks, receivers, n_particles, sett
             receivers["y"].max() + MARGIN,
         ),
     }
-    if "sound_speed" in section_classes("measurement")[measurement].keys():
+    measurement_keys = section_classes("measurement")[measurement].keys()
+    if "sound_speed" in measurement_keys:
         keys["sound_speed"] = float(np.mean(clocks.sound_speed))
+    if "burst_sequence" in measurement_keys:
+        keys["burst_sequence"] = tuple(case.sequence)
     return TrackingConfig.from_keys(**(keys | dict(settings)))
 
 
