@@ -192,7 +192,7 @@ def test_track_with_a_burst_sequence_file_round_trip(tag_files, tmp_path, capsys
     "change, message",
     [
         (["--period", "30"], "--period is used with --measurement range-rate or arrival-time"),
-        (["--burst-interval", "20", "40"], "burst_interval is for tags whose sequence is unknown"),
+        (["--burst-interval", "20", "40"], "--burst-interval is used with --measurement ping only"),
         (["--measurement", "ping"], "--burst-sequence is used with --measurement ping-sequence"),
     ],
 )

@@ -545,6 +545,8 @@ class PingSequenceSettings(PingSettings):
 
     name: ClassVar[str] = "ping-sequence"
 
+    # not an option of this measurement (the command line refuses --burst-interval with it)
+    burst_interval: tuple[float, float] | None = None
     burst_sequence: str | tuple[float, ...] | None = setting(
         None,
         help=(
