@@ -66,6 +66,7 @@ from hmmtrack.tracking.measurement.tdoa import (
     STEPS_PER_SD,
     PingSettings,
     PingTDOA,
+    cluster_excess,
     gaussian_ping_loglik,
     ping_loglik,
 )
@@ -322,33 +323,23 @@ def _truncated_normal(mu, var, lo, hi):
 @njit(cache=True)
 def _prior_cluster(s, a, b, mu, var, sigma, log_peak):
     """``log ∫_a^b N(T; mu, var) (Π_i (1 + q_i(T)) − 1) dT`` and the first two moments of
-    ``T − mu`` under it (``q_i`` as in the ping measurement's cluster integral); trapezoid
-    with :data:`~hmmtrack.tracking.measurement.tdoa.STEPS_PER_SD` steps per the narrower of
-    the product bump (``σ/√m``) and the prior (``√var``)."""
+    ``T − mu`` under it (``q_i`` as in
+    :func:`~hmmtrack.tracking.measurement.tdoa.cluster_excess`); trapezoid with
+    :data:`~hmmtrack.tracking.measurement.tdoa.STEPS_PER_SD` steps per the narrower of the
+    product bump (``σ/√m``) and the prior (``√var``)."""
     m = s.size
     width = min(sigma / math.sqrt(m), math.sqrt(var)) / STEPS_PER_SD
     steps = int(math.ceil((b - a) / width)) + 1
     h = (b - a) / steps
-    c = max(log_peak, 0.0) + math.log(2.0)
-    reach = math.sqrt(2.0 * (max(log_peak, 0.0) + 40.0))  # |z| beyond: 1 + q == 1
+    excess, c = cluster_excess(s, a, h, steps, sigma, log_peak)
     centre = min(max(mu, a), b)
     top = -0.5 * (centre - mu) ** 2 / var  # the prior's largest log density on [a, b]
     total = first = second = 0.0
     for k in range(steps + 1):
-        t = a + k * h
-        log_product = 0.0
-        for i in range(m):
-            z = (s[i] - t) / sigma
-            if abs(z) < reach:
-                log_product += math.log1p(math.exp(log_peak - 0.5 * z * z)) - c
-            else:
-                log_product -= c
-        value = (math.exp(log_product) - math.exp(-m * c)) * math.exp(
-            -0.5 * (t - mu) ** 2 / var - top
-        )
+        d = a + k * h - mu
+        value = excess[k] * math.exp(-0.5 * d * d / var - top)
         if k == 0 or k == steps:
             value *= 0.5
-        d = t - mu
         total += value
         first += value * d
         second += value * d * d
