@@ -40,16 +40,13 @@ def brute_force(residual, mu, var, sigma, fraction, half_width):
 @pytest.mark.parametrize("trial", range(16))
 def test_integral_with_the_clock_prior_equals_brute_force_quadrature(trial):
     rng = np.random.default_rng(trial)
-    n = int(rng.integers(1, 8))
-    sigma = 10 ** rng.uniform(-4, -2.7)
-    fraction = rng.uniform(0.01, 0.3)
-    true = rng.uniform(-0.2, 0.2)
-    residual = true + rng.normal(0, sigma, n)
-    outliers = rng.random(n) < 0.3
-    residual[outliers] += rng.uniform(-0.2, 0.2, outliers.sum())
-    # the particle's clock: from nearly flat (first ping) to sharper than the core
-    sd = 10 ** rng.uniform(-4, 0)
-    mu = true + rng.normal(0, sd) * rng.choice([0.5, 3.0])
+    # core sd 0.1-2 ms, 1-30 % outliers; the particle's clock sd from sharper than the core
+    # to nearly flat (the first ping), its mean within half or three of its sds
+    log_sigma, fraction, true, log_sd = rng.uniform([-4, 0.01, -0.2, -4], [-2.7, 0.3, 0.2, 0])
+    sigma, sd = 10**log_sigma, 10**log_sd
+    scattered = rng.random(1 + trial % 7) < 0.3  # multipath: residuals 0.2 s either way
+    residual = true + rng.normal(0, sigma, scattered.size) + scattered * rng.uniform(-0.2, 0.2)
+    mu = true + rng.normal(0, sd) * (0.5 if trial % 2 else 3.0)
     log_l, mean, var = sequence_ping_integral(residual, mu, sd**2, sigma, fraction, 0.5)
     expected, expected_mean, expected_var = brute_force(residual, mu, sd**2, sigma, fraction, 0.5)
     assert log_l == pytest.approx(expected, abs=1e-6)
