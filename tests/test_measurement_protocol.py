@@ -71,7 +71,21 @@ def ping_case() -> Case:
     return dataclasses.replace(case, config=config)
 
 
-CASES = {"range-rate": range_rate_case, "arrival-time": arrival_time_case, "ping": ping_case}
+def ping_sequence_case() -> Case:
+    """The ping case with the tag's emissions as a known sequence: a fixed-period tag is a
+    sequence of one interval (its clock's wander is the drift the alignment follows)."""
+    case = ping_case()
+    period = arrival_time_case().config.measurement.period
+    config = case.config.override(measurement="ping-sequence", burst_sequence=(period,))
+    return dataclasses.replace(case, config=config)
+
+
+CASES = {
+    "range-rate": range_rate_case,
+    "arrival-time": arrival_time_case,
+    "ping": ping_case,
+    "ping-sequence": ping_sequence_case,
+}
 
 
 @pytest.fixture(scope="module", params=sorted(MEASUREMENTS))
@@ -230,7 +244,11 @@ def test_track_runs_every_measurement_to_the_tag(built):
     assert len(estimates) == int(case.config.end - case.config.start) + 1
     assert np.isfinite(estimates[["x", "y", "sqrt_lambda1"]].to_numpy()).all()
     collected = [f for f in ("ambiguity", "clock", "pings") if getattr(result, f) is not None]
-    expected = {"arrival-time": ["ambiguity", "clock"], "ping": ["pings"]}
+    expected = {
+        "arrival-time": ["ambiguity", "clock"],
+        "ping": ["pings"],
+        "ping-sequence": ["pings"],
+    }
     assert collected == expected.get(name, [])
     last = estimates.iloc[-1]
     x, y = (float(v[0]) for v in truth_at(case.truth, np.array([last["time"]])))

@@ -16,6 +16,7 @@ import hmmtrack.io.detections
 import hmmtrack.io.estimates
 import hmmtrack.io.geo
 import hmmtrack.io.receivers
+import hmmtrack.io.sequence
 import hmmtrack.io.times
 import hmmtrack.io.tracks
 from hmmtrack import hmm, io, tracks
@@ -29,6 +30,7 @@ IO_FACE = {
     "VUE_COLUMNS": hmmtrack.io.detections,
     "read_receivers": hmmtrack.io.receivers,
     "validate_receivers": hmmtrack.io.receivers,
+    "read_burst_sequence": hmmtrack.io.sequence,
     "write_estimates": hmmtrack.io.estimates,
     "read_truth": hmmtrack.io.estimates,
     "parse_times": hmmtrack.io.times,

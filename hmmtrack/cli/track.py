@@ -220,7 +220,9 @@ def register(subparsers) -> None:
             "range-rate (default): the paper's ranges and range-rates (needs --r0); "
             "arrival-time: the tag's emission clock in the particle state, no initial range; "
             "ping (the default with --burst-interval): each ping's arrivals at several receivers "
-            "scored on their time differences, for random-interval tags"
+            "scored on their time differences, for random-interval tags; ping-sequence (the "
+            "default with --burst-sequence): the same with the emission times of a known "
+            "pseudo-random interval sequence"
         ),
     )
     parser.add_argument(
@@ -239,7 +241,7 @@ def register(subparsers) -> None:
         "--per-ping",
         metavar="FILE",
         help=(
-            "CSV of every ping heard (ping measurement): estimated emission time, x, y, their "
+            "CSV of every ping heard (ping measurements): estimated emission time, x, y, their "
             "sds, the receivers that heard it, and the smoothed position with --smooth"
         ),
     )
@@ -249,7 +251,9 @@ def register(subparsers) -> None:
 def _given(args: argparse.Namespace) -> dict:
     """The settings given as options, by key (``r0`` pairs as a mapping)."""
     given = {key: getattr(args, key) for key in ("measurement", "motion")}
-    if given["measurement"] is None and args.burst_interval is not None:
+    if given["measurement"] is None and args.burst_sequence is not None:
+        given["measurement"] = "ping-sequence"  # a known sequence is the ping-sequence's
+    elif given["measurement"] is None and args.burst_interval is not None:
         given["measurement"] = "ping"  # a random burst interval is the ping measurement's
     for option in settings_options():
         value = getattr(args, option.key)
@@ -288,7 +292,7 @@ def build_config(args: argparse.Namespace) -> TrackingConfig:
             _check_used(option, settings)
     if not args.config:
         measurement = settings.get("measurement", {})
-        needed = {"range-rate": ("period", "r0"), "ping": ()}.get(
+        needed = {"range-rate": ("period", "r0"), "ping": (), "ping-sequence": ()}.get(
             measurement.get("name", "range-rate"), ("period",)
         )
         missing = [f"--{k}" for k in needed if k not in measurement]
@@ -395,9 +399,12 @@ def run(args: argparse.Namespace) -> int:
     inputs = {"--detections": args.detections, "--receivers": args.receivers}
     inputs |= {"--config": args.config, "--model": args.model, "--truth": args.truth}
     inputs |= {"--clocks": config.clocks}
-    if args.per_ping and config.measurement.name != "ping":
+    sequence = getattr(config.measurement, "burst_sequence", None)
+    if isinstance(sequence, str):
+        inputs["--burst-sequence"] = sequence
+    if args.per_ping and config.measurement.name not in ("ping", "ping-sequence"):
         raise UserInputError(
-            f"--per-ping is used with --measurement ping only (this run's is "
+            f"--per-ping is used with --measurement ping or ping-sequence only (this run's is "
             f"{config.measurement.name})"
         )
     check_paths(

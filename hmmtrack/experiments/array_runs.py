@@ -28,6 +28,7 @@ from hmmtrack.analysis.metrics import position_error
 from hmmtrack.scenarios.array import TaggedArray, tagged_array
 from hmmtrack.sync import apply_clocks, fit_clocks
 from hmmtrack.tracking.config import TrackingConfig, section_classes
+from hmmtrack.tracking.measurement.detection import LogisticDetection
 from hmmtrack.tracking.measurement.tdoa import per_ping_table
 from hmmtrack.tracking.pipeline import track
 
@@ -37,6 +38,13 @@ KEEPER = "rx-01"
 SKIP = 300.0
 #: the array of the runs: 3 x 3 receivers 100 m apart, 12 h of sync tags, 1 % echoes
 ARRAY = {"rows": 3, "columns": 3, "duration": 43200.0, "echo_fraction": 0.01}
+#: a sparser array: 3 x 3 receivers 200 m apart (sync tags heard as in :data:`ARRAY`) and a
+#: quieter tag heard to about 170 m, so that a ping is heard by 1-4 receivers (mostly 2-3)
+#: and its emission time matters
+SPARSE_ARRAY = ARRAY | {
+    "spacing": 200.0,
+    "tag_detection": LogisticDetection(range_50=170.0, width=20.0),
+}
 #: the search box's margin around the receivers (m)
 MARGIN = 100.0
 
@@ -51,6 +59,7 @@ def array_bound_ratios(
     n_particles: int = 2000,
     settings: Mapping | None = None,
     bound_emission: str = "random",
+    array: Mapping = ARRAY,
 ) -> pd.DataFrame:
     """Error and bound of ``measurement`` on simulated moored arrays, per dataset and seed.
 
@@ -72,6 +81,10 @@ def array_bound_ratios(
         e.g. ``{"period": 30.0}`` for ``"arrival-time"``; they win over the run's own.
     bound_emission : {"random", "sequence"}
         The bound's emission model (:func:`~hmmtrack.analysis.crb.tdoa_bound`).
+    array : mapping
+        Options of :func:`~hmmtrack.scenarios.array.tagged_array` and
+        :func:`~hmmtrack.scenarios.array.moored_sync_array` (default
+        :data:`ARRAY`; :data:`SPARSE_ARRAY`: pings heard by 1-4 receivers).
 
     Returns
     -------
@@ -86,12 +99,13 @@ def array_bound_ratios(
         ``per_ping_rms_error_m`` (the position right after each heard ping's correction, at
         its emission), ``per_ping_bound_m`` and ``per_ping_ratio``: the per-second estimate
         at an emission is a prediction made before the ping arrived, so only these compare
-        with the filtering bound; ``seconds`` (wall time of the filter).
+        with the filtering bound, and ``heard_per_ping`` (mean receivers per ping heard);
+        ``seconds`` (wall time of the filter).
     """
     rows = []
     for dataset in datasets:
         case = tagged_array(
-            dataset, burst_interval=burst_interval, tag_duration=tag_duration, **ARRAY
+            dataset, burst_interval=burst_interval, tag_duration=tag_duration, **array
         )
         fit = fit_clocks(
             case.detections, case.array.receivers, time_keeper=KEEPER, refine_positions=3.0
@@ -133,6 +147,7 @@ def array_bound_ratios(
                 row["per_ping_rms_error_m"] = error
                 row["per_ping_bound_m"] = _rms(bound.loc[at, "filter_position_m"])
                 row["per_ping_ratio"] = error / row["per_ping_bound_m"]
+                row["heard_per_ping"] = float(result.observations.groupby("ping").size().mean())
             if result.smoothed is not None:
                 smoothed = _rms_at(result.smoothed, truth, pings[late])
                 row["smoothed_rms_error_m"] = smoothed
@@ -140,6 +155,53 @@ def array_bound_ratios(
                 row["smoothed_ratio"] = smoothed / row["smoother_bound_m"]
             rows.append(row | {"seconds": seconds})
     return pd.DataFrame(rows)
+
+
+def sequence_versus_random(
+    *,
+    datasets: Sequence[int] = (1, 2, 3),
+    seeds: Sequence[int] = (1, 2),
+    burst_interval: tuple[float, float] = (20.0, 40.0),
+    n_particles: int = 2000,
+    settings: Mapping | None = None,
+    array: Mapping = SPARSE_ARRAY,
+    tag_duration: float = 1800.0,
+) -> pd.DataFrame:
+    """The same pings tracked as a random-interval tag (``"ping"``) and with its known
+    sequence (``"ping-sequence"``), each beside its own bound.
+
+    Parameters
+    ----------
+    datasets, seeds, burst_interval, n_particles, array, tag_duration
+        As :func:`array_bound_ratios` (the tag's intervals a pseudo-random sequence drawn
+        in ``burst_interval``).
+    settings : mapping, optional
+        Settings of both measurements (e.g. ``arrival_sigma``).
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per dataset, seed and model (``"random"``, ``"sequence"``): the columns of
+        :func:`array_bound_ratios`, the bound that of the model's emission.
+    """
+    options = dict(
+        datasets=datasets,
+        seeds=seeds,
+        burst_interval=burst_interval,
+        n_particles=n_particles,
+        array=array,
+        tag_duration=tag_duration,
+    )
+    shared = dict(settings or {})
+    random = array_bound_ratios(
+        "ping", settings=shared | {"burst_interval": burst_interval}, **options
+    )
+    sequence = array_bound_ratios(
+        "ping-sequence", settings=shared, bound_emission="sequence", **options
+    )
+    random.insert(0, "model", "random")
+    sequence.insert(0, "model", "sequence")
+    return pd.concat([random, sequence], ignore_index=True)
 
 
 def _config(measurement, case: TaggedArray, clocks, receivers, n_particles, settings):
@@ -160,8 +222,11 @@ def _config(measurement, case: TaggedArray, clocks, receivers, n_particles, sett
             receivers["y"].max() + MARGIN,
         ),
     }
-    if "sound_speed" in section_classes("measurement")[measurement].keys():
+    measurement_keys = section_classes("measurement")[measurement].keys()
+    if "sound_speed" in measurement_keys:
         keys["sound_speed"] = float(np.mean(clocks.sound_speed))
+    if "burst_sequence" in measurement_keys:
+        keys["burst_sequence"] = tuple(case.sequence)
     return TrackingConfig.from_keys(**(keys | dict(settings)))
 
 

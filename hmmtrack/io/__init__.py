@@ -17,6 +17,8 @@ Readers and writers (the names below are the package's public face)
 * :func:`read_receivers` -- GPS tracks of mobile receivers, or one row per moored receiver;
   :func:`validate_receivers` checks such a table; :func:`receivers_from_yaps_hydros` turns
   a YAPS hydros table into one (:mod:`.receivers`).
+* :func:`read_burst_sequence` -- the interval sequence of a tag with a known pseudo-random
+  burst interval (:mod:`.sequence`).
 * :func:`write_estimates` -- the filter's estimates with ISO 8601 UTC times (and lon/lat);
   :func:`read_truth` -- a truth track to score them against (:mod:`.estimates`).
 * :func:`parse_times`, :func:`format_times` -- ISO 8601 UTC <-> epoch seconds
@@ -46,6 +48,7 @@ from hmmtrack.io.detections import (
 from hmmtrack.io.estimates import EstimatesWriter, read_truth, write_estimates
 from hmmtrack.io.geo import Projection, bounds_in_metres, choose_projection
 from hmmtrack.io.receivers import read_receivers, receivers_from_yaps_hydros, validate_receivers
+from hmmtrack.io.sequence import read_burst_sequence
 from hmmtrack.io.times import format_times, parse_times
 from hmmtrack.io.tracks import read_movebank, read_tracks
 
@@ -58,6 +61,7 @@ __all__ = [
     "detect_format",
     "drop_duplicate_detections",
     "format_times",
+    "read_burst_sequence",
     "parse_times",
     "read_detections",
     "read_movebank",

@@ -19,7 +19,7 @@ detection probability, receiver clocks).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pandas as pd
@@ -360,6 +360,7 @@ def tagged_array(
     tag_duration: float = 7200.0,
     tag_speed: float = 0.5,
     transmitter: str = "A69-1602-1000",
+    tag_detection: LogisticDetection | None = None,
     **array_options,
 ) -> TaggedArray:
     """A tag moving inside a simulated moored array, heard as the sync tags are.
@@ -388,6 +389,9 @@ def tagged_array(
     tag_speed : float
         m/s.
     transmitter : str
+    tag_detection : LogisticDetection, optional
+        Detection probability of the tag by range, when it is heard less far than the sync
+        tags (a smaller, quieter tag); default the array's.
     **array_options
         Of :func:`moored_sync_array`.
 
@@ -410,7 +414,10 @@ def tagged_array(
     gaps = sequence[(first + np.arange(n)) % sequence_length]
     emission = start + rng.uniform(0.0, high) + np.concatenate([[0.0], np.cumsum(gaps)])
     emission = emission[emission < start + tag_duration]
-    pings, heard = array.listening.hear(rng, path, emission, transmitter)
+    listening = array.listening
+    if tag_detection is not None:
+        listening = replace(listening, curves=dict.fromkeys(listening.curves, tag_detection))
+    pings, heard = listening.hear(rng, path, emission, transmitter)
     detections = pd.concat([array.detections, heard], ignore_index=True)
     detections = detections.sort_values(["time", "receiver"], kind="stable")
     seconds = start + np.arange(int(tag_duration) + 1, dtype=float)

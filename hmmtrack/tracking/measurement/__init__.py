@@ -7,13 +7,17 @@ ranges and range-rates (:mod:`~hmmtrack.tracking.measurement.range_rate`), and
 ``"arrival-time"``, arrival times scored against an emission clock carried by every particle
 (:mod:`~hmmtrack.tracking.measurement.clocked`), and ``"ping"``, the detections of one emission
 scored jointly on their time differences, the emission time integrated out, for tags with a
-random burst interval (:mod:`~hmmtrack.tracking.measurement.tdoa`). A new measurement registers
-here.
+random burst interval (:mod:`~hmmtrack.tracking.measurement.tdoa`), and ``"ping-sequence"``, the
+same for a tag with a known pseudo-random interval sequence, its emission times known up to the
+tag's clock (:mod:`~hmmtrack.tracking.measurement.sequence`). A new measurement registers here.
 """
 
 from hmmtrack.tracking.measurement.clocked import ClockedArrivalTime
 from hmmtrack.tracking.measurement.range_rate import RangeRateMeasurement
+from hmmtrack.tracking.measurement.sequence import PingSequence
 from hmmtrack.tracking.measurement.tdoa import PingTDOA
 
 #: measurement classes by name
-MEASUREMENTS = {cls.name: cls for cls in (RangeRateMeasurement, ClockedArrivalTime, PingTDOA)}
+MEASUREMENTS = {
+    cls.name: cls for cls in (RangeRateMeasurement, ClockedArrivalTime, PingTDOA, PingSequence)
+}

@@ -79,6 +79,7 @@ from hmmtrack.tracking.tempering import Tempered
 
 __all__ = [
     "CLUSTER_SIGMAS",
+    "STEPS_PER_SD",
     "PING_TRACE_COLUMNS",
     "ARRIVAL_SIGMA",
     "OUTLIER_FRACTION",
@@ -86,6 +87,7 @@ __all__ = [
     "PingState",
     "PingTDOA",
     "PingTrace",
+    "cluster_excess",
     "gaussian_ping_loglik",
     "ping_integral",
     "per_ping_table",
@@ -143,20 +145,25 @@ def _log_add(a, b):
 
 
 @njit(cache=True)
-def _cluster_integral(s, a, b, sigma, log_peak):
-    """``log ∫_a^b (Π_i (1 + q_i(T)) − 1) dT`` and the mean of ``T`` under it, where
-    ``q_i = exp(log_peak − (s_i − T)²/(2σ²))``: one cluster's excess over every arrival
-    being an outlier (:func:`ping_integral`).
+def cluster_excess(s, a, h, steps, sigma, log_peak):
+    """``e^(−m·c) (Π_i (1 + q_i(T_k)) − 1)`` on the nodes ``T_k = a + k·h`` (k = 0..steps),
+    with ``q_i = exp(log_peak − (s_i − T)²/(2σ²))`` over the ``m`` residuals ``s``: a
+    cluster's excess over every arrival being an outlier, scaled.
 
-    Trapezoidal rule with :data:`STEPS_PER_SD` steps per ``σ/√m``. Each ``q_i`` is stepped
-    along the grid by two multiplications (a Gaussian's ratio between neighbouring nodes
-    is itself geometric), started by ``exp`` where it first exceeds ``e^-40`` (below that
-    ``1 + q_i`` is 1 in double precision); the product is scaled by ``e^-c`` per factor
-    (``c ≥ log(1 + q)``) so that it cannot overflow for any number of receivers.
+    Each ``q_i`` is stepped along the grid by two multiplications (a Gaussian's ratio
+    between neighbouring nodes is itself geometric), started by ``exp`` where it first
+    exceeds ``e^-40`` (below that ``1 + q_i`` is 1 in double precision); the scaling by
+    ``e^-c`` (``c ≥ log(1 + q)``) keeps the product from overflowing for any number of
+    receivers.
+
+    Returns
+    -------
+    excess : (steps + 1,) float array
+        The scaled excess at each node.
+    c : float
+        The scale's exponent per factor (``c ≥ log 2``).
     """
     m = s.size
-    steps = int(math.ceil((b - a) / (sigma / (STEPS_PER_SD * math.sqrt(m))))) + 1
-    h = (b - a) / steps
     delta = h / sigma
     c = max(log_peak, 0.0) + math.log(2.0)
     scale = math.exp(-c)
@@ -182,10 +189,26 @@ def _cluster_integral(s, a, b, sigma, log_peak):
     powers[0] = 1.0
     for j in range(m):
         powers[j + 1] = powers[j] * scale
+    return product * powers[m - active] - powers[m], c
+
+
+@njit(cache=True)
+def _cluster_integral(s, a, b, sigma, log_peak):
+    """``log ∫_a^b (Π_i (1 + q_i(T)) − 1) dT`` and the mean of ``T`` under it, where
+    ``q_i = exp(log_peak − (s_i − T)²/(2σ²))``: one cluster's excess over every arrival
+    being an outlier (:func:`ping_integral`).
+
+    Trapezoidal rule with :data:`STEPS_PER_SD` steps per ``σ/√m`` over
+    :func:`cluster_excess`.
+    """
+    m = s.size
+    steps = int(math.ceil((b - a) / (sigma / (STEPS_PER_SD * math.sqrt(m))))) + 1
+    h = (b - a) / steps
+    excess, c = cluster_excess(s, a, h, steps, sigma, log_peak)
     total = 0.0
     weighted = 0.0
     for k in range(steps + 1):
-        value = product[k] * powers[m - active[k]] - powers[m]
+        value = excess[k]
         if k == 0 or k == steps:
             value *= 0.5
         total += value

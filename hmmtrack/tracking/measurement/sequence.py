@@ -1,0 +1,696 @@
+"""The ping measurement of a tag with a known pseudo-random burst-interval sequence (YAPS's
+"pbi"): the sequence aligned to the pings, and every ping scored with its emission time
+known up to the tag's clock offset and drift.
+
+**Alignment** (:func:`align_sequence`). The tag waits ``sequence[(phase + k) % L]`` seconds
+after its ``k``-th ping. Grouped into pings (:mod:`hmmtrack.tracking.measurement.pings`),
+the first arrivals ``g_j`` are emissions plus a travel time of at most the grouping window,
+and some pings are never heard. For every phase ``p`` and an anchor ping (one of the first
+:data:`ANCHORS`, so that a spurious first group cannot spoil it), the pings are walked in
+time order: each is given the number of sequence steps ``n`` whose scheduled time
+``g_anchor + a + (1 + b)·c_p(n)`` (``c_p(n)`` the sum of ``n`` intervals from ``p``) is
+nearest, and counts as matched when it is within the window and later than the previous
+match; ``a`` and the tag's drift ``b`` (relative to the receivers' time base) are refitted
+after every match by least squares with a ``N(0, DRIFT_SD²)`` prior on ``b`` (so that two
+close pings cannot tilt the schedule), which follows a drifting tag over hours. The phase
+with the most matches wins; its schedule gives each matched ping a ``scheduled`` time (the
+alignment's estimate of its emission, off by about the travel time to the nearest
+receiver). A wrong phase matches a ping only by chance (a window of a few tenths of a second
+in intervals of tens of seconds), the right one nearly all; fewer than half the pings matched
+is refused as "no alignment". The walk is vectorised over phases, a few milliseconds per ping.
+
+**Scoring** (:class:`PingSequence`, the ``"ping-sequence"`` measurement). The emission of a
+matched ping is ``scheduled + u + j``: ``u`` the tag's offset from the aligned schedule, which
+every particle carries as a Kalman filter conditioned on its path (a Rao-Blackwellised tag
+clock), with its drift ``b``: between pings ``Δ`` scheduled seconds apart ``u ← u + b·Δ`` plus
+random walks of ``u`` and ``b`` (:data:`PHASE_DENSITY`, :data:`DRIFT_DENSITY`), and ``j`` the
+emission's own jitter (:data:`EMISSION_JITTER`, not carried over). Offset and drift are not
+integrated out in closed form because the arrivals' residual density is a Gaussian core with
+a uniform outlier (:mod:`hmmtrack.tracking.measurement.tdoa`): the ping's likelihood given a
+particle's position and clock is
+
+    ℓ(x) = ∫ N(T; û, P_uu + J²) Π_i p(r_i − T) dT,   r_i = t_i − d_i(x)/c − scheduled,
+
+the flat-prior integral of the ping measurement with the particle's predicted emission as
+prior. It is exact: closed form without outliers, otherwise the same clusters of residuals as
+:func:`~hmmtrack.tracking.measurement.tdoa.ping_integral` with the prior in the trapezoid
+(:func:`sequence_ping_integral`, checked against ``scipy.integrate.quad``). The clock is then
+updated by the posterior mean and variance of ``T`` (exact without outliers; the
+moment-matched Gaussian with them). Before the first ping the offset's prior is
+:data:`OFFSET_SD` (flat at the milliseconds of the arrivals: the first ping sets each
+particle's offset from its position, as the arrival-time measurement's clock starts), so
+the first ping weighs as in the random-interval model and every later one also by its
+emission time: one receiver then places the tag on a range circle, two on a point pair.
+Pings the alignment did not match are scored as random-interval pings
+(:func:`~hmmtrack.tracking.measurement.tdoa.ping_loglik`), clock untouched.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+import pandas as pd
+from numba import njit
+
+from hmmtrack.io import read_burst_sequence
+from hmmtrack.tracking.measurement.arrival_time import emission_distance, vertical_parts
+from hmmtrack.tracking.measurement.base import Score
+from hmmtrack.tracking.measurement.clocked import receiver_tracks
+from hmmtrack.tracking.measurement.pings import ping_observations
+from hmmtrack.tracking.measurement.tdoa import (
+    CLUSTER_SIGMAS,
+    STEPS_PER_SD,
+    PingSettings,
+    PingTDOA,
+    cluster_excess,
+    gaussian_ping_loglik,
+    ping_loglik,
+)
+from hmmtrack.tracking.settings import positive, setting
+
+__all__ = [
+    "ANCHORS",
+    "DRIFT_SD",
+    "EMISSION_JITTER",
+    "OFFSET_SD",
+    "SEQUENCE_FIELDS",
+    "PingSequence",
+    "PingSequenceSettings",
+    "SequenceAlignment",
+    "SequenceState",
+    "align_sequence",
+    "sequence_observations",
+    "sequence_ping_integral",
+]
+
+logger = logging.getLogger(__name__)
+
+#: particle fields: the tag's offset from the aligned schedule (s), its drift, and their
+#: covariance (s², s, 1)
+SEQUENCE_FIELDS = (
+    "sequence_offset",
+    "sequence_drift",
+    "sequence_var_offset",
+    "sequence_cov",
+    "sequence_var_drift",
+)
+#: the first pings tried as the alignment's anchor (a spurious first group cannot spoil it)
+ANCHORS = 3
+#: share of the pings after the anchor the alignment must match
+MIN_MATCHED = 0.5
+#: prior sd (s) of the tag's offset from the aligned schedule before its first ping: the
+#: schedule is fitted to first arrivals, later than the emissions by up to the travel span
+OFFSET_SD = 1.0
+#: prior sd of the tag's drift relative to the alignment's fit (a crystal's 50 ppm)
+DRIFT_SD = 5e-5
+#: sd (s) of an emission's own jitter, not carried to the next ping: real tags' 44-83 µs
+#: (DESIGN.md, "What real data teaches") rounded up; it also bounds the quadrature's step
+EMISSION_JITTER = 1e-4
+#: share of pings at which a particle's clock counts as unknown (the offset's prior widened by
+#: OFFSET_SD): a clock fitted where the particle was, far from the tag, would otherwise keep
+#: it from every particle that moves close to the tag
+CLOCK_RESET = 0.01
+#: random-walk densities of the offset (s²/s: 55 µs over 30 s) and of the drift (1/s: 3 ppm
+#: over 1,000 s, a crystal following the water's temperature)
+PHASE_DENSITY = 1e-10
+DRIFT_DENSITY = 1e-14
+_LOG_2PI = math.log(2.0 * math.pi)
+_NO_ROWS = pd.DataFrame()
+
+
+# ---------------------------------------------------------------------------- alignment
+
+
+@dataclass(frozen=True)
+class SequenceAlignment:
+    """The sequence's phase that best explains a tag's pings (:func:`align_sequence`).
+
+    Attributes
+    ----------
+    phase : int
+        Index in the sequence of the interval after the anchor ping.
+    anchor : int
+        Index of the anchor ping.
+    steps : numpy.ndarray, shape (G,)
+        Sequence steps from the anchor of each ping; -1: not matched.
+    scheduled : numpy.ndarray, shape (G,)
+        The aligned schedule's time of each ping (s; NaN: not matched).
+    drift : float
+        Fitted drift of the tag relative to the receivers' time base (dimensionless).
+    matched : int
+        Pings matched (the anchor included).
+    runner_up : int
+        Pings matched by the second-best phase (by chance).
+    spread : float
+        RMS residual (s) of the matched first arrivals about the schedule.
+    """
+
+    phase: int
+    anchor: int
+    steps: np.ndarray
+    scheduled: np.ndarray
+    drift: float
+    matched: int
+    runner_up: int
+    spread: float
+
+
+def _cumulative(sequence: np.ndarray, span: float) -> np.ndarray:
+    """``C`` with ``C[p + n] − C[p]`` the sum of ``n`` intervals from phase ``p`` (s), long
+    enough for every phase over ``span`` seconds."""
+    cycles = int(np.ceil(span / sequence.min() / sequence.size)) + 2
+    return np.concatenate([[0.0], np.cumsum(np.tile(sequence, cycles))])
+
+
+def _walk(times: np.ndarray, cumulative: np.ndarray, n_phases: int, tolerance: float):
+    """Match ``times`` (s from the anchor, ``times[0] = 0``) to every phase's schedule.
+
+    Returns the steps of every ping per phase ``(L, G)`` (-1 unmatched) and the fitted
+    intercept and drift per phase.
+    """
+    phases = np.arange(n_phases)
+    base = cumulative[:n_phases]
+    ridge = (tolerance / DRIFT_SD) ** 2  # the drift's prior, in units of a match's variance
+    count, sc, scc, sy, scy = (np.zeros(n_phases) for _ in range(5))
+    count[:] = 1.0  # the anchor: c = 0, y = 0
+    a = np.zeros(n_phases)
+    b = np.zeros(n_phases)
+    last = np.zeros(n_phases, dtype=np.int64)
+    steps = np.full((n_phases, times.size), -1, dtype=np.int64)
+    steps[:, 0] = 0
+    top = cumulative.size - 1
+    for j in range(1, times.size):
+        target = base + (times[j] - a) / (1.0 + b)
+        idx = np.clip(np.searchsorted(cumulative, target), 1, top)
+        idx -= (target - cumulative[idx - 1]) < (cumulative[idx] - target)
+        c = cumulative[idx] - base
+        residual = times[j] - c - (a + b * c)
+        step = idx - phases
+        ok = (np.abs(residual) <= tolerance) & (step > last)
+        y = times[j] - c
+        count += ok
+        sc += ok * c
+        scc += ok * c * c
+        sy += ok * y
+        scy += ok * c * y
+        det = count * (scc + ridge) - sc * sc
+        b = np.where(ok, (count * scy - sc * sy) / det, b)
+        a = np.where(ok, (sy - b * sc) / count, a)
+        last = np.where(ok, step, last)
+        steps[ok, j] = step[ok]
+    return steps, a, b
+
+
+def align_sequence(
+    first_arrivals, sequence, tolerance: float, source: str = "the burst sequence"
+) -> SequenceAlignment:
+    """The phase of ``sequence`` that best explains the pings' first arrivals.
+
+    See the module docstring for the method.
+
+    Parameters
+    ----------
+    first_arrivals : (G,) float array
+        Each ping's first arrival (s), increasing.
+    sequence : (L,) float array
+        The tag's intervals (s), used in a cycle.
+    tolerance : float
+        Largest distance (s) of a first arrival from its scheduled time: the grouping window
+        (the travel span and the clocks' error).
+    source : str
+        What the sequence is (its file), for the error message.
+
+    Raises
+    ------
+    ValueError
+        Fewer than :data:`MIN_MATCHED` of the pings (or fewer than 3) matched by any phase:
+        the message says how many the best phase matched.
+    """
+    times = np.asarray(first_arrivals, dtype=float)
+    sequence = np.asarray(sequence, dtype=float)
+    cumulative = _cumulative(sequence, float(times[-1] - times[0]) + sequence.max())
+    best = None
+    for anchor in range(min(ANCHORS, times.size)):
+        steps, a, b = _walk(times[anchor:] - times[anchor], cumulative, sequence.size, tolerance)
+        matched = (steps >= 0).sum(axis=1)
+        order = np.argsort(-matched, kind="stable")
+        phase = int(order[0])
+        runner_up = int(matched[order[1]]) if sequence.size > 1 else 0
+        if best is None or matched[phase] > best[0]:
+            best = (int(matched[phase]), anchor, phase, steps[phase], a[phase], b[phase], runner_up)
+    matched, anchor, phase, steps, a, b, runner_up = best
+    wanted = max(3, math.ceil(MIN_MATCHED * (times.size - anchor)))
+    if matched < wanted:
+        raise ValueError(
+            f"no alignment of {source} ({sequence.size} intervals) explains the tag's "
+            f"{times.size} pings: the best phase ({phase}) matched {matched} of them within "
+            f"±{tolerance:.3g} s, {wanted} needed (is it this tag's sequence, in the order the "
+            "tag uses it?)"
+        )
+    all_steps = np.full(times.size, -1, dtype=np.int64)
+    all_steps[anchor:] = steps
+    hit = all_steps >= 0
+    c = cumulative[phase + all_steps[hit]] - cumulative[phase]
+    scheduled = np.full(times.size, np.nan)
+    scheduled[hit] = times[anchor] + a + (1.0 + b) * c
+    spread = float(np.sqrt(np.mean((times[hit] - scheduled[hit]) ** 2)))
+    return SequenceAlignment(
+        phase, anchor, all_steps, scheduled, float(b), matched, runner_up, spread
+    )
+
+
+def sequence_observations(obs: pd.DataFrame, sequence, source: str) -> pd.DataFrame:
+    """Ping observations with the aligned schedule of ``sequence``.
+
+    Parameters
+    ----------
+    obs : pandas.DataFrame
+        :func:`~hmmtrack.tracking.measurement.pings.ping_observations` (its ``window`` in
+        ``attrs`` is the alignment's tolerance).
+    sequence : (L,) float array
+        The tag's intervals (s).
+    source : str
+        Where the sequence came from (for messages).
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``obs`` with ``scheduled`` (the aligned emission time of the row's ping, s; its
+        first arrival when not matched) and ``sequence_step`` (steps from the anchor ping,
+        -1 not matched); ``attrs["alignment"]``: the :class:`SequenceAlignment`.
+    """
+    first = obs.groupby("ping", sort=True)["time"].first()
+    alignment = align_sequence(first.to_numpy(), sequence, obs.attrs["window"], source)
+    logger.info(
+        "burst sequence aligned: phase %d, %d of %d pings matched (next best phase %d), "
+        "drift %.1f ppm, first arrivals %.1f ms about the schedule",
+        alignment.phase, alignment.matched, first.size, alignment.runner_up,
+        1e6 * alignment.drift, 1e3 * alignment.spread,
+    )  # fmt: skip
+    ping = obs["ping"].to_numpy()
+    scheduled = np.where(np.isnan(alignment.scheduled), first.to_numpy(), alignment.scheduled)
+    out = obs.assign(scheduled=scheduled[ping], sequence_step=alignment.steps[ping])
+    out.attrs.update(obs.attrs, alignment=alignment)
+    return out
+
+
+# ---------------------------------------------------------------------------- the integral
+
+
+@njit(cache=True)
+def _truncated_normal(mu, var, lo, hi):
+    """Log mass of ``N(mu, var)`` on ``[lo, hi]``, and the mean and variance of ``T − mu``
+    there."""
+    sd = math.sqrt(var)
+    alpha = (lo - mu) / sd
+    beta = (hi - mu) / sd
+    mass = 0.5 * (math.erfc(-beta / math.sqrt(2.0)) - math.erfc(-alpha / math.sqrt(2.0)))
+    if not mass > 0.0:
+        return -math.inf, 0.0, var
+    pa = math.exp(-0.5 * alpha * alpha) / math.sqrt(2.0 * math.pi)
+    pb = math.exp(-0.5 * beta * beta) / math.sqrt(2.0 * math.pi)
+    mean = sd * (pa - pb) / mass
+    ta = alpha * pa if np.isfinite(alpha) else 0.0
+    tb = beta * pb if np.isfinite(beta) else 0.0
+    second = var * (1.0 + (ta - tb) / mass)
+    return math.log(mass), mean, max(second - mean * mean, 0.0)
+
+
+@njit(cache=True)
+def _prior_cluster(s, a, b, mu, var, sigma, log_peak):
+    """``log ∫_a^b N(T; mu, var) (Π_i (1 + q_i(T)) − 1) dT`` and the first two moments of
+    ``T − mu`` under it (``q_i`` as in
+    :func:`~hmmtrack.tracking.measurement.tdoa.cluster_excess`); trapezoid with
+    :data:`~hmmtrack.tracking.measurement.tdoa.STEPS_PER_SD` steps per the narrower of the
+    product bump (``σ/√m``) and the prior (``√var``)."""
+    m = s.size
+    width = min(sigma / math.sqrt(m), math.sqrt(var)) / STEPS_PER_SD
+    steps = int(math.ceil((b - a) / width)) + 1
+    h = (b - a) / steps
+    excess, c = cluster_excess(s, a, h, steps, sigma, log_peak)
+    centre = min(max(mu, a), b)
+    top = -0.5 * (centre - mu) ** 2 / var  # the prior's largest log density on [a, b]
+    total = first = second = 0.0
+    for k in range(steps + 1):
+        d = a + k * h - mu
+        value = excess[k] * math.exp(-0.5 * d * d / var - top)
+        if k == 0 or k == steps:
+            value *= 0.5
+        total += value
+        first += value * d
+        second += value * d * d
+    if not total > 0.0:
+        return -math.inf, 0.0, 0.0
+    log_prior = top - 0.5 * (_LOG_2PI + math.log(var))
+    return m * c + log_prior + math.log(total * h), first / total, second / total
+
+
+@njit(cache=True)
+def sequence_ping_integral(residual, mu, var, sigma, outlier_fraction, half_width):
+    """``log ∫ N(T; mu, var) Π_i p(r_i − T) dT`` with the ping measurement's residual density
+    ``p`` (core sd ``sigma``, outliers ``ε`` uniform on ``±half_width``), and the posterior
+    mean and variance of ``T``.
+
+    Without outliers it is closed form: the flat integral
+    (:func:`~hmmtrack.tracking.measurement.tdoa.gaussian_ping_loglik`) times
+    ``N(r̄; mu, var + σ²/n)``. With them, the integrand is ``β^n N(T; mu, var) Π(1 + q_i)``
+    (``β = ε/(2L)``): the prior's mass on the support ``[max r − L, min r + L]`` (every
+    arrival an outlier) plus, per cluster of residuals closer than ``2Kσ``, a trapezoid of
+    the prior times ``Π_cluster(1 + q_i) − 1`` over the cluster's ``±Kσ`` span.
+
+    Parameters
+    ----------
+    residual : (n,) float array
+        Arrival minus travel time minus the scheduled emission (s), n ≥ 1.
+    mu, var : float
+        Prior mean (s) and variance (s²) of the emission's offset ``T``.
+    sigma, outlier_fraction, half_width : float
+        As :func:`~hmmtrack.tracking.measurement.tdoa.ping_integral`.
+
+    Returns
+    -------
+    log_l : float
+        Log of the integral (log s^(−n)).
+    mean, variance : float
+        Posterior mean (s) and variance (s²) of ``T``.
+    """
+    n = residual.size
+    if outlier_fraction == 0.0:
+        flat, mean = gaussian_ping_loglik(residual, sigma)
+        spread = sigma * sigma / n
+        total = var + spread
+        log_l = flat - 0.5 * (_LOG_2PI + math.log(total)) - 0.5 * (mean - mu) ** 2 / total
+        post = 1.0 / (1.0 / var + 1.0 / spread)
+        return log_l, post * (mu / var + mean / spread), post
+    s = np.sort(residual)
+    beta = outlier_fraction / (2.0 * half_width)
+    log_peak = math.log((1.0 - outlier_fraction) / (sigma * math.sqrt(2.0 * math.pi)) / beta)
+    lo = s[n - 1] - half_width
+    hi = s[0] + half_width
+    reach = CLUSTER_SIGMAS * sigma
+    # terms: every arrival an outlier, then one per cluster; log weight and moments of T − mu
+    logs = np.empty(n + 1)
+    firsts = np.empty(n + 1)
+    seconds = np.empty(n + 1)
+    if hi > lo:
+        logs[0], firsts[0], v = _truncated_normal(mu, var, lo, hi)
+        seconds[0] = v + firsts[0] ** 2
+    else:
+        logs[0], firsts[0], seconds[0] = -math.inf, 0.0, 0.0
+    n_terms = 1
+    first = 0
+    for last in range(n):
+        if last < n - 1 and s[last + 1] - s[last] <= 2.0 * reach:
+            continue
+        a = max(s[first] - reach, lo)
+        b = min(s[last] + reach, hi)
+        if b > a:
+            logs[n_terms], firsts[n_terms], seconds[n_terms] = _prior_cluster(
+                s[first : last + 1], a, b, mu, var, sigma, log_peak
+            )
+            n_terms += 1
+        first = last + 1
+    top = logs[:n_terms].max()
+    if top == -math.inf:
+        return -math.inf, mu, var
+    weight = np.exp(logs[:n_terms] - top)
+    total = weight.sum()
+    mean = (weight * firsts[:n_terms]).sum() / total
+    moment = (weight * seconds[:n_terms]).sum() / total
+    return n * math.log(beta) + top + math.log(total), mu + mean, max(moment - mean * mean, 0.0)
+
+
+@njit(cache=True)
+def sequence_ping_loglik(
+    x, y, vx, vy, depth, arrival, receiver_x, receiver_y, row_offset, time, sound_speed,
+    scheduled, elapsed, clock, sigma, outlier_fraction, half_width, loglik, emission, updated,
+):  # fmt: skip
+    """One matched ping for every particle: its log-likelihood into ``loglik`` (N,), the
+    posterior mean emission time into ``emission`` (N,), and each particle's clock after
+    the ping into ``updated`` (5, N).
+
+    Parameters
+    ----------
+    x, y, vx, vy, depth, arrival, receiver_x, receiver_y, row_offset, time, sound_speed
+        As :func:`~hmmtrack.tracking.measurement.tdoa.ping_loglik`.
+    scheduled : float
+        The ping's aligned emission time (s).
+    elapsed : float
+        Scheduled seconds since the clocks' last ping (0 before the first).
+    clock : (5, N) float array
+        Each particle's offset (s), drift, and their variances and covariance
+        (:data:`SEQUENCE_FIELDS`), after the last ping.
+    """
+    slowness = 1.0 / sound_speed
+    residual = np.empty(arrival.size)
+    jitter = EMISSION_JITTER * EMISSION_JITTER
+    parts = np.empty((2, 7))  # per prior: log weight, mean of T, updated clock (5)
+    for p in range(x.size):
+        u = clock[0, p] + clock[1, p] * elapsed  # predicted offset and its covariance
+        p_uu = (
+            clock[2, p] + 2.0 * elapsed * clock[3, p] + elapsed * elapsed * clock[4, p]
+            + PHASE_DENSITY * elapsed
+        )  # fmt: skip
+        p_ub = clock[3, p] + elapsed * clock[4, p]
+        p_bb = clock[4, p] + DRIFT_DENSITY * elapsed
+        for j in range(arrival.size):
+            d = emission_distance(
+                x[p], y[p], vx[p], vy[p], depth[p] + row_offset[j], time - arrival[j],
+                receiver_x[j], receiver_y[j], slowness,
+            )  # fmt: skip
+            residual[j] = arrival[j] - d * slowness - scheduled
+        # two priors of the emission's offset: the particle's clock, and (share
+        # CLOCK_RESET) the same widened by OFFSET_SD, a clock set from a wrong position
+        for k in range(2):
+            wide = OFFSET_SD * OFFSET_SD if k == 1 else 0.0
+            share = CLOCK_RESET if k == 1 else 1.0 - CLOCK_RESET
+            prior = p_uu + wide + jitter
+            log_k, mean, var = sequence_ping_integral(
+                residual, u, prior, sigma, outlier_fraction, half_width
+            )
+            gain_u = (p_uu + wide) / prior
+            gain_b = p_ub / prior
+            shrink = prior - var
+            parts[k, 0] = log_k + math.log(share)
+            parts[k, 1] = mean
+            parts[k, 2] = u + gain_u * (mean - u)
+            parts[k, 3] = clock[1, p] + gain_b * (mean - u)
+            parts[k, 4] = p_uu + wide - gain_u * gain_u * shrink
+            parts[k, 5] = p_ub - gain_u * gain_b * shrink
+            parts[k, 6] = p_bb - gain_b * gain_b * shrink
+        top = max(parts[0, 0], parts[1, 0])
+        w0 = math.exp(parts[0, 0] - top)
+        w1 = math.exp(parts[1, 0] - top)
+        log_mix = top + math.log(w0 + w1)
+        w0, w1 = w0 / (w0 + w1), w1 / (w0 + w1)
+        mean_mix = w0 * parts[0, 1] + w1 * parts[1, 1]
+        loglik[p] = log_mix
+        emission[p] = scheduled + mean_mix
+        # the two posteriors of (offset, drift) moment-matched into one Gaussian
+        du = parts[0, 2] - parts[1, 2]
+        db = parts[0, 3] - parts[1, 3]
+        spread = w0 * w1
+        updated[0, p] = w0 * parts[0, 2] + w1 * parts[1, 2]
+        updated[1, p] = w0 * parts[0, 3] + w1 * parts[1, 3]
+        updated[2, p] = w0 * parts[0, 4] + w1 * parts[1, 4] + spread * du * du
+        updated[3, p] = w0 * parts[0, 5] + w1 * parts[1, 5] + spread * du * db
+        updated[4, p] = w0 * parts[0, 6] + w1 * parts[1, 6] + spread * db * db
+
+
+# ---------------------------------------------------------------------------- measurement
+
+
+def _burst_sequence(name: str, value):
+    """A file name, or the intervals themselves (a list of positive seconds)."""
+    if isinstance(value, str):
+        if not value:
+            raise ValueError(f"{name} must be a file name or a list of intervals, got ''")
+        return value
+    try:
+        intervals = tuple(value)
+    except TypeError:
+        raise ValueError(
+            f"{name} must be a file name or a list of intervals (s), got {value!r}"
+        ) from None
+    if not intervals:
+        raise ValueError(f"{name} must hold at least one interval (s)")
+    return tuple(positive(f"{name}[{k}]", v) for k, v in enumerate(intervals))
+
+
+@dataclass(frozen=True)
+class PingSequenceSettings(PingSettings):
+    """The ``measurement`` section of the ``"ping-sequence"`` measurement: the ping
+    measurement's settings (:class:`~hmmtrack.tracking.measurement.tdoa.PingSettings`, its
+    ``burst_interval`` refused) and the tag's sequence.
+
+    Parameters
+    ----------
+    burst_sequence : str or tuple of float
+        CSV file of the tag's intervals (``interval`` column, s;
+        :func:`hmmtrack.io.read_burst_sequence`), or the intervals themselves.
+    """
+
+    name: ClassVar[str] = "ping-sequence"
+
+    # not an option of this measurement (the command line refuses --burst-interval with it)
+    burst_interval: tuple[float, float] | None = None
+    burst_sequence: str | tuple[float, ...] | None = setting(
+        None,
+        help=(
+            "CSV of the tag's known pseudo-random burst intervals (column 'interval', s, in "
+            "the order the tag uses them, cyclically), aligned to the pings automatically"
+        ),
+        check=_burst_sequence,
+        metavar="FILE",
+        data=True,
+        default_text="none",
+    )
+
+    def validate(self) -> None:
+        super().validate()
+        if self.burst_sequence is None:
+            raise ValueError("the ping-sequence measurement needs burst_sequence (a file)")
+        if self.burst_interval is not None:
+            raise ValueError(
+                "burst_sequence gives the tag's intervals: burst_interval is for tags whose "
+                "sequence is unknown; give one of them"
+            )
+
+    def intervals(self) -> tuple[np.ndarray, str]:
+        """The sequence (s) and what it is, for messages (its file, or ``"the given
+        burst_sequence"``)."""
+        if isinstance(self.burst_sequence, str):
+            return read_burst_sequence(self.burst_sequence), self.burst_sequence
+        return np.asarray(self.burst_sequence, dtype=float), "the given burst_sequence"
+
+
+@dataclass
+class SequenceState:
+    """The mutable state of one run of :class:`PingSequence`: each particle's posterior
+    mean emission time of the latest ping (s, (N,)) and the scheduled time of the ping the
+    clocks last saw (s; ``None`` before the first)."""
+
+    emission: np.ndarray | None = None
+    scheduled: float | None = None
+
+
+@dataclass(frozen=True)
+class PingSequence(PingTDOA):
+    """The ping measurement of a tag with a known burst sequence (module docstring): the
+    pings' observations carry the aligned schedule, and every particle the tag's clock."""
+
+    name: ClassVar[str] = "ping-sequence"
+    settings: ClassVar[type] = PingSequenceSettings
+    columns: ClassVar[tuple[str, ...]] = (*PingTDOA.columns, "scheduled", "sequence_step")
+    fields: ClassVar[tuple[str, ...]] = SEQUENCE_FIELDS
+
+    @classmethod
+    def observations(cls, detections: pd.DataFrame, receivers, settings) -> pd.DataFrame:
+        """Pings grouped with the sequence's shortest interval as the longest window, then
+        the sequence aligned (:func:`sequence_observations`)."""
+        sequence, source = settings.intervals()
+        obs = ping_observations(
+            detections, receiver_tracks(receivers), sequence.min(), settings.ping_tolerance
+        )
+        obs = sequence_observations(obs, sequence, source)
+        obs.attrs["sound_speed"] = detections.attrs.get("sound_speed")
+        return obs
+
+    def start(self, particles, time: float, dt: float = 1.0) -> SequenceState:
+        """Every particle's clock at its prior (offset 0 ± :data:`OFFSET_SD`, drift 0 ±
+        :data:`DRIFT_SD`); a fresh run state."""
+        prior = _prior_clock(particles.n)
+        particles.extra.update(zip(SEQUENCE_FIELDS, prior, strict=True))
+        return SequenceState()
+
+    @staticmethod
+    def as_matrix(table: pd.DataFrame) -> np.ndarray:
+        """:meth:`PingTDOA.as_matrix` with columns 6 and 7 the scheduled time (s) and the
+        sequence step (-1: not matched)."""
+        return np.column_stack(
+            [PingTDOA.as_matrix(table), table["scheduled"], table["sequence_step"]]
+        )
+
+    def loglik(self, particles, obs, time: float | None = None) -> np.ndarray:
+        """The pings' log-likelihood (N,) given the particles' clocks (their prior without
+        the fields), the clocks left as they are."""
+        return self._sequence_score(particles, obs, time, None)[0]
+
+    def score(self, particles, rows: np.ndarray, time: float, state: SequenceState, weights):
+        """The pings' log-likelihood; the clocks' Kalman step and the emission times of the
+        last scoring are committed with the final weights."""
+        latest = []
+
+        def scored(particles, weights):
+            loglik, emission, clock, scheduled = self._sequence_score(
+                particles, rows, time, state.scheduled
+            )
+            latest[:] = [emission, clock, scheduled]
+            return loglik
+
+        def commit(particles):
+            emission, clock, scheduled = latest
+            state.emission = emission
+            state.scheduled = scheduled
+            particles.extra.update(zip(SEQUENCE_FIELDS, clock, strict=True))
+
+        return Score(scored(particles, weights), rescore=scored, commit=commit)
+
+    def _sequence_score(self, p, rows, time, last_scheduled):
+        """Log-likelihood (N,), emission times (N,), clocks (5, N) and the clocks' last
+        scheduled time after the pings of ``rows`` in order."""
+        if isinstance(rows, pd.DataFrame):
+            rows = self.as_matrix(rows)
+        n = p.n if hasattr(p, "n") else np.shape(p.x)[0]
+        if time is None:
+            time = float(rows[:, 0].min())
+        extra = getattr(p, "extra", {})
+        if all(name in extra for name in SEQUENCE_FIELDS):
+            clock = np.array([extra[name] for name in SEQUENCE_FIELDS], dtype=float)
+        else:
+            clock = _prior_clock(n)
+        tag_depth = vertical_parts(p, _NO_ROWS)[0]
+        offset_column = 4 if getattr(p, "depth", None) is not None else 3
+        speed = np.asarray(p.speed, dtype=float)
+        motion = (
+            np.ascontiguousarray(p.x, dtype=float),
+            np.ascontiguousarray(p.y, dtype=float),
+            speed * np.asarray(p.cos_heading),
+            speed * np.asarray(p.sin_heading),
+            tag_depth,
+        )
+        total = np.zeros(n)
+        loglik = np.empty(n)
+        emission = np.empty(n)
+        for ping in np.unique(rows[:, 5]):
+            part = rows[rows[:, 5] == ping]
+            ping_rows = tuple(np.ascontiguousarray(part[:, k]) for k in (0, 1, 2, offset_column))
+            constants = (float(time), self.sound_speed)
+            if part[0, 7] < 0:  # not matched: a random-interval ping
+                ping_loglik(
+                    *motion, *ping_rows, *constants, self.sigma, self.outlier_fraction,
+                    self.half_width, loglik, emission,
+                )  # fmt: skip
+            else:
+                scheduled = float(part[0, 6])
+                elapsed = 0.0 if last_scheduled is None else scheduled - last_scheduled
+                updated = np.empty_like(clock)
+                sequence_ping_loglik(
+                    *motion, *ping_rows, *constants, scheduled, elapsed, clock, self.sigma,
+                    self.outlier_fraction, self.half_width, loglik, emission, updated,
+                )  # fmt: skip
+                clock, last_scheduled = updated, scheduled
+            total += loglik
+        return total, emission, clock, last_scheduled
+
+
+def _prior_clock(n: int) -> np.ndarray:
+    """(5, N): every particle's clock before the first ping."""
+    prior = np.zeros((5, n))
+    prior[2] = OFFSET_SD**2
+    prior[4] = DRIFT_SD**2
+    return prior
