@@ -396,6 +396,26 @@ def test_write_estimates_round_trip(tmp_path):
     assert back["time"].iloc[2] == forward
 
 
+def test_other_epoch_times_are_written_to_the_microsecond(tmp_path):
+    """A ping's ``emission_time`` (epoch s) keeps its microseconds; 12 significant digits
+    would round 1658419203.123456 to 1658419203.12."""
+    emission = np.array([1658419203.123456, np.nan])
+    est = pd.DataFrame(
+        {
+            "time": [1658419203.0, 1658419204.0],
+            "x": [1.0, 2.0],
+            "y": [3.0, 4.0],
+            "emission_time": emission,
+        }
+    )
+    out = tmp_path / "pings.csv"
+    io.write_estimates(est, out)
+    back = pd.read_csv(out)
+    assert back["emission_time"].iloc[0] == pytest.approx(1658419203.123456, abs=5e-7)
+    assert np.isnan(back["emission_time"].iloc[1])
+    assert out.read_text().splitlines()[1].endswith(",1658419203.123456")
+
+
 def test_an_id_part_shared_by_two_code_spaces_is_refused(tmp_path):
     """``42`` names two tags here; merging them would track two animals as one."""
     from hmmtrack.tracking.pipeline import select_transmitter

@@ -21,7 +21,8 @@ def write_estimates(
     estimates: pd.DataFrame, path: str | Path, projection: Projection | None = None
 ) -> None:
     """Write estimates as CSV: ``time`` as ISO 8601 UTC with milliseconds, then ``x``, ``y``
-    (m), ``lon``, ``lat`` (degrees, when ``projection`` is given) and the other columns.
+    (m), ``lon``, ``lat`` (degrees, when ``projection`` is given) and the other columns
+    (12 significant digits; other epoch times, ``*_time``, to the microsecond).
 
     Parameters
     ----------
@@ -72,9 +73,20 @@ class EstimatesWriter:
             out["lon"], out["lat"] = self.projection.to_lonlat(out["x"], out["y"])
             front += ["lon", "lat"]
         out = out[front + [c for c in out.columns if c not in front]]
+        for col in out.columns:
+            if col.endswith("_time") and pd.api.types.is_float_dtype(out[col]):
+                out[col] = _microseconds(out[col].to_numpy())
         out.to_csv(self.file, index=False, header=self._header, float_format="%.12g")
         self._header = False
         self.rows += len(out)
+
+
+def _microseconds(seconds: np.ndarray) -> np.ndarray:
+    """Epoch seconds (n,) as text to the microsecond ("" where NaN): 12 significant digits
+    would keep only 10 ms of an epoch time such as a ping's emission."""
+    text = np.char.mod("%.6f", seconds).astype(object)
+    text[np.isnan(seconds)] = ""
+    return text
 
 
 def read_truth(
