@@ -40,7 +40,7 @@ import pandas as pd
 from numba import njit
 
 from hmmtrack.tracking.particles import split_in_two, sqrt_largest_eigenvalue
-from hmmtrack.tracking.resampling import get_resampler
+from hmmtrack.tracking.resampling import invert
 
 __all__ = [
     "CONVERGENCE_THRESHOLD",
@@ -49,8 +49,10 @@ __all__ = [
     "ONE_MODE_WEIGHT",
     "Mixture",
     "Modes",
+    "SCHEME_CODES",
     "allocate",
     "component_moments",
+    "resample_components",
     "with_modes",
 ]
 
@@ -128,6 +130,10 @@ class Mixture:
     def resample(self, pf, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Recluster, then resample each component on its own with the filter's scheme.
 
+        One compiled pass each for the reclustering, the allocation and the resampling of
+        all components (:func:`resample_components`), so the cost beside the plain
+        filter's resampling is a few passes over the particles, not a Python loop.
+
         Parameters
         ----------
         pf : ParticleFilter
@@ -144,21 +150,25 @@ class Mixture:
             ancestors in the particle field ``component``).
         """
         p = pf.particles
-        labels = self.recluster(p.x, p.y, weights, p.extra[COMPONENT])
-        p.extra[COMPONENT] = labels
-        component_weight = np.bincount(labels, weights)
-        counts = allocate(component_weight, p.n, self.prune_weight, math.ceil(self.min_share * p.n))
-        scheme = get_resampler(pf.resampling)
-        ancestors, log_weight = [], []
-        live = component_weight[counts > 0].sum()
-        for k in np.flatnonzero(counts).tolist():
-            members = np.flatnonzero(labels == k)
-            chosen = scheme(pf.rng, weights[members] / component_weight[k], int(counts[k]))
-            ancestors.append(members[chosen])
-            log_weight.append(np.full(counts[k], math.log(component_weight[k] / live / counts[k])))
+        labels, component_weight, counts = _recluster_and_allocate(
+            p.x,
+            p.y,
+            weights,
+            p.extra[COMPONENT],
+            int(self.max_components),
+            float(self.min_separation),
+            float(self.split_share),
+            float(self.prune_weight),
+            math.ceil(self.min_share * p.n),
+        )
+        code = SCHEME_CODES[pf.resampling]
+        draws = _scheme_draws(pf.rng, code, p.n, int(np.count_nonzero(counts)))
+        ancestors, log_weight = resample_components(
+            weights, labels, counts, component_weight, code, draws
+        )
         # live components numbered 0..K-1 in order (the labels travel with the ancestors)
         p.extra[COMPONENT] = np.cumsum(counts > 0)[labels] - 1
-        return np.concatenate(ancestors), np.concatenate(log_weight)
+        return ancestors, log_weight
 
     def recluster(self, x, y, weights, labels) -> np.ndarray:
         """New component labels (N,): merge components whose means meet, split those that
@@ -179,63 +189,207 @@ class Mixture:
         weights : numpy.ndarray, shape (N,)
             Normalised weights.
         labels : numpy.ndarray, shape (N,), int64
-            Current labels ``0..K-1``.
+            Current labels ``0..K-1`` (not changed).
         """
-        n_components = int(labels.max()) + 1
-        moments = component_moments(x, y, weights, labels, n_components)
-        target = np.arange(n_components)
-        for j in range(n_components):
-            for k in range(j + 1, n_components):
-                if target[k] == k and self._meet(moments[j], moments[k]):
-                    target[k] = target[j]
-        _, target = np.unique(target, return_inverse=True)
-        labels = target[labels]
-        n_components = int(target.max()) + 1
-        for k in range(n_components):
-            if n_components >= self.max_components:
-                break
-            members = np.flatnonzero(labels == k)
-            share = weights[members]
-            if members.size < 2 or share.sum() <= self.prune_weight:
-                continue
-            separation, minor, sd_lo, sd_hi, mx, my, ax, ay, cut = split_in_two(
-                x[members],
-                y[members],
-                share,
-                (0.5 * self.min_separation) ** 2 * self.split_share,
-                SPLIT_BINS,
-            )
-            if minor >= self.split_share and separation > max(
-                self.min_separation, 3.0 * (sd_lo + sd_hi)
-            ):
-                upper = (x[members] - mx) * ax + (y[members] - my) * ay >= cut
-                labels[members[upper]] = n_components
-                n_components += 1
-        return labels
-
-    def _meet(self, a: np.ndarray, b: np.ndarray) -> bool:
-        """Whether two components (rows of :func:`component_moments`) have met."""
-        if a[0] <= 0.0 or b[0] <= 0.0:
-            return True  # a weightless component joins any other
-        dx, dy = b[1] - a[1], b[2] - a[2]
-        distance = math.hypot(dx, dy)
-        if distance < 0.5 * self.min_separation:
-            return True
-        ux, uy = dx / distance, dy / distance
-        sd_a = math.sqrt(max(a[3] * ux * ux + 2 * a[5] * ux * uy + a[4] * uy * uy, 0.0))
-        sd_b = math.sqrt(max(b[3] * ux * ux + 2 * b[5] * ux * uy + b[4] * uy * uy, 0.0))
-        return distance < 2.0 * (sd_a + sd_b)
+        return _recluster(
+            x,
+            y,
+            weights,
+            labels,
+            int(self.max_components),
+            float(self.min_separation),
+            float(self.split_share),
+            float(self.prune_weight),
+        )
 
 
-def allocate(component_weight, n: int, prune_weight: float, floor: int) -> np.ndarray:
-    """Particles per component: ``floor`` each, the rest in proportion to the weights.
+#: codes of the resampling schemes in :func:`resample_components`
+SCHEME_CODES = {"multinomial": 0, "residual": 1, "stratified": 2, "systematic": 3}
 
-    Components lighter than ``prune_weight`` get none (the heaviest always lives); the rest
-    ``n − K·floor`` is split by the largest-remainder method.
+
+def _scheme_draws(rng: np.random.Generator, code: int, n: int, live: int) -> np.ndarray:
+    """The random numbers :func:`resample_components` consumes for ``n`` particles in
+    ``live`` components: standard exponentials (multinomial and residual: the spacings of
+    each component's sorted uniforms, ``N_k + 1`` each), one uniform per particle
+    (stratified) or per component (systematic). The same stream as the whole-cloud scheme
+    run on each component in turn (:mod:`hmmtrack.tracking.resampling`; residual aside)."""
+    if code <= SCHEME_CODES["residual"]:
+        return rng.standard_exponential(n + live)
+    return rng.random(n if code == SCHEME_CODES["stratified"] else live)
+
+
+@njit(cache=True)
+def _recluster_and_allocate(
+    x, y, weights, labels, max_components, min_separation, split_share, prune_weight, floor
+):
+    """The compiled part of :meth:`Mixture.resample` before the draws: the new labels
+    (N,), the component weights (K,) and the particles each gets (K,), :func:`allocate`."""
+    labels = _recluster(
+        x, y, weights, labels, max_components, min_separation, split_share, prune_weight
+    )
+    component_weight = np.zeros(labels.max() + 1)
+    for i in range(labels.size):
+        component_weight[labels[i]] += weights[i]
+    return labels, component_weight, allocate(component_weight, labels.size, prune_weight, floor)
+
+
+@njit(cache=True)
+def resample_components(weights, labels, counts, component_weight, code, draws):
+    """Resample each component on its own (compiled; the scheme by its code).
+
+    Component ``k`` gets ``counts[k]`` ancestors among its particles, drawn by the scheme of
+    :data:`SCHEME_CODES` from its weights normalised by ``component_weight[k]``, through
+    :func:`hmmtrack.tracking.resampling.invert` as the whole-cloud schemes do; residual
+    keeps ``floor(N_k w)`` copies and draws the rest multinomially.
 
     Parameters
     ----------
+    weights : numpy.ndarray, shape (N,)
+        Normalised weights.
+    labels : numpy.ndarray, shape (N,), int64
+        Component of each particle, ``0..K-1``.
+    counts : numpy.ndarray, shape (K,), int64
+        New particles per component (:func:`allocate`); components with none are dropped.
     component_weight : numpy.ndarray, shape (K,)
+        Sum of the weights of each component.
+    code : int
+        :data:`SCHEME_CODES`.
+    draws : numpy.ndarray
+        The scheme's random numbers for the live components in order (``_scheme_draws``).
+
+    Returns
+    -------
+    ancestors : numpy.ndarray, shape (sum(counts),), int64
+        Grouped by component, in component order.
+    log_weight : numpy.ndarray, shape (sum(counts),)
+        ``log(π_k / N_k)`` with ``π_k`` the component's share of the live components'
+        weight.
+    """
+    n_components = counts.size
+    start = np.zeros(n_components + 1, dtype=np.int64)
+    for i in range(labels.size):
+        start[labels[i] + 1] += 1
+    for k in range(n_components):
+        start[k + 1] += start[k]
+    members = np.empty(labels.size, dtype=np.int64)
+    fill = start[:-1].copy()
+    for i in range(labels.size):
+        members[fill[labels[i]]] = i
+        fill[labels[i]] += 1
+    total = counts.sum()
+    ancestors = np.empty(total, dtype=np.int64)
+    log_weight = np.empty(total)
+    live = 0.0
+    for k in range(n_components):
+        if counts[k] > 0:
+            live += component_weight[k]
+    at = 0
+    d = 0
+    for k in range(n_components):
+        c = counts[k]
+        if c == 0:
+            continue
+        own = members[start[k] : start[k + 1]]
+        w = weights[own]
+        scale = 1.0 / component_weight[k]
+        if code == 0:  # multinomial
+            spacings = draws[d : d + c + 1]
+            chosen = invert(w, scale, spacings, c, 1.0 / spacings.sum(), True)
+            d += c + 1
+        elif code == 1:  # residual
+            expected = c * scale * w
+            copies = np.floor(expected).astype(np.int64)
+            kept = 0
+            for i in range(own.size):
+                for _ in range(copies[i]):
+                    if kept < c:
+                        ancestors[at + kept] = own[i]
+                        kept += 1
+            left = c - kept
+            if left > 0:
+                rest = expected - copies
+                spacings = draws[d : d + left + 1]
+                drawn = invert(rest, 1.0 / rest.sum(), spacings, left, 1.0 / spacings.sum(), True)
+                for j in range(left):
+                    ancestors[at + kept + j] = own[drawn[j]]
+            chosen = np.empty(0, dtype=np.int64)
+            d += c + 1
+        elif code == 2:  # stratified
+            chosen = invert(w, scale, (np.arange(c) + draws[d : d + c]) / c, c, 1.0, False)
+            d += c
+        else:  # systematic
+            chosen = invert(w, scale, (np.arange(c) + draws[d]) / c, c, 1.0, False)
+            d += 1
+        for j in range(chosen.size):
+            ancestors[at + j] = own[chosen[j]]
+        log_weight[at : at + c] = math.log(component_weight[k] / live / c)
+        at += c
+    return ancestors, log_weight
+
+
+@njit(cache=True)
+def _meet(a, b, min_separation):
+    """Whether two components (rows of :func:`component_moments`) have met."""
+    if a[0] <= 0.0 or b[0] <= 0.0:
+        return True  # a weightless component joins any other
+    dx, dy = b[1] - a[1], b[2] - a[2]
+    distance = math.hypot(dx, dy)
+    if distance < 0.5 * min_separation:
+        return True
+    ux, uy = dx / distance, dy / distance
+    sd_a = math.sqrt(max(a[3] * ux * ux + 2 * a[5] * ux * uy + a[4] * uy * uy, 0.0))
+    sd_b = math.sqrt(max(b[3] * ux * ux + 2 * b[5] * ux * uy + b[4] * uy * uy, 0.0))
+    return distance < 2.0 * (sd_a + sd_b)
+
+
+@njit(cache=True)
+def _recluster(x, y, weights, labels, max_components, min_separation, split_share, prune_weight):
+    """:meth:`Mixture.recluster`, compiled (its settings as arguments)."""
+    n_components = labels.max() + 1
+    moments = component_moments(x, y, weights, labels, n_components)
+    target = np.arange(n_components)
+    for j in range(n_components):
+        for k in range(j + 1, n_components):
+            if target[k] == k and _meet(moments[j], moments[k], min_separation):
+                target[k] = target[j]
+    present = np.zeros(n_components, dtype=np.int64)
+    for k in range(n_components):
+        present[target[k]] = 1
+    rank = np.cumsum(present) - 1
+    new = np.empty(labels.size, dtype=np.int64)
+    for i in range(labels.size):
+        new[i] = rank[target[labels[i]]]
+    n_components = rank[-1] + 1
+    merged = n_components
+    for k in range(merged):
+        if n_components >= max_components:
+            break
+        members = np.flatnonzero(new == k)
+        share = weights[members]
+        if members.size < 2 or share.sum() <= prune_weight:
+            continue
+        xs, ys = x[members], y[members]
+        separation, minor, sd_lo, sd_hi, mx, my, ax, ay, cut = split_in_two(
+            xs, ys, share, (0.5 * min_separation) ** 2 * split_share, SPLIT_BINS
+        )
+        if minor >= split_share and separation > max(min_separation, 3.0 * (sd_lo + sd_hi)):
+            for i in range(members.size):
+                if (xs[i] - mx) * ax + (ys[i] - my) * ay >= cut:
+                    new[members[i]] = n_components
+            n_components += 1
+    return new
+
+
+@njit(cache=True)
+def allocate(component_weight, n, prune_weight, floor):
+    """Particles per component: ``floor`` each, the rest in proportion to the weights.
+
+    Components lighter than ``prune_weight`` get none (the heaviest always lives); the rest
+    ``n − K·floor`` is split by the largest-remainder method (compiled).
+
+    Parameters
+    ----------
+    component_weight : numpy.ndarray, shape (K,), float
         Component weights (sum one).
     n : int
         Particles in all.
@@ -248,15 +402,16 @@ def allocate(component_weight, n: int, prune_weight: float, floor: int) -> np.nd
     numpy.ndarray, shape (K,), int64
         Sums to ``n``.
     """
-    component_weight = np.asarray(component_weight, dtype=np.float64)
     live = component_weight >= prune_weight
     live[np.argmax(component_weight)] = True
-    floor = min(floor, n // int(live.sum()))
+    n_live = live.sum()
+    floor = min(floor, n // n_live)
     share = np.where(live, component_weight, 0.0)
-    quota = (n - floor * live.sum()) * share / share.sum()
+    quota = (n - floor * n_live) * share / share.sum()
     counts = np.floor(quota).astype(np.int64)
-    left = n - floor * int(live.sum()) - int(counts.sum())
-    counts[np.argsort(counts - quota, kind="stable")[:left]] += 1
+    left = n - floor * n_live - counts.sum()
+    for k in np.argsort(counts - quota, kind="mergesort")[:left]:
+        counts[k] += 1
     return np.where(live, counts + floor, 0)
 
 
@@ -322,7 +477,7 @@ class Modes:
     every_step = False
 
     def start(self, pf) -> None:
-        self._rows: list[tuple] = []
+        self._rows: list[tuple[float, int, np.ndarray]] = []
 
     def corrected(self, pf) -> None:
         """Nothing to record (the components are reclustered at resampling)."""
@@ -337,18 +492,21 @@ class Modes:
         if labels is None:
             labels = _CLUSTERS.recluster(p.x, p.y, weights, np.zeros(p.n, dtype=np.int64))
         moments = component_moments(p.x, p.y, weights, labels, int(labels.max()) + 1)
-        order = np.argsort(-moments[:, 0], kind="stable")[:REPORTED_MODES]
-        row = [pf.time, len(moments)]
-        for k in range(REPORTED_MODES):
-            if k < order.size:
-                weight, mx, my, var_x, var_y, cov_xy = moments[order[k]].tolist()
-                row += [weight, mx, my, sqrt_largest_eigenvalue(var_x, var_y, cov_xy)]
-            else:
-                row += [math.nan] * 4
-        self._rows.append(tuple(row))
+        heaviest = moments[np.argsort(-moments[:, 0], kind="stable")[:REPORTED_MODES]]
+        top = np.full((REPORTED_MODES, 6), np.nan)
+        top[: len(heaviest)] = heaviest
+        self._rows.append((pf.time, len(moments), top))
 
     def result(self) -> dict[str, pd.DataFrame]:
-        return {"modes": pd.DataFrame(self._rows, columns=list(MODE_COLUMNS))}
+        """The table; √λ₁ of the modes computed once for all rows."""
+        n = len(self._rows)
+        top = np.array([row[2] for row in self._rows]).reshape(n, REPORTED_MODES, 6)
+        spread = sqrt_largest_eigenvalue(top[..., 3], top[..., 4], top[..., 5])
+        modes = np.concatenate([top[..., :3], spread[..., None]], axis=2).reshape(n, -1)
+        out = pd.DataFrame(modes, columns=list(MODE_COLUMNS[2:]))
+        out.insert(0, "components", np.array([row[1] for row in self._rows], dtype=np.int64))
+        out.insert(0, "time", np.array([row[0] for row in self._rows], dtype=float))
+        return {"modes": out}
 
 
 #: the clustering of :class:`Modes` without a mixture

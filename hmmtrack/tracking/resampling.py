@@ -30,6 +30,7 @@ __all__ = [
     "effective_sample_size",
     "get_resampler",
     "inverse_cdf",
+    "invert",
     "log_normalise",
     "multinomial",
     "residual",
@@ -92,7 +93,7 @@ def _merge_step(cumulative, points, out, j, k):
 
 
 @njit(cache=True)
-def _invert(weights, weight_scale, values, n, value_scale, running):
+def invert(weights, weight_scale, values, n, value_scale, running):
     """Ancestors (n,) of the ascending points ``values[k] * value_scale`` (``running``
     False) or ``(values[0] + ... + values[k]) * value_scale`` (``running`` True: the order
     statistics from spacings), against the cumulative sum of ``weights * weight_scale``;
@@ -160,7 +161,7 @@ def inverse_cdf(weights: np.ndarray, sorted_points: np.ndarray) -> np.ndarray:
     (n,) int64 indices into ``weights``, ascending.
     """
     points = np.asarray(sorted_points, dtype=np.float64)
-    return _invert(np.asarray(weights, dtype=np.float64), 1.0, points, points.size, 1.0, False)
+    return invert(np.asarray(weights, dtype=np.float64), 1.0, points, points.size, 1.0, False)
 
 
 def _stratified_points(rng: np.random.Generator, n: int) -> np.ndarray:
@@ -194,7 +195,7 @@ def multinomial(rng: np.random.Generator, weights: np.ndarray, n: int) -> np.nda
     """
     w, weight_scale = _checked_weights(weights)
     spacings = rng.standard_exponential(n + 1)
-    return _invert(w, weight_scale, spacings, n, 1.0 / spacings.sum(), True)
+    return invert(w, weight_scale, spacings, n, 1.0 / spacings.sum(), True)
 
 
 def stratified(rng: np.random.Generator, weights: np.ndarray, n: int) -> np.ndarray:
@@ -203,7 +204,7 @@ def stratified(rng: np.random.Generator, weights: np.ndarray, n: int) -> np.ndar
     Parameters and return value as :func:`multinomial`.
     """
     w, weight_scale = _checked_weights(weights)
-    return _invert(w, weight_scale, _stratified_points(rng, n), n, 1.0, False)
+    return invert(w, weight_scale, _stratified_points(rng, n), n, 1.0, False)
 
 
 def systematic(rng: np.random.Generator, weights: np.ndarray, n: int) -> np.ndarray:
@@ -213,7 +214,7 @@ def systematic(rng: np.random.Generator, weights: np.ndarray, n: int) -> np.ndar
     Parameters and return value as :func:`multinomial`.
     """
     w, weight_scale = _checked_weights(weights)
-    return _invert(w, weight_scale, _systematic_points(rng, n), n, 1.0, False)
+    return invert(w, weight_scale, _systematic_points(rng, n), n, 1.0, False)
 
 
 def residual(rng: np.random.Generator, weights: np.ndarray, n: int) -> np.ndarray:
