@@ -160,3 +160,42 @@ def test_ellipse_coverage_hand_values_and_a_consistent_gaussian():
     shrunk = estimates.assign(var_x=cov[0, 0] / 4, var_y=cov[1, 1] / 4, cov_xy=cov[0, 1] / 4)
     low = metrics.ellipse_coverage(metrics.normalised_estimation_error(shrunk, truth))
     assert low == pytest.approx(1 - np.exp(-5.991 / 8), abs=4 * binomial_sd)  # P(chi2 < 1.5)
+
+
+def test_convergence_is_judged_by_the_converged_column_when_present():
+    truth = pd.DataFrame({"time": [0.0, 10.0], "x": [0.0, 0.0], "y": [0.0, 0.0]})
+    estimates = estimates_table([0.0, 1.0, 2.0, 3.0], [90.0, 60.0, 3.0, 1.0], 0.0, 5.0)
+    by_spread = metrics.tracking_metrics(estimates, truth)
+    assert by_spread.time_to_convergence == 0.0 and by_spread.converged
+    assert by_spread.mean_error_after_convergence == pytest.approx(154 / 4)
+    # two modes until 2 s: not converged however narrow the cloud
+    estimates["converged"] = [False, False, True, True]
+    by_modes = metrics.tracking_metrics(estimates, truth)
+    assert by_modes.time_to_convergence == 2.0
+    assert by_modes.mean_error_after_convergence == pytest.approx(2.0)
+
+
+def test_uncertainty_metrics_calibration_and_false_convergence():
+    rng = np.random.default_rng(3)
+    n = 4000
+    times = np.arange(n, dtype=float)
+    truth = pd.DataFrame({"time": times, "x": 0.0, "y": 0.0})
+    # a consistent filter: errors drawn from the stated covariance diag(4, 9) m²
+    estimates = estimates_table(times, rng.normal(0, 2, n), rng.normal(0, 3, n), 3.0)
+    estimates["var_x"], estimates["var_y"], estimates["cov_xy"] = 4.0, 9.0, 0.0
+    estimates["converged"] = times >= 1000
+    estimates.loc[:999, "x"] += 200.0  # wrong and not converged: neither counted
+    honest = metrics.uncertainty_metrics(estimates, truth)
+    assert honest.seconds_after_convergence == 3000
+    assert honest.calibration == pytest.approx(0.95, abs=0.015)
+    assert honest.false_converged == 0.0
+    # an overconfident run: 60 m off for 400 converged seconds
+    estimates.loc[2000:2399, "x"] += 60.0
+    wrong = metrics.uncertainty_metrics(estimates, truth)
+    assert wrong.false_converged == pytest.approx(400 / n)
+    assert wrong.calibration == pytest.approx(honest.calibration - 400 / 3000, abs=0.01)
+    # never converged: no calibration, by √λ₁ without the column
+    never = metrics.uncertainty_metrics(
+        estimates.drop(columns="converged").assign(sqrt_lambda1=20.0), truth
+    )
+    assert np.isnan(never.calibration) and never.seconds_after_convergence == 0

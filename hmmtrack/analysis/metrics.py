@@ -12,7 +12,14 @@
 * the filter's honesty: the normalised estimation error squared (NEES) of each estimate
   against its own x-y covariance (:func:`normalised_estimation_error`, χ² with 2 degrees of
   freedom for a consistent filter) and the share of estimates whose 95 % ellipse covers the
-  truth (:func:`ellipse_coverage`);
+  truth (:func:`ellipse_coverage`); after convergence, the calibration (share of seconds
+  whose 95 % region holds the truth) and the share of falsely "converged" seconds
+  (:func:`uncertainty_metrics`).
+
+Convergence is judged by the estimates' ``converged`` column when they have one (the
+mode-keeping filter's: √λ₁ below the threshold *and* one mode holding almost all the
+weight, :func:`hmmtrack.tracking.mixture.with_modes`), else by √λ₁ alone as in the paper
+(:func:`convergence_flags`).
 
 It is not for running filters or Monte Carlo trials (``hmmtrack.experiments`` does that),
 for information limits (:mod:`hmmtrack.analysis.crb`) nor for plotting.
@@ -20,6 +27,7 @@ for information limits (:mod:`hmmtrack.analysis.crb`) nor for plotting.
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass
 
 import numpy as np
@@ -58,6 +66,34 @@ class TrackingMetrics:
     mean_error_after_convergence: float
     rmse_after_convergence: float
     n_estimates_after_convergence: int
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+#: error (m) above which a second declared converged is a false convergence (issue 13)
+FALSE_CONVERGENCE_ERROR = 50.0
+
+
+@dataclass(frozen=True)
+class Uncertainty:
+    """How honest a run's stated uncertainty was (see :func:`uncertainty_metrics`).
+
+    Attributes
+    ----------
+    calibration : float
+        Share of the seconds from the first convergence to the end whose 95 % region holds
+        the truth; NaN when the run never converged. A calibrated filter gives 0.95.
+    false_converged : float
+        Share of all seconds declared converged while the error exceeded
+        :data:`FALSE_CONVERGENCE_ERROR`.
+    seconds_after_convergence : int
+        Estimates from the first convergence to the end (0 if never converged).
+    """
+
+    calibration: float
+    false_converged: float
+    seconds_after_convergence: int
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -163,7 +199,42 @@ def time_to_convergence(
     bad = np.flatnonzero(~np.isfinite(spread))
     if bad.size:
         raise ValueError(f"sqrt_lambda1 is not finite at position(s) {bad[:10].tolist()}")
-    below = np.flatnonzero(spread < threshold)
+    return first_convergence(times, spread < threshold)
+
+
+def convergence_flags(
+    estimates: pd.DataFrame, threshold: float = CONVERGENCE_THRESHOLD
+) -> np.ndarray:
+    """Whether each estimate is declared converged, shape (n,), bool.
+
+    The estimates' ``converged`` column when present (the mode-keeping filter's, which also
+    asks one mode to hold almost all the weight), else ``sqrt_lambda1 < threshold`` (the
+    paper's test).
+    """
+    if "converged" in estimates.columns:
+        return estimates["converged"].to_numpy(dtype=bool)
+    (spread,) = finite_columns(estimates, "estimates", ("sqrt_lambda1",))
+    return spread < threshold
+
+
+def first_convergence(times, flags) -> Convergence:
+    """The :class:`Convergence` of the first estimate flagged converged.
+
+    Parameters
+    ----------
+    times : array_like, shape (n,)
+        Estimate times, increasing (s).
+    flags : array_like, shape (n,), bool
+        Converged or not at each (:func:`convergence_flags`).
+    """
+    times = np.asarray(times, dtype=float)
+    flags = np.asarray(flags, dtype=bool)
+    if times.shape != flags.shape or times.ndim != 1 or times.size == 0:
+        raise ValueError(
+            f"times and flags must be non-empty and of one shape; got {times.shape} and "
+            f"{flags.shape}"
+        )
+    below = np.flatnonzero(flags)
     if below.size == 0:
         return Convergence(time_to_convergence=0.0, converged=False, index=0)
     index = int(below[0])
@@ -224,7 +295,8 @@ def tracking_metrics(
     Parameters
     ----------
     estimates : pandas.DataFrame
-        Estimates table with ``time``, ``x``, ``y``, ``sqrt_lambda1``.
+        Estimates table with ``time``, ``x``, ``y``, ``sqrt_lambda1`` and optionally
+        ``converged`` (:func:`convergence_flags`).
     truth : pandas.DataFrame
         Truth table (``time``, ``x``, ``y``).
     threshold : float
@@ -235,8 +307,8 @@ def tracking_metrics(
     TrackingMetrics
     """
     errors = position_error(estimates, truth)
-    (times, spread) = finite_columns(estimates, "estimates", ("time", "sqrt_lambda1"))
-    convergence = time_to_convergence(times, spread, threshold)
+    (times, _) = finite_columns(estimates, "estimates", ("time", "sqrt_lambda1"))
+    convergence = first_convergence(times, convergence_flags(estimates, threshold))
     return TrackingMetrics(
         time_to_convergence=convergence.time_to_convergence,
         converged=convergence.converged,
@@ -322,3 +394,45 @@ def ellipse_coverage(nees, level: float = 0.95) -> float:
     if nees.ndim != 1 or nees.size == 0 or np.isnan(nees).any():
         raise ValueError(f"nees must be a non-empty 1-D array without NaN, got shape {nees.shape}")
     return float(np.mean(nees <= ellipse_scale(level)))
+
+
+def uncertainty_metrics(
+    estimates: pd.DataFrame,
+    truth: pd.DataFrame,
+    level: float = 0.95,
+    threshold: float = CONVERGENCE_THRESHOLD,
+) -> Uncertainty:
+    """Calibration and false convergence of one run (issue 13's honesty targets).
+
+    The ``level`` region of an estimate is the ellipse of the Gaussian with the cloud's
+    weighted mean and x-y covariance (the estimate's ``x``, ``y``, ``var_x``, ``var_y``,
+    ``cov_xy``; :func:`normalised_estimation_error`). After convergence one mode holds
+    almost all the weight (with the ``converged`` column) and √λ₁ is under 10 m, so this is
+    the region of the heaviest component widened by the rest; before it, a multi-modal
+    cloud's Gaussian would overstate coverage, and those seconds are not counted.
+
+    Parameters
+    ----------
+    estimates : pandas.DataFrame
+        Estimates table (``time``, ``x``, ``y``, ``var_x``, ``var_y``, ``cov_xy``,
+        ``sqrt_lambda1``, optionally ``converged``).
+    truth : pandas.DataFrame
+        Truth table, see :func:`truth_at`.
+    level : float
+        Probability of the region (0.95).
+    threshold : float
+        Convergence threshold on √λ₁ (m) when there is no ``converged`` column.
+
+    Returns
+    -------
+    Uncertainty
+    """
+    flags = convergence_flags(estimates, threshold)
+    errors = position_error(estimates, truth)
+    false_converged = float(np.mean(flags & (errors > FALSE_CONVERGENCE_ERROR)))
+    (times,) = finite_columns(estimates, "estimates", ("time",))
+    convergence = first_convergence(times, flags)
+    if not convergence.converged:
+        return Uncertainty(math.nan, false_converged, 0)
+    nees = normalised_estimation_error(estimates.iloc[convergence.index :], truth)
+    return Uncertainty(ellipse_coverage(nees, level), false_converged, nees.size)
