@@ -199,3 +199,14 @@ def test_uncertainty_metrics_calibration_and_false_convergence():
         estimates.drop(columns="converged").assign(sqrt_lambda1=20.0), truth
     )
     assert np.isnan(never.calibration) and never.seconds_after_convergence == 0
+
+
+def test_a_collapsed_cloud_holds_no_truth():
+    truth = pd.DataFrame({"time": [0.0, 3.0], "x": [0.0, 0.0], "y": [0.0, 0.0]})
+    estimates = estimates_table([0.0, 1.0, 2.0, 3.0], [1.0, 1.0, 1.0, 1.0], 0.0, 1.0)
+    estimates["var_x"], estimates["var_y"], estimates["cov_xy"] = [1.0, 0.0, 1.0, 1.0], 1.0, 0.0
+    with pytest.raises(ValueError, match="not positive definite"):
+        metrics.normalised_estimation_error(estimates, truth)
+    nees = metrics.normalised_estimation_error(estimates, truth, degenerate="inf")
+    np.testing.assert_array_equal(nees, [1.0, np.inf, 1.0, 1.0])
+    assert metrics.uncertainty_metrics(estimates, truth).calibration == 0.75

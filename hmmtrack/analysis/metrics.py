@@ -337,7 +337,9 @@ def ellipse_scale(level: float = 0.95) -> float:
     return float(-2.0 * np.log1p(-level))
 
 
-def normalised_estimation_error(estimates: pd.DataFrame, truth: pd.DataFrame) -> np.ndarray:
+def normalised_estimation_error(
+    estimates: pd.DataFrame, truth: pd.DataFrame, degenerate: str = "raise"
+) -> np.ndarray:
     """NEES of each estimate: its error measured in its own x-y covariance.
 
     Parameters
@@ -346,6 +348,9 @@ def normalised_estimation_error(estimates: pd.DataFrame, truth: pd.DataFrame) ->
         Estimates table: ``time`` (s), ``x``, ``y`` (m), ``var_x``, ``var_y``, ``cov_xy`` (m²).
     truth : pandas.DataFrame
         Truth table, see :func:`truth_at`.
+    degenerate : {"raise", "inf"}
+        What a covariance that is not positive definite gives (a cloud collapsed onto a
+        point or a line): an error, or NEES ``inf`` (its region holds no truth).
 
     Returns
     -------
@@ -363,15 +368,18 @@ def normalised_estimation_error(estimates: pd.DataFrame, truth: pd.DataFrame) ->
         estimates, "estimates", ("time", "x", "y", "var_x", "var_y", "cov_xy")
     )
     det = var_x * var_y - cov**2
-    bad = np.flatnonzero(~((var_x > 0) & (det > 0)))
-    if bad.size:
+    definite = (var_x > 0) & (det > 0)
+    bad = np.flatnonzero(~definite)
+    if bad.size and degenerate != "inf":
         raise ValueError(
             f"estimates table has a covariance that is not positive definite in row(s) "
             f"{bad[:10].tolist()} (var_x, var_y, cov_xy); NEES needs P > 0"
         )
     x, y = truth_at(truth, times)
     ex, ey = x_hat - x, y_hat - y
-    return (var_y * ex**2 - 2.0 * cov * ex * ey + var_x * ey**2) / det
+    with np.errstate(divide="ignore", invalid="ignore"):
+        nees = (var_y * ex**2 - 2.0 * cov * ex * ey + var_x * ey**2) / det
+    return np.where(definite, nees, np.inf)
 
 
 def ellipse_coverage(nees, level: float = 0.95) -> float:
@@ -409,7 +417,8 @@ def uncertainty_metrics(
     ``cov_xy``; :func:`normalised_estimation_error`). After convergence one mode holds
     almost all the weight (with the ``converged`` column) and √λ₁ is under 10 m, so this is
     the region of the heaviest component widened by the rest; before it, a multi-modal
-    cloud's Gaussian would overstate coverage, and those seconds are not counted.
+    cloud's Gaussian would overstate coverage, and those seconds are not counted. A cloud
+    collapsed onto a point (covariance not positive definite) holds no truth.
 
     Parameters
     ----------
@@ -434,5 +443,6 @@ def uncertainty_metrics(
     convergence = first_convergence(times, flags)
     if not convergence.converged:
         return Uncertainty(math.nan, false_converged, 0)
-    nees = normalised_estimation_error(estimates.iloc[convergence.index :], truth)
+    after = estimates.iloc[convergence.index :]
+    nees = normalised_estimation_error(after, truth, degenerate="inf")
     return Uncertainty(ellipse_coverage(nees, level), false_converged, nees.size)

@@ -359,18 +359,26 @@ def _recluster(x, y, weights, labels, max_components, min_separation, split_shar
     new = np.empty(labels.size, dtype=np.int64)
     for i in range(labels.size):
         new[i] = rank[target[labels[i]]]
-    n_components = rank[-1] + 1
-    merged = n_components
+    merged = rank[-1] + 1
+    if merged < n_components:
+        moments = component_moments(x, y, weights, new, merged)
+    n_components = merged
+    min_variance = (0.5 * min_separation) ** 2 * split_share
     for k in range(merged):
         if n_components >= max_components:
             break
-        members = np.flatnonzero(new == k)
-        share = weights[members]
-        if members.size < 2 or share.sum() <= prune_weight:
+        # too light, or too narrow to hold two clusters: no pass over its particles
+        var_x, var_y, cov_xy = moments[k, 3], moments[k, 4], moments[k, 5]
+        half = 0.5 * (var_x - var_y)
+        largest = 0.5 * (var_x + var_y) + math.sqrt(half * half + cov_xy * cov_xy)
+        if moments[k, 0] <= prune_weight or largest < min_variance:
             continue
-        xs, ys = x[members], y[members]
+        members = np.flatnonzero(new == k)
+        if members.size < 2:
+            continue
+        xs, ys, share = x[members], y[members], weights[members]
         separation, minor, sd_lo, sd_hi, mx, my, ax, ay, cut = split_in_two(
-            xs, ys, share, (0.5 * min_separation) ** 2 * split_share, SPLIT_BINS
+            xs, ys, share, min_variance, SPLIT_BINS
         )
         if minor >= split_share and separation > max(min_separation, 3.0 * (sd_lo + sd_hi)):
             for i in range(members.size):
@@ -502,7 +510,9 @@ class Modes:
         n = len(self._rows)
         top = np.array([row[2] for row in self._rows]).reshape(n, REPORTED_MODES, 6)
         spread = sqrt_largest_eigenvalue(top[..., 3], top[..., 4], top[..., 5])
-        modes = np.concatenate([top[..., :3], spread[..., None]], axis=2).reshape(n, -1)
+        modes = np.concatenate([top[..., :3], spread[..., None]], axis=2).reshape(
+            n, 4 * REPORTED_MODES
+        )
         out = pd.DataFrame(modes, columns=list(MODE_COLUMNS[2:]))
         out.insert(0, "components", np.array([row[1] for row in self._rows], dtype=np.int64))
         out.insert(0, "time", np.array([row[0] for row in self._rows], dtype=float))
@@ -531,12 +541,17 @@ def with_modes(estimates: pd.DataFrame, modes: pd.DataFrame) -> pd.DataFrame:
     modes : pandas.DataFrame
         :data:`MODE_COLUMNS`, by time.
     """
-    table = modes[["time", "mode1_weight", "mode2_x", "mode2_y", "mode2_weight"]]
-    table = table.drop_duplicates("time", keep="last").astype(float)
-    merged = pd.merge_asof(estimates, table, on="time", direction="backward")
-    single = merged["mode1_weight"].notna() & merged["mode2_weight"].isna()
-    merged.loc[single, "mode2_weight"] = 0.0
-    merged["converged"] = (merged["sqrt_lambda1"] < CONVERGENCE_THRESHOLD) & (
-        merged["mode1_weight"] >= ONE_MODE_WEIGHT
+    times = estimates["time"].to_numpy(dtype=float)
+    # the latest resampling at or before each time (the last of several at one time)
+    latest = np.searchsorted(modes["time"].to_numpy(dtype=float), times, side="right") - 1
+    before = latest < 0
+    columns = {}
+    for name in ("mode1_weight", "mode2_x", "mode2_y", "mode2_weight"):
+        values = np.append(modes[name].to_numpy(dtype=float), np.nan)
+        columns[name] = values[np.where(before, -1, latest)]
+    single = ~np.isnan(columns["mode1_weight"]) & np.isnan(columns["mode2_weight"])
+    columns["mode2_weight"][single] = 0.0
+    columns["converged"] = (estimates["sqrt_lambda1"].to_numpy() < CONVERGENCE_THRESHOLD) & (
+        columns["mode1_weight"] >= ONE_MODE_WEIGHT
     )
-    return merged
+    return estimates.assign(**columns)
