@@ -65,6 +65,10 @@ ONE_MODE_WEIGHT = 0.95
 COMPONENT = "component"
 #: bins of the projection in the split test (:func:`hmmtrack.tracking.particles.split_in_two`)
 SPLIT_BINS = 256
+#: most particles of a component the split test looks at (an evenly strided sample): its
+#: clusters, each with at least ``split_share`` (2 %) of the weight, hold 40 of them or more,
+#: and the test's cost stops growing with N
+SPLIT_SAMPLE = 2000
 #: modes reported per row by :class:`Modes`
 REPORTED_MODES = 2
 #: columns of the modes table (:class:`Modes`)
@@ -180,7 +184,9 @@ class Mixture:
         than ``max(min_separation, 3 (sd_lo + sd_hi))`` apart and the lighter holds at
         least ``split_share`` of its weight (the test of
         :func:`hmmtrack.tracking.diagnostics.ambiguity`; the gap between 2 and 3 standard
-        deviations keeps a pair from being merged and split again at once).
+        deviations keeps a pair from being merged and split again at once). The split test
+        looks at an evenly strided sample of at most :data:`SPLIT_SAMPLE` of a component's
+        particles and is skipped for a component too narrow to hold two such clusters.
 
         Parameters
         ----------
@@ -290,7 +296,7 @@ def resample_components(weights, labels, counts, component_weight, code, draws):
         if c == 0:
             continue
         own = members[start[k] : start[k + 1]]
-        w = weights[own]
+        w = weights if n_components == 1 else weights[own]
         scale = 1.0 / component_weight[k]
         if code == 0:  # multinomial
             spacings = draws[d : d + c + 1]
@@ -376,14 +382,15 @@ def _recluster(x, y, weights, labels, max_components, min_separation, split_shar
         members = np.flatnonzero(new == k)
         if members.size < 2:
             continue
-        xs, ys, share = x[members], y[members], weights[members]
+        # the test on an evenly strided sample of at most SPLIT_SAMPLE particles
+        sample = members[:: -(-members.size // SPLIT_SAMPLE)]
         separation, minor, sd_lo, sd_hi, mx, my, ax, ay, cut = split_in_two(
-            xs, ys, share, min_variance, SPLIT_BINS
+            x[sample], y[sample], weights[sample], min_variance, SPLIT_BINS
         )
         if minor >= split_share and separation > max(min_separation, 3.0 * (sd_lo + sd_hi)):
-            for i in range(members.size):
-                if (xs[i] - mx) * ax + (ys[i] - my) * ay >= cut:
-                    new[members[i]] = n_components
+            for i in members:
+                if (x[i] - mx) * ax + (y[i] - my) * ay >= cut:
+                    new[i] = n_components
             n_components += 1
     return new
 
