@@ -230,6 +230,9 @@ def test_trial_scores_and_error_curve_match_metrics(small_scenarios):
     assert result.mean_error_after_convergence == scores.mean_error_after_convergence
     assert result.rmse_after_convergence == scores.rmse_after_convergence
     assert result.time_to_convergence == scores.time_to_convergence
+    honesty = metrics.uncertainty_metrics(run.estimates, swimmer.truth)
+    assert result.false_converged == honesty.false_converged
+    np.testing.assert_equal(result.calibration, honesty.calibration)
     errors = metrics.position_error(run.estimates, swimmer.truth)
     np.testing.assert_array_equal(result.error, errors[:: int(ex.ERROR_CURVE_SPACING)])
     np.testing.assert_array_equal(np.diff(result.error_time), ex.ERROR_CURVE_SPACING)

@@ -69,7 +69,9 @@ def summarise_trials(
         ``mean_error_after_convergence`` (mean over trials of the paper's "RMSE", m),
         ``median_error_after_convergence`` (m), ``rmse_after_convergence`` (mean over
         trials, m), ``time_to_convergence`` (mean over converged trials, s; NaN when none
-        converged) and ``max_time_to_convergence`` (s).
+        converged) and ``max_time_to_convergence`` (s); with the trials' ``calibration`` and
+        ``false_converged`` columns, their means (over the trials that converged, and over
+        all).
     """
     groups = table.groupby(list(by), sort=False)
     converged_times = table["time_to_convergence"].where(table["converged"])
@@ -88,6 +90,9 @@ def summarise_trials(
             ).max(),
         }
     )
+    for column in ("calibration", "false_converged"):
+        if column in table.columns:
+            summary[column] = groups[column].mean()
     return summary.reset_index()
 
 

@@ -13,6 +13,7 @@ Not for dispatching many trials (:mod:`hmmtrack.experiments.dispatch`) nor for t
 
 from __future__ import annotations
 
+import math
 import time as _time
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
@@ -69,6 +70,8 @@ TRIAL_COLUMNS = (
     "converged",
     "mean_error_after_convergence",
     "rmse_after_convergence",
+    "calibration",
+    "false_converged",
     "runtime",
 )
 
@@ -106,6 +109,11 @@ class TrialResult:
         Which synthetic dataset of the scenario (0 is the one :func:`paper_scenarios`
         builds; several datasets separate the spread between datasets from that between
         filter runs).
+    calibration : float
+        Share of the seconds after convergence whose 95 % region holds the truth (NaN when
+        never converged; :func:`hmmtrack.analysis.metrics.uncertainty_metrics`).
+    false_converged : float
+        Share of the seconds declared converged with an error above 50 m.
     """
 
     scenario: str
@@ -122,6 +130,8 @@ class TrialResult:
     error_time: np.ndarray = field(repr=False)
     error: np.ndarray = field(repr=False)
     dataset: int = 0
+    calibration: float = math.nan
+    false_converged: float = math.nan
 
     def row(self) -> dict[str, Any]:
         """The scalar fields, as one row of a trials table."""
@@ -318,6 +328,7 @@ def run_trial(
     runtime = _time.perf_counter() - clock
     estimates = run.estimates
     scores = metrics.tracking_metrics(estimates, scenario.truth)
+    honesty = metrics.uncertainty_metrics(estimates, scenario.truth)
     errors = metrics.position_error(estimates, scenario.truth)
     elapsed = estimates["time"].to_numpy(dtype=float) - float(estimates["time"].iloc[0])
     _, keep = np.unique(np.floor(elapsed / ERROR_CURVE_SPACING), return_index=True)
@@ -336,4 +347,6 @@ def run_trial(
         error_time=elapsed[keep],
         error=errors[keep],
         dataset=int(dataset),
+        calibration=honesty.calibration,
+        false_converged=honesty.false_converged,
     )

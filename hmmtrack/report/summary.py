@@ -45,6 +45,8 @@ def _comparison_section(comparison: pd.DataFrame) -> str:
                 fmt(cell["time_to_convergence"]),
                 paper_number(paper_tc),
                 f"{int(cell['n_converged'])}/{int(cell['n_trials'])}",
+                _percent(cell.get("calibration", math.nan)),
+                _percent(cell.get("false_converged", math.nan)),
             ]
         )
     headers = [
@@ -57,16 +59,28 @@ def _comparison_section(comparison: pd.DataFrame) -> str:
         "time to conv. (s)",
         "paper (s)",
         "converged",
+        "truth in 95 % region",
+        "false converged",
     ]
     return (
         "## Motion-model comparison\n\n"
         'Per trial: the paper\'s "RMSE" (the *mean* position error from convergence to the '
         "end), the true root-mean-square error over the same span, and the time until "
         "√λ₁ < 10 m. Table: means over trials (time to convergence over converged trials; "
-        "a trial that never converges is scored over its whole run, as the paper does).\n\n"
+        "a trial that never converges is scored over its whole run, as the paper does). "
+        "Honesty of the stated uncertainty: the share of seconds after convergence whose "
+        "95 % ellipse (of the cloud's mean and covariance) holds the truth, 95 % for a "
+        "calibrated filter, and the share of seconds declared converged while more than "
+        "50 m off (:func:`hmmtrack.analysis.metrics.uncertainty_metrics`; convergence by "
+        "the estimates' `converged` column when the filter reports modes).\n\n"
         + markdown_table(headers, rows)
         + "\n"
     )
+
+
+def _percent(share: float) -> str:
+    """A share as a whole percentage, or a dash when unknown."""
+    return "–" if not math.isfinite(share) else f"{100 * share:.0f} %"
 
 
 def _spread_section(comparison: pd.DataFrame) -> str:
