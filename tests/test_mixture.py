@@ -18,10 +18,13 @@ from hmmtrack.tracking.filter import ParticleFilter
 from hmmtrack.tracking.mixture import (
     ESTIMATE_MODE_COLUMNS,
     MODE_COLUMNS,
+    SCHEME_CODES,
     Mixture,
     Modes,
     allocate,
     component_moments,
+    resample_components,
+    scheme_draws,
     with_modes,
 )
 from hmmtrack.tracking.motion.baseline import BaselineMotion
@@ -255,3 +258,30 @@ def test_convergence_is_declared_only_when_one_mode_holds_almost_all_the_weight(
     assert merged["converged"].tolist() == [False, False, False, True, False]
     np.testing.assert_array_equal(merged["mode2_weight"], [nan, 0.4, 0.4, 0.0, 0.0])
     np.testing.assert_array_equal(merged["mode2_x"], [nan, 8.0, 8.0, nan, nan])
+
+
+@pytest.mark.parametrize("scheme", sorted(SCHEME_CODES))
+def test_each_scheme_resamples_within_components_without_bias(scheme):
+    rng = np.random.default_rng(11)
+    n = 60
+    labels = np.repeat([0, 1, 2], [30, 20, 10])
+    weights = rng.random(n) ** 3
+    weights /= weights.sum()
+    component_weight = np.bincount(labels, weights)
+    counts = np.array([25, 0, 35])  # component 1 dropped
+    code = SCHEME_CODES[scheme]
+    copies = np.zeros(n)
+    for _ in range(400):
+        draws = scheme_draws(rng, code, n, 2)
+        ancestors, log_weight = resample_components(
+            weights, labels, counts, component_weight, code, draws
+        )
+        np.testing.assert_array_equal(labels[ancestors], np.repeat([0, 2], [25, 35]))
+        live = component_weight[[0, 2]].sum()
+        np.testing.assert_allclose(
+            np.exp(log_weight), np.repeat(component_weight[[0, 2]] / live / [25, 35], [25, 35])
+        )
+        copies += np.bincount(ancestors, minlength=n)
+    # each particle is copied N_k w_i / π_k times on average
+    expected = np.where(labels == 1, 0.0, counts[labels] * weights / component_weight[labels])
+    np.testing.assert_allclose(copies / 400, expected, atol=0.25)

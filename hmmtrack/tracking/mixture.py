@@ -53,6 +53,7 @@ __all__ = [
     "allocate",
     "component_moments",
     "resample_components",
+    "scheme_draws",
     "with_modes",
 ]
 
@@ -166,7 +167,7 @@ class Mixture:
             math.ceil(self.min_share * p.n),
         )
         code = SCHEME_CODES[pf.resampling]
-        draws = _scheme_draws(pf.rng, code, p.n, int(np.count_nonzero(counts)))
+        draws = scheme_draws(pf.rng, code, p.n, int(np.count_nonzero(counts)))
         ancestors, log_weight = resample_components(
             weights, labels, counts, component_weight, code, draws
         )
@@ -213,7 +214,7 @@ class Mixture:
 SCHEME_CODES = {"multinomial": 0, "residual": 1, "stratified": 2, "systematic": 3}
 
 
-def _scheme_draws(rng: np.random.Generator, code: int, n: int, live: int) -> np.ndarray:
+def scheme_draws(rng: np.random.Generator, code: int, n: int, live: int) -> np.ndarray:
     """The random numbers :func:`resample_components` consumes for ``n`` particles in
     ``live`` components: standard exponentials (multinomial and residual: the spacings of
     each component's sorted uniforms, ``N_k + 1`` each), one uniform per particle
@@ -261,7 +262,7 @@ def resample_components(weights, labels, counts, component_weight, code, draws):
     code : int
         :data:`SCHEME_CODES`.
     draws : numpy.ndarray
-        The scheme's random numbers for the live components in order (``_scheme_draws``).
+        The scheme's random numbers for the live components in order (:func:`scheme_draws`).
 
     Returns
     -------
