@@ -189,13 +189,7 @@ def time_to_convergence(
     Convergence
         Time from ``times[0]`` (s, 0 if never), whether it converged, and the index.
     """
-    times = np.asarray(times, dtype=float)
     spread = np.asarray(sqrt_lambda1, dtype=float)
-    if times.shape != spread.shape or times.ndim != 1 or times.size == 0:
-        raise ValueError(
-            f"times and sqrt_lambda1 must be non-empty and of one shape; got {times.shape} "
-            f"and {spread.shape}"
-        )
     bad = np.flatnonzero(~np.isfinite(spread))
     if bad.size:
         raise ValueError(f"sqrt_lambda1 is not finite at position(s) {bad[:10].tolist()}")
@@ -231,8 +225,8 @@ def first_convergence(times, flags) -> Convergence:
     flags = np.asarray(flags, dtype=bool)
     if times.shape != flags.shape or times.ndim != 1 or times.size == 0:
         raise ValueError(
-            f"times and flags must be non-empty and of one shape; got {times.shape} and "
-            f"{flags.shape}"
+            f"times and convergence flags (or sqrt_lambda1) must be non-empty and of one "
+            f"shape; got {times.shape} and {flags.shape}"
         )
     below = np.flatnonzero(flags)
     if below.size == 0:
