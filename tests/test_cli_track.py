@@ -388,8 +388,8 @@ def test_smooth_works_with_the_range_rate_measurement_too(scenario_files, tmp_pa
     assert "n_ancestors" in written.columns
     np.testing.assert_allclose(written[["x", "y"]], expected[["x", "y"]], rtol=1e-9)
     with pytest.raises(SystemExit):
-        main([*track_args(paths, tmp_path / "e.csv"), "--smooth", "0"])
-    assert "smoothing_lag must be a positive integer" in capsys.readouterr().err
+        main([*track_args(paths, tmp_path / "e.csv"), "--smooth", "-1"])
+    assert "smoothing_lag must be a whole number >= 0" in capsys.readouterr().err
 
 
 def test_config_file_with_overrides(tmp_path):

@@ -40,7 +40,12 @@ from hmmtrack.tracking.motion import (
     VelocityMotion,
     motion_model,
 )
-from hmmtrack.tracking.motion.settings import MOTION_SETTINGS, HMMSettings, VelocitySettings
+from hmmtrack.tracking.motion.settings import (
+    MOTION_SETTINGS,
+    BaselineSettings,
+    HMMSettings,
+    VelocitySettings,
+)
 from hmmtrack.tracking.tempering import Tempered
 
 PRESET = "two-moving-receivers"
@@ -183,7 +188,7 @@ def test_default_models_are_those_of_the_trackers():
         ({"bounds": (0, 1, 5, 2)}, "bounds must be"),
         ({"start": "2022-06-08T17:00:00"}, "ISO 8601 text with a UTC offset"),
         ({"start": 10.0, "end": 5.0}, r"start \(10.0\) must be before end"),
-        ({"smoothing_lag": 0}, "smoothing_lag must be a positive integer"),
+        ({"smoothing_lag": -1}, "smoothing_lag must be a whole number >= 0"),
         ({"variant": "fast"}, "variant must be one of"),
         ({"resting": "no"}, "resting must be true or false"),
         ({"heading_diffusion": -0.1}, "heading_diffusion must be a non-negative"),
@@ -375,3 +380,24 @@ def test_standard_deviations_and_correlation_make_the_measurement_covariance():
     new = np.array(dataclasses.replace(settings, sigma_range=4.0, sigma_range_rate=0.7).covariance)
     rho = new[0, 1] / np.sqrt(new[0, 0] * new[1, 1])
     assert rho == pytest.approx(0.5) and np.linalg.eigvalsh(new).min() > 0
+
+
+def test_the_ping_measurement_brings_its_own_motion_and_smoothing():
+    """A ping run (random-interval tags, offline array data) takes the ping measurement's
+    random walk and smoother unless told; other measurements keep the configuration's."""
+    ping = TrackingConfig.from_keys(measurement="ping")
+    assert ping.motion == BaselineSettings(sigma_position=2.5) and ping.smoothing == 60
+    assert TrackingConfig.from_keys(measurement="ping", sigma_position=3.0).motion == (
+        BaselineSettings(sigma_position=3.0)
+    )
+    assert TrackingConfig.from_keys(measurement="ping", motion="baseline").motion == (
+        BaselineSettings(sigma_position=2.5)
+    )
+    assert TrackingConfig.from_keys(measurement="ping", motion="velocity").motion == (
+        VelocitySettings()
+    )
+    assert TrackingConfig.from_keys(measurement="ping", smoothing_lag=0).smoothing is None
+    assert TrackingConfig.from_keys(measurement="ping", smoothing_lag=30).smoothing == 30
+    other = TrackingConfig.from_keys(period=8.0)
+    assert other.motion == HMMSettings() and other.smoothing is None
+    assert TrackingConfig.from_dict(ping.to_dict()) == ping

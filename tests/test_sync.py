@@ -178,10 +178,11 @@ def test_yaps_hydros_become_a_receivers_table(tmp_path):
 
 
 @pytest.mark.skipif(not SHARED.exists(), reason="YAPS ssu1 data absent (../shared/data)")
-@pytest.mark.parametrize("refine, median_ms, p95_ms", [(None, 1.0, 8.0), ("3", 0.25, 1.6)])
+@pytest.mark.parametrize("refine, median_ms, p95_ms", [("0", 1.0, 8.0), (None, 0.25, 1.6)])
 def test_real_array_synced_times_agree_with_yaps(tmp_path, refine, median_ms, p95_ms):
     """Tag 15266's detections synced by the CLI against YAPS's own synced times. YAPS
-    re-estimated the unfixed hydrophones' positions, so refinement brings us closest."""
+    re-estimated the unfixed hydrophones' positions, so refinement (the default when the
+    receivers file marks the fixed ones) brings us closest; ``0`` keeps every position."""
     options = ["--refine-positions", refine] if refine else []
     code = main(
         [
@@ -218,21 +219,22 @@ def test_real_array_synced_times_agree_with_yaps(tmp_path, refine, median_ms, p9
 
 
 @pytest.mark.skipif(not SHARED.exists(), reason="YAPS ssu1 data absent (../shared/data)")
-def test_random_interval_tag_tracked_within_yaps_accuracy_from_the_raw_export(tmp_path):
-    """YAPS's example, CLI only: sync (positions refined), then tag 15266 (20-40 s random
-    interval) tracked by the ping measurement and smoothed; at YAPS's ping times against the
-    GPS: median <= 3.0 m and RMSE <= 4.0 m (YAPS: 3.22 m, 4.34 m)."""
+def test_random_interval_tag_tracked_within_yaps_accuracy_from_the_raw_export(tmp_path, capsys):
+    """YAPS's example, issue 12's commands with every default: sync (the unfixed positions
+    refined), then tag 15266 (20-40 s random interval) tracked by the ping measurement and
+    smoothed; at YAPS's ping times against the GPS: median <= 3.0 m and RMSE <= 4.0 m
+    (YAPS: 3.22 m, 4.34 m)."""
     vue = str(SHARED / "VUE_Export_ssu1.csv")
     receivers = str(yaps_receivers(tmp_path / "receivers.csv"))
     clocks = str(tmp_path / "clocks.json")
     sync = ["sync", "--detections", vue, "--receivers", receivers, "-o", clocks]
-    assert main([*sync, "--time-keeper", "VR2W-128367", "--refine-positions", "3"]) == 0
+    assert main([*sync, "--time-keeper", "VR2W-128367"]) == 0
     track = ["track", "--detections", vue, "--receivers", receivers, "--clocks", clocks]
-    track += ["--transmitter", "15266", "--burst-interval", "20", "40", "--motion", "baseline"]
-    track += ["--sigma-position", "2.5", "--arrival-sigma", "0.002", "--tempering-ess", "0.6"]
-    track += ["--smooth", "60"]
-    track += ["--particles", "2000", "--seed", "2", "-o", str(tmp_path / "est.csv")]
+    track += ["--transmitter", "15266", "--burst-interval", "20", "40"]
+    track += ["--seed", "2", "-o", str(tmp_path / "est.csv")]
     assert main([*track, "--per-ping", str(tmp_path / "pings.csv")]) == 0
+    assert "fixed-lag smoothed (lag 60) estimates" in capsys.readouterr().out
+    assert "n_ancestors" in pd.read_csv(tmp_path / "est.csv", nrows=1).columns  # (smoothed)
     estimates = io.read_truth(tmp_path / "est.csv", None)
     gps = pd.read_csv(SHARED / "ssu1_gps.csv")
     gps_time = io.parse_times(gps, "ts", tz=None)

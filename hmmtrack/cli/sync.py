@@ -7,7 +7,10 @@ Example::
 
 reads the detections (VUE, Fathom or plain CSV) and the receivers file (``receiver, x, y``
 and optional ``z``, ``sync_tag``, ``fixed``), fits every receiver's clock relative to the
-time keeper (:func:`hmmtrack.sync.fit_clocks`), and writes the clock file (JSON), the
+time keeper (:func:`hmmtrack.sync.fit_clocks`; when the file has a ``fixed`` column, the
+positions of the receivers not marked fixed are refined within
+:data:`~hmmtrack.sync.fit.REFINE_POSITIONS_SD` m unless ``--refine-positions`` says
+otherwise), and writes the clock file (JSON), the
 per-receiver residual table (CSV, beside the clock file unless ``--residuals`` names it),
 optionally a residual plot (``--plot``) and the detections on the common time base
 (``--write-synced``: ``time`` in epoch seconds to the microsecond, ``receiver_time`` the
@@ -24,6 +27,7 @@ from hmmtrack import io
 from hmmtrack.cli import add_command, add_time_unit
 from hmmtrack.io.outputs import atomic_files, check_paths
 from hmmtrack.sync import apply_clocks, fit_clocks, write_clocks
+from hmmtrack.sync.fit import REFINE_POSITIONS_SD
 from hmmtrack.tracking.measurement.ranging import check_sound_speed
 
 
@@ -68,7 +72,11 @@ def register(subparsers) -> None:
         "--refine-positions",
         type=float,
         metavar="SD",
-        help="refine x, y of receivers not marked fixed, prior sd SD metres",
+        help=(
+            "refine x, y of receivers not marked fixed, prior sd SD metres; 0: keep every "
+            f"position (default: {REFINE_POSITIONS_SD:g} when the receivers file has a fixed "
+            "column, else 0)"
+        ),
     )
     parser.add_argument(
         "--self-detections",
@@ -113,6 +121,9 @@ def run(args: argparse.Namespace) -> int:
     detections = io.read_detections(args.detections, tz=args.tz, time_unit=args.time_unit)
     receivers = io.read_receivers(args.receivers, time_unit=args.time_unit)
     temperature, salinity = args.water if args.water else (None, None)
+    refine = args.refine_positions
+    if refine is None:
+        refine = REFINE_POSITIONS_SD if "fixed" in receivers else 0.0
     fit = fit_clocks(
         detections,
         receivers,
@@ -121,7 +132,7 @@ def run(args: argparse.Namespace) -> int:
         sound_speed=args.sound_speed,
         temperature=temperature,
         salinity=salinity,
-        refine_positions=args.refine_positions,
+        refine_positions=refine or None,
         self_detections=args.self_detections,
         min_detections=args.min_detections,
         max_clock_offset=args.max_clock_offset,

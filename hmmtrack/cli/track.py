@@ -3,15 +3,19 @@
 Reads detections (VUE, Fathom or plain CSV) and receiver positions (x/y or lon/lat), runs
 the tracker and writes one estimate per second as CSV (``time`` ISO 8601 UTC, ``x``, ``y``,
 ``lon``, ``lat`` when the receivers were given in lon/lat, the x-y covariance,
-``sqrt_lambda1`` and ``n_eff``). With ``--truth`` it prints the paper's metrics; with
-``--plot`` it draws the error over time and particle snapshots.
+``sqrt_lambda1`` and ``n_eff``): the filter's estimates, or with smoothing the fixed-lag
+smoother's, whose last column is ``n_ancestors`` instead of ``n_eff`` (the run prints which).
+With ``--truth`` it prints the paper's metrics; with ``--plot`` it draws the error over time
+and particle snapshots.
 
-Two measurement models (``--measurement``), both run by
+The measurement models (``--measurement``), all run by
 :func:`hmmtrack.tracking.pipeline.track`: ``range-rate``, the paper's ranges and range-rates
 from the tag period and known initial ranges ``--r0``; ``arrival-time``, the tag's emission
 clock carried in the particle state, no initial range needed, optionally smoothed with a fixed
 lag (its detection times must be on one common time base: ``--clocks``, the clock file of
-``hmmtrack sync``, moves each receiver's logged times to it).
+``hmmtrack sync``, moves each receiver's logged times to it); ``ping`` (``--burst-interval``),
+each ping's time differences across receivers, smoothed by default (offline array data, as
+YAPS; ``--no-smooth`` writes the filter's estimates, streamed to the file as they are made).
 
 Settings come, in increasing precedence, from ``--preset`` (a bundled set of settings
 for one kind of deployment, e.g. ``two-moving-receivers``), ``--config`` (a JSON file, see
@@ -49,6 +53,7 @@ from hmmtrack.tracking.config import (
     read_preset,
     read_settings,
     section_classes,
+    section_default,
 )
 from hmmtrack.tracking.measurement.tdoa import per_ping_table
 from hmmtrack.tracking.settings import boolean
@@ -228,10 +233,17 @@ def register(subparsers) -> None:
     parser.add_argument(
         "--motion",
         choices=tuple(section_classes("motion")),
-        help=f"motion model (default: {SECTIONS['motion']})",
+        help=f"motion model (default: {SECTIONS['motion']}; baseline for --measurement ping)",
     )
     for option in settings_options():
         _add(parser, option)
+    parser.add_argument(
+        "--no-smooth",
+        dest="smoothing_lag",
+        action="store_const",
+        const=0,
+        help="write the filter's estimates (the same as --smooth 0)",
+    )
     parser.add_argument("--seed", type=int, help="random seed (printed when not given)")
     parser.add_argument(
         "--truth", help="true positions CSV (time, x, y or lon, lat): print metrics"
@@ -242,7 +254,7 @@ def register(subparsers) -> None:
         metavar="FILE",
         help=(
             "CSV of every ping heard (ping measurements): estimated emission time, x, y, their "
-            "sds, the receivers that heard it, and the smoothed position with --smooth"
+            "sds, the receivers that heard it, and the smoothed position when smoothed"
         ),
     )
     parser.set_defaults(func=run)
@@ -305,7 +317,7 @@ def _check_used(option: Option, settings: dict) -> None:
     """Refuse an option that the run's components do not use."""
     section = settings.get(option.section, {}) if option.section else settings
     if option.components != (None,):
-        name = section.get("name", SECTIONS[option.section])
+        name = section.get("name", section_default(settings, option.section)["name"])
         if name not in option.components:
             raise UserInputError(
                 f"{option.spelled} is used with --{option.section} "
@@ -426,10 +438,12 @@ def run(args: argparse.Namespace) -> int:
 
         tracked = tracking.tracked_detections(detections, config)
         snapshot_times = choose_snapshots(*tracking.time_window(tracked["time"], config))
-    # estimates go to the output as they are made (memory bounded by the particles, not the
-    # span) unless the metrics, the plot, the smoother or the modes need them all at the end
+    # estimates (the smoothed ones when the run smooths) go to the output as they are made
+    # (memory bounded by the particles, not the span) unless the metrics, the plot, the modes
+    # or a smoothed run's per-ping table need them all at the end
     modes = config.filter.modes or config.filter.mixture
-    stream = truth is None and not args.plot and config.smoothing_lag is None and not modes
+    stream = truth is None and not args.plot and not modes
+    stream = stream and not (args.per_ping and config.smoothing)  # (it uses the smoothed)
     outputs = [args.output, args.plot, args.per_ping]
     with atomic_files(*filter(None, outputs)) as written:
         paths = dict(zip([p for p in outputs if p], written, strict=True))
@@ -454,7 +468,8 @@ def run(args: argparse.Namespace) -> int:
         if args.per_ping:
             pings = per_ping_table(result.pings, result.observations, result.smoothed)
             io.write_estimates(pings, paths[args.per_ping], projection=projection)
-    print(f"wrote {writer.rows} estimates to {args.output}")
+    which = "" if config.smoothing is None else f"fixed-lag smoothed (lag {config.smoothing}) "
+    print(f"wrote {writer.rows} {which}estimates to {args.output}")
     if args.per_ping:
         print(f"wrote {len(pings)} pings to {args.per_ping}")
     if args.plot:

@@ -56,6 +56,11 @@ INITIAL_SCALE = 0.05
 MIN_SCALE = 1e-6
 #: starting sound speed (m/s) when it is estimated
 INITIAL_SOUND_SPEED = 1480.0
+#: prior sd (m) of an unfixed receiver's x, y that ``hmmtrack sync`` refines by default when
+#: the receivers file marks which are ``fixed``: a mooring dropped from a boat lands within
+#: metres of its logged position, and a wider prior lets receivers outside the sync tags'
+#: reach wander (reports/decisions.md, "Receiver clock synchronisation")
+REFINE_POSITIONS_SD = 3.0
 
 
 @dataclass(frozen=True)

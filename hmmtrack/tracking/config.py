@@ -43,7 +43,13 @@ from pathlib import Path
 from hmmtrack.tracking.filter import FilterSettings
 from hmmtrack.tracking.measurement import MEASUREMENTS
 from hmmtrack.tracking.motion.settings import MOTION_SETTINGS, HMMSettings
-from hmmtrack.tracking.settings import Settings, instant, positive_integer, setting, text
+from hmmtrack.tracking.settings import (
+    Settings,
+    instant,
+    non_negative_integer,
+    setting,
+    text,
+)
 
 __all__ = [
     "DESCRIPTIVE_KEYS",
@@ -56,6 +62,7 @@ __all__ = [
     "read_preset",
     "read_settings",
     "section_classes",
+    "section_default",
 ]
 
 #: free-text keys a configuration file may carry and that tracking ignores (the
@@ -107,7 +114,8 @@ class TrackingConfig(Settings):
         :data:`~hmmtrack.tracking.measurement.MEASUREMENTS`), which name it.
     motion : Settings
         The motion model's settings (:data:`~hmmtrack.tracking.motion.settings.MOTION_SETTINGS`);
-        the bundled white-shark HMM by default.
+        the bundled white-shark HMM by default, or the measurement's own
+        (:func:`section_default`).
     filter : FilterSettings
         Particles, resampling, prediction step and correction policy.
     transmitter : str or None
@@ -126,7 +134,9 @@ class TrackingConfig(Settings):
         builds its observations. ``None``: the logged times are taken as common.
     smoothing_lag : int or None
         Steps of a fixed-lag smoother (:class:`hmmtrack.tracking.smoothing.Smoothed`; s at the
-        default 1 s prediction step), whose estimates a run then also returns.
+        default 1 s prediction step), whose estimates a run then also returns; ``None``: the
+        measurement's ``default_smoothing_lag`` (60 for the ping measurement, none for the
+        others); 0: no smoothing.
     """
 
     measurement: Settings
@@ -184,12 +194,15 @@ class TrackingConfig(Settings):
     )
     smoothing_lag: int | None = setting(
         None,
-        help="also write fixed-lag smoothed estimates, with this lag (prediction steps, s)",
-        check=positive_integer,
+        help=(
+            "write fixed-lag smoothed estimates instead of the filter's, with this lag "
+            "(prediction steps, s); 0 (or --no-smooth): the filter's"
+        ),
+        check=non_negative_integer,
         option="smooth",
         parse=int,
         metavar="LAG",
-        default_text="no smoothing",
+        default_text="60 for the ping measurement, else 0",
     )
 
     def validate(self) -> None:
@@ -202,6 +215,15 @@ class TrackingConfig(Settings):
                 )
         if self.start is not None and self.end is not None and not self.start < self.end:
             raise ValueError(f"start ({self.start}) must be before end ({self.end})")
+
+    @property
+    def smoothing(self) -> int | None:
+        """The run's smoothing lag (steps): :attr:`smoothing_lag`, else the measurement's
+        default; ``None`` for no smoothing."""
+        lag = self.smoothing_lag
+        if lag is None:
+            lag = MEASUREMENTS[self.measurement.name].default_smoothing_lag
+        return lag or None
 
     @classmethod
     def keys(cls) -> tuple[str, ...]:
@@ -270,13 +292,36 @@ def _section(data: Mapping, section: str, source: str) -> Settings:
     raw = data.get(section, {})
     if not isinstance(raw, Mapping):
         raise ValueError(f"{source}: {section} must be a JSON object of settings, got {raw!r}")
-    raw = dict(raw)
+    raw = section_default(data, section) | dict(raw)
     classes = section_classes(section)
-    name = raw.pop("name", SECTIONS[section])
+    name = raw.pop("name")
     if name not in classes:
         raise ValueError(f"{source}: {section} name must be one of {list(classes)}, got {name!r}")
     where = f"{source}, section {section!r}" + ("" if name is None else f" ({name})")
     return classes[name].from_dict(raw, where)
+
+
+def section_default(data: Mapping, section: str) -> dict:
+    """What a configuration dictionary's ``section`` starts from, before its own keys: the
+    component :data:`SECTIONS` names, or for the motion the measurement's ``default_motion``
+    (its name and settings, e.g. the ping measurement's random walk) unless the motion
+    section names another model.
+
+    Parameters
+    ----------
+    data : mapping
+        A configuration dictionary (the JSON shape of the module docstring).
+    section : str
+        One of :data:`SECTIONS`.
+    """
+    default = {"name": SECTIONS[section]}
+    measurement, motion = (data.get(key, {}) for key in ("measurement", "motion"))
+    if section == "motion" and isinstance(measurement, Mapping) and isinstance(motion, Mapping):
+        kind = MEASUREMENTS.get(measurement.get("name", SECTIONS["measurement"]))
+        own = None if kind is None else kind.default_motion
+        if own is not None and motion.get("name", own["name"]) == own["name"]:
+            default = dict(own)
+    return default
 
 
 def nest(keys: Mapping) -> dict:

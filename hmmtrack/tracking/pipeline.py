@@ -6,7 +6,8 @@ every measurement model, the one the configuration's ``measurement`` section nam
 from one transmitter's detections (:func:`build_observations`), derives the search box, adds
 its own particle fields, hooks and diagnostics; :func:`track` chooses the correction policy
 (the measurement's default, or tempered at the ``filter`` section's ``tempering_ess``), adds
-a fixed-lag smoother when the configuration has a ``smoothing_lag``, runs the filter and
+a fixed-lag smoother when the run smooths (the configuration's ``smoothing_lag``, else the
+measurement's default: the ping measurement smooths), runs the filter and
 returns one :class:`TrackingResult`.
 
 The motion model is one of the paper's (:mod:`hmmtrack.tracking.motion`), the one the
@@ -294,6 +295,10 @@ def _require_usable(
     )
 
 
+def _discard(estimates: pd.DataFrame) -> None:
+    """A sink that keeps nothing (the filter's estimates of a streamed, smoothed run)."""
+
+
 @dataclass(frozen=True)
 class TrackingResult:
     """What :func:`track` returns, for every measurement.
@@ -429,7 +434,8 @@ def track(
         the motion model (its model file, variant, resting state), the filter's settings,
         its ``clocks`` a clock file mapping the receivers' times to the common time base
         (and the positions it refined, :func:`clock_positions`),
-        and its ``smoothing_lag`` a fixed-lag smoother.
+        and its smoothing lag
+        (:attr:`~hmmtrack.tracking.config.TrackingConfig.smoothing`) a fixed-lag smoother.
     motion : motion model, optional
         The motion model to run instead of the one the ``motion`` section builds.
     seed : int, SeedSequence or Generator
@@ -449,7 +455,9 @@ def track(
         A sink for the per-second estimates, called with tables of them as they are made
         (:meth:`hmmtrack.tracking.filter.ParticleFilter.run`), e.g.
         :class:`hmmtrack.io.EstimatesWriter`: memory then stays bounded by the particles,
-        not the span, and the result's ``estimates`` are ``None``.
+        not the span, and the result's ``estimates`` are ``None``. When the run smooths,
+        the sink takes the smoothed estimates instead (``lag`` steps late), the filter's
+        are dropped, and the result's ``smoothed`` are ``None`` too.
 
     Returns
     -------
@@ -488,8 +496,10 @@ def track(
     scored, measurement_events = measurement.split(observations)
     _require_usable(observations, scored, start, end, config, detections.attrs.get("source"))
     collectors = [*collect]
-    if config.smoothing_lag is not None:
-        collectors.append(Smoothed(config.smoothing_lag))
+    if config.smoothing is not None:
+        collectors.append(Smoothed(config.smoothing, sink=estimates_to))
+        if estimates_to is not None:
+            estimates_to = _discard  # the sink takes the smoothed estimates instead
     pf = particle_filter(config.filter, measurement, bounds, motion, seed=seed, collect=collectors)
     result = pf.run(scored, start, end, snapshot_times, estimates_to=estimates_to)
     events = pd.concat(

@@ -33,6 +33,7 @@ __all__ = [
     "non_negative",
     "number",
     "one_of",
+    "non_negative_integer",
     "positive",
     "positive_integer",
     "setting",
@@ -215,17 +216,28 @@ def fraction(name: str, value) -> float:
     return result
 
 
-def positive_integer(name: str, value) -> int:
-    """A whole number ≥ 1 (an integral float such as 5000.0 included)."""
+def _whole_number(name: str, value, lowest: int, what: str) -> int:
+    """``value`` as an int when it is a whole number ≥ ``lowest`` (an integral float such as
+    5000.0 included); else a ValueError saying it must be ``what``."""
     if (
         isinstance(value, bool)
         or not isinstance(value, numbers.Real)
         or not math.isfinite(value)
         or value != int(value)
-        or value < 1
+        or value < lowest
     ):
-        raise ValueError(f"{name} must be a positive integer, got {value!r}")
+        raise ValueError(f"{name} must be {what}, got {value!r}")
     return int(value)
+
+
+def positive_integer(name: str, value) -> int:
+    """A whole number ≥ 1 (an integral float such as 5000.0 included)."""
+    return _whole_number(name, value, 1, "a positive integer")
+
+
+def non_negative_integer(name: str, value) -> int:
+    """A whole number ≥ 0 (an integral float included)."""
+    return _whole_number(name, value, 0, "a whole number >= 0")
 
 
 def boolean(name: str, value) -> bool:

@@ -24,12 +24,16 @@ This module does not run filters; it only consumes what they record.
 from __future__ import annotations
 
 from collections import deque
+from collections.abc import Callable
 
 import numpy as np
 import pandas as pd
 
 from hmmtrack.tracking.particles import sqrt_largest_eigenvalue
 
+#: rows of each table handed to a sink of smoothed estimates (as the filter's, its
+#: ``ESTIMATE_ROWS``: memory per table of a few hundred kB)
+SINK_ROWS = 10_000
 #: columns of the smoothed estimates table (the filter's estimates plus ``n_ancestors``)
 SMOOTHED_COLUMNS = ("time", "x", "y", "var_x", "var_y", "cov_xy", "sqrt_lambda1", "n_ancestors")
 
@@ -192,13 +196,19 @@ class Smoothed:
     ----------
     lag : int
         Steps (s) of the smoother; 0 reproduces the filter's own estimates.
+    sink : callable, optional
+        Called with tables of the smoothed estimates as they are made
+        (:data:`SINK_ROWS` rows, the last one shorter), so that
+        a long run's memory is bounded by the particles and the lag, not its span; the
+        ``smoothed`` table is then ``None``.
     """
 
     #: the filter predicts one step at a time, so that every second is pushed
     every_step = True
 
-    def __init__(self, lag: int) -> None:
+    def __init__(self, lag: int, sink: Callable[[pd.DataFrame], None] | None = None) -> None:
         self.lag = FixedLagSmoother(lag).lag  # (checked there)
+        self.sink = sink
 
     def start(self, pf) -> None:
         self._smoother = FixedLagSmoother(self.lag)
@@ -211,6 +221,9 @@ class Smoothed:
         self._parent = None
         if row is not None:
             self._rows.append(row)
+            if self.sink is not None and len(self._rows) == SINK_ROWS:
+                self.sink(smoothed_table(self._rows))
+                self._rows = []
 
     def resampled(self, pf, ancestors: np.ndarray) -> None:
         self._parent = ancestors if self._parent is None else self._parent[ancestors]
@@ -218,5 +231,9 @@ class Smoothed:
     def corrected(self, pf) -> None:
         """Nothing to record (the corrected step is pushed once settled)."""
 
-    def result(self) -> dict[str, pd.DataFrame]:
-        return {"smoothed": smoothed_table(self._rows + self._smoother.finish())}
+    def result(self) -> dict[str, pd.DataFrame | None]:
+        table = smoothed_table(self._rows + self._smoother.finish())
+        if self.sink is None:
+            return {"smoothed": table}
+        self.sink(table)
+        return {"smoothed": None}

@@ -28,7 +28,13 @@ Required (checked for every registered measurement by ``tests/test_measurement_p
 * ``collectors()``: the diagnostics a run reports (fresh collectors,
   :mod:`hmmtrack.tracking.diagnostics`; the arrival-time measurement's ambiguity and clock);
 * ``default_correction``: the correction policy it is run with unless the configuration
-  says otherwise (:mod:`hmmtrack.tracking.tempering`).
+  says otherwise (:mod:`hmmtrack.tracking.tempering`);
+* ``default_motion``: the motion section (``name`` and settings) it is run with unless the
+  configuration names another model, the settings given overriding its own (``None``: the
+  configuration's default, :data:`hmmtrack.tracking.config.SECTIONS`);
+* ``default_smoothing_lag``: the fixed-lag smoother's lag (steps) it is run with unless the
+  configuration says otherwise (``None``: no smoothing; offline data such as a moored
+  array's random-interval tags is smoothed by default).
 
 Optional hooks, used by the filter when present:
 
@@ -52,7 +58,7 @@ This module holds no measurement; the implementations are
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any, ClassVar, Protocol, runtime_checkable
 
@@ -99,6 +105,8 @@ class Measurement(Protocol):
     columns: ClassVar[tuple[str, ...]]
     fields: ClassVar[tuple[str, ...]]
     default_correction: ClassVar[Any]
+    default_motion: ClassVar[Mapping[str, Any] | None]
+    default_smoothing_lag: ClassVar[int | None]
 
     @classmethod
     def observations(cls, detections: pd.DataFrame, receivers, settings) -> pd.DataFrame:

@@ -477,6 +477,8 @@ class ClockedArrivalTime:
     columns: ClassVar[tuple[str, ...]] = ArrivalTimeMeasurement.columns
     fields: ClassVar[tuple[str, ...]] = CLOCK_FIELDS
     default_correction: ClassVar[Tempered] = Tempered(TEMPERING_ESS)
+    default_motion: ClassVar[dict | None] = None
+    default_smoothing_lag: ClassVar[int | None] = None
 
     def __post_init__(self) -> None:
         if not (self.lock_sigmas > 0 and int(self.lost_corrections) >= 1):

@@ -310,6 +310,8 @@ class RangeRateMeasurement:
     columns: ClassVar[tuple[str, ...]] = RANGE_RATE_COLUMNS
     fields: ClassVar[tuple[str, ...]] = ()
     default_correction: ClassVar[Plain] = Plain()
+    default_motion: ClassVar[dict | None] = None
+    default_smoothing_lag: ClassVar[int | None] = None
 
     def __post_init__(self) -> None:
         sigma = np.array(self.covariance, dtype=np.float64)

@@ -66,7 +66,6 @@ from hmmtrack.tracking.measurement.arrival_time import emission_distance, vertic
 from hmmtrack.tracking.measurement.base import Score, no_events
 from hmmtrack.tracking.measurement.clocked import (
     SEARCH_RADIUS,
-    TEMPERING_ESS,
     ClockedArrivalTime,
     receiver_tracks,
     search_box,
@@ -83,6 +82,9 @@ __all__ = [
     "PING_TRACE_COLUMNS",
     "ARRIVAL_SIGMA",
     "OUTLIER_FRACTION",
+    "PING_MOTION",
+    "PING_SMOOTHING_LAG",
+    "PING_TEMPERING_ESS",
     "PingSettings",
     "PingState",
     "PingTDOA",
@@ -103,10 +105,21 @@ STEPS_PER_SD = 2.0
 PING_TRACE_COLUMNS = (
     "ping", "time", "emission_time", "x", "y", "x_sd", "y_sd", "n_receivers", "receivers",
 )  # fmt: skip
-#: default sd (s) of a direct arrival's residual and share of outliers (reasons in
-#: reports/decisions.md, "Ping measurement")
-ARRIVAL_SIGMA = 1e-3
+#: default sd (s) of a direct arrival's residual: the synchronised clocks' error (0.3 ms on
+#: YAPS's ssu1) plus the tag's unmodelled motion between emission and the 1 s grid (reasons
+#: in reports/decisions.md, "Ping measurement", "Defaults of the ping measurement")
+ARRIVAL_SIGMA = 2e-3
+#: default share of outliers: multipath and mistimed arrivals must be allowed for
 OUTLIER_FRACTION = 0.05
+#: tempering of a ping's correction: a ping heard by many receivers places the tag to a
+#: metre, and the tempering's moves keep the smoother's ancestors distinct through it
+PING_TEMPERING_ESS = 0.6
+#: the motion a ping run takes unless told: a random walk of the speed scale of a towed or
+#: swimming tag over a 20-40 s interval (the velocity model overshoots the turns)
+PING_MOTION = {"name": "baseline", "sigma_position": 2.5}
+#: smoothing lag (s) of a ping run unless told: random-interval array data is processed
+#: offline (as YAPS does), and the lag spans two to three pings
+PING_SMOOTHING_LAG = 60
 _LOG_2PI = math.log(2.0 * math.pi)
 _NO_ROWS = pd.DataFrame()
 
@@ -430,15 +443,17 @@ class PingTDOA:
     """
 
     sound_speed: float
-    sigma: float = 1e-3
-    outlier_fraction: float = 0.05
+    sigma: float = ARRIVAL_SIGMA
+    outlier_fraction: float = OUTLIER_FRACTION
     half_width: float = 1.0
     search_radius: float = SEARCH_RADIUS
     name: ClassVar[str] = "ping"
     settings: ClassVar[type] = PingSettings
     columns: ClassVar[tuple[str, ...]] = ("arrival", "ping", "receiver_x", "receiver_y")
     fields: ClassVar[tuple[str, ...]] = ()
-    default_correction: ClassVar[Tempered] = Tempered(TEMPERING_ESS)
+    default_correction: ClassVar[Tempered] = Tempered(PING_TEMPERING_ESS)
+    default_motion: ClassVar[dict] = PING_MOTION
+    default_smoothing_lag: ClassVar[int] = PING_SMOOTHING_LAG
 
     @classmethod
     def observations(cls, detections: pd.DataFrame, receivers, settings) -> pd.DataFrame:
