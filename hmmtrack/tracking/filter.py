@@ -959,7 +959,7 @@ class FilterSettings(Settings):
         check=_tempering_ess,
         parse=float,
         metavar="FRACTION",
-        default_text="the measurement's: none for range-rate, 0.3 for arrival-time",
+        default_text="the measurement's: none for range-rate, 0.3 for arrival-time, 0.6 for ping",
     )
     mixture: bool = _switch(
         "keep every mode: resample each component of the particle cloud on its own"
