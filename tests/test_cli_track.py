@@ -441,7 +441,9 @@ def test_every_setting_has_its_generated_option_with_its_default():
     assert set(options) == keys
     subparsers = argparse.ArgumentParser().add_subparsers()
     register(subparsers)
-    actions = {action.dest: action for action in subparsers.choices["track"]._actions}
+    actions: dict = {}
+    for action in subparsers.choices["track"]._actions:
+        actions.setdefault(action.dest, action)  # the generated option before --no-smooth
     for key, option in options.items():
         action = actions[key]
         assert option.flag in action.option_strings
@@ -463,6 +465,12 @@ def test_every_setting_has_its_generated_option_with_its_default():
     arrival = ["--period", "8", "--measurement", "arrival-time", "--motion", "velocity"]
     assert build_config(parser.parse_args([*base, *arrival])) == TrackingConfig.from_keys(
         period=8.0, measurement="arrival-time", motion="velocity"
+    )
+    ping = [*base, "--burst-interval", "20", "40"]
+    assert build_config(parser.parse_args(ping)).smoothing == 60
+    assert build_config(parser.parse_args([*ping, "--no-smooth"])).smoothing is None
+    assert build_config(parser.parse_args([*ping, "--sigma-position", "3"])).motion == (
+        TrackingConfig.from_keys(measurement="ping", sigma_position=3.0).motion
     )
 
 

@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
 from hmmtrack.tracking.smoothing import (
+    SINK_ROWS,
     FixedLagSmoother,
+    Smoothed,
     smoothed_table,
     trace_ancestry,
     weighted_moments,
@@ -91,3 +95,37 @@ def test_smoother_refuses_bad_input():
         smoother.push(1.0, np.zeros(4), np.zeros(4), np.zeros(4))
     with pytest.raises(ValueError, match="parent"):
         smoother.push(1.0, np.zeros(3), np.zeros(3), np.zeros(3), parent=np.zeros(2, int))
+
+
+def run_smoothed(smoothed: Smoothed, x: np.ndarray) -> dict:
+    """Push one particle at ``x[t]`` (y = 0) for t = 0, 1, ... through ``smoothed``."""
+    pf = SimpleNamespace(dt=1.0, time=0.0, particles=None)
+    smoothed.start(pf)
+    for t, value in enumerate(x):
+        pf.time = float(t)
+        pf.particles = SimpleNamespace(x=np.array([value]), y=np.zeros(1), log_weight=np.zeros(1))
+        smoothed.settled(pf)
+    return smoothed.result()
+
+
+def test_the_bridge_draws_a_line_across_a_long_gap_between_fixes_only():
+    """Between fixes more than the gap apart the smoothed x is the straight line between the
+    fixes; between closer fixes, before the first and after the last it is the traced one;
+    a sink receives the same rows in tables of SINK_ROWS."""
+    rng = np.random.default_rng(1)
+    x = rng.normal(0.0, 5.0, 200)
+    knots = np.array([10.2, 30.0, 100.4, 140.0])  # the steps nearest: 10, 30, 100, 140
+    table = run_smoothed(Smoothed(0, bridge=(knots, 45.0)), x)["smoothed"]
+    assert table["time"].tolist() == list(range(200))
+    bridged = table["x"].to_numpy()
+    line = np.interp(np.arange(31, 100), [30, 100], [x[30], x[100]])
+    np.testing.assert_allclose(bridged[31:100], line, rtol=0, atol=1e-12)
+    outside = np.r_[0:31, 100:200]
+    np.testing.assert_array_equal(bridged[outside], x[outside])
+    tables = []
+    streamed = Smoothed(0, sink=tables.append, bridge=(knots, 45.0))
+    assert run_smoothed(streamed, np.tile(x, 60))["smoothed"] is None
+    assert [len(t) for t in tables] == [SINK_ROWS, 2000]
+    np.testing.assert_array_equal(tables[0]["x"].to_numpy()[:200], bridged)
+    away = run_smoothed(Smoothed(0, bridge=(np.array([0.0, 600.0]), 45.0)), x.repeat(4))
+    np.testing.assert_array_equal(away["smoothed"]["x"], x.repeat(4))  # 600 s: not a gap

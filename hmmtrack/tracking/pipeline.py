@@ -497,7 +497,8 @@ def track(
     _require_usable(observations, scored, start, end, config, detections.attrs.get("source"))
     collectors = [*collect]
     if config.smoothing is not None:
-        collectors.append(Smoothed(config.smoothing, sink=estimates_to))
+        bridge = measurement.bridge(scored) if hasattr(measurement, "bridge") else None
+        collectors.append(Smoothed(config.smoothing, sink=estimates_to, bridge=bridge))
         if estimates_to is not None:
             estimates_to = _discard  # the sink takes the smoothed estimates instead
     pf = particle_filter(config.filter, measurement, bounds, motion, seed=seed, collect=collectors)

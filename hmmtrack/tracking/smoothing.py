@@ -34,6 +34,9 @@ from hmmtrack.tracking.particles import sqrt_largest_eigenvalue
 #: rows of each table handed to a sink of smoothed estimates (as the filter's, its
 #: ``ESTIMATE_ROWS``: memory per table of a few hundred kB)
 SINK_ROWS = 10_000
+#: gaps (in bridge gaps) beyond which a tag is taken to be away rather than between two fixes
+#: of one path: its rows are passed on unbridged, so that the rows held back stay bounded
+BRIDGE_LONGEST = 10
 #: columns of the smoothed estimates table (the filter's estimates plus ``n_ancestors``)
 SMOOTHED_COLUMNS = ("time", "x", "y", "var_x", "var_y", "cov_xy", "sqrt_lambda1", "n_ancestors")
 
@@ -192,6 +195,13 @@ class Smoothed:
     resampling) is pushed to a :class:`FixedLagSmoother`, with the ancestry of the
     resamplings since the previous push (``resampled``: tempered steps included).
 
+    With a ``bridge``, the seconds strictly between two consecutive fixes more than its gap
+    apart (a tag that went unheard) take the straight line between the smoothed positions at
+    the two fixes: the mean path of a random walk between two known positions, which the
+    few ancestors left across a long gap only approximate (each is one random-walk path, up
+    to ~10 m off the line over a minute at 2.5 m/√s). Their spread columns are the traced
+    ancestors'.
+
     Parameters
     ----------
     lag : int
@@ -201,29 +211,74 @@ class Smoothed:
         (:data:`SINK_ROWS` rows, the last one shorter), so that
         a long run's memory is bounded by the particles and the lag, not its span; the
         ``smoothed`` table is then ``None``.
+    bridge : (knots, gap), optional
+        ``knots`` (K,) sorted float array: times (s) of the corrections that fix the position
+        (the filter step nearest each is a fix); ``gap`` (s): fixes farther apart than this are
+        bridged by a straight line (see above). ``None``: no bridging.
     """
 
     #: the filter predicts one step at a time, so that every second is pushed
     every_step = True
 
-    def __init__(self, lag: int, sink: Callable[[pd.DataFrame], None] | None = None) -> None:
+    def __init__(
+        self,
+        lag: int,
+        sink: Callable[[pd.DataFrame], None] | None = None,
+        bridge: tuple[np.ndarray, float] | None = None,
+    ) -> None:
         self.lag = FixedLagSmoother(lag).lag  # (checked there)
         self.sink = sink
+        self.bridge = bridge
 
     def start(self, pf) -> None:
         self._smoother = FixedLagSmoother(self.lag)
         self._parent: np.ndarray | None = None
         self._rows: list[tuple] = []
+        self._half_step = 0.5 * pf.dt
+        self._fix: tuple | None = None  # the latest fix's row (bridge)
+        self._pending: list[tuple] = []  # rows since it
 
     def settled(self, pf) -> None:
         p = pf.particles
         row = self._smoother.push(pf.time, p.x, p.y, p.log_weight, self._parent)
         self._parent = None
         if row is not None:
-            self._rows.append(row)
-            if self.sink is not None and len(self._rows) == SINK_ROWS:
-                self.sink(smoothed_table(self._rows))
-                self._rows = []
+            self._bridged(row)
+
+    def _bridged(self, row: tuple) -> None:
+        """Pass ``row`` on, held back while it may lie inside a gap between two fixes."""
+        if self.bridge is None:
+            self._out([row])
+            return
+        knots, gap = self.bridge
+        after = int(np.searchsorted(knots, row[0]))
+        nearest = np.abs(knots[max(after - 1, 0) : after + 1] - row[0])
+        if not (nearest.size and nearest.min() <= self._half_step):
+            if self._fix is not None and row[0] - self._fix[0] > BRIDGE_LONGEST * gap:
+                self._out(self._pending)  # the tag is away, not between two fixes
+                self._fix, self._pending = None, []
+            if self._fix is None:
+                self._out([row])
+            else:
+                self._pending.append(row)
+            return
+        if self._fix is not None and row[0] - self._fix[0] > gap:
+            ends = [self._fix[0], row[0]]
+            times = [r[0] for r in self._pending]
+            x = np.interp(times, ends, [self._fix[1], row[1]])
+            y = np.interp(times, ends, [self._fix[2], row[2]])
+            self._pending = [
+                (r[0], a, b, *r[3:]) for r, a, b in zip(self._pending, x, y, strict=True)
+            ]
+        self._out([*self._pending, row])
+        self._fix, self._pending = row, []
+
+    def _out(self, rows: list[tuple]) -> None:
+        """Keep ``rows``, handing full tables to the sink."""
+        self._rows.extend(rows)
+        if self.sink is not None and len(self._rows) >= SINK_ROWS:
+            self.sink(smoothed_table(self._rows))
+            self._rows = []
 
     def resampled(self, pf, ancestors: np.ndarray) -> None:
         self._parent = ancestors if self._parent is None else self._parent[ancestors]
@@ -232,7 +287,9 @@ class Smoothed:
         """Nothing to record (the corrected step is pushed once settled)."""
 
     def result(self) -> dict[str, pd.DataFrame | None]:
-        table = smoothed_table(self._rows + self._smoother.finish())
+        for row in self._smoother.finish():
+            self._bridged(row)
+        table = smoothed_table(self._rows + self._pending)
         if self.sink is None:
             return {"smoothed": table}
         self.sink(table)

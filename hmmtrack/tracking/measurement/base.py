@@ -47,6 +47,10 @@ Optional hooks, used by the filter when present:
 * ``score(particles, rows, time, state, weights) -> Score``: one correction's
   log-likelihood with what the measurement does around it (see :class:`Score`); without
   it, the filter scores with ``loglik``;
+* ``bridge(observations) -> (knots, gap) | None``: the times of the corrections that fix
+  the tag's position and the gap between two of them beyond which the smoother bridges them
+  by a straight line (:class:`hmmtrack.tracking.smoothing.Smoothed`; the ping measurement:
+  a missed ping of a random-interval tag);
 * ``recover(particles, table, time, rng) -> str | None``: re-place the particles after
   degenerate weights (every particle impossible) and describe what was done; ``None``
   leaves the filter's fallback, uniform in the bounds.

@@ -82,6 +82,8 @@ __all__ = [
     "PING_TRACE_COLUMNS",
     "ARRIVAL_SIGMA",
     "OUTLIER_FRACTION",
+    "FIX_RECEIVERS",
+    "MISSED_PING_SLACK",
     "PING_MOTION",
     "PING_SMOOTHING_LAG",
     "PING_TEMPERING_ESS",
@@ -120,6 +122,11 @@ PING_MOTION = {"name": "baseline", "sigma_position": 2.5}
 #: smoothing lag (s) of a ping run unless told: random-interval array data is processed
 #: offline (as YAPS does), and the lag spans two to three pings
 PING_SMOOTHING_LAG = 60
+#: receivers that must hear a ping for it to fix the tag's position (two time differences)
+FIX_RECEIVERS = 3
+#: slack (s) beyond the burst interval's maximum before two fixes are taken to have a missed
+#: ping between them: the corrections' rounding to the 1 s grid and the travel times
+MISSED_PING_SLACK = 5.0
 _LOG_2PI = math.log(2.0 * math.pi)
 _NO_ROWS = pd.DataFrame()
 
@@ -440,6 +447,9 @@ class PingTDOA:
         ``L`` (s), the outlier's support: the grouping window plus the array's travel span.
     search_radius : float
         Without bounds, the search box is the receivers' positions widened by this (m).
+    max_interval : float or None
+        Longest time between two emissions (s), the burst interval's maximum; ``None``:
+        unknown (the smoother bridges no gap, :meth:`bridge`).
     """
 
     sound_speed: float
@@ -447,6 +457,7 @@ class PingTDOA:
     outlier_fraction: float = OUTLIER_FRACTION
     half_width: float = 1.0
     search_radius: float = SEARCH_RADIUS
+    max_interval: float | None = None
     name: ClassVar[str] = "ping"
     settings: ClassVar[type] = PingSettings
     columns: ClassVar[tuple[str, ...]] = ("arrival", "ping", "receiver_x", "receiver_y")
@@ -484,7 +495,18 @@ class PingTDOA:
             settings.outlier_fraction,
             window + largest_travel_time(np.unique(positions.round(), axis=0)),
             settings.search_radius,
+            None if settings.burst_interval is None else settings.burst_interval[1],
         )
+
+    def bridge(self, observations: pd.DataFrame) -> tuple[np.ndarray, float] | None:
+        """The smoother's bridge (:class:`hmmtrack.tracking.smoothing.Smoothed`): the first
+        arrivals (s, sorted) of the pings heard by :data:`FIX_RECEIVERS` or more receivers,
+        and the gap between two of them that a missed ping leaves (the burst interval's
+        maximum plus :data:`MISSED_PING_SLACK`); ``None`` when the maximum is unknown."""
+        if self.max_interval is None:
+            return None
+        fixes = observations.loc[observations["heard"] >= FIX_RECEIVERS, "time"]
+        return np.unique(fixes.to_numpy(dtype=float)), self.max_interval + MISSED_PING_SLACK
 
     def start_box(self, observations, receivers, settings=None, bounds=None, start=None):
         """``bounds``, else the receivers' positions at ``start`` widened by
