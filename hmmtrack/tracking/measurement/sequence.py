@@ -59,24 +59,27 @@ from numba import njit
 from hmmtrack.io import read_burst_sequence
 from hmmtrack.tracking.measurement.arrival_time import emission_distance, vertical_parts
 from hmmtrack.tracking.measurement.base import Score
-from hmmtrack.tracking.measurement.clocked import receiver_tracks
+from hmmtrack.tracking.measurement.clocked import TEMPERING_ESS, receiver_tracks
 from hmmtrack.tracking.measurement.pings import ping_observations
 from hmmtrack.tracking.measurement.tdoa import (
     CLUSTER_SIGMAS,
     STEPS_PER_SD,
     PingSettings,
     PingTDOA,
+    arrival_sigma_setting,
     cluster_excess,
     gaussian_ping_loglik,
     ping_loglik,
 )
 from hmmtrack.tracking.settings import positive, setting
+from hmmtrack.tracking.tempering import Tempered
 
 __all__ = [
     "ANCHORS",
     "DRIFT_SD",
     "EMISSION_JITTER",
     "OFFSET_SD",
+    "SEQUENCE_ARRIVAL_SIGMA",
     "SEQUENCE_FIELDS",
     "PingSequence",
     "PingSequenceSettings",
@@ -119,6 +122,9 @@ CLOCK_RESET = 0.01
 PHASE_DENSITY = 1e-10
 DRIFT_DENSITY = 1e-14
 _LOG_2PI = math.log(2.0 * math.pi)
+#: arrival sd (s) of the sequence measurement: the 1 ms it was measured with (its clock puts
+#: each emission to a millisecond; the random-interval ping's 2 ms is for its untimed pings)
+SEQUENCE_ARRIVAL_SIGMA = 1e-3
 _NO_ROWS = pd.DataFrame()
 
 
@@ -538,6 +544,7 @@ class PingSequenceSettings(PingSettings):
 
     # not an option of this measurement (the command line refuses --burst-interval with it)
     burst_interval: tuple[float, float] | None = None
+    arrival_sigma: float = arrival_sigma_setting(SEQUENCE_ARRIVAL_SIGMA)
     burst_sequence: str | tuple[float, ...] | None = setting(
         None,
         help=(
@@ -587,6 +594,11 @@ class PingSequence(PingTDOA):
     settings: ClassVar[type] = PingSequenceSettings
     columns: ClassVar[tuple[str, ...]] = (*PingTDOA.columns, "scheduled", "sequence_step")
     fields: ClassVar[tuple[str, ...]] = SEQUENCE_FIELDS
+    # the run defaults it was measured with, not the random-interval ping's offline ones
+    # (reports/decisions.md, "Known burst sequence")
+    default_correction: ClassVar[Tempered] = Tempered(TEMPERING_ESS)
+    default_motion: ClassVar[dict | None] = None
+    default_smoothing_lag: ClassVar[int | None] = None
 
     @classmethod
     def observations(cls, detections: pd.DataFrame, receivers, settings) -> pd.DataFrame:

@@ -93,6 +93,7 @@ __all__ = [
     "PingTrace",
     "cluster_excess",
     "gaussian_ping_loglik",
+    "arrival_sigma_setting",
     "ping_integral",
     "per_ping_table",
     "ping_loglik",
@@ -341,6 +342,17 @@ def _burst_interval(name: str, value) -> tuple[float, float]:
     return low, high
 
 
+def arrival_sigma_setting(default: float):
+    """The ``arrival_sigma`` key of a ping measurement's section (s), with its default."""
+    return setting(
+        default,
+        help="standard deviation of a direct arrival's residual (s)",
+        check=positive,
+        parse=float,
+        metavar="SECONDS",
+    )
+
+
 @dataclass(frozen=True)
 class PingSettings(Settings):
     """The ``measurement`` section of the ``"ping"`` measurement.
@@ -387,13 +399,7 @@ class PingSettings(Settings):
         metavar="M_PER_S",
         default_text=f"the clock file's, else {SOUND_SPEED:g}",
     )
-    arrival_sigma: float = setting(
-        ARRIVAL_SIGMA,
-        help="standard deviation of a direct arrival's residual (s)",
-        check=positive,
-        parse=float,
-        metavar="SECONDS",
-    )
+    arrival_sigma: float = arrival_sigma_setting(ARRIVAL_SIGMA)
     outlier_fraction: float = setting(
         OUTLIER_FRACTION,
         help="share of arrivals that are outliers (multipath, mistimed)",
