@@ -6,11 +6,13 @@ ones, constant formulas against the plain fit of the elk data (moveHMM's optimum
 recovery of a cosinor step mean from 20,000 simulated steps within 2 standard errors.
 """
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
+from scipy import stats
 
 from hmmtrack import tracks
 from hmmtrack.hmm import (
@@ -25,8 +27,20 @@ from hmmtrack.hmm import (
     diagnostics,
     fit,
 )
+from hmmtrack.hmm.distributions import (
+    Bernoulli,
+    Beta,
+    Categorical,
+    NegativeBinomial,
+    Normal,
+    Poisson,
+    ZeroInflatedNegativeBinomial,
+    ZeroInflatedPoisson,
+    ZeroOneInflatedBeta,
+)
 from hmmtrack.hmm.emission import CovariateEmission, split_formulas
 from hmmtrack.hmm.formula import design
+from hmmtrack.hmm.inference import forward_backward
 
 ELK = Path(__file__).resolve().parents[2] / "shared" / "data" / "elk_data.csv"
 N = 20_000
@@ -221,3 +235,112 @@ def test_constant_formulas_reach_the_movehmm_optimum_on_elk():
     assert model.n_obs == len(elk)
     np.testing.assert_allclose(model.step.base.mean, [0.373776, 3.247479], rtol=5e-4)
     np.testing.assert_allclose(model.angle.base.concentration, [0.592387, 0.207992], rtol=1e-3)
+
+
+CDF_EXAMPLES = [
+    Gamma(np.array([1.0, 6.0]), np.array([0.8, 3.0]), np.array([0.1, 0.2])),
+    Weibull(np.array([0.8, 2.0]), np.array([1.0, 5.0]), np.array([0.1, 0.2])),
+    LogNormal(np.array([0.0, 1.5]), np.array([0.7, 0.3]), np.array([0.1, 0.2])),
+    Exponential(np.array([1.0, 0.2]), np.array([0.1, 0.2])),
+    VonMises(np.array([3.0, 0.2]), np.array([0.7, 4.0])),
+    WrappedCauchy(np.array([-2.0, 0.1]), np.array([0.3, 0.8])),
+    Normal(np.array([20.0, 5.0]), np.array([6.0, 2.0])),
+    Beta(np.array([2.0, 5.0]), np.array([6.0, 1.5])),
+    Poisson(np.array([3.0, 0.5])),
+    NegativeBinomial(np.array([3.0, 20.0]), np.array([1.5, 6.0])),
+    Bernoulli(np.array([0.2, 0.85])),
+    ZeroInflatedPoisson(np.array([3.0, 10.0]), np.array([0.3, 0.2])),
+    ZeroInflatedNegativeBinomial(np.array([3.0, 20.0]), np.array([4.0, 6.0]), np.array([0.3, 0.2])),
+    ZeroOneInflatedBeta(
+        np.array([2.0, 5.0]), np.array([6.0, 1.5]), np.array([0.2, 0.1]), np.array([0.1, 0.3])
+    ),
+    Categorical(np.array([[0.6, 0.3, 0.1], [0.1, 0.2, 0.7]])),
+]
+
+
+@pytest.mark.parametrize("dist", CDF_EXAMPLES, ids=lambda d: d.name)
+def test_row_cdf_with_every_row_in_one_state_is_that_states_cdf(dist):
+    """``row_cdf`` (and ``row_cdf_below``) of a row distribution whose T rows all have
+    state k's parameters equals column k of ``cdf`` (``cdf_below``), missing rows NaN."""
+    rng = np.random.default_rng(5)
+    x = dist.sample(rng, rng.integers(0, 2, 60))
+    x[[3, 17]] = np.nan
+    if dist.name in ("gamma", "weibull", "lognormal", "exponential"):
+        x[[4, 9]] = 0.0
+    for k in range(2):
+        eta = np.repeat(dist.to_links()[:, [k]], x.size, axis=1)
+        row = type(dist).from_links(eta, **dist._structure())
+        np.testing.assert_allclose(row.row_cdf(x), dist.cdf(x)[:, k], rtol=1e-12, atol=1e-15)
+        if hasattr(dist, "cdf_below"):
+            np.testing.assert_allclose(
+                row.row_cdf_below(x), dist.cdf_below(x)[:, k], rtol=1e-12, atol=1e-15
+            )
+        assert np.isnan(row.row_cdf(x)[[3, 17]]).all()
+
+
+def test_formula_stream_residuals_equal_a_per_row_scipy_forecast():
+    """Pseudo-residuals of a step mean and a further stream's (normal) mean with formulas:
+    per row, ``Phi^-1`` of the forecast mixture of scipy CDFs at the row's parameters (the
+    normal stream continuous: its randomised residual has P(X < x) = P(X <= x))."""
+    n = 30
+    table = cosinor(n).assign(segment="a")
+    step = CovariateEmission(
+        Gamma(np.array([1.0, 6.0]), np.array([0.8, 3.0])),
+        {"mean": design("~ cosT + sinT", table)},
+        {"mean": COEFFICIENTS},
+    )
+    depth = CovariateEmission(
+        Normal(np.array([20.0, 5.0]), np.array([6.0, 2.0])),
+        {"mean": design("~ cosT", table)},
+        {"mean": np.array([[20.0, 3.0], [5.0, -2.0]])},
+    )
+    model = MovementHMM(
+        np.array([0.4, 0.6]),
+        np.array([[0.85, 0.15], [0.1, 0.9]]),
+        step,
+        VonMises(np.array([3.0, 0.2]), np.array([0.7, 4.0])),
+        streams={"depth": depth},
+    )
+    data = model.simulate(np.random.default_rng(2), n, table).join(table)
+    data.loc[[5, 11], "depth"] = np.nan
+    residuals = diagnostics.pseudo_residuals(model, data)
+    observations = model.observations(data)
+    log_lik = model.log_likelihood_matrix(observations)
+    step_matrix = observations.emission["step"]["mean"]
+    depth_matrix = observations.emission["depth"]["mean"]
+    for t in range(n):
+        forecast = model.initial
+        if t > 0:
+            past = forward_backward(
+                np.log(model.initial), np.log(model.transition), log_lik[:t]
+            ).posterior[-1]
+            forecast = past @ model.transition
+        mean = np.exp(step_matrix[t] @ COEFFICIENTS.T)
+        sd = step.base.sd
+        step_cdf = stats.gamma.cdf(data.step[t], a=(mean / sd) ** 2, scale=sd**2 / mean)
+        depth_mean = depth_matrix[t] @ depth.coefficients["mean"].T
+        depth_cdf = stats.norm.cdf(data.depth[t], depth_mean, depth.base.sd)
+        for name, cdf in (("step", step_cdf), ("depth", depth_cdf)):
+            residual = residuals[f"{name}_residual"][t]
+            if np.isnan(data[name][t]):
+                assert np.isnan(residual)
+            else:
+                expected = stats.norm.ppf(forecast @ cdf)
+                np.testing.assert_allclose(residual, expected, rtol=1e-9, atol=1e-12)
+
+
+def test_residuals_of_a_fitted_formula_model_are_standard_normal(simulated):
+    """On 20,000 rows simulated with a cosinor step mean, the fitted formula model's step
+    residuals pass a KS test against N(0, 1); the same model without the cosinor (its
+    slopes set to 0) is rejected."""
+    truth, data, model = simulated
+    residuals = diagnostics.pseudo_residuals(model, data)
+    for column in ("step_residual", "angle_residual"):
+        assert stats.kstest(residuals[column].dropna(), "norm").pvalue > 0.01
+    flat = CovariateEmission(
+        model.step.base,
+        model.step.designs,
+        {"mean": model.step.coefficients["mean"] * np.array([1.0, 0.0, 0.0])},
+    )
+    wrong = diagnostics.pseudo_residuals(replace(model, step=flat), data)["step_residual"]
+    assert stats.kstest(wrong.dropna(), "norm").pvalue < 1e-6

@@ -45,8 +45,8 @@ def pseudo_residuals(model: MovementHMM, data: pd.DataFrame, seed: int = 0) -> p
     A further stream's residuals are randomised quantile residuals (Dunn & Smyth 1996)
     where its family has point masses (counts, categories, 0 / 1 of a proportion): ``u``
     is drawn uniformly between the forecast P(X < x) and P(X <= x), so that the residuals
-    of a correct model are standard normal for discrete data too. A further stream with
-    an emission formula has no column (its CDF is not available).
+    of a correct model are standard normal for discrete data too. A stream with emission
+    formulas has each row's CDF under that row's parameters (the families' ``row_cdf``).
 
     Parameters
     ----------
@@ -70,21 +70,16 @@ def pseudo_residuals(model: MovementHMM, data: pd.DataFrame, seed: int = 0) -> p
     forecast = forward_backward(
         log_initial, log_transition, log_lik, observations.lengths
     ).predicted
-    out = {}
-    for name, dist, x in (
-        ("step", model.step, observations.step),
-        ("angle", model.angle, observations.angle),
-    ):
-        u = np.sum(forecast * dist.cdf(x), axis=1)
-        out[f"{name}_residual"] = stats.norm.ppf(np.clip(u, 1e-300, 1 - 1e-16))
+    inputs = model.stream_inputs(observations)
     rng = np.random.default_rng(seed)
-    for name, dist in model.streams.items():
-        if isinstance(dist, emission.CovariateEmission):
-            continue
-        x = observations.streams[name]
+    out = {}
+    for name, dist in model.emissions.items():
+        x = inputs[name]
         upper = np.sum(forecast * dist.cdf(x), axis=1)
-        lower = np.sum(forecast * dist.cdf_below(x), axis=1)
-        u = lower + rng.random(x.size) * (upper - lower)
+        u = upper
+        if name not in emission.STREAMS:
+            lower = np.sum(forecast * dist.cdf_below(x), axis=1)
+            u = lower + rng.random(upper.size) * (upper - lower)
         out[f"{name}_residual"] = stats.norm.ppf(np.clip(u, 1e-300, 1 - 1e-16))
     return pd.DataFrame(out, index=data.index)
 

@@ -318,10 +318,21 @@ class CovariateEmission:
         return out
 
     def cdf(self, rows: EmissionRows) -> np.ndarray:
-        """Not available: pseudo-residuals of covariate-dependent emissions are not written."""
-        raise ValueError(
-            f"{self.name} with emission formulas: CDFs (pseudo-residuals) are not available"
-        )
+        """P(X_t <= x_t) of every row in every state with the row's parameters, (T, K);
+        missing rows NaN (each state's row distribution's ``row_cdf``)."""
+        return self._by_state_rows(rows, "row_cdf")
+
+    def cdf_below(self, rows: EmissionRows) -> np.ndarray:
+        """P(X_t < x_t) of every row in every state, (T, K); missing rows NaN. Only for
+        families with point masses (the value families' ``row_cdf_below``)."""
+        return self._by_state_rows(rows, "row_cdf_below")
+
+    def _by_state_rows(self, rows: EmissionRows, method: str) -> np.ndarray:
+        """The row distribution's ``method`` (T,) of each state, as columns (T, K)."""
+        out = np.empty((rows.n_obs, self.n_states))
+        for k in range(self.n_states):
+            out[:, k] = getattr(self._row_distribution(k, rows), method)(rows.observations)
+        return out
 
     def sample(self, rng: np.random.Generator, states: np.ndarray, matrices: dict) -> np.ndarray:
         """One draw per row (n,) of state ``states[t]`` with row ``t``'s parameters, the

@@ -455,15 +455,22 @@ class MovementHMM:
         ``observations`` are read with this model's formulas (:meth:`observations`): an
         emission formula gives each row its own parameters.
         """
+        inputs = self.stream_inputs(observations)
+        return sum(dist.logpdf(inputs[name]) for name, dist in self.emissions.items())
+
+    def stream_inputs(self, observations: Observations) -> dict:
+        """What each stream's distribution is evaluated on, by stream name: its prepared
+        observations, or their :class:`~hmmtrack.hmm.emission.EmissionRows` when the stream
+        has emission formulas."""
         prepared = {
             "step": distributions.prepare_steps(observations.step),
             "angle": distributions.prepare_angles(observations.angle),
             **{n: distributions.prepare_values(x) for n, x in observations.streams.items()},
         }
-        return sum(
-            dist.logpdf(emission.stream_input(prepared[name], observations.emission.get(name)))
-            for name, dist in self.emissions.items()
-        )
+        return {
+            name: emission.stream_input(prepared[name], observations.emission.get(name))
+            for name in self.emissions
+        }
 
     def observations(self, data: pd.DataFrame) -> Observations:
         """The :class:`Observations` of a prepared track with this model's transition and

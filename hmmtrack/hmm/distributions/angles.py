@@ -83,7 +83,8 @@ class _AngleFamily(_Family):
         raise NotImplementedError
 
     def _unwrapped_cdf(self, y: np.ndarray) -> np.ndarray:
-        """Cumulative mass (T, K) from an arbitrary origin, growing by 1 per 2 pi of ``y``."""
+        """Cumulative mass from an arbitrary origin, growing by 1 per 2 pi of ``y``,
+        elementwise with ``y`` broadcast against the parameters."""
         raise NotImplementedError
 
     def _polar_score(self, cos_x, sin_x, w) -> tuple[np.ndarray, np.ndarray]:
@@ -134,7 +135,17 @@ class _AngleFamily(_Family):
 
     def cdf(self, x: np.ndarray | PreparedAngles) -> np.ndarray:
         """P(-pi < angle <= x) in every state -> (T, K), x wrapped to (-pi, pi]; NaN -> NaN."""
-        angle = prepare_angles(x).angle
+        return self._cdf(prepare_angles(x).angle[:, None])
+
+    def row_cdf(self, x: np.ndarray | PreparedAngles) -> np.ndarray:
+        """P(-pi < angle <= x_t) (T,) under the parameters of "state" ``t`` (a row
+        distribution, K = T); missing rows NaN."""
+        data = self._row_deviations(x)[0]
+        return self._cdf(data.angle)
+
+    def _cdf(self, angle: np.ndarray) -> np.ndarray:
+        """P(-pi < angle <= x) of wrapped angles broadcast against the parameters ((T, 1)
+        against (K,), or (T,) against a row distribution's (T,))."""
         return self._unwrapped_cdf(angle) - self._unwrapped_cdf(np.full(1, -np.pi))
 
     def fit_weighted(self: D, x: np.ndarray | PreparedAngles, w: np.ndarray) -> D:
@@ -374,7 +385,7 @@ class VonMises(_AngleFamily):
         return rng.vonmises(0.0, self.concentration[states])
 
     def _unwrapped_cdf(self, y: np.ndarray) -> np.ndarray:
-        return stats.vonmises.cdf(y[:, None], self.concentration, loc=self.mean)
+        return stats.vonmises.cdf(y, self.concentration, loc=self.mean)
 
     @classmethod
     def _radial(cls, concentration: np.ndarray) -> np.ndarray:
@@ -559,7 +570,7 @@ class WrappedCauchy(_AngleFamily):
 
     def _unwrapped_cdf(self, y: np.ndarray) -> np.ndarray:
         rho = self.concentration
-        deviation = np.subtract.outer(y, self.mean)
+        deviation = y - self.mean
         turns = np.round(deviation / (2.0 * np.pi))
         half = (deviation - 2.0 * np.pi * turns) / 2.0  # in [-pi/2, pi/2]
         return turns + 0.5 + np.arctan((1.0 + rho) / (1.0 - rho) * np.tan(half)) / np.pi

@@ -52,7 +52,8 @@ class StateDistribution(Protocol):
       part of the likelihood gradient by Fisher's identity);
     * ``permuted(order)`` the same distribution with its states reordered;
     * ``link_names()``, ``to_links() -> (n_links, K)``, ``from_links(eta, **structure)``,
-      ``row_logpdf(x) -> (T,)`` and ``row_score(x) -> (n_links, T)``: the per-row view
+      ``row_logpdf(x) -> (T,)``, ``row_score(x) -> (n_links, T)`` and ``row_cdf(x) ->
+      (T,)`` (the value families also ``row_cdf_below``): the per-row view
       that covariate-dependent parameters (:mod:`hmmtrack.hmm.emission`) build on. A *row
       distribution* is a member whose K "states" are the T rows of the data (row ``t`` has
       its own parameters); ``eta`` holds each parameter on its link scale (log for positive

@@ -72,6 +72,8 @@ class _StepFamily(_Family):
         raise NotImplementedError
 
     def _cdf_positive(self, x: np.ndarray, log_x: np.ndarray) -> np.ndarray:
+        """P(X <= x) of the positive part, elementwise: ``x`` and ``log_x`` broadcast against
+        the parameters ((T, 1) against (K,), or (T,) against a row distribution's (T,))."""
         raise NotImplementedError
 
     def _sample_positive(self, rng: np.random.Generator, states: np.ndarray) -> np.ndarray:
@@ -131,13 +133,23 @@ class _StepFamily(_Family):
 
     def cdf(self, x: np.ndarray | PreparedSteps) -> np.ndarray:
         """P(step <= x) in every state -> (T, K), including the zero mass; NaN -> NaN row."""
+        return self._cdf(self._prepared(x), (-1, 1))
+
+    def row_cdf(self, x: np.ndarray | PreparedSteps) -> np.ndarray:
+        """P(step <= x_t) (T,) under the parameters of "state" ``t`` (a row distribution,
+        K = T), including the zero mass; missing rows NaN."""
         data = self._prepared(x)
-        out = self._cdf_positive(data.safe, data.log_safe)
+        self._check_rows(data)
+        return self._cdf(data, (-1,))
+
+    def _cdf(self, data: PreparedSteps, shape: tuple[int, ...]) -> np.ndarray:
+        """P(step <= x) with the steps reshaped to ``shape``: (T, 1) against the K states'
+        parameters gives (T, K), (T,) against a row distribution's gives (T,)."""
+        out = self._cdf_positive(data.safe.reshape(shape), data.log_safe.reshape(shape))
         if self.zero_mass is not None:
-            out = self.zero_mass + (1.0 - self.zero_mass) * out
-            out[data.zero] = self.zero_mass
-        out[data.missing] = np.nan
-        return out
+            z = self.zero_mass
+            out = np.where(data.zero.reshape(shape), z, z + (1.0 - z) * out)
+        return np.where(data.missing.reshape(shape), np.nan, out)
 
     def fit_weighted(self: D, x: np.ndarray | PreparedSteps, w: np.ndarray) -> D:
         """Weighted MLE per state: ``w[t, k]`` is the weight of row t for state k.
@@ -467,7 +479,7 @@ class Gamma(_StepFamily):
         return _gamma_row_derivatives(x, log_x, self.mean, self.sd)
 
     def _cdf_positive(self, x: np.ndarray, log_x: np.ndarray) -> np.ndarray:
-        return special.gammainc(self.shape, np.divide.outer(x, self.scale))
+        return special.gammainc(self.shape, x / self.scale)
 
     def _sample_positive(self, rng: np.random.Generator, states: np.ndarray) -> np.ndarray:
         return rng.gamma(self.shape[states], self.scale[states])
@@ -571,7 +583,7 @@ class Weibull(_StepFamily):
         return value, np.vstack([1.0 - z * excess, k * excess]), hessian
 
     def _cdf_positive(self, x: np.ndarray, log_x: np.ndarray) -> np.ndarray:
-        z = np.multiply.outer(log_x, self.shape) - self.shape * np.log(self.scale)
+        z = log_x * self.shape - self.shape * np.log(self.scale)
         return -np.expm1(-np.exp(z))
 
     def _sample_positive(self, rng: np.random.Generator, states: np.ndarray) -> np.ndarray:
@@ -649,7 +661,7 @@ class LogNormal(_StepFamily):
         return value, np.vstack([z / self.scale, z**2 - 1.0]), hessian
 
     def _cdf_positive(self, x: np.ndarray, log_x: np.ndarray) -> np.ndarray:
-        return special.ndtr(np.subtract.outer(log_x, self.location) / self.scale)
+        return special.ndtr((log_x - self.location) / self.scale)
 
     def _sample_positive(self, rng: np.random.Generator, states: np.ndarray) -> np.ndarray:
         return rng.lognormal(self.location[states], self.scale[states])
@@ -696,7 +708,7 @@ class Exponential(_StepFamily):
         return np.log(self.rate) - rx, (1.0 - rx)[None, :], -rx[None, None, :]
 
     def _cdf_positive(self, x: np.ndarray, log_x: np.ndarray) -> np.ndarray:
-        return -np.expm1(np.multiply.outer(x, -self.rate))
+        return -np.expm1(x * -self.rate)
 
     def _sample_positive(self, rng: np.random.Generator, states: np.ndarray) -> np.ndarray:
         return rng.exponential(1.0 / self.rate[states])

@@ -115,6 +115,8 @@ class _ValueFamily(_Family):
         raise NotImplementedError
 
     def _cdf_values(self, x: np.ndarray) -> np.ndarray:
+        """P(X <= x) elementwise: ``x`` broadcast against the parameters ((T, 1) against
+        (K,) gives (T, K); (T,) against a row distribution's (T,) gives (T,))."""
         raise NotImplementedError
 
     def sample(self, rng: np.random.Generator, states: np.ndarray) -> np.ndarray:
@@ -166,27 +168,43 @@ class _ValueFamily(_Family):
 
     def cdf(self, x: np.ndarray | PreparedValues) -> np.ndarray:
         """P(X <= x) in every state -> (T, K); NaN -> NaN row."""
-        data = self.prepare(x)
-        out = self._cdf_values(data.safe)
-        out[data.missing] = np.nan
-        return out
+        return self._cdf(self._cdf_values, self.prepare(x), (-1, 1))
 
     def cdf_below(self, x: np.ndarray | PreparedValues) -> np.ndarray:
         """P(X < x) in every state -> (T, K); NaN -> NaN row. It differs from :meth:`cdf`
         at the point masses (every value of a discrete family), where the randomised
         quantile residuals of :func:`hmmtrack.hmm.diagnostics.pseudo_residuals` draw
         between the two."""
+        return self._cdf(self._cdf_below_values, self.prepare(x), (-1, 1))
+
+    def row_cdf(self, x: np.ndarray | PreparedValues) -> np.ndarray:
+        """P(X <= x_t) (T,) under the parameters of "state" ``t`` (a row distribution,
+        K = T); missing rows NaN."""
+        return self._cdf(self._cdf_values, self._row_data(x), (-1,))
+
+    def row_cdf_below(self, x: np.ndarray | PreparedValues) -> np.ndarray:
+        """P(X < x_t) (T,) under the parameters of "state" ``t``; missing rows NaN."""
+        return self._cdf(self._cdf_below_values, self._row_data(x), (-1,))
+
+    def _row_data(self, x: np.ndarray | PreparedValues) -> PreparedValues:
         data = self.prepare(x)
-        out = self._cdf_below_values(data.safe)
-        out[data.missing] = np.nan
-        return out
+        self._check_rows(data)
+        return data
+
+    @staticmethod
+    def _cdf(values, data: PreparedValues, shape: tuple[int, ...]) -> np.ndarray:
+        """``values`` (:meth:`_cdf_values` or :meth:`_cdf_below_values`) of the observations
+        reshaped to ``shape`` ((T, 1) for every state, (T,) for a row distribution), NaN
+        where missing."""
+        return np.where(data.missing.reshape(shape), np.nan, values(data.safe.reshape(shape)))
 
     def _cdf_below_values(self, x: np.ndarray) -> np.ndarray:
+        """P(X < x) elementwise, broadcast as :meth:`_cdf_values`."""
         if self._lowest is None:
             return self._cdf_values(x)
         above = x > self._lowest
         below = self._cdf_values(np.where(above, x - 1.0, self._lowest))
-        return np.where(above[:, None], below, 0.0)
+        return np.where(above, below, 0.0)
 
     def fit_weighted(self: D, x: np.ndarray | PreparedValues, w: np.ndarray) -> D:
         """Weighted MLE per state (``w`` (T, K)); NaN rows ignored; a state with (almost) no
@@ -325,7 +343,7 @@ class Normal(_ValueFamily):
         return {"mean": mean, "sd": np.sqrt(np.maximum(variance, _TINY))}
 
     def _cdf_values(self, x):
-        return special.ndtr(np.subtract.outer(x, self.mean) / self.sd)
+        return special.ndtr((x - self.mean) / self.sd)
 
     def sample(self, rng: np.random.Generator, states: np.ndarray) -> np.ndarray:
         """Draw one value per entry of ``states`` (n,) -> (n,)."""
@@ -414,7 +432,7 @@ class Beta(_ValueFamily):
         return {"shape1": shape1, "shape2": shape2}
 
     def _cdf_values(self, x):
-        return special.betainc(self.shape1, self.shape2, x[:, None])
+        return special.betainc(self.shape1, self.shape2, x)
 
     def sample(self, rng: np.random.Generator, states: np.ndarray) -> np.ndarray:
         """Draw one value per entry of ``states`` (n,) -> (n,)."""
@@ -463,7 +481,7 @@ class Poisson(_ValueFamily):
         return {"rate": np.maximum(_weighted_means(x, w, _column_sums(w)), _TINY)}
 
     def _cdf_values(self, x):
-        return stats.poisson.cdf(x[:, None], self.rate)
+        return stats.poisson.cdf(x, self.rate)
 
     def sample(self, rng: np.random.Generator, states: np.ndarray) -> np.ndarray:
         """Draw one count per entry of ``states`` (n,) -> (n,) float."""
@@ -556,7 +574,7 @@ class NegativeBinomial(_ValueFamily):
         return {"mean": mean, "size": np.minimum(size, _MAX_SIZE)}
 
     def _cdf_values(self, x):
-        return stats.nbinom.cdf(x[:, None], self.size, self.size / (self.size + self.mean))
+        return stats.nbinom.cdf(x, self.size, self.size / (self.size + self.mean))
 
     def sample(self, rng: np.random.Generator, states: np.ndarray) -> np.ndarray:
         """Draw one count per entry of ``states`` (n,) -> (n,) float."""
@@ -602,7 +620,7 @@ class Bernoulli(_ValueFamily):
         return {"prob": _weighted_means(x, w, _column_sums(w))}
 
     def _cdf_values(self, x):
-        return np.where(x[:, None] >= 1, 1.0, 1.0 - self.prob)
+        return np.where(x >= 1, 1.0, 1.0 - self.prob)
 
     def sample(self, rng: np.random.Generator, states: np.ndarray) -> np.ndarray:
         """Draw one 0 / 1 per entry of ``states`` (n,) -> (n,) float."""
@@ -795,12 +813,11 @@ class ZeroOneInflatedBeta(Beta):
     def _cdf_values(self, x):
         beta = super()._cdf_values(np.clip(x, 0.0, 1.0))
         out = self.zero_mass + (1.0 - self._masses()) * beta
-        return np.where(x[:, None] >= 1, 1.0, out)
+        return np.where(x >= 1, 1.0, out)
 
     def _cdf_below_values(self, x):
-        out = self._cdf_values(x)
-        out[x == 0] = 0.0
-        return np.where((x == 1)[:, None], 1.0 - self.one_mass, out)
+        out = np.where(x == 0, 0.0, self._cdf_values(x))
+        return np.where(x == 1, 1.0 - self.one_mass, out)
 
     def sample(self, rng: np.random.Generator, states: np.ndarray) -> np.ndarray:
         """Draw one value per entry of ``states`` (n,) -> (n,)."""
@@ -904,7 +921,8 @@ class Categorical(_ValueFamily):
         return {"prob": prob / prob.sum(axis=1, keepdims=True)}
 
     def _cdf_values(self, x):
-        return np.cumsum(self.prob, axis=1)[:, self._index(x)].T
+        # state (or row) k's cumulative probability at category x[t, k]
+        return np.cumsum(self.prob, axis=1)[np.arange(self.n_states), self._index(x)]
 
     def sample(self, rng: np.random.Generator, states: np.ndarray) -> np.ndarray:
         """Draw one category (1..C) per entry of ``states`` (n,) -> (n,) float."""
