@@ -11,6 +11,8 @@ from scipy import special, stats
 from hmmtrack import io, tracks
 from hmmtrack.hmm import Gamma, MovementHMM, MovementHMMEstimator, VonMises, diagnostics
 from hmmtrack.hmm.decoding import decode_table
+from hmmtrack.hmm.distributions import Normal
+from hmmtrack.hmm.emission import CovariateEmission
 from hmmtrack.hmm.formula import design
 
 matplotlib.use("Agg")
@@ -120,6 +122,38 @@ def test_standard_figures_of_a_covariate_fit(covariate_fit):
     assert legend == ["1 slow", "2 fast"]
     titles = [ax.get_title() for ax in figures["transition_z.png"].axes]
     assert titles == ["1 slow → 1 slow", "1 slow → 2 fast", "2 fast → 1 slow", "2 fast → 2 fast"]
+    matplotlib.pyplot.close("all")
+
+
+def test_residual_figure_has_a_row_per_stream_formulas_included():
+    """A three-stream model whose third stream (normal depth) has a formula on its mean:
+    residuals.png has one row of (series, QQ, ACF) per stream, named."""
+    rng = np.random.default_rng(8)
+    n = 400
+    table = pd.DataFrame({"c": np.sin(np.arange(n) / 20.0)})
+    depth = CovariateEmission(
+        Normal(np.array([20.0, 5.0]), np.array([6.0, 2.0])),
+        {"mean": design("~ c", table)},
+        {"mean": np.array([[20.0, 3.0], [5.0, -2.0]])},
+    )
+    model = MovementHMM(
+        TRUE.initial, TRUE.transition, TRUE.step, TRUE.angle, streams={"depth": depth}
+    )
+    sim = model.simulate(rng, n, table).join(table)
+    heading = np.cumsum(sim["angle"])
+    sim = sim.assign(
+        x=np.cumsum(sim["step"] * np.cos(heading)),
+        y=np.cumsum(sim["step"] * np.sin(heading)),
+        id="a",
+        segment="a",
+    )
+    figure = plots.hmm_figures(model, sim, model.viterbi(sim))["residuals.png"]
+    assert len(figure.axes) == 9
+    labels = [ax.get_ylabel() for ax in figure.axes[::3]]
+    assert labels == ["step pseudo-residual", "angle pseudo-residual", "depth pseudo-residual"]
+    series = figure.axes[6].lines[0].get_ydata()
+    expected = diagnostics.pseudo_residuals(model, sim)["depth_residual"].to_numpy()
+    np.testing.assert_array_equal(series, expected)
     matplotlib.pyplot.close("all")
 
 

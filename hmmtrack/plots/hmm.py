@@ -464,7 +464,8 @@ def hmm_figures(
     """The standard figures of a fit, by file name.
 
     * ``densities.png``: steps over a linear and a log axis, turning angles;
-    * ``residuals.png``: per stream, pseudo-residuals in row order, QQ plot and ACF;
+    * ``residuals.png``: one row per stream (steps, angles, each further stream), its
+      pseudo-residuals in row order, QQ plot and ACF;
     * ``tracks.png``: the decoded tracks, one panel per animal;
     * ``transition_<variable>.png`` and ``stationary_<variable>.png`` for each variable of
       the transition formula, with ``level`` bands.
@@ -494,8 +495,15 @@ def hmm_figures(
     figures["densities.png"] = fig
 
     residuals = diagnostics.pseudo_residuals(model, prepared)
-    fig, axes = plt.subplots(2, 3, figsize=(15, 7), gridspec_kw={"width_ratios": [2, 1, 1]})
-    for row, stream in enumerate(("step", "angle")):
+    streams = list(model.emissions)
+    fig, axes = plt.subplots(
+        len(streams),
+        3,
+        figsize=(15, 3.5 * len(streams)),
+        gridspec_kw={"width_ratios": [2, 1, 1]},
+        squeeze=False,
+    )
+    for row, stream in enumerate(streams):
         values = residuals[f"{stream}_residual"].to_numpy()
         residual_series_plot(values, stream, prepared["segment"].to_numpy(), ax=axes[row, 0])
         residual_qq_plot(values, stream, ax=axes[row, 1])
