@@ -25,18 +25,8 @@ from hmmtrack.hmm import (
     Weibull,
     WrappedCauchy,
     diagnostics,
+    distributions,
     fit,
-)
-from hmmtrack.hmm.distributions import (
-    Bernoulli,
-    Beta,
-    Categorical,
-    NegativeBinomial,
-    Normal,
-    Poisson,
-    ZeroInflatedNegativeBinomial,
-    ZeroInflatedPoisson,
-    ZeroOneInflatedBeta,
 )
 from hmmtrack.hmm.emission import CovariateEmission, split_formulas
 from hmmtrack.hmm.formula import design
@@ -244,17 +234,19 @@ CDF_EXAMPLES = [
     Exponential(np.array([1.0, 0.2]), np.array([0.1, 0.2])),
     VonMises(np.array([3.0, 0.2]), np.array([0.7, 4.0])),
     WrappedCauchy(np.array([-2.0, 0.1]), np.array([0.3, 0.8])),
-    Normal(np.array([20.0, 5.0]), np.array([6.0, 2.0])),
-    Beta(np.array([2.0, 5.0]), np.array([6.0, 1.5])),
-    Poisson(np.array([3.0, 0.5])),
-    NegativeBinomial(np.array([3.0, 20.0]), np.array([1.5, 6.0])),
-    Bernoulli(np.array([0.2, 0.85])),
-    ZeroInflatedPoisson(np.array([3.0, 10.0]), np.array([0.3, 0.2])),
-    ZeroInflatedNegativeBinomial(np.array([3.0, 20.0]), np.array([4.0, 6.0]), np.array([0.3, 0.2])),
-    ZeroOneInflatedBeta(
+    distributions.Normal(np.array([20.0, 5.0]), np.array([6.0, 2.0])),
+    distributions.Beta(np.array([2.0, 5.0]), np.array([6.0, 1.5])),
+    distributions.Poisson(np.array([3.0, 0.5])),
+    distributions.NegativeBinomial(np.array([3.0, 20.0]), np.array([1.5, 6.0])),
+    distributions.Bernoulli(np.array([0.2, 0.85])),
+    distributions.ZeroInflatedPoisson(np.array([3.0, 10.0]), np.array([0.3, 0.2])),
+    distributions.ZeroInflatedNegativeBinomial(
+        np.array([3.0, 20.0]), np.array([4.0, 6.0]), np.array([0.3, 0.2])
+    ),
+    distributions.ZeroOneInflatedBeta(
         np.array([2.0, 5.0]), np.array([6.0, 1.5]), np.array([0.2, 0.1]), np.array([0.1, 0.3])
     ),
-    Categorical(np.array([[0.6, 0.3, 0.1], [0.1, 0.2, 0.7]])),
+    distributions.Categorical(np.array([[0.6, 0.3, 0.1], [0.1, 0.2, 0.7]])),
 ]
 
 
@@ -290,7 +282,7 @@ def test_formula_stream_residuals_equal_a_per_row_scipy_forecast():
         {"mean": COEFFICIENTS},
     )
     depth = CovariateEmission(
-        Normal(np.array([20.0, 5.0]), np.array([6.0, 2.0])),
+        distributions.Normal(np.array([20.0, 5.0]), np.array([6.0, 2.0])),
         {"mean": design("~ cosT", table)},
         {"mean": np.array([[20.0, 3.0], [5.0, -2.0]])},
     )
