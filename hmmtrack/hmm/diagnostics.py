@@ -2,8 +2,10 @@
 
 * :func:`pseudo_residuals` -- moveHMM's forecast pseudo-residuals: for row ``t`` of a
   sequence, ``Phi^-1(sum_k P(S_t = k | rows before t) F_k(x_t))`` with ``F_k`` the
-  state-dependent CDF of steps (zero mass included) or of angles (from -pi), the emission
-  families' ``cdf``. Under a correct model each series is independent standard normal.
+  state-dependent CDF of each stream (steps with their zero mass, angles from -pi, further
+  streams randomised between P(X < x) and P(X <= x)), the emission families' ``cdf``, with
+  row ``t``'s parameters where the stream has emission formulas. Under a correct model each
+  series is independent standard normal.
 * :func:`qq_points`, :func:`autocorrelation` -- their QQ coordinates and ACF (statsmodels).
 * :func:`confidence_intervals` -- Wald intervals: the Hessian of the log-likelihood on the
   working scale by central differences of its gradient, standard errors on the natural scale
