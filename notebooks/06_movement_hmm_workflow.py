@@ -193,7 +193,7 @@ starts[["start", "log_likelihood", "n_iter", "best", "step.mean[1]", "step.mean[
 # The travelling state was simulated going straight on (turning-angle mean 0). Fixing that
 # mean (`fixed={"angle.mean[2]": 0}`, states numbered from 1; `--fix 'angle.mean[2]=0'`)
 # removes a parameter, and `stationary=True` makes the initial distribution the stationary
-# distribution of the transition matrix at the first row's hour rather than a parameter
+# distribution of the transition matrix at each track's first hour rather than a parameter
 # (momentuHMM's `stationary = TRUE`). The fixed parameter prints "fixed" instead of a standard
 # error; the control and the state names are saved in the model file.
 

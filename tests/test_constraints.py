@@ -20,6 +20,7 @@ from hmmtrack.hmm.constraints import Constraints, FitControl
 from hmmtrack.hmm.decoding import decode_table
 from hmmtrack.hmm.distributions import Gamma, VonMises
 from hmmtrack.hmm.fit import MovementHMMEstimator
+from hmmtrack.hmm.inference import forward_backward
 from hmmtrack.hmm.model import MovementHMM
 
 ELK = Path(__file__).resolve().parents[2] / "shared" / "data" / "elk_data.csv"
@@ -303,3 +304,38 @@ def test_check_starts_on_elk_finds_the_movehmm_optimum():
 
     figure = starts_figure(table)
     assert f"of 4 starts at the best {best.max():.5f}" in figure.axes[0].get_title()
+
+
+def test_each_animal_starts_in_the_stationary_distribution_at_its_first_row(small):
+    """Two animals whose first rows have opposite covariates: with ``stationary`` each
+    track starts in the stationary distribution of its own first row's transition matrix.
+    The fitted log-likelihood is the sum of per-animal forward recursions with those
+    starts, and the free vector's gradient (the per-animal stationary terms) matches
+    central differences."""
+    data = small.assign(
+        x=np.cos(np.pi * np.arange(len(small)) / 150.0), segment=np.repeat(["a", "b"], 150)
+    )
+    estimator = MovementHMMEstimator(
+        2, covariates=["x"], stationary=True, n_starts=1, seed=1, max_iter=20
+    ).fit(data)
+    model = estimator.model_
+    total, starts = 0.0, []
+    for _, animal in data.groupby("segment"):
+        observations = model.observations(animal)
+        delta = model.stationary(animal.iloc[:1])[0]
+        starts.append(delta)
+        total += forward_backward(
+            np.log(delta),
+            model.log_transition_for(observations),
+            model.log_likelihood_matrix(observations),
+        ).log_likelihood
+    assert np.abs(starts[0] - starts[1]).max() > 0.05
+    np.testing.assert_allclose(np.exp(model.log_initial_for(model.observations(data))), starts)
+    assert model.log_likelihood == pytest.approx(total, abs=1e-8)
+    assert model.score(data) == pytest.approx(total, abs=1e-8)
+    likelihood = fit.model_likelihood(model, data)
+    theta = likelihood.pack(fit.parameters_of(model)) + 0.05
+    gradient = likelihood.value_and_gradient(theta)[1]
+    shifts = np.eye(theta.size) * 1e-5
+    numeric = [(likelihood.value(theta + h) - likelihood.value(theta - h)) / 2e-5 for h in shifts]
+    np.testing.assert_allclose(gradient, numeric, rtol=1e-5, atol=1e-4)

@@ -238,7 +238,7 @@ def register(subparsers) -> None:
         "--stationary",
         action="store_true",
         help="the initial distribution is the stationary distribution of the transition "
-        "matrix (at the first row's covariates), not a parameter",
+        "matrix (at each track segment's first-row covariates), not a parameter",
     )
     parser.add_argument(
         "--check-starts",

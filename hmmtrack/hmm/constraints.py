@@ -23,8 +23,8 @@ with a formula the coefficient vectors are tied. Equality on the link scale is e
 parameters, since each link is one-to-one.
 
 With ``stationary`` the initial distribution is not a parameter: it is the stationary
-distribution of the transition matrix (with covariates, of the matrix at the first row of the
-data, as momentuHMM does).
+distribution of the transition matrix (with covariates, of each sequence's -- each animal's
+track segment's -- matrix at its first row: :func:`stationary_starts`).
 
 Not for the likelihood or the EM (:mod:`hmmtrack.hmm.fit` uses this mapping).
 """
@@ -149,6 +149,15 @@ class FitControl:
         return cls(fixed, tuple(equal), stationary)
 
 
+def stationary_starts(coefficients: np.ndarray, design: np.ndarray) -> np.ndarray:
+    """Stationary initial distributions at design rows: that of the transition matrix of
+    ``coefficients`` (K*(K-1), p) at each row of ``design`` (n, p) (each sequence's first),
+    clipped to >= 0 and normalised, shape (n, K)."""
+    gamma = np.exp(cov.log_transition_matrices(coefficients, design))
+    delta = np.maximum(stationary_distribution(gamma), 0.0)
+    return delta / delta.sum(axis=-1, keepdims=True)
+
+
 def stationary_distribution(gamma: np.ndarray) -> np.ndarray:
     """Stationary distribution ``delta = delta Gamma`` of transition matrices.
 
@@ -255,9 +264,10 @@ class Constraints:
         formulas, states, transition covariates).
     transition_columns : tuple of str
         Names of the transition design's columns (``("Intercept",)`` without covariates).
-    first_design : ndarray, shape (1, p) or None
-        The transition design's first row: the stationary initial distribution of a model
-        with covariates is that of the matrix there. None without covariates.
+    start_design : ndarray, shape (n_sequences, p) or None
+        The transition design's row at the start of each sequence: a stationary initial
+        distribution with covariates is that of each sequence's matrix there. None without
+        covariates.
 
     Raises
     ------
@@ -267,10 +277,10 @@ class Constraints:
         partly fixed transition row or initial distribution, ties across parameters.
     """
 
-    def __init__(self, control: FitControl, template, transition_columns, first_design=None):
+    def __init__(self, control: FitControl, template, transition_columns, start_design=None):
         self.control = control
-        self.template = template
-        self.first_design = first_design
+        self.template = replace(template, stationary=control.stationary)
+        self.start_design = start_design
         self.columns = tuple(transition_columns)
         k = template.n_states
         self.n_states = k
@@ -338,7 +348,7 @@ class Constraints:
         initial: dict[int, float] = {}
         for key, value in fixed.items():
             if match := _TRANSITION_KEY.match(key):
-                if self.first_design is not None:
+                if self.start_design is not None:
                     raise ValueError(
                         f"{key!r}: with transition covariates fix coefficients instead: "
                         f"'transition.<column>[i,j]' with a column in {list(self.columns)}"
@@ -489,10 +499,10 @@ class Constraints:
         k = self.n_states
         coefficients = z[self.blocks["transition"]].reshape(k * (k - 1), len(self.columns))
         transition = None
-        if self.first_design is None:
+        if self.start_design is None:
             transition = np.exp(cov.log_transition_matrices(coefficients, np.ones((1, 1))))[0]
-        if self.control.stationary:
-            initial = self.stationary_initial(coefficients)
+        if self.control.stationary:  # the first sequence's (each has its own: log_initial)
+            initial = self.stationary_initial(coefficients)[0]
         else:
             log_initial = np.concatenate([[0.0], z[self.blocks["initial"]]])
             initial = np.exp(log_initial - np.logaddexp.reduce(log_initial))
@@ -504,15 +514,14 @@ class Constraints:
         ).with_emissions(emissions)
 
     def stationary_initial(self, coefficients: np.ndarray) -> np.ndarray:
-        """Stationary distribution of the transition matrix of ``coefficients`` (K*(K-1), p)
-        (at the first row's covariates), clipped to >= 0 and normalised."""
-        design = np.ones((1, 1)) if self.first_design is None else self.first_design
-        gamma = np.exp(cov.log_transition_matrices(coefficients, design))[0]
-        delta = np.maximum(stationary_distribution(gamma), 0.0)
-        return delta / delta.sum()
+        """:func:`stationary_starts` of ``coefficients`` (K*(K-1), p): (n_sequences, K) with
+        covariates, (1, K) without."""
+        design = np.ones((1, 1)) if self.start_design is None else self.start_design
+        return stationary_starts(coefficients, design)
 
     def stationary_jacobian(self, coefficients: np.ndarray) -> np.ndarray:
-        """``d delta / d coefficients`` by central differences, shape (K, K*(K-1)*p)."""
+        """``d delta / d coefficients`` of :meth:`stationary_initial` flattened, by central
+        differences, shape (n * K, K*(K-1)*p) (n sequences, 1 without covariates)."""
         flat = coefficients.ravel()
         columns = []
         for i in range(flat.size):
@@ -520,7 +529,7 @@ class Constraints:
             shift[i] = _JACOBIAN_STEP * max(1.0, abs(flat[i]))
             up = self.stationary_initial((flat + shift).reshape(coefficients.shape))
             down = self.stationary_initial((flat - shift).reshape(coefficients.shape))
-            columns.append((up - down) / (2 * shift[i]))
+            columns.append((up - down).ravel() / (2 * shift[i]))
         return np.stack(columns, axis=1)
 
     def pack(self, params) -> np.ndarray:

@@ -66,11 +66,11 @@ def pseudo_residuals(model: MovementHMM, data: pd.DataFrame, seed: int = 0) -> p
     """
     observations = model.observations(data)
     log_lik = model.log_likelihood_matrix(observations)
-    log_transition = model.log_transition_for(observations)
-    with np.errstate(divide="ignore"):
-        log_initial = np.log(model.initial)
     forecast = forward_backward(
-        log_initial, log_transition, log_lik, observations.lengths
+        model.log_initial_for(observations),
+        model.log_transition_for(observations),
+        log_lik,
+        observations.lengths,
     ).predicted
     inputs = model.stream_inputs(observations)
     rng = np.random.default_rng(seed)

@@ -140,6 +140,7 @@ class Parameters:
     Attributes
     ----------
     initial : ndarray, shape (K,)
+        With ``stationary`` and covariates, the first sequence's (:meth:`log_initial`).
     transition : ndarray, shape (K, K) or None
         Used when there are no covariates.
     coefficients : ndarray, shape (K*(K-1), 1 + p) or None
@@ -147,6 +148,9 @@ class Parameters:
     step, angle : StateDistribution
     streams : dict of str to StateDistribution
         The distributions of further data streams, by name; empty without.
+    stationary : bool
+        Each sequence starts in the stationary distribution of its transition matrix at its
+        first row (a fit control's ``stationary``).
     """
 
     initial: np.ndarray
@@ -155,6 +159,7 @@ class Parameters:
     step: distributions.StateDistribution
     angle: distributions.StateDistribution
     streams: dict = field(default_factory=dict)
+    stationary: bool = False
 
     @property
     def n_states(self) -> int:
@@ -170,6 +175,15 @@ class Parameters:
         emissions = dict(emissions)
         step, angle = emissions.pop("step"), emissions.pop("angle")
         return replace(self, step=step, angle=angle, streams=emissions)
+
+    def log_initial(self, data: FitData) -> np.ndarray:
+        """Log initial distribution: ``(K,)``, or ``(n_sequences, K)`` for a stationary start
+        with covariates (each sequence's, at its first row's covariates)."""
+        initial = self.initial
+        if self.stationary and self.coefficients is not None:
+            initial = con.stationary_starts(self.coefficients, data.design[data.starts])
+        with np.errstate(divide="ignore"):
+            return np.log(initial)
 
     def log_transition(self, data: FitData) -> np.ndarray:
         """``(K, K)`` or, with covariates, ``(T-1, K, K)`` (entry t: row t -> t+1)."""
@@ -205,6 +219,7 @@ class Parameters:
             step=self.step.permuted(order),
             angle=self.angle.permuted(order),
             streams={name: dist.permuted(order) for name, dist in self.streams.items()},
+            stationary=self.stationary,
         )
 
 
@@ -285,10 +300,8 @@ class WorkingLikelihood:
         """Log-likelihood at ``theta``."""
         params = self.unpack(theta)
         data = self.data
-        with np.errstate(divide="ignore"):
-            log_initial = np.log(params.initial)
         return log_likelihood(
-            log_initial,
+            params.log_initial(data),
             params.log_transition(data),
             params.log_likelihood_matrix(data),
             data.lengths,
@@ -359,10 +372,14 @@ class ConstrainedLikelihood(WorkingLikelihood):
             block = constraints.blocks[name]
             gradient[block] = con.link_jacobian(dist, z[block]).T @ emission_scores[name]
         coefficient_score = coefficient_score.ravel()
-        if constraints.control.stationary:
+        if constraints.control.stationary:  # sum over sequences of first / delta d delta
+            delta = constraints.stationary_initial(coefficients)
+            starts = post.posterior[self.data.starts]  # (n_sequences, K)
+            if delta.shape[0] == 1:  # one distribution shared by every sequence
+                starts = starts.sum(axis=0, keepdims=True)
             jacobian = constraints.stationary_jacobian(coefficients)
-            coefficient_score = coefficient_score + jacobian.T @ (
-                first / np.maximum(params.initial, _TINY)
+            coefficient_score = (
+                coefficient_score + jacobian.T @ (starts / np.maximum(delta, _TINY)).ravel()
             )
         else:
             gradient[constraints.blocks["initial"]] = first[1:] - first.sum() * params.initial[1:]
@@ -406,10 +423,11 @@ def _scores(params: Parameters, data: FitData, post, coefficients: np.ndarray):
 
 def _posterior(params: Parameters, data: FitData):
     """Forward-backward of ``data`` under ``params`` (a :class:`~.inference.Posterior`)."""
-    with np.errstate(divide="ignore"):
-        log_initial = np.log(params.initial)
     return forward_backward(
-        log_initial, params.log_transition(data), params.log_likelihood_matrix(data), data.lengths
+        params.log_initial(data),
+        params.log_transition(data),
+        params.log_likelihood_matrix(data),
+        data.lengths,
     )
 
 
@@ -902,15 +920,21 @@ def model_likelihood(model: MovementHMM, data: pd.DataFrame) -> WorkingLikelihoo
     if model.control:
         design = model.transition_design
         columns = ("Intercept",) if design is None else design.columns
-        first = None if data.design is None else data.design[:1]
-        constraints = con.Constraints(model.control, params, columns, first)
+        start_design = None if data.design is None else data.design[data.starts]
+        constraints = con.Constraints(model.control, params, columns, start_design)
     return working_likelihood(params, data, constraints)
 
 
 def parameters_of(model: MovementHMM) -> Parameters:
     """The :class:`Parameters` of a fitted model."""
     return Parameters(
-        model.initial, model.transition, model.coefficients, model.step, model.angle, model.streams
+        model.initial,
+        model.transition,
+        model.coefficients,
+        model.step,
+        model.angle,
+        model.streams,
+        model.control.stationary,
     )
 
 
@@ -1262,8 +1286,10 @@ class MovementHMMEstimator:
         control = con.FitControl(self.fixed or {}, tuple(self.equal or ()), self.stationary)
         if control:
             columns = ("Intercept",) if design is None else design.columns
-            first = None if data.design is None else data.design[:1]
-            spec = replace(spec, constraints=con.Constraints(control, template, columns, first))
+            start_design = None if data.design is None else data.design[data.starts]
+            spec = replace(
+                spec, constraints=con.Constraints(control, template, columns, start_design)
+            )
         if self.start is not None:
             template = _matching_start(parameters_of(self.start), template)
         spec = replace(spec, start=template)

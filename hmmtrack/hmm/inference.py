@@ -4,7 +4,8 @@ Pure functions on a log-likelihood matrix ``log_lik`` (T, K) (``log_lik[t, k]`` 
 density of observation t in state k; a row of zeros is a missing observation), emission
 agnostic. Inputs are in log space:
 
-* ``log_initial`` (K,): log initial distribution, shared by every track;
+* ``log_initial`` (K,): log initial distribution, shared by every track, or (n_tracks, K):
+  one per track (a stationary start at each track's first-row covariates);
 * ``log_transition`` (K, K), or (T-1, K, K) for time-varying transitions, where entry t is
   the transition from row t to row t+1 (entries that cross a track boundary are ignored);
 * ``lengths``: several tracks concatenated in ``log_lik`` (None = one track); there is no
@@ -95,8 +96,12 @@ def _prepare(log_initial, log_transition, log_lik, lengths):
         raise ValueError(f"log_lik must have shape (T, K) with T >= 1, got {log_lik.shape}")
     n_obs, n_states = log_lik.shape
     log_initial = np.asarray(log_initial, dtype=float)
-    if log_initial.shape != (n_states,):
-        raise ValueError(f"log_initial must have shape ({n_states},), got {log_initial.shape}")
+    starts, ends = _track_bounds(lengths, n_obs)
+    if log_initial.shape not in ((n_states,), (starts.size, n_states)):
+        raise ValueError(
+            f"log_initial must have shape ({n_states},) or ({starts.size}, {n_states}) (one "
+            f"per track), got {log_initial.shape}"
+        )
     log_transition = np.asarray(log_transition, dtype=float)
     time_varying = log_transition.ndim == 3
     expected = (n_obs - 1, n_states, n_states) if time_varying else (n_states, n_states)
@@ -112,7 +117,7 @@ def _prepare(log_initial, log_transition, log_lik, lengths):
         if off.any():
             where = np.argwhere(np.atleast_1d(off))[:5].tolist()
             raise ValueError(f"{name} must sum to 1 over its last axis; not at {where}")
-    starts, ends = _track_bounds(lengths, n_obs)
+    log_initial = np.ascontiguousarray(np.broadcast_to(log_initial, (starts.size, n_states)))
     if not time_varying:
         log_transition = log_transition[None]
     return log_initial, log_transition, time_varying, log_lik, starts, ends
@@ -174,7 +179,7 @@ def _forward_kernel(initial, transition, time_varying, lik, starts, ends):
         for t in range(starts[track], ends[track]):
             if t == starts[track]:
                 for j in range(n_states):
-                    predicted[t, j] = initial[j]
+                    predicted[t, j] = initial[track, j]
             else:
                 k = t - 1 if time_varying else 0
                 for j in range(n_states):
@@ -243,7 +248,7 @@ def _viterbi_kernel(log_initial, log_transition, time_varying, log_lik, starts, 
     for track in range(starts.size):
         s, e = starts[track], ends[track]
         for j in range(n_states):
-            delta[j] = log_initial[j] + log_lik[s, j]
+            delta[j] = log_initial[track, j] + log_lik[s, j]
         for t in range(s + 1, e):
             k = t - 1 if time_varying else 0
             for j in range(n_states):
@@ -320,8 +325,8 @@ def forward_backward(
 
     Parameters
     ----------
-    log_initial : (K,) float
-        Log initial state distribution (shared by all tracks).
+    log_initial : (K,) or (n_tracks, K) float
+        Log initial state distribution, shared by all tracks or one per track.
     log_transition : (K, K) or (T-1, K, K) float
         Log transition matrix, rows = from, columns = to; time-varying: entry t is the
         transition from row t to row t+1.

@@ -35,7 +35,7 @@ import pandas as pd
 from hmmtrack import __version__
 from hmmtrack.hmm import covariates as cov
 from hmmtrack.hmm import distributions, emission
-from hmmtrack.hmm.constraints import FitControl, stationary_distribution
+from hmmtrack.hmm.constraints import FitControl, stationary_distribution, stationary_starts
 from hmmtrack.hmm.formula import Design, design_rows, of_columns
 from hmmtrack.hmm.inference import forward_backward, viterbi
 
@@ -175,7 +175,8 @@ class MovementHMM:
     Attributes
     ----------
     initial : ndarray, shape (K,)
-        Probability of each state at the first row of a sequence.
+        Probability of each state at the first row of a sequence (with a stationary start
+        and transition covariates, of the first sequence: :meth:`log_initial_for`).
     transition : ndarray, shape (K, K) or None
         Row-stochastic transition matrix; ``None`` when ``coefficients`` are given.
     step, angle : StateDistribution
@@ -317,6 +318,18 @@ class MovementHMM:
         ndarray, shape (K,) or (T, K)
         """
         return stationary_distribution(self.transition_matrix(covariates))
+
+    def log_initial_for(self, observations: Observations) -> np.ndarray:
+        """Log initial distribution for the recursions: ``(K,)``, or ``(n_sequences, K)``
+        when the model was fitted with a stationary start and has transition covariates:
+        each sequence (animal's track segment) starts in the stationary distribution of its
+        transition matrix at its first row."""
+        initial = self.initial
+        if self.control.stationary and self.coefficients is not None:
+            starts = np.cumsum(observations.lengths) - observations.lengths
+            initial = stationary_starts(self.coefficients, observations.design[starts])
+        with np.errstate(divide="ignore"):
+            return np.log(initial)
 
     def log_transition_for(self, observations: Observations) -> np.ndarray:
         """Log transition argument for the recursions: ``(K, K)`` or ``(T-1, K, K)``.
@@ -515,10 +528,8 @@ class MovementHMM:
         if not allow_other_step:
             self.check_time_step(data)
         obs = self.observations(data)
-        with np.errstate(divide="ignore"):
-            log_initial = np.log(self.initial)
         return (
-            log_initial,
+            self.log_initial_for(obs),
             self.log_transition_for(obs),
             self.log_likelihood_matrix(obs),
             obs.lengths,
