@@ -8,8 +8,9 @@ import pandas as pd
 import pytest
 from scipy import integrate, stats
 
+from hmmtrack.tracking.measurement.arrival_time import emission_distance
 from hmmtrack.tracking.measurement.pings import ping_observations, ping_window
-from hmmtrack.tracking.measurement.tdoa import gaussian_ping_loglik, ping_integral
+from hmmtrack.tracking.measurement.tdoa import gaussian_ping_loglik, ping_integral, ping_loglik
 from hmmtrack.tracking.receivers import ReceiverTracks
 
 EPOCH = 1_568_052_029.0  # residuals at epoch scale, as on real data
@@ -62,6 +63,33 @@ def test_one_receiver_tells_nothing_and_no_outliers_is_the_closed_form():
     assert ping_integral(residual, 1e-3, 0.0, 0.5)[0] == closed
     # only the spread matters: the same ping shifted in time scores the same
     assert gaussian_ping_loglik(residual + 3.0, 1e-3)[0] == pytest.approx(closed, abs=1e-6)
+
+
+def test_every_particle_scored_alone_whatever_the_threads():
+    """``ping_loglik`` over 5,003 moving particles (5 chunks, one short) on one thread and on
+    two equals :func:`ping_integral` of each particle's residuals, bit for bit."""
+    rng = np.random.default_rng(3)
+    n, m, time, speed = 5003, 12, EPOCH + 0.5, 1500.0
+    x, y, vx, vy = rng.normal(0, 300, n), rng.normal(0, 300, n), *rng.normal(0, 1, (2, n))
+    depth = rng.uniform(0, 5, n)
+    rx, ry, offset = rng.uniform(-500, 500, m), rng.uniform(-500, 500, m), np.zeros(m)
+    arrival = EPOCH + np.hypot(rx - 50, ry + 20) / speed + rng.normal(0, 0.002, m)
+    expected = np.empty((2, n))
+    for p in range(n):
+        distance = [
+            emission_distance(x[p], y[p], vx[p], vy[p], depth[p], time - arrival[j], rx[j], ry[j],
+                              1.0 / speed)
+            for j in range(m)
+        ]  # fmt: skip
+        expected[:, p] = ping_integral(arrival - np.array(distance) / speed, 2e-3, 0.02, 2.0)
+    for threads in (1, 2):
+        loglik, emission = np.empty(n), np.empty(n)
+        ping_loglik(
+            x, y, vx, vy, depth, arrival, rx, ry, offset, time, speed, 2e-3, 0.02, 2.0, loglik,
+            emission, threads=threads,
+        )  # fmt: skip
+        np.testing.assert_array_equal(loglik, expected[0])
+        np.testing.assert_array_equal(emission, expected[1])
 
 
 def receivers(*xs):

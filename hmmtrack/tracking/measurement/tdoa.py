@@ -57,11 +57,13 @@ import math
 from dataclasses import dataclass
 from typing import ClassVar
 
+import numba
 import numpy as np
 import pandas as pd
 from numba import njit
 
 from hmmtrack.sync.pings import largest_travel_time
+from hmmtrack.tracking.compiled.chunks import in_chunks, next_chunk
 from hmmtrack.tracking.measurement.arrival_time import emission_distance, vertical_parts
 from hmmtrack.tracking.measurement.base import Score, no_events
 from hmmtrack.tracking.measurement.clocked import (
@@ -305,13 +307,51 @@ def ping_integral(residual, sigma, outlier_fraction, half_width):
     return n * math.log(beta) + log_total, origin + mean
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
+def _ping_kernel(
+    x, y, vx, vy, depth, arrival, receiver_x, receiver_y, row_offset, time, slowness, sigma,
+    outlier_fraction, half_width, emission, counter, loglik,
+):  # fmt: skip
+    """:func:`ping_integral` for every particle of each chunk not yet claimed
+    (:func:`~hmmtrack.tracking.compiled.chunks.next_chunk`)."""
+    residual = np.empty(arrival.size)
+    chunk, lo, hi = next_chunk(counter, x.size)
+    while chunk >= 0:
+        for p in range(lo, hi):
+            for j in range(arrival.size):
+                d = emission_distance(
+                    x[p], y[p], vx[p], vy[p], depth[p] + row_offset[j], time - arrival[j],
+                    receiver_x[j], receiver_y[j], slowness,
+                )  # fmt: skip
+                residual[j] = arrival[j] - d * slowness
+            loglik[p], emission[p] = ping_integral(residual, sigma, outlier_fraction, half_width)
+        chunk, lo, hi = next_chunk(counter, x.size)
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def _ping_parallel(
+    threads, x, y, vx, vy, depth, arrival, receiver_x, receiver_y, row_offset, time, slowness,
+    sigma, outlier_fraction, half_width, emission, counter, loglik,
+):  # fmt: skip
+    """:func:`_ping_kernel` on ``threads`` threads."""
+    for _ in numba.prange(threads):
+        _ping_kernel(
+            x, y, vx, vy, depth, arrival, receiver_x, receiver_y, row_offset, time, slowness,
+            sigma, outlier_fraction, half_width, emission, counter, loglik,
+        )  # fmt: skip
+
+
 def ping_loglik(
     x, y, vx, vy, depth, arrival, receiver_x, receiver_y, row_offset, time, sound_speed,
-    sigma, outlier_fraction, half_width, loglik, emission,
+    sigma, outlier_fraction, half_width, loglik, emission, threads=None,
 ):  # fmt: skip
     """:func:`ping_integral` of one ping for every particle, into ``loglik`` and
     ``emission`` (N,): its log-likelihood and the posterior mean emission time (s).
+
+    The particles are scored in chunks on ``threads`` threads (default: numba's thread
+    count of the calling thread, one in the worker processes of
+    :mod:`hmmtrack.experiments.executors`); each particle's result is computed alone, so it
+    does not depend on the number of threads.
 
     Parameters
     ----------
@@ -322,17 +362,13 @@ def ping_loglik(
         :func:`hmmtrack.tracking.measurement.arrival_time.vertical_parts`).
     time : float
         Filter time of the particles (s).
+    threads : int, optional
     """
-    slowness = 1.0 / sound_speed
-    residual = np.empty(arrival.size)
-    for p in range(x.size):
-        for j in range(arrival.size):
-            d = emission_distance(
-                x[p], y[p], vx[p], vy[p], depth[p] + row_offset[j], time - arrival[j],
-                receiver_x[j], receiver_y[j], slowness,
-            )  # fmt: skip
-            residual[j] = arrival[j] - d * slowness
-        loglik[p], emission[p] = ping_integral(residual, sigma, outlier_fraction, half_width)
+    args = (
+        x, y, vx, vy, depth, arrival, receiver_x, receiver_y, row_offset, float(time),
+        1.0 / sound_speed, float(sigma), float(outlier_fraction), float(half_width), emission,
+    )  # fmt: skip
+    in_chunks(_ping_kernel, _ping_parallel, np.shape(x)[0], threads, args, loglik)
 
 
 def _burst_interval(name: str, value) -> tuple[float, float]:
