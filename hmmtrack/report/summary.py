@@ -71,7 +71,7 @@ def _comparison_section(comparison: pd.DataFrame) -> str:
         "Honesty of the stated uncertainty: the share of seconds after convergence whose "
         "95 % ellipse (of the cloud's mean and covariance) holds the truth, 95 % for a "
         "calibrated filter, and the share of seconds declared converged while more than "
-        "50 m off (:func:`hmmtrack.analysis.metrics.uncertainty_metrics`; convergence by "
+        "50 m off (`hmmtrack.analysis.metrics.uncertainty_metrics`; convergence by "
         "the estimates' `converged` column when the filter reports modes).\n\n"
         + markdown_table(headers, rows)
         + "\n"
