@@ -57,7 +57,7 @@ import pandas as pd
 from numba import njit
 
 from hmmtrack.io import read_burst_sequence
-from hmmtrack.tracking.measurement.arrival_time import emission_distance, vertical_parts
+from hmmtrack.tracking.measurement.arrival_time import vertical_parts
 from hmmtrack.tracking.measurement.base import Score
 from hmmtrack.tracking.measurement.clocked import TEMPERING_ESS, receiver_tracks
 from hmmtrack.tracking.measurement.pings import ping_observations
@@ -70,6 +70,7 @@ from hmmtrack.tracking.measurement.tdoa import (
     cluster_excess,
     gaussian_ping_loglik,
     ping_loglik,
+    ping_residuals,
 )
 from hmmtrack.tracking.settings import positive, setting
 from hmmtrack.tracking.tempering import Tempered
@@ -463,12 +464,11 @@ def sequence_ping_loglik(
         )  # fmt: skip
         p_ub = clock[3, p] + elapsed * clock[4, p]
         p_bb = clock[4, p] + DRIFT_DENSITY * elapsed
-        for j in range(arrival.size):
-            d = emission_distance(
-                x[p], y[p], vx[p], vy[p], depth[p] + row_offset[j], time - arrival[j],
-                receiver_x[j], receiver_y[j], slowness,
-            )  # fmt: skip
-            residual[j] = arrival[j] - d * slowness - scheduled
+        ping_residuals(
+            p, x, y, vx, vy, depth, arrival, receiver_x, receiver_y, row_offset, time,
+            slowness, residual,
+        )  # fmt: skip
+        residual -= scheduled
         # two priors of the emission's offset: the particle's clock, and (share
         # CLOCK_RESET) the same widened by OFFSET_SD, a clock set from a wrong position
         for k in range(2):

@@ -99,6 +99,7 @@ __all__ = [
     "ping_integral",
     "per_ping_table",
     "ping_loglik",
+    "ping_residuals",
 ]
 
 #: residuals farther apart than twice this many core sds never count as direct arrivals
@@ -307,6 +308,22 @@ def ping_integral(residual, sigma, outlier_fraction, half_width):
     return n * math.log(beta) + log_total, origin + mean
 
 
+@njit(cache=True, inline="always")
+def ping_residuals(
+    p, x, y, vx, vy, depth, arrival, receiver_x, receiver_y, row_offset, time, slowness,
+    residual,
+):  # fmt: skip
+    """Into ``residual`` (n,): each receiver's arrival time minus particle ``p``'s travel
+    time to it (s), the ping's emission time if the particle were the tag (arguments as
+    :func:`ping_loglik`, ``slowness`` = 1 / sound speed)."""
+    for j in range(arrival.size):
+        d = emission_distance(
+            x[p], y[p], vx[p], vy[p], depth[p] + row_offset[j], time - arrival[j],
+            receiver_x[j], receiver_y[j], slowness,
+        )  # fmt: skip
+        residual[j] = arrival[j] - d * slowness
+
+
 @njit(cache=True, nogil=True)
 def _ping_kernel(
     x, y, vx, vy, depth, arrival, receiver_x, receiver_y, row_offset, time, slowness, sigma,
@@ -318,12 +335,10 @@ def _ping_kernel(
     chunk, lo, hi = next_chunk(counter, x.size)
     while chunk >= 0:
         for p in range(lo, hi):
-            for j in range(arrival.size):
-                d = emission_distance(
-                    x[p], y[p], vx[p], vy[p], depth[p] + row_offset[j], time - arrival[j],
-                    receiver_x[j], receiver_y[j], slowness,
-                )  # fmt: skip
-                residual[j] = arrival[j] - d * slowness
+            ping_residuals(
+                p, x, y, vx, vy, depth, arrival, receiver_x, receiver_y, row_offset, time,
+                slowness, residual,
+            )  # fmt: skip
             loglik[p], emission[p] = ping_integral(residual, sigma, outlier_fraction, half_width)
         chunk, lo, hi = next_chunk(counter, x.size)
 
