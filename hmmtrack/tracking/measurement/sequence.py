@@ -57,7 +57,6 @@ import pandas as pd
 from numba import njit
 
 from hmmtrack.io import read_burst_sequence
-from hmmtrack.tracking.measurement.arrival_time import vertical_parts
 from hmmtrack.tracking.measurement.base import Score
 from hmmtrack.tracking.measurement.clocked import TEMPERING_ESS, receiver_tracks
 from hmmtrack.tracking.measurement.pings import ping_observations
@@ -71,6 +70,7 @@ from hmmtrack.tracking.measurement.tdoa import (
     gaussian_ping_loglik,
     ping_loglik,
     ping_residuals,
+    split_pings,
 )
 from hmmtrack.tracking.settings import positive, setting
 from hmmtrack.tracking.tempering import Tempered
@@ -126,7 +126,6 @@ _LOG_2PI = math.log(2.0 * math.pi)
 #: arrival sd (s) of the sequence measurement: the 1 ms it was measured with (its clock puts
 #: each emission to a millisecond; the random-interval ping's 2 ms is for its untimed pings)
 SEQUENCE_ARRIVAL_SIGMA = 1e-3
-_NO_ROWS = pd.DataFrame()
 
 
 # ---------------------------------------------------------------------------- alignment
@@ -655,33 +654,17 @@ class PingSequence(PingTDOA):
     def _sequence_score(self, p, rows, time, last_scheduled):
         """Log-likelihood (N,), emission times (N,), clocks (5, N) and the clocks' last
         scheduled time after the pings of ``rows`` in order."""
-        if isinstance(rows, pd.DataFrame):
-            rows = self.as_matrix(rows)
-        n = p.n if hasattr(p, "n") else np.shape(p.x)[0]
-        if time is None:
-            time = float(rows[:, 0].min())
+        rows, n, time, motion, offset_column = self._inputs(p, rows, time)
         extra = getattr(p, "extra", {})
         if all(name in extra for name in SEQUENCE_FIELDS):
             clock = np.array([extra[name] for name in SEQUENCE_FIELDS], dtype=float)
         else:
             clock = _prior_clock(n)
-        tag_depth = vertical_parts(p, _NO_ROWS)[0]
-        offset_column = 4 if getattr(p, "depth", None) is not None else 3
-        speed = np.asarray(p.speed, dtype=float)
-        motion = (
-            np.ascontiguousarray(p.x, dtype=float),
-            np.ascontiguousarray(p.y, dtype=float),
-            speed * np.asarray(p.cos_heading),
-            speed * np.asarray(p.sin_heading),
-            tag_depth,
-        )
         total = np.zeros(n)
         loglik = np.empty(n)
         emission = np.empty(n)
-        for ping in np.unique(rows[:, 5]):
-            part = rows[rows[:, 5] == ping]
-            ping_rows = tuple(np.ascontiguousarray(part[:, k]) for k in (0, 1, 2, offset_column))
-            constants = (float(time), self.sound_speed)
+        constants = (time, self.sound_speed)
+        for part, ping_rows in split_pings(rows, offset_column):
             if part[0, 7] < 0:  # not matched: a random-interval ping
                 ping_loglik(
                     *motion, *ping_rows, *constants, self.sigma, self.outlier_fraction,

@@ -100,6 +100,7 @@ __all__ = [
     "per_ping_table",
     "ping_loglik",
     "ping_residuals",
+    "split_pings",
 ]
 
 #: residuals farther apart than twice this many core sds never count as direct arrivals
@@ -386,6 +387,15 @@ def ping_loglik(
     in_chunks(_ping_kernel, _ping_parallel, np.shape(x)[0], threads, args, loglik)
 
 
+def split_pings(rows: np.ndarray, offset_column: int):
+    """Per ping of ``rows`` (:meth:`PingTDOA.as_matrix`; column 5 the ping number), in
+    order: its rows and its contiguous (arrival, receiver x, receiver y, vertical offset)
+    columns, as the compiled ping kernels take them."""
+    for ping in np.unique(rows[:, 5]):
+        part = rows[rows[:, 5] == ping]
+        yield part, tuple(np.ascontiguousarray(part[:, k]) for k in (0, 1, 2, offset_column))
+
+
 def _burst_interval(name: str, value) -> tuple[float, float]:
     low, high = (positive(f"{name} {end}", v) for end, v in zip(("MIN", "MAX"), value, strict=True))
     if not low <= high:
@@ -595,37 +605,37 @@ class PingTDOA:
         :func:`ping_loglik`, shape (N,)."""
         return self._score(particles, obs, time)[0]
 
-    def _score(self, p, rows, time):
+    def _inputs(self, p, rows, time):
+        """What the compiled ping kernels take, shared by every ping of ``rows``: the rows as
+        a matrix (:meth:`as_matrix`), the number of particles, the scoring time (default:
+        the first arrival), the particles' ``(x, y, vx, vy, depth)`` arrays and the rows'
+        column of vertical offsets (with or without the particles' depths)."""
         if isinstance(rows, pd.DataFrame):
             rows = self.as_matrix(rows)
         n = p.n if hasattr(p, "n") else np.shape(p.x)[0]
         if time is None:
             time = float(rows[:, 0].min())
-        tag_depth = vertical_parts(p, _NO_ROWS)[0]
-        offset_column = 4 if getattr(p, "depth", None) is not None else 3
         speed = np.asarray(p.speed, dtype=float)
-        vx = speed * np.asarray(p.cos_heading)
-        vy = speed * np.asarray(p.sin_heading)
+        motion = (
+            np.ascontiguousarray(p.x, dtype=float),
+            np.ascontiguousarray(p.y, dtype=float),
+            speed * np.asarray(p.cos_heading),
+            speed * np.asarray(p.sin_heading),
+            vertical_parts(p, _NO_ROWS)[0],  # the particles' depths
+        )
+        offset_column = 4 if getattr(p, "depth", None) is not None else 3
+        return rows, n, float(time), motion, offset_column
+
+    def _score(self, p, rows, time):
+        rows, n, time, motion, offset_column = self._inputs(p, rows, time)
         total = np.zeros(n)
         loglik = np.empty(n)
         emission = np.empty(n)
-        for ping in np.unique(rows[:, 5]):
-            part = rows[rows[:, 5] == ping]
+        for _, ping_rows in split_pings(rows, offset_column):
             ping_loglik(
-                np.ascontiguousarray(p.x, dtype=float),
-                np.ascontiguousarray(p.y, dtype=float),
-                vx,
-                vy,
-                tag_depth,
-                *(np.ascontiguousarray(part[:, k]) for k in (0, 1, 2, offset_column)),
-                float(time),
-                self.sound_speed,
-                self.sigma,
-                self.outlier_fraction,
-                self.half_width,
-                loglik,
-                emission,
-            )
+                *motion, *ping_rows, time, self.sound_speed, self.sigma, self.outlier_fraction,
+                self.half_width, loglik, emission,
+            )  # fmt: skip
             total += loglik
         return total, emission
 
