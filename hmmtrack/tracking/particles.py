@@ -318,19 +318,24 @@ def _gather_kernel(
     when ``equal``. Indices must lie inside the sources."""
     chunk, lo, hi = next_chunk(counter, indices.size)
     while chunk >= 0:
+        # loops over views of the chunk, not over lo:hi of the whole arrays: about 2x faster
+        # (reports/decisions.md, "Resampling and correction passes")
+        chunk_indices = indices[lo:hi]
         for k in range(len(sources)):
-            source = sources[k]
-            target = targets[k]
-            for i in range(lo, hi):
-                target[i] = source[indices[i]]
-        for i in range(lo, hi):
-            state_target[i] = state_source[indices[i]]
+            _gather(sources[k], targets[k][lo:hi], chunk_indices)
+        _gather(state_source, state_target[lo:hi], chunk_indices)
         if equal:
             log_target[lo:hi] = log_fill
         else:
-            for i in range(lo, hi):
-                log_target[i] = log_source[indices[i]]
+            _gather(log_source, log_target[lo:hi], chunk_indices)
         chunk, lo, hi = next_chunk(counter, indices.size)
+
+
+@njit(cache=True, inline="always")
+def _gather(source, target, indices):
+    """``target[i] = source[indices[i]]`` for every ``i`` of ``target`` (views of a chunk)."""
+    for i in range(target.size):
+        target[i] = source[indices[i]]
 
 
 @njit(cache=True, nogil=True, parallel=True)

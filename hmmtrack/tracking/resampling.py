@@ -100,7 +100,7 @@ def invert(weights, weight_scale, values, n, value_scale, running):
     clipped to the last index of positive weight (so that rounding in the cumulative sum
     can neither lose a point nor pick a weightless particle).
 
-    The cumulative weights and the points are formed in one pass each; the points are then
+    The cumulative weights and the points are formed in one pass; the points are then
     split in four runs, each started by a binary search and merged with the cumulative
     weights by :func:`_merge_step`, the four in lockstep. A plain merge of random data
     mispredicts a branch at about every other step; this one has no such branch and keeps
@@ -111,19 +111,21 @@ def invert(weights, weight_scale, values, n, value_scale, running):
     while last > 0 and weights[last] <= 0.0:  # never pick a weightless particle
         last -= 1
     cumulative = np.empty(last + 1)
-    running_weight = 0.0
-    for j in range(last + 1):
+    points = np.empty(n)
+    running_weight = total = 0.0
+    both = min(last + 1, n)
+    for j in range(both):  # two independent chains of additions in flight
         running_weight += weights[j] * weight_scale
         cumulative[j] = running_weight
+        total += values[j]
+        points[j] = (total if running else values[j]) * value_scale
+    for j in range(both, last + 1):
+        running_weight += weights[j] * weight_scale
+        cumulative[j] = running_weight
+    for k in range(both, n):
+        total += values[k]
+        points[k] = (total if running else values[k]) * value_scale
     cumulative[last] = np.inf  # every point left ends at ``last``
-    points = np.empty(n)
-    total = 0.0
-    for k in range(n):
-        if running:
-            total += values[k]
-            points[k] = total * value_scale
-        else:
-            points[k] = values[k] * value_scale
     size = (n + 3) // 4
     e0, e1, e2 = min(size, n), min(2 * size, n), min(3 * size, n)
     k0, k1, k2, k3 = 0, e0, e1, e2
