@@ -5,6 +5,7 @@ from hypothesis import strategies as st
 
 from hmmtrack.tracking.resampling import (
     RESAMPLERS,
+    Scratch,
     effective_sample_size,
     get_resampler,
     inverse_cdf,
@@ -152,3 +153,21 @@ def test_resampled_ancestors_bracket_their_points(m, n, power, zero_share, seed)
         assert np.all(below <= p + 1e-12)
         last = np.flatnonzero(w > 0)[-1]
         assert np.all((cumulative[ancestors] > p - 1e-12) | (ancestors == last))
+
+
+@pytest.mark.parametrize("name", sorted(RESAMPLERS))
+def test_scratch_and_threads_leave_the_ancestors_unchanged(name):
+    """A filter's reused work arrays (:class:`Scratch`), on one thread or two, give the
+    ancestors of the plain call from the same seed, over several chunks and twice in a row
+    (the second time into the same arrays), for flat and peaked weights."""
+    g = np.random.default_rng(11)
+    resample = get_resampler(name)
+    scratches = (Scratch(1), Scratch(2))
+    for n, power in ((5000, 1), (5000, 25), (4321, 3)):
+        w = g.random(5000) ** power
+        w[g.random(5000) < 0.3] = 0.0
+        expected = resample(np.random.default_rng(n + power), w, n)
+        for scratch in scratches:
+            for _ in range(2):
+                got = resample(np.random.default_rng(n + power), w, n, scratch)
+                np.testing.assert_array_equal(got, expected)

@@ -72,7 +72,7 @@ from hmmtrack.tracking.compiled.threads import ThreadChoice
 from hmmtrack.tracking.compiled.weighing import weigh
 from hmmtrack.tracking.measurement.base import Score
 from hmmtrack.tracking.particles import Particles, as_bounds, sqrt_largest_eigenvalue
-from hmmtrack.tracking.resampling import RESAMPLERS, get_resampler
+from hmmtrack.tracking.resampling import RESAMPLERS, Scratch, get_resampler
 from hmmtrack.tracking.settings import (
     Settings,
     boolean,
@@ -340,6 +340,8 @@ class ParticleFilter:
         self.bounds = as_bounds(bounds)
         self.resampling = resampling
         self._resample = get_resampler(resampling)
+        # the resampling's work arrays, reused (see resample)
+        self._scratch = Scratch()
         self.resample_when = resample_when
         self.ess_threshold = float(ess_threshold)
         self.rng = as_generator(rng)
@@ -632,7 +634,8 @@ class ParticleFilter:
         p = self.particles
         weights, _, origin = self.weights()
         if self.mixture is None:
-            ancestors = self._resample(self.rng, weights, p.n)
+            self._scratch.threads = self._correction_threads()
+            ancestors = self._resample(self.rng, weights, p.n, self._scratch)
             self._take(p, ancestors)
             # equal weights now; the old weighted mean still lies inside the cloud
             self._weighed = (self.particles.log_weight, self._equal_weights(), float(p.n), origin)
