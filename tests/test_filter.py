@@ -366,6 +366,33 @@ def test_resampling_gathers_into_the_spare_arrays_with_the_fresh_answer():
         np.testing.assert_array_equal(getattr(runs[1], name), getattr(runs[2], name))
 
 
+def test_corrections_reuse_two_pairs_of_arrays_and_keep_the_previous_weights():
+    """A correction writes its log weights and weights into reused arrays (two pairs): the
+    particles' log weights and the weights of the previous correction stay intact through
+    it (with and without a resampling in between), and a run gives the same estimates as
+    corrections into fresh arrays (the weighing with no arrays given)."""
+    obs = circling_observations(duration=120.0)
+    for options in ({}, {"resample_when": "ess", "ess_threshold": 1e-9}):
+        pf = make_filter("velocity", n=3000, seed=2, **options)
+        pf.initialise(T0)
+        arrays = set()
+        for k in range(6):
+            pf.predict(8)
+            before_log, before_weights = pf.particles.log_weight, pf.weights()[0]
+            copies = before_log.copy(), before_weights.copy()
+            pf.correct(obs.iloc[k : k + 1])
+            np.testing.assert_array_equal(before_log, copies[0])
+            np.testing.assert_array_equal(before_weights, copies[1])
+            arrays |= {id(pf.particles.log_weight), id(pf.weights()[0])}
+            pf.resample_if_due()
+        assert len(arrays) == 4 if options else len(arrays) <= 3
+    fresh = make_filter("velocity", n=3000, seed=2)
+    fresh._buffers = lambda p: None  # every correction into new arrays
+    pd.testing.assert_frame_equal(
+        fresh.run(obs).estimates, make_filter("velocity", n=3000, seed=2).run(obs).estimates
+    )
+
+
 def test_weigh_matches_log_normalise_and_the_weight_summary():
     rng = np.random.default_rng(5)
     x, y = rng.normal(0, 50, 500), rng.normal(0, 80, 500)

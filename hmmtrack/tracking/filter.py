@@ -179,17 +179,18 @@ def _weight_summary(x, y, log_weight, threads: int = 1):
     return weights, log_total, *summary
 
 
-def _weigh(log_weight, loglik, x, y, threads: int = 1):
+def _weigh(log_weight, loglik, x, y, threads: int = 1, out=None):
     """The correction's arithmetic: add ``loglik`` to the log weights, normalise them, and
     return the normalised weights, moments and ESS
-    (:func:`hmmtrack.tracking.compiled.weighing.weigh` on ``threads`` threads).
+    (:func:`hmmtrack.tracking.compiled.weighing.weigh` on ``threads`` threads, into the
+    arrays ``out`` when given).
 
     Returns ``(status, log_weight, weights, mean_x, mean_y, var_x, var_y, cov_xy, n_eff)``
     where ``status`` is 0 (done), 1 (``loglik`` has NaN or ``+inf``) or 2 (every particle
     impossible); the rest is meaningful only when ``status == 0``. Equal to
     :func:`hmmtrack.tracking.resampling.log_normalise` and :func:`_weight_summary` (tested).
     """
-    status, updated, weights, _, summary = weigh(log_weight, loglik, x, y, threads)
+    status, updated, weights, _, summary = weigh(log_weight, loglik, x, y, threads, out)
     if status:
         return status, None, None, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     return 0, updated, weights, *summary
@@ -299,7 +300,9 @@ class ParticleFilter:
     -----
     A resampling gathers the new particles into the arrays of the particles from before the
     previous resampling (no fresh arrays): :attr:`particles` held from outside stay valid
-    until the next resampling but one; keep a :meth:`Particles.copy` for longer.
+    until the next resampling but one; keep a :meth:`Particles.copy` for longer. Likewise a
+    correction writes the log weights and weights into reused arrays: those of one
+    correction stay valid through the next.
     """
 
     def __init__(
@@ -375,6 +378,9 @@ class ParticleFilter:
         # (Particles.take's ``out``), so that a resampling allocates no particle arrays
         self._spare: Particles | None = None
         self._equal: np.ndarray | None = None  # see _equal_weights
+        # two pairs of arrays that corrections write their log weights and weights into
+        # (see _buffers): a correction allocates no arrays of N entries
+        self._correction_arrays: tuple | None = None
         #: ancestor indices (N,) of the last resampling (None before any); read by smoothers
         self.last_ancestors: np.ndarray | None = None
         #: the measurement's state of this run (its ``start`` hook's; None without one)
@@ -548,7 +554,7 @@ class ParticleFilter:
                 f"expected ({p.n},), at time {self.time} for observations:\n{rows()}"
             )
         status, log_weight, weights, *moments, n_eff = _weigh(
-            p.log_weight, loglik, p.x, p.y, self._correction_threads()
+            p.log_weight, loglik, p.x, p.y, self._correction_threads(), self._buffers(p)
         )
         if status == 1:
             raise ValueError(
@@ -561,6 +567,20 @@ class ParticleFilter:
         p.log_weight = log_weight
         self._weighed = (log_weight, weights, n_eff, (moments[0], moments[1]))
         return _estimate(self.time, *moments, n_eff)
+
+    def _buffers(self, p: Particles) -> tuple[np.ndarray, np.ndarray]:
+        """Arrays (N,) for :meth:`weigh`'s log weights and weights, reused: of two pairs,
+        the log-weight array that ``p`` does not hold and the weight array that
+        :meth:`weights` does not return (so that both are read intact during the call, and
+        the weights of the previous correction stay valid through this one)."""
+        n = p.n
+        if self._correction_arrays is None or self._correction_arrays[0][0].size != n:
+            self._correction_arrays = tuple((np.empty(n), np.empty(n)) for _ in range(2))
+        (log_a, weights_a), (log_b, weights_b) = self._correction_arrays
+        kept = None if self._weighed is None else self._weighed[1]
+        return (log_b if p.log_weight is log_a else log_a), (
+            weights_b if kept is weights_a else weights_a
+        )
 
     def _recover(self, obs) -> None:
         """Re-initialise after degenerate weights; warn and record the event.

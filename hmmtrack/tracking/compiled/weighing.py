@@ -184,7 +184,7 @@ def _weigh_parallel(
         result[2:] = np.array(summary[1:])
 
 
-def weigh(log_weight, loglik, x, y, threads: int = 1):
+def weigh(log_weight, loglik, x, y, threads: int = 1, out=None):
     """Log weights plus a log-likelihood, normalised, with their weights' summary.
 
     Parameters
@@ -197,6 +197,10 @@ def weigh(log_weight, loglik, x, y, threads: int = 1):
         Positions (m).
     threads : int
         Threads for the chunked passes (results do not depend on it).
+    out : (numpy.ndarray, numpy.ndarray), optional
+        Two float64 arrays (N,), neither of them ``log_weight``, that receive the log weights
+        and the weights (reused arrays: a fresh array of 100,000 entries costs more to page
+        in than this whole call); default: new arrays.
 
     Returns
     -------
@@ -204,9 +208,9 @@ def weigh(log_weight, loglik, x, y, threads: int = 1):
         0 (done), 1 (``loglik`` has NaN or ``+inf`` entries) or 2 (every updated log weight
         is ``-inf``: every particle impossible); the rest is ``None`` unless 0.
     log_weight : numpy.ndarray, shape (N,)
-        New array: the updated log weights minus their log-sum-exp.
+        The updated log weights minus their log-sum-exp (``out[0]`` when given).
     weights : numpy.ndarray, shape (N,)
-        New array: their exponentials, summing to one.
+        Their exponentials, summing to one (``out[1]`` when given).
     log_total : float
         The log-sum-exp of the updated log weights.
     summary : list of float
@@ -214,8 +218,7 @@ def weigh(log_weight, loglik, x, y, threads: int = 1):
     """
     n = log_weight.size
     add = loglik is not None
-    updated = np.empty(n)
-    weights = np.empty(n)
+    updated, weights = (np.empty(n), np.empty(n)) if out is None else out
     result = np.empty(8)
     args = (log_weight, loglik if add else log_weight, add, x, y, updated, weights, result)
     in_chunks(_weigh_serial, _weigh_parallel, n, threads, args, np.empty((chunking(n)[0], 3)))
