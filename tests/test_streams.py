@@ -60,6 +60,20 @@ def test_vectorised_normals_are_the_scalar_draws(streams):
     assert 0.005 * 2 * N < retried < 0.03 * 2 * N  # the retries ran (about 1 % of draws)
 
 
+def test_vectorised_normal_pairs_are_the_scalar_pairs(streams):
+    """normal_pairs_into (two branch-free tries per stream, scalar redraws of both) draws
+    exactly what normal_pair() draws from each stream, rejected tries included."""
+    expected = rs.draw_normal_pairs(streams.copy())
+    after = streams.copy()
+    rs.draw_normal_pairs(after)
+    out = np.empty((2, N))
+    retry = np.zeros(N, dtype=bool)
+    rs.normal_pairs_into(streams, out[0], out[1], retry)
+    np.testing.assert_array_equal(out, expected)
+    np.testing.assert_array_equal(streams, after)
+    assert 0.01 * N < retry.sum() < 0.05 * N  # the redraws ran (about 2 % of pairs)
+
+
 def test_ziggurat_layers_have_equal_area():
     x, f = rs._ZIG_X, rs._ZIG_F
     v = x[1] * f[1] + np.sqrt(np.pi / 2) * stats.norm.sf(x[1]) * 2

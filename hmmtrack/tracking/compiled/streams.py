@@ -39,6 +39,7 @@ __all__ = [
     "draw_uniforms",
     "draw_vonmises",
     "new_streams",
+    "normal_pairs_into",
     "normals_into",
     "VonMisesTables",
     "alias_table",
@@ -194,6 +195,27 @@ def normal_pair(state):
     z1, state = normal(state)
     z2, state = normal(state)
     return z1, z2, state
+
+
+@njit(cache=True, inline="always")
+def normal_pairs_into(streams, first, second, retry):
+    """``first[i], second[i]`` = the pair :func:`normal_pair` draws from ``streams[i]``,
+    advancing the streams; all arrays (n,). The same draws as two calls of
+    :func:`normals_into`, in one branch-free pass of two tries (a stream is read and
+    written once) and a scalar pass that redraws both for the few whose either try was
+    rejected; ``retry`` is boolean scratch."""
+    for i in range(streams.size):
+        old = streams[i]
+        x1, accepted1, middle = _normal_try(old)
+        x2, accepted2, new = _normal_try(middle)
+        first[i] = x1
+        second[i] = x2
+        accepted = accepted1 and accepted2
+        retry[i] = not accepted
+        streams[i] = new if accepted else old
+    for i in range(streams.size):
+        if retry[i]:
+            first[i], second[i], streams[i] = normal_pair(streams[i])
 
 
 @njit(cache=True, inline="always")

@@ -42,13 +42,13 @@ def _velocity_kernel(
     while chunk >= 0:
         xs, ys, hs, cs, ss, vs, ws = motion_views(lo, hi, x, y, heading, c, s, v, w)
         chunk_streams = streams[lo:hi]
-        z = np.empty(hi - lo)
+        z_speed = np.empty(hi - lo)
+        z_turn = np.empty(hi - lo)
         retry = np.empty(hi - lo, dtype=np.bool_)
         for t in range(n_steps):
-            rs.normals_into(chunk_streams, z, retry)  # as normal_pair: speed, then turn
-            _add_scaled(vs, z, sigma_speed * root_dt)
-            rs.normals_into(chunk_streams, z, retry)
-            _add_scaled(ws, z, sigma_turn * root_dt)
+            rs.normal_pairs_into(chunk_streams, z_speed, z_turn, retry)  # speed, then turn
+            _add_scaled(vs, z_speed, sigma_speed * root_dt)
+            _add_scaled(ws, z_turn, sigma_turn * root_dt)
             arc_pass(xs, ys, cs, ss, hs, vs, ws, dt)
             moments_pass(xs, ys, weights[lo:hi], ox, oy, sums[chunk, t])
         finish_headings(hs, cs, ss)
