@@ -24,10 +24,18 @@ whole run) with acquisition and the mixture (``FilterSettings(acquisition=True,
 mixture=True)``) against the plain filter at the same particle count (process CPU time, all
 threads), in the same run, best of ``--repeat``; the budget is 1.3x.
 
+A third table (``--section correction``) times one correction and resampling as the
+filter runs them (the compiled weighing into reused arrays, multinomial resampling with the
+filter's work arrays, the gather into the spare particles) on one thread and on two, for
+N = 10,000 to 100,000 (or ``--sizes``), interleaved, best of 40 rounds: the measurement
+behind the filter's ``PARALLEL_MIN_CORRECTION`` (corrections on the prediction's threads
+from that many particles).
+
 Run: ``python benchmarks/bench_filter.py`` (``--quick`` for a 600 s trial and N up to
 10,000; ``--sizes 10000`` picks the particle numbers; ``--repeat k`` keeps the best of k
 runs; ``--threads 1`` runs one thread count only; ``--section modes`` runs the
-mode-keeping table only, ``--section throughput`` the first only).
+mode-keeping table only, ``--section throughput`` the first only, ``--section
+correction`` the third only; ``all`` runs the first two).
 """
 
 from __future__ import annotations
@@ -44,9 +52,12 @@ from hmmtrack import scenarios
 from hmmtrack.experiments.configs import tracking_config
 from hmmtrack.hmm import Gamma, MovementHMM, VonMises
 from hmmtrack.tracking import pipeline
+from hmmtrack.tracking.compiled.weighing import weigh
 from hmmtrack.tracking.filter import ParticleFilter
 from hmmtrack.tracking.measurement.range_rate import RangeRateMeasurement
 from hmmtrack.tracking.motion import HMMMotion, VelocityMotion, motion_model
+from hmmtrack.tracking.particles import Particles
+from hmmtrack.tracking.resampling import Scratch, multinomial
 
 BOUNDS = (-1000.0, 1000.0, -1000.0, 1000.0)
 #: issue 13's budget: CPU time of the mode-keeping filter over the plain one, same particles
@@ -152,6 +163,35 @@ def mode_keeping_cost(sizes, repeat: int) -> None:
                 )
 
 
+def correction_cycle(rng, particles, spare, loglik, arrays, scratch: Scratch) -> None:
+    """One correction and resampling as the filter runs them, on ``scratch.threads``."""
+    p, threads = particles, scratch.threads
+    _, _, weights, _, _ = weigh(p.log_weight, loglik, p.x, p.y, threads, arrays)
+    ancestors = multinomial(rng, weights, p.n, scratch)
+    p.take(ancestors, True, out=spare, threads=threads)
+
+
+def correction_cost(sizes) -> None:
+    """Print one correction and resampling on one thread against two (same run)."""
+    rng = np.random.default_rng(0)
+    print(f"{'N':>8}{'1 thr ms':>10}{'2 thr ms':>10}{'1 / 2':>7}")
+    for n in sizes:
+        particles = Particles.uniform(rng, n, BOUNDS)
+        data = (particles, particles.copy(), 2.0 * rng.normal(size=n), (np.empty(n), np.empty(n)))
+        best = {1: np.inf, 2: np.inf}
+        scratch = {threads: Scratch(threads) for threads in best}
+        calls = max(1, 200_000 // n)
+        for threads in best:
+            correction_cycle(rng, *data, scratch[threads])
+        for _ in range(40):
+            for threads in best:
+                start = time.perf_counter()
+                for _ in range(calls):
+                    correction_cycle(rng, *data, scratch[threads])
+                best[threads] = min(best[threads], (time.perf_counter() - start) / calls)
+        print(f"{n:>8}{best[1] * 1e3:>10.3f}{best[2] * 1e3:>10.3f}{best[1] / best[2]:>7.2f}")
+
+
 #: the mode-keeping settings priced by :func:`mode_keeping_cost`
 MODE_KEEPING = {"acquisition": True, "mixture": True}
 
@@ -168,9 +208,9 @@ def main() -> None:
     )
     parser.add_argument(
         "--section",
-        choices=("all", "throughput", "modes"),
+        choices=("all", "throughput", "modes", "correction"),
         default="all",
-        help="throughput table, mode-keeping table, or both",
+        help="throughput table, mode-keeping table, both, or the correction's threads",
     )
     args = parser.parse_args()
     duration = 600.0 if args.quick else 3600.0
@@ -186,6 +226,10 @@ def main() -> None:
         "hmm default (60 s)": motion_model("hmm"),
     }
     print(describe("start"))
+    if args.section == "correction":
+        correction_cost(args.sizes or (10_000, 20_000, 50_000, 100_000))
+        print(describe("end"))
+        return
     if args.section != "throughput":
         mode_keeping_cost(args.sizes or (1_000, 10_000), args.repeat)
         if args.section == "modes":
