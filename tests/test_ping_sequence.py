@@ -137,6 +137,8 @@ def test_settings_refuse_a_sequence_with_a_burst_interval_or_none_at_all():
         PingSequenceSettings(burst_sequence="s.csv", burst_interval=(20.0, 40.0))
     with pytest.raises(ValueError, match="needs burst_sequence"):
         PingSequenceSettings()
+    with pytest.raises(ValueError, match="period .s.: one of them"):
+        PingSequenceSettings(burst_sequence=[30.0], period=30.0)
     with pytest.raises(ValueError, match=r"burst_sequence\[1\] must be a positive"):
         PingSequenceSettings(burst_sequence=[30.0, 0.0])
     assert PingSequenceSettings(burst_sequence=[30, 25.5]).burst_sequence == (30.0, 25.5)
@@ -188,7 +190,7 @@ def test_track_with_a_burst_sequence_file_round_trip(tag_files, tmp_path, capsys
 @pytest.mark.parametrize(
     "change, message",
     [
-        (["--period", "30"], "--period is used with --measurement range-rate or arrival-time"),
+        (["--period", "30"], "burst_sequence (a file) or, for a fixed-period tag, period (s): one"),
         (["--burst-interval", "20", "40"], "--burst-interval is used with --measurement ping only"),
         (["--measurement", "ping"], "--burst-sequence is used with --measurement ping-sequence"),
     ],

@@ -47,6 +47,7 @@ Pings the alignment did not match are scored as random-interval pings
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 from dataclasses import dataclass
@@ -58,7 +59,11 @@ from numba import njit
 
 from hmmtrack.io import read_burst_sequence
 from hmmtrack.tracking.measurement.base import Score
-from hmmtrack.tracking.measurement.clocked import TEMPERING_ESS, receiver_tracks
+from hmmtrack.tracking.measurement.clocked import (
+    TEMPERING_ESS,
+    default_clock_model,
+    receiver_tracks,
+)
 from hmmtrack.tracking.measurement.pings import ping_observations
 from hmmtrack.tracking.measurement.tdoa import (
     CLUSTER_SIGMAS,
@@ -80,6 +85,7 @@ __all__ = [
     "DRIFT_SD",
     "EMISSION_JITTER",
     "OFFSET_SD",
+    "PERIOD_BROADENING",
     "SEQUENCE_ARRIVAL_SIGMA",
     "SEQUENCE_FIELDS",
     "PingSequence",
@@ -87,7 +93,9 @@ __all__ = [
     "SequenceAlignment",
     "SequenceState",
     "align_sequence",
+    "broadened_sigma",
     "sequence_observations",
+    "period_clock_noise",
     "sequence_ping_integral",
 ]
 
@@ -123,6 +131,10 @@ CLOCK_RESET = 0.01
 PHASE_DENSITY = 1e-10
 DRIFT_DENSITY = 1e-14
 _LOG_2PI = math.log(2.0 * math.pi)
+#: share of the cloud's spread added to a fixed-period tag's arrival sd
+#: (:func:`broadened_sigma`): 5 % turns a cloud spread over 700 m into a 24 ms (35 m) basin
+#: (reasons in reports/decisions.md, "Fixed-period tags with ping grouping")
+PERIOD_BROADENING = 0.05
 #: arrival sd (s) of the sequence measurement: the 1 ms it was measured with (its clock puts
 #: each emission to a millisecond; the random-interval ping's 2 ms is for its untimed pings)
 SEQUENCE_ARRIVAL_SIGMA = 1e-3
@@ -433,7 +445,8 @@ def sequence_ping_integral(residual, mu, var, sigma, outlier_fraction, half_widt
 @njit(cache=True)
 def sequence_ping_loglik(
     x, y, vx, vy, depth, arrival, receiver_x, receiver_y, row_offset, time, sound_speed,
-    scheduled, elapsed, clock, sigma, outlier_fraction, half_width, loglik, emission, updated,
+    scheduled, elapsed, clock, noise, sigma, outlier_fraction, half_width, loglik, emission,
+    updated,
 ):  # fmt: skip
     """One matched ping for every particle: its log-likelihood into ``loglik`` (N,), the
     posterior mean emission time into ``emission`` (N,), and each particle's clock after
@@ -450,6 +463,9 @@ def sequence_ping_loglik(
     clock : (5, N) float array
         Each particle's offset (s), drift, and their variances and covariance
         (:data:`SEQUENCE_FIELDS`), after the last ping.
+    noise : (2,) float array
+        Random-walk densities of the offset (s²/s) and of the drift (1/s)
+        (:attr:`PingSequence.clock_noise`).
     """
     slowness = 1.0 / sound_speed
     residual = np.empty(arrival.size)
@@ -459,10 +475,10 @@ def sequence_ping_loglik(
         u = clock[0, p] + clock[1, p] * elapsed  # predicted offset and its covariance
         p_uu = (
             clock[2, p] + 2.0 * elapsed * clock[3, p] + elapsed * elapsed * clock[4, p]
-            + PHASE_DENSITY * elapsed
+            + noise[0] * elapsed
         )  # fmt: skip
         p_ub = clock[3, p] + elapsed * clock[4, p]
-        p_bb = clock[4, p] + DRIFT_DENSITY * elapsed
+        p_bb = clock[4, p] + noise[1] * elapsed
         ping_residuals(
             p, x, y, vx, vy, depth, arrival, receiver_x, receiver_y, row_offset, time,
             slowness, residual,
@@ -537,6 +553,11 @@ class PingSequenceSettings(PingSettings):
     burst_sequence : str or tuple of float
         CSV file of the tag's intervals (``interval`` column, s;
         :func:`hmmtrack.io.read_burst_sequence`), or the intervals themselves.
+    period : float or None
+        A fixed-period tag's period (s), instead of ``burst_sequence``: a sequence of one
+        interval, so that its pings are grouped and scored jointly against the tag's clock
+        (``hmmtrack track --measurement ping-sequence --period P``; the arrival-time
+        measurement scores the same tag's detections one at a time).
     """
 
     name: ClassVar[str] = "ping-sequence"
@@ -555,11 +576,23 @@ class PingSequenceSettings(PingSettings):
         data=True,
         default_text="none",
     )
+    period: float | None = setting(
+        None,
+        help="a fixed-period tag's period (s): its pings scored as a sequence of one interval",
+        check=positive,
+        parse=float,
+        metavar="SECONDS",
+        data=True,
+        default_text="none",
+    )
 
     def validate(self) -> None:
         super().validate()
-        if self.burst_sequence is None:
-            raise ValueError("the ping-sequence measurement needs burst_sequence (a file)")
+        if (self.burst_sequence is None) == (self.period is None):
+            raise ValueError(
+                "the ping-sequence measurement needs burst_sequence (a file) or, for a "
+                "fixed-period tag, period (s): one of them"
+            )
         if self.burst_interval is not None:
             raise ValueError(
                 "burst_sequence gives the tag's intervals: burst_interval is for tags whose "
@@ -567,8 +600,10 @@ class PingSequenceSettings(PingSettings):
             )
 
     def intervals(self) -> tuple[np.ndarray, str]:
-        """The sequence (s) and what it is, for messages (its file, or ``"the given
-        burst_sequence"``)."""
+        """The sequence (s) and what it is, for messages (its file, ``"the given
+        burst_sequence"`` or the period)."""
+        if self.period is not None:
+            return np.array([self.period]), f"the period {self.period:g} s"
         if isinstance(self.burst_sequence, str):
             return read_burst_sequence(self.burst_sequence), self.burst_sequence
         return np.asarray(self.burst_sequence, dtype=float), "the given burst_sequence"
@@ -587,7 +622,24 @@ class SequenceState:
 @dataclass(frozen=True)
 class PingSequence(PingTDOA):
     """The ping measurement of a tag with a known burst sequence (module docstring): the
-    pings' observations carry the aligned schedule, and every particle the tag's clock."""
+    pings' observations carry the aligned schedule, and every particle the tag's clock.
+
+    Parameters
+    ----------
+    clock_noise : (float, float, float)
+        The tag clock's offset random-walk density (s²/s), drift random-walk density (1/s)
+        and drift prior sd: a crystal's (:data:`PHASE_DENSITY`, :data:`DRIFT_DENSITY`,
+        :data:`DRIFT_SD`) for a pseudo-random sequence; for a fixed-period tag (``period``
+        given) those of the arrival-time measurement's period random walk
+        (:func:`period_clock_noise`).
+    broadening : float
+        Share of the cloud's spread added to the arrival sd while the cloud is wide
+        (:func:`broadened_sigma`); 0: none. A fixed-period tag takes
+        :data:`PERIOD_BROADENING`.
+    """
+
+    clock_noise: tuple[float, float, float] = (PHASE_DENSITY, DRIFT_DENSITY, DRIFT_SD)
+    broadening: float = 0.0
 
     name: ClassVar[str] = "ping-sequence"
     settings: ClassVar[type] = PingSequenceSettings
@@ -611,10 +663,21 @@ class PingSequence(PingTDOA):
         obs.attrs["sound_speed"] = detections.attrs.get("sound_speed")
         return obs
 
+    @classmethod
+    def from_settings(cls, settings: PingSequenceSettings, observations: pd.DataFrame, receivers):
+        """:meth:`PingTDOA.from_settings`, with the clock noise of a fixed-period tag
+        (:func:`period_clock_noise`) when ``settings.period`` is given."""
+        built = super().from_settings(settings, observations, receivers)
+        if settings.period is None:
+            return built
+        return dataclasses.replace(
+            built, clock_noise=period_clock_noise(settings.period), broadening=PERIOD_BROADENING
+        )
+
     def start(self, particles, time: float, dt: float = 1.0) -> SequenceState:
         """Every particle's clock at its prior (offset 0 ± :data:`OFFSET_SD`, drift 0 ±
-        :data:`DRIFT_SD`); a fresh run state."""
-        prior = _prior_clock(particles.n)
+        ``clock_noise[2]``); a fresh run state."""
+        prior = _prior_clock(particles.n, self.clock_noise[2])
         particles.extra.update(zip(SEQUENCE_FIELDS, prior, strict=True))
         return SequenceState()
 
@@ -629,16 +692,23 @@ class PingSequence(PingTDOA):
     def loglik(self, particles, obs, time: float | None = None) -> np.ndarray:
         """The pings' log-likelihood (N,) given the particles' clocks (their prior without
         the fields), the clocks left as they are."""
-        return self._sequence_score(particles, obs, time, None)[0]
+        return self._sequence_score(particles, obs, time, None, self.sigma)[0]
 
     def score(self, particles, rows: np.ndarray, time: float, state: SequenceState, weights):
         """The pings' log-likelihood; the clocks' Kalman step and the emission times of the
-        last scoring are committed with the final weights."""
+        last scoring are committed with the final weights. With :attr:`broadening`, the
+        arrival sd is widened by the cloud's spread before the correction
+        (:func:`broadened_sigma`)."""
         latest = []
+        sigma = self.sigma
+        if self.broadening > 0.0:
+            sigma = broadened_sigma(
+                particles, weights, self.sigma, self.broadening, self.sound_speed
+            )
 
         def scored(particles, weights):
             loglik, emission, clock, scheduled = self._sequence_score(
-                particles, rows, time, state.scheduled
+                particles, rows, time, state.scheduled, sigma
             )
             latest[:] = [emission, clock, scheduled]
             return loglik
@@ -651,15 +721,15 @@ class PingSequence(PingTDOA):
 
         return Score(scored(particles, weights), rescore=scored, commit=commit)
 
-    def _sequence_score(self, p, rows, time, last_scheduled):
+    def _sequence_score(self, p, rows, time, last_scheduled, sigma):
         """Log-likelihood (N,), emission times (N,), clocks (5, N) and the clocks' last
-        scheduled time after the pings of ``rows`` in order."""
+        scheduled time after the pings of ``rows`` in order (arrival sd ``sigma``, s)."""
         rows, n, time, motion, offset_column = self._inputs(p, rows, time)
         extra = getattr(p, "extra", {})
         if all(name in extra for name in SEQUENCE_FIELDS):
             clock = np.array([extra[name] for name in SEQUENCE_FIELDS], dtype=float)
         else:
-            clock = _prior_clock(n)
+            clock = _prior_clock(n, self.clock_noise[2])
         total = np.zeros(n)
         loglik = np.empty(n)
         emission = np.empty(n)
@@ -667,7 +737,7 @@ class PingSequence(PingTDOA):
         for part, ping_rows in split_pings(rows, offset_column):
             if part[0, 7] < 0:  # not matched: a random-interval ping
                 ping_loglik(
-                    *motion, *ping_rows, *constants, self.sigma, self.outlier_fraction,
+                    *motion, *ping_rows, *constants, sigma, self.outlier_fraction,
                     self.half_width, loglik, emission,
                 )  # fmt: skip
             else:
@@ -675,17 +745,56 @@ class PingSequence(PingTDOA):
                 elapsed = 0.0 if last_scheduled is None else scheduled - last_scheduled
                 updated = np.empty_like(clock)
                 sequence_ping_loglik(
-                    *motion, *ping_rows, *constants, scheduled, elapsed, clock, self.sigma,
-                    self.outlier_fraction, self.half_width, loglik, emission, updated,
+                    *motion, *ping_rows, *constants, scheduled, elapsed, clock,
+                    np.asarray(self.clock_noise[:2]), sigma, self.outlier_fraction,
+                    self.half_width, loglik, emission, updated,
                 )  # fmt: skip
                 clock, last_scheduled = updated, scheduled
             total += loglik
         return total, emission, clock, last_scheduled
 
 
-def _prior_clock(n: int) -> np.ndarray:
-    """(5, N): every particle's clock before the first ping."""
+def broadened_sigma(particles, weights, sigma: float, broadening: float, sound_speed: float):
+    """The arrival sd (s) of a correction, widened while the cloud is wide.
+
+    ``√(σ² + (k·s/c)²)``, ``s`` the cloud's weighted position spread (m, the root of the
+    summed variances of x and y), ``k`` = ``broadening``, ``c`` the speed of sound. A ping
+    heard by three receivers scores a particle well only within about ``σ·c`` (a metre or
+    two) of one point, and a whole hyperbola when one arrival counts as an outlier; a cloud
+    spread over kilometres seldom has a particle near that point, and the tempering's moves
+    (a share of the spread) carry its copies away again, so the cloud follows the
+    hyperbolas out of the array. Widened, the point is a basin the moves can land in; as
+    the cloud shrinks, the sd returns to ``σ``.
+    """
+    weights = np.asarray(weights, dtype=float)
+    x, y = np.asarray(particles.x), np.asarray(particles.y)
+    spread = math.sqrt(
+        max(float(weights @ (x - weights @ x) ** 2 + weights @ (y - weights @ y) ** 2), 0.0)
+    )
+    return math.sqrt(sigma * sigma + (broadening * spread / sound_speed) ** 2)
+
+
+def period_clock_noise(period: float) -> tuple[float, float, float]:
+    """:attr:`PingSequence.clock_noise` of a fixed-period tag: the arrival-time measurement's
+    clock model (:func:`~hmmtrack.tracking.measurement.clocked.default_clock_model`) in the
+    sequence's terms.
+
+    That model's phase step (s per ping) is an offset density ``step²/P``, its period step
+    (s per ping) a drift step ``step/P`` per ``P`` seconds, a density ``step²/P³``, and its
+    initial period sd a drift sd ``sd/P`` (``P`` the period, s): a real tag's period wanders
+    by hundreds of ppm over hours (DESIGN.md), which a crystal's drift walk cannot follow.
+    """
+    clock = default_clock_model(period)
+    return (
+        clock.phase_step_sd**2 / period,
+        clock.period_step_sd**2 / period**3,
+        clock.initial_period_sd / period,
+    )
+
+
+def _prior_clock(n: int, drift_sd: float) -> np.ndarray:
+    """(5, N): every particle's clock before the first ping (drift sd ``drift_sd``)."""
     prior = np.zeros((5, n))
     prior[2] = OFFSET_SD**2
-    prior[4] = DRIFT_SD**2
+    prior[4] = drift_sd**2
     return prior
