@@ -227,7 +227,8 @@ def register(subparsers) -> None:
             "ping (the default with --burst-interval): each ping's arrivals at several receivers "
             "scored on their time differences, for random-interval tags; ping-sequence (the "
             "default with --burst-sequence): the same with the emission times of a known "
-            "pseudo-random interval sequence"
+            "pseudo-random interval sequence, or with --period those of a fixed-period tag "
+            "(its pings grouped; arrival-time scores them one detection at a time)"
         ),
     )
     parser.add_argument(

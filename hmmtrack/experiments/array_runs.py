@@ -225,7 +225,7 @@ def _config(measurement, case: TaggedArray, clocks, receivers, n_particles, sett
     measurement_keys = section_classes("measurement")[measurement].keys()
     if "sound_speed" in measurement_keys:
         keys["sound_speed"] = float(np.mean(clocks.sound_speed))
-    if "burst_sequence" in measurement_keys:
+    if "burst_sequence" in measurement_keys and "period" not in settings:
         keys["burst_sequence"] = tuple(case.sequence)
     return TrackingConfig.from_keys(**(keys | dict(settings)))
 
