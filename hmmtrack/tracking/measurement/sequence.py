@@ -43,6 +43,12 @@ the first ping weighs as in the random-interval model and every later one also b
 emission time: one receiver then places the tag on a range circle, two on a point pair.
 Pings the alignment did not match are scored as random-interval pings
 (:func:`~hmmtrack.tracking.measurement.tdoa.ping_loglik`), clock untouched.
+
+**A fixed-period tag** (``period`` instead of ``burst_sequence``) is a sequence of one
+interval: its pings grouped and scored as above, with the arrival-time measurement's clock
+model instead of a crystal's (:func:`period_clock_noise`: a real tag's period wanders) and the
+arrival sd widened while the cloud is wide (:func:`broadened_sigma`), so that a ping heard
+by three receivers offers the tempered cloud a basin rather than a point.
 """
 
 from __future__ import annotations
@@ -94,8 +100,8 @@ __all__ = [
     "SequenceState",
     "align_sequence",
     "broadened_sigma",
-    "sequence_observations",
     "period_clock_noise",
+    "sequence_observations",
     "sequence_ping_integral",
 ]
 
