@@ -138,9 +138,9 @@ PHASE_DENSITY = 1e-10
 DRIFT_DENSITY = 1e-14
 _LOG_2PI = math.log(2.0 * math.pi)
 #: share of the cloud's spread added to a fixed-period tag's arrival sd
-#: (:func:`broadened_sigma`): 5 % turns a cloud spread over 700 m into a 24 ms (35 m) basin
+#: (:func:`broadened_sigma`): 2 % turns a cloud spread over 700 m into a 10 ms (14 m) basin
 #: (reasons in reports/decisions.md, "Fixed-period tags with ping grouping")
-PERIOD_BROADENING = 0.05
+PERIOD_BROADENING = 0.02
 #: arrival sd (s) of the sequence measurement: the 1 ms it was measured with (its clock puts
 #: each emission to a millisecond; the random-interval ping's 2 ms is for its untimed pings)
 SEQUENCE_ARRIVAL_SIGMA = 1e-3
