@@ -1,7 +1,6 @@
 """A fixed-period tag's pings grouped (``ping-sequence`` with ``period``) against the
-arrival-time filter: the grouped measurement's clock and broadening, better on three moored
-receivers, not worse when every ping is heard by one receiver (reports/decisions.md,
-"Fixed-period tags with ping grouping")."""
+arrival-time filter: the grouped measurement's clock and broadening, and better on three
+moored receivers (reports/decisions.md, "Fixed-period tags with ping grouping")."""
 
 from __future__ import annotations
 
@@ -15,7 +14,6 @@ from hmmtrack.experiments.clock_runs import (
     clock_inputs,
     score_run,
     track_arrival,
-    without_silences,
 )
 from hmmtrack.experiments.grouping import grouped_config
 from hmmtrack.scenarios.realistic import moored_array
@@ -105,20 +103,3 @@ def test_grouping_helps_when_three_receivers_hear_the_pings(moored):
     assert grouped["converged"] and arrival["converged"]
     assert grouped["error_after_10_min_m"] < 0.7 * arrival["error_after_10_min_m"]
     assert grouped["error_after_10_min_m"] < 2.5
-
-
-def test_grouping_is_not_worse_when_every_ping_is_heard_by_one_receiver(moored):
-    # the first detection of each ping only (150 pings, one receiver each); measured:
-    # 84.7 m against 93.7 m for the arrival-time filter without the detection curve (which,
-    # like the grouped pings, says nothing of unheard pings; with it: 820 m)
-    case, detections, options = moored
-    ordered = detections.sort_values("time").reset_index(drop=True)
-    gap = np.diff(ordered["time"].to_numpy(), prepend=-np.inf)
-    single = ordered[gap > 2.0].reset_index(drop=True)
-    assert len(single) == 150
-    arrival = score_run(
-        track_arrival(single, case.scenario.receivers, without_silences(options)).estimates,
-        case.scenario.truth,
-    )
-    grouped = _grouped(case, single, options)
-    assert grouped["error_after_10_min_m"] < arrival["error_after_10_min_m"]
