@@ -10,7 +10,12 @@ from scipy import integrate, stats
 
 from hmmtrack.tracking.measurement.arrival_time import emission_distance
 from hmmtrack.tracking.measurement.pings import ping_observations, ping_window
-from hmmtrack.tracking.measurement.tdoa import gaussian_ping_loglik, ping_integral, ping_loglik
+from hmmtrack.tracking.measurement.tdoa import (
+    gaussian_ping_loglik,
+    per_ping_table,
+    ping_integral,
+    ping_loglik,
+)
 from hmmtrack.tracking.receivers import ReceiverTracks
 
 EPOCH = 1_568_052_029.0  # residuals at epoch scale, as on real data
@@ -133,3 +138,18 @@ def test_pings_heard_by_one_receiver_only_are_their_own_pings():
     obs = ping_observations(detections, tracks, min_interval=20.0)
     assert obs["ping"].tolist() == [0, 1, 2]
     assert obs["heard"].tolist() == [1, 1, 1]
+
+
+def test_per_ping_smoothed_position_is_the_row_of_the_correction_step():
+    """A ping emitted at 100.4 s, corrected at the 101 s step: the smoothed position of the
+    ping is the smoothed row of 101 s (where the ping put the particles), not the track
+    interpolated at 100.4 s between the rows of 100 and 101 s."""
+    observations = pd.DataFrame({"ping": [0, 0, 0], "time": 101.0, "receiver": ["a", "b", "c"]})
+    pings = pd.DataFrame(
+        {"time": [101.0], "emission_time": [100.4], "x": [5.0], "y": [6.0],
+         "x_sd": [0.2], "y_sd": [0.2]}
+    )  # fmt: skip
+    smoothed = pd.DataFrame({"time": [100.0, 101.0, 102.0], "x": [0.0, 10.0, 20.0], "y": 3.0})
+    table = per_ping_table(pings, observations, smoothed)
+    assert table["emission_time"].tolist() == [100.4] and table["n_receivers"].tolist() == [3]
+    assert table["smoothed_x"].tolist() == [10.0] and table["smoothed_y"].tolist() == [3.0]

@@ -95,7 +95,7 @@ def test_error_against_bound_for_the_arrival_time_filter_on_a_fixed_period_tag()
         seeds=(1,),
         burst_interval=(20.0, 20.0),
         n_particles=1000,
-        settings={"period": 20.0, "smoothing_lag": 30},
+        settings={"period": 20.0, "smoothing_lag": 30, "motion": "velocity"},
     )
     row = table.iloc[0]
     assert row["pings"] == 90 and row["clock_error_ms"] < 0.2
@@ -103,6 +103,27 @@ def test_error_against_bound_for_the_arrival_time_filter_on_a_fixed_period_tag()
     assert row["ratio"] == pytest.approx(row["rms_error_m"] / row["bound_m"])
     # the filter's 3 ms arrival sd keeps it a few times above the bound, never below it
     assert 1.0 < row["ratio"] < 10.0 and 1.0 < row["smoothed_ratio"] < 10.0
+
+
+def test_ping_run_at_its_defaults_against_the_tdoa_bound():
+    """What a user gets (simulate, sync, track with the ping measurement's defaults: random
+    walk, arrival sd 2 ms, 5,000 particles, the 60 s smoother as output) on a 15 min window,
+    dataset 1 seed 1, measured: right after each ping 1.69x the filtering bound, the smoothed
+    track at the emissions 1.80x the smoothing bound (the 30 min windows of datasets 1-3 x
+    seeds 1-2: 2.1-3.7x; reports/decisions.md, "Ping runs at their defaults against the
+    TDOA bound"). Issue 12's 1.2x is not met at these defaults; this keeps them from
+    drifting further."""
+    table = array_bound_ratios(
+        "ping",
+        datasets=(1,),
+        seeds=(1,),
+        tag_duration=900.0,
+        settings={"burst_interval": (20.0, 40.0)},
+    )
+    row = table.iloc[0]
+    assert row["pings"] == 29 and 0.15 < row["per_ping_bound_m"] < 0.3
+    assert 1.0 < row["per_ping_ratio"] < 2.0
+    assert 1.0 < row["smoothed_ratio"] < 2.2 and 1.0 < row["smoothed_per_ping_ratio"] < 2.3
 
 
 def test_ping_filter_reaches_the_tdoa_bound_at_the_pings():
@@ -116,7 +137,7 @@ def test_ping_filter_reaches_the_tdoa_bound_at_the_pings():
         datasets=(2,),
         seeds=(1,),
         n_particles=2000,
-        settings={"burst_interval": (20.0, 40.0), "arrival_sigma": 3e-4},
+        settings={"burst_interval": (20.0, 40.0), "arrival_sigma": 3e-4, "motion": "velocity"},
     )
     row = table.iloc[0]
     assert 1.0 < row["per_ping_ratio"] < 1.3

@@ -7,7 +7,8 @@ fixed-period tag, or a measurement for random-interval tags once one is register
 clocks fitted from the sync tags (:func:`hmmtrack.sync.fit_clocks`, positions of the
 unfixed receivers refined), the tag's detections moved to the time keeper's time base
 (:func:`hmmtrack.sync.apply_clocks`), then :func:`hmmtrack.tracking.pipeline.track` with the
-velocity motion model and the fitted sound speed. Each run's RMS position error at the pings (the
+measurement's own run defaults (its motion, correction, smoothing; the filter's particle count)
+and the fitted sound speed. Each run's RMS position error at the pings (the
 estimates interpolated at the emission times, the truth moved to the time keeper's clock)
 is set beside the posterior Cramér–Rao bound of the same
 pings (:func:`hmmtrack.analysis.crb.tdoa_bound`, emission times unknown per ping or known
@@ -56,7 +57,7 @@ def array_bound_ratios(
     seeds: Sequence[int] = (1, 2),
     burst_interval: tuple[float, float] = (20.0, 40.0),
     tag_duration: float = 1800.0,
-    n_particles: int = 2000,
+    n_particles: int | None = None,
     settings: Mapping | None = None,
     bound_emission: str = "random",
     array: Mapping = ARRAY,
@@ -75,10 +76,12 @@ def array_bound_ratios(
         The tag's interval range (s); equal values: a fixed-period tag.
     tag_duration : float
         Length of the tracked window (s).
-    n_particles : int
+    n_particles : int, optional
+        Default: the filter's.
     settings : mapping, optional
         More settings by key (:meth:`~hmmtrack.tracking.config.TrackingConfig.from_keys`),
-        e.g. ``{"period": 30.0}`` for ``"arrival-time"``; they win over the run's own.
+        e.g. ``{"period": 30.0}`` for ``"arrival-time"`` or ``{"motion": "velocity"}``; they
+        win over the run's own.
     bound_emission : {"random", "sequence"}
         The bound's emission model (:func:`~hmmtrack.analysis.crb.tdoa_bound`).
     array : mapping
@@ -100,6 +103,9 @@ def array_bound_ratios(
         its emission), ``per_ping_bound_m`` and ``per_ping_ratio``: the per-second estimate
         at an emission is a prediction made before the ping arrived, so only these compare
         with the filtering bound, and ``heard_per_ping`` (mean receivers per ping heard);
+        when it also smooths ``smoothed_per_ping_rms_error_m`` (the smoothed row of each
+        such correction, :func:`~hmmtrack.tracking.measurement.tdoa.per_ping_table`),
+        ``smoothed_per_ping_bound_m`` and ``smoothed_per_ping_ratio``;
         ``seconds`` (wall time of the filter).
     """
     rows = []
@@ -143,10 +149,15 @@ def array_bound_ratios(
             }
             row["ratio"] = row["rms_error_m"] / row["bound_m"]
             if getattr(result, "pings", None) is not None and len(result.pings):
-                error, at = _per_ping_rms(result, truth, pings, late)
-                row["per_ping_rms_error_m"] = error
+                errors, at = _per_ping_rms(result, truth, pings, late)
+                row["per_ping_rms_error_m"] = errors["x"]
                 row["per_ping_bound_m"] = _rms(bound.loc[at, "filter_position_m"])
-                row["per_ping_ratio"] = error / row["per_ping_bound_m"]
+                row["per_ping_ratio"] = errors["x"] / row["per_ping_bound_m"]
+                if "smoothed_x" in errors:
+                    smoothed = errors["smoothed_x"]
+                    row["smoothed_per_ping_rms_error_m"] = smoothed
+                    row["smoothed_per_ping_bound_m"] = _rms(bound.loc[at, "smoother_position_m"])
+                    row["smoothed_per_ping_ratio"] = smoothed / row["smoothed_per_ping_bound_m"]
                 row["heard_per_ping"] = float(result.observations.groupby("ping").size().mean())
             if result.smoothed is not None:
                 smoothed = _rms_at(result.smoothed, truth, pings[late])
@@ -176,7 +187,8 @@ def sequence_versus_random(
         As :func:`array_bound_ratios` (the tag's intervals a pseudo-random sequence drawn
         in ``burst_interval``).
     settings : mapping, optional
-        Settings of both measurements (e.g. ``arrival_sigma``).
+        Settings of both measurements (e.g. ``arrival_sigma``); both move with the velocity
+        model unless these name another.
 
     Returns
     -------
@@ -192,7 +204,7 @@ def sequence_versus_random(
         array=array,
         tag_duration=tag_duration,
     )
-    shared = dict(settings or {})
+    shared = {"motion": "velocity"} | dict(settings or {})
     random = array_bound_ratios(
         "ping", settings=shared | {"burst_interval": burst_interval}, **options
     )
@@ -206,11 +218,10 @@ def sequence_versus_random(
 
 def _config(measurement, case: TaggedArray, clocks, receivers, n_particles, settings):
     """The run's configuration: the tag, its window on the keeper's clock, a box around the
-    receivers, the fitted sound speed (when the measurement has one), velocity motion."""
+    receivers, the fitted sound speed (when the measurement has one)."""
     keeper = case.array.clocks[KEEPER]
     keys = {
         "measurement": measurement,
-        "motion": "velocity",
         "transmitter": case.transmitter,
         "n_particles": n_particles,
         "start": float(np.floor(keeper(case.emission_times[0]))),
@@ -263,15 +274,23 @@ def _rms(values: pd.Series) -> float:
 
 
 def _per_ping_rms(result, truth: pd.DataFrame, pings: np.ndarray, late: np.ndarray):
-    """RMS error (m) of the filter's position at each heard ping's emission, right after
-    the ping's correction (:func:`~hmmtrack.tracking.measurement.tdoa.per_ping_table`), and
-    the indices of the true pings it was matched to (the nearest emission, within 1 s)."""
-    table = per_ping_table(result.pings, result.observations)
+    """RMS errors (m) at each heard ping's emission of the filter's position right after the
+    ping's correction (key ``"x"``) and, when the run smooths, of the smoothed one at that
+    step (``"smoothed_x"``; :func:`~hmmtrack.tracking.measurement.tdoa.per_ping_table`), and
+    the indices of the true pings they were matched to (the nearest emission, within 1 s)."""
+    table = per_ping_table(result.pings, result.observations, result.smoothed)
     estimated = table["emission_time"].to_numpy(dtype=float)
     nearest = np.abs(estimated[:, None] - pings[None, :]).argmin(axis=1)
     keep = (np.abs(pings[nearest] - estimated) < 1.0) & late[nearest]
-    at = pd.DataFrame({"time": pings[nearest[keep]], "x": table["x"][keep], "y": table["y"][keep]})
-    return float(np.sqrt(np.mean(position_error(at, truth) ** 2))), np.unique(nearest[keep])
+    errors = {}
+    for x in ("x", "smoothed_x"):
+        if x in table:
+            y = x.replace("x", "y")
+            at = pd.DataFrame(
+                {"time": pings[nearest[keep]], "x": table[x][keep], "y": table[y][keep]}
+            )
+            errors[x] = float(np.sqrt(np.mean(position_error(at, truth) ** 2)))
+    return errors, np.unique(nearest[keep])
 
 
 def _rms_at(estimates: pd.DataFrame, truth: pd.DataFrame, times: np.ndarray) -> float:

@@ -700,8 +700,12 @@ def per_ping_table(
     observations : pandas.DataFrame
         The run's observations (:func:`hmmtrack.tracking.measurement.pings.ping_observations`).
     smoothed : pandas.DataFrame, optional
-        The run's smoothed estimates (one per second): interpolated at each ping's estimated
-        emission time as ``smoothed_x``, ``smoothed_y`` (m).
+        The run's smoothed estimates (one per second): their row at each ping's correction
+        time as ``smoothed_x``, ``smoothed_y`` (m), the step of ``x`` and ``y``. Under a
+        motion without velocity (the random walk) a ping places the particles where the tag
+        was at its emission, and the correction's step on the 1 s grid is up to half a
+        second from it: this row, not the track interpolated at the emission time, is the
+        smoothed position at the emission.
 
     Returns
     -------
@@ -725,6 +729,6 @@ def per_ping_table(
     if smoothed is not None and len(smoothed):
         for axis in ("x", "y"):
             table[f"smoothed_{axis}"] = np.interp(
-                table["emission_time"], smoothed["time"], smoothed[axis]
+                table["correction_time"], smoothed["time"], smoothed[axis]
             )
     return table
