@@ -233,6 +233,15 @@ def test_trial_scores_and_error_curve_match_metrics(small_scenarios):
     honesty = metrics.uncertainty_metrics(run.estimates, swimmer.truth)
     assert result.false_converged == honesty.false_converged
     np.testing.assert_equal(result.calibration, honesty.calibration)
+    # the mirror share is taken over the seconds after convergence, on the logged receivers
+    from hmmtrack.analysis.mirror import mirror_share, mirror_track
+
+    elapsed = run.estimates["time"] - run.estimates["time"].iloc[0]
+    after = run.estimates[elapsed >= scores.time_to_convergence]
+    mirror = mirror_track(swimmer.truth, swimmer.receivers)
+    assert scores.converged
+    assert result.mirror_share == mirror_share(after, swimmer.truth, mirror)
+    assert 0.0 <= result.mirror_share <= 1.0
     errors = metrics.position_error(run.estimates, swimmer.truth)
     np.testing.assert_array_equal(result.error, errors[:: int(ex.ERROR_CURVE_SPACING)])
     np.testing.assert_array_equal(np.diff(result.error_time), ex.ERROR_CURVE_SPACING)

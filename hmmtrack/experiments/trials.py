@@ -24,6 +24,7 @@ import pandas as pd
 
 from hmmtrack import scenarios
 from hmmtrack.analysis import metrics
+from hmmtrack.analysis.mirror import mirror_share, mirror_track
 from hmmtrack.experiments.configs import tracking_config
 from hmmtrack.random import SeedLike, as_generator
 from hmmtrack.scenarios import Scenario
@@ -72,6 +73,7 @@ TRIAL_COLUMNS = (
     "rmse_after_convergence",
     "calibration",
     "false_converged",
+    "mirror_share",
     "runtime",
 )
 
@@ -114,6 +116,12 @@ class TrialResult:
         never converged; :func:`hmmtrack.analysis.metrics.uncertainty_metrics`).
     false_converged : float
         Share of the seconds declared converged with an error above 50 m.
+    mirror_share : float
+        Share of the seconds after convergence whose estimate is nearer the mirror track
+        (the truth reflected across the line of the two receivers, which no range tells
+        apart from it) than the truth, where the two are at least 50 m apart
+        (:func:`hmmtrack.analysis.mirror.mirror_share`); NaN when the scenario does not have
+        two receivers or the run never converged.
     """
 
     scenario: str
@@ -132,6 +140,7 @@ class TrialResult:
     dataset: int = 0
     calibration: float = math.nan
     false_converged: float = math.nan
+    mirror_share: float = math.nan
 
     def row(self) -> dict[str, Any]:
         """The scalar fields, as one row of a trials table."""
@@ -331,6 +340,7 @@ def run_trial(
     honesty = metrics.uncertainty_metrics(estimates, scenario.truth)
     errors = metrics.position_error(estimates, scenario.truth)
     elapsed = estimates["time"].to_numpy(dtype=float) - float(estimates["time"].iloc[0])
+    after = elapsed >= scores.time_to_convergence if scores.converged else elapsed < 0
     _, keep = np.unique(np.floor(elapsed / ERROR_CURVE_SPACING), return_index=True)
     return TrialResult(
         scenario=scenario.name,
@@ -349,4 +359,13 @@ def run_trial(
         dataset=int(dataset),
         calibration=honesty.calibration,
         false_converged=honesty.false_converged,
+        mirror_share=_mirror_share(scenario, estimates[after]),
     )
+
+
+def _mirror_share(scenario: Scenario, estimates: pd.DataFrame) -> float:
+    """:func:`hmmtrack.analysis.mirror.mirror_share` of ``estimates`` on a scenario with two
+    receivers (their logged positions); NaN with any other number of receivers."""
+    if scenario.receivers["receiver"].nunique() != 2:
+        return math.nan
+    return mirror_share(estimates, scenario.truth, mirror_track(scenario.truth, scenario.receivers))
