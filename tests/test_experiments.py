@@ -220,6 +220,22 @@ def test_more_trials_only_append_rows(small_scenarios):
     pd.testing.assert_frame_equal(_without_runtime(two), _without_runtime(three.iloc[:2]))
 
 
+def test_start_prior_starts_the_particles_in_the_start_region(small_scenarios):
+    swimmer, pursuit = small_scenarios
+    with pytest.raises(ValueError, match="no start_region"):
+        ex.track_scenario(swimmer, "velocity", 1, N_PARTICLES, start_prior=True)
+    run = ex.track_scenario(
+        pursuit, "velocity", 1, N_PARTICLES, start_prior=True, snapshot_times=[pursuit.start]
+    )
+    first = run.snapshots[pursuit.start]
+    xmin, xmax, ymin, ymax = pursuit.start_region
+    assert first["x"].between(xmin, xmax).all() and first["y"].between(ymin, ymax).all()
+    assert (first["x"].max() - first["x"].min()) > 0.9 * (xmax - xmin)
+    result = ex.run_trial(pursuit, "velocity", 1, N_PARTICLES, start_prior=True)
+    assert result.start_prior and result.row()["start_prior"]
+    assert not ex.run_trial(pursuit, "velocity", 1, N_PARTICLES).start_prior
+
+
 def test_trial_scores_and_error_curve_match_metrics(small_scenarios):
     from hmmtrack.analysis import metrics
 

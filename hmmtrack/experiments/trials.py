@@ -66,6 +66,7 @@ TRIAL_COLUMNS = (
     "trial",
     "loss_fraction",
     "depth_correction",
+    "start_prior",
     "n_particles",
     "time_to_convergence",
     "converged",
@@ -122,6 +123,9 @@ class TrialResult:
         apart from it) than the truth, where the two are at least 50 m apart
         (:func:`hmmtrack.analysis.mirror.mirror_share`); NaN when the scenario does not have
         two receivers or the run never converged.
+    start_prior : bool
+        Whether the particles started in the scenario's ``start_region`` (where the tag is
+        known to be at the start) rather than in its ``bounds``.
     """
 
     scenario: str
@@ -141,6 +145,7 @@ class TrialResult:
     calibration: float = math.nan
     false_converged: float = math.nan
     mirror_share: float = math.nan
+    start_prior: bool = False
 
     def row(self) -> dict[str, Any]:
         """The scalar fields, as one row of a trials table."""
@@ -183,6 +188,7 @@ def track_scenario(
     *,
     loss_fraction: float = 0.0,
     depth_correction: bool = False,
+    start_prior: bool = False,
     snapshot_times: Sequence[float] = (),
 ):
     """Track the tag of ``scenario`` with one motion model (no scoring).
@@ -199,6 +205,12 @@ def track_scenario(
         Fraction (0–1) of detections dropped with :func:`hmmtrack.scenarios.thin_evenly`.
     depth_correction : bool
         Correct the ranges with the tag's depth sensor.
+    start_prior : bool
+        Start the particles in ``scenario.start_region`` (where the field team knows the tag
+        to be at the start) instead of the paper's ``scenario.bounds``. Two receivers leave
+        the tag's mirror across their line exactly as likely as the tag; this is the
+        information that picks the right one (``reports/decisions.md``, issue 13's shark
+        pursuit).
     snapshot_times : sequence of float
         UTC seconds at which to keep the particles.
 
@@ -212,18 +224,24 @@ def track_scenario(
     detections = scenario.detections
     if loss_fraction > 0:
         detections = scenarios.thin_evenly(detections, loss_fraction)
+    bounds = scenario.bounds
+    if start_prior:
+        if scenario.start_region is None:
+            raise ValueError(f"scenario {scenario.name!r} has no start_region for start_prior")
+        bounds = scenario.start_region
     config = tracking_config(
         scenario,
         n_particles=n_particles,
         depth="sensor" if depth_correction else "none",
         shallower="clip",
+        bounds=bounds,
     )
     if detections.empty:  # everything dropped: the filter runs on its motion model alone
         pf = ParticleFilter(
             _motion(motion_name),
             RangeRateMeasurement(np.array(config.measurement.covariance)),
             n_particles=n_particles,
-            bounds=scenario.bounds,
+            bounds=bounds,
             rng=as_generator(seed),
         )
         no_data = pd.DataFrame(columns=list(OBSERVATION_COLUMNS), dtype=float)
@@ -303,6 +321,7 @@ def run_trial(
     dataset: int = 0,
     loss_fraction: float = 0.0,
     depth_correction: bool = False,
+    start_prior: bool = False,
 ) -> TrialResult:
     """Run the particle filter once on ``scenario`` and score it against the truth.
 
@@ -320,6 +339,8 @@ def run_trial(
         Fraction (0–1) of detections dropped evenly before tracking.
     depth_correction : bool
         Correct ranges with the tag's depth sensor (the detections' ``depth`` column).
+    start_prior : bool
+        Start in the scenario's ``start_region`` (:func:`track_scenario`).
 
     Returns
     -------
@@ -333,6 +354,7 @@ def run_trial(
         n_particles,
         loss_fraction=loss_fraction,
         depth_correction=depth_correction,
+        start_prior=start_prior,
     )
     runtime = _time.perf_counter() - clock
     estimates = run.estimates
@@ -360,6 +382,7 @@ def run_trial(
         calibration=honesty.calibration,
         false_converged=honesty.false_converged,
         mirror_share=_mirror_share(scenario, estimates[after]),
+        start_prior=bool(start_prior),
     )
 
 
