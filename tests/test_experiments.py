@@ -220,6 +220,22 @@ def test_more_trials_only_append_rows(small_scenarios):
     pd.testing.assert_frame_equal(_without_runtime(two), _without_runtime(three.iloc[:2]))
 
 
+def test_start_prior_starts_the_particles_in_the_start_region(small_scenarios):
+    swimmer, pursuit = small_scenarios
+    with pytest.raises(ValueError, match="no start_region"):
+        ex.track_scenario(swimmer, "velocity", 1, N_PARTICLES, start_prior=True)
+    run = ex.track_scenario(
+        pursuit, "velocity", 1, N_PARTICLES, start_prior=True, snapshot_times=[pursuit.start]
+    )
+    first = run.snapshots[pursuit.start]
+    xmin, xmax, ymin, ymax = pursuit.start_region
+    assert first["x"].between(xmin, xmax).all() and first["y"].between(ymin, ymax).all()
+    assert (first["x"].max() - first["x"].min()) > 0.9 * (xmax - xmin)
+    result = ex.run_trial(pursuit, "velocity", 1, N_PARTICLES, start_prior=True)
+    assert result.start_prior and result.row()["start_prior"]
+    assert not ex.run_trial(pursuit, "velocity", 1, N_PARTICLES).start_prior
+
+
 def test_trial_scores_and_error_curve_match_metrics(small_scenarios):
     from hmmtrack.analysis import metrics
 
@@ -233,6 +249,15 @@ def test_trial_scores_and_error_curve_match_metrics(small_scenarios):
     honesty = metrics.uncertainty_metrics(run.estimates, swimmer.truth)
     assert result.false_converged == honesty.false_converged
     np.testing.assert_equal(result.calibration, honesty.calibration)
+    # the mirror share is taken over the seconds after convergence, on the logged receivers
+    from hmmtrack.analysis.mirror import mirror_share, mirror_track
+
+    elapsed = run.estimates["time"] - run.estimates["time"].iloc[0]
+    after = run.estimates[elapsed >= scores.time_to_convergence]
+    mirror = mirror_track(swimmer.truth, swimmer.receivers)
+    assert scores.converged
+    assert result.mirror_share == mirror_share(after, swimmer.truth, mirror)
+    assert 0.0 <= result.mirror_share <= 1.0
     errors = metrics.position_error(run.estimates, swimmer.truth)
     np.testing.assert_array_equal(result.error, errors[:: int(ex.ERROR_CURVE_SPACING)])
     np.testing.assert_array_equal(np.diff(result.error_time), ex.ERROR_CURVE_SPACING)

@@ -16,6 +16,7 @@ from hypothesis import strategies as st
 from scipy import special, stats
 from scipy.optimize import brentq
 
+from hmmtrack.analysis.mirror import mirror_track
 from hmmtrack.scenarios import (
     WHITE_SHARK_GROUND_TRUTH,
     GpsNoise,
@@ -31,7 +32,7 @@ from hmmtrack.scenarios import (
 )
 from hmmtrack.scenarios.detection import arrival_times, loss_per_metre_for
 from hmmtrack.scenarios.historical import ARRAY_SAMPLING, ArraySampling
-from hmmtrack.scenarios.paper import auv_station_path, pursuit_track
+from hmmtrack.scenarios.paper import PURSUIT_START_HALF_WIDTH, auv_station_path, pursuit_track
 
 matplotlib.use("Agg")
 
@@ -435,6 +436,16 @@ def test_shark_pursuit_geometry():
         assert 80 < q50 < 100 and q25 > 60 and q75 < 120
         # offsets of 150 m, plus the lag accumulated before the first detection
         assert all(100 < r0 < 250 for r0 in s.r0.values())
+        # the start region holds the shark's first position and not its mirror across the
+        # AUVs' line, which has the same ranges
+        xmin, xmax, ymin, ymax = s.start_region
+        assert xmax - xmin == ymax - ymin == 2 * PURSUIT_START_HALF_WIDTH
+        mirror = mirror_track(s.truth.iloc[:1], s.receivers_truth)
+        for x, y, inside in (
+            (s.truth["x"][0], s.truth["y"][0], True),
+            (*mirror[["x", "y"]].iloc[0], False),
+        ):
+            assert (xmin < x < xmax and ymin < y < ymax) == inside
 
 
 def test_pursuit_track_has_115_irregular_fixes_over_150_minutes():

@@ -26,7 +26,9 @@ class Cell:
     """One cell of an experiment: a scenario, a motion model and a treatment, with its seed.
 
     Trial ``k`` of the cell is seeded with ``SeedSequence`` child ``k`` of ``seed``;
-    ``dataset`` says which synthetic dataset of its scenario ``scenario`` is.
+    ``dataset`` says which synthetic dataset of its scenario ``scenario`` is; with
+    ``start_prior`` the particles start in the scenario's ``start_region``
+    (:func:`hmmtrack.experiments.trials.track_scenario`).
     """
 
     scenario: Scenario
@@ -35,6 +37,7 @@ class Cell:
     loss_fraction: float = 0.0
     depth_correction: bool = False
     dataset: int = 0
+    start_prior: bool = False
 
 
 @dataclass(frozen=True)
@@ -58,6 +61,7 @@ def _run_batch(batch: _Batch) -> list[TrialResult]:
             dataset=cell.dataset,
             loss_fraction=cell.loss_fraction,
             depth_correction=cell.depth_correction,
+            start_prior=cell.start_prior,
         )
         for k in batch.trials
     ]

@@ -194,6 +194,7 @@ def compare_motion_models(
     *,
     max_workers: int | None = None,
     progress: bool = False,
+    start_prior: bool = False,
 ) -> pd.DataFrame:
     """The paper's motion-model comparison: ``n_trials`` filter runs per model per scenario.
 
@@ -213,6 +214,9 @@ def compare_motion_models(
     executor, max_workers, progress
         See :func:`run_trials`.
     n_particles : int
+    start_prior : bool
+        Start the particles in each scenario's ``start_region`` instead of its ``bounds``
+        (:func:`hmmtrack.experiments.trials.track_scenario`); the paper's filter does not.
 
     Returns
     -------
@@ -229,6 +233,7 @@ def compare_motion_models(
             motion,
             child_seed(root, 0, i, j) if d == 0 else child_seed(root, 4, i, j, d),
             dataset=d,
+            start_prior=start_prior,
         )
         for i, entry in enumerate(scenario_list)
         for d, scenario in enumerate(_datasets(entry))

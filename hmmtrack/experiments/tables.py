@@ -69,9 +69,9 @@ def summarise_trials(
         ``mean_error_after_convergence`` (mean over trials of the paper's "RMSE", m),
         ``median_error_after_convergence`` (m), ``rmse_after_convergence`` (mean over
         trials, m), ``time_to_convergence`` (mean over converged trials, s; NaN when none
-        converged) and ``max_time_to_convergence`` (s); with the trials' ``calibration`` and
-        ``false_converged`` columns, their means (over the trials that converged, and over
-        all).
+        converged) and ``max_time_to_convergence`` (s); with the trials' ``calibration``,
+        ``false_converged`` and ``mirror_share`` columns, their means (over the trials
+        where they are defined).
     """
     groups = table.groupby(list(by), sort=False)
     converged_times = table["time_to_convergence"].where(table["converged"])
@@ -90,7 +90,7 @@ def summarise_trials(
             ).max(),
         }
     )
-    for column in ("calibration", "false_converged"):
+    for column in ("calibration", "false_converged", "mirror_share"):
         if column in table.columns:
             summary[column] = groups[column].mean()
     return summary.reset_index()

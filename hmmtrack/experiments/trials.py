@@ -24,6 +24,7 @@ import pandas as pd
 
 from hmmtrack import scenarios
 from hmmtrack.analysis import metrics
+from hmmtrack.analysis.mirror import mirror_share, mirror_track
 from hmmtrack.experiments.configs import tracking_config
 from hmmtrack.random import SeedLike, as_generator
 from hmmtrack.scenarios import Scenario
@@ -65,6 +66,7 @@ TRIAL_COLUMNS = (
     "trial",
     "loss_fraction",
     "depth_correction",
+    "start_prior",
     "n_particles",
     "time_to_convergence",
     "converged",
@@ -72,6 +74,7 @@ TRIAL_COLUMNS = (
     "rmse_after_convergence",
     "calibration",
     "false_converged",
+    "mirror_share",
     "runtime",
 )
 
@@ -114,6 +117,15 @@ class TrialResult:
         never converged; :func:`hmmtrack.analysis.metrics.uncertainty_metrics`).
     false_converged : float
         Share of the seconds declared converged with an error above 50 m.
+    mirror_share : float
+        Share of the seconds after convergence whose estimate is nearer the mirror track
+        (the truth reflected across the line of the two receivers, which no range tells
+        apart from it) than the truth, where the two are at least 50 m apart
+        (:func:`hmmtrack.analysis.mirror.mirror_share`); NaN when the scenario does not have
+        two receivers or the run never converged.
+    start_prior : bool
+        Whether the particles started in the scenario's ``start_region`` (where the tag is
+        known to be at the start) rather than in its ``bounds``.
     """
 
     scenario: str
@@ -132,6 +144,8 @@ class TrialResult:
     dataset: int = 0
     calibration: float = math.nan
     false_converged: float = math.nan
+    mirror_share: float = math.nan
+    start_prior: bool = False
 
     def row(self) -> dict[str, Any]:
         """The scalar fields, as one row of a trials table."""
@@ -174,6 +188,7 @@ def track_scenario(
     *,
     loss_fraction: float = 0.0,
     depth_correction: bool = False,
+    start_prior: bool = False,
     snapshot_times: Sequence[float] = (),
 ):
     """Track the tag of ``scenario`` with one motion model (no scoring).
@@ -190,6 +205,12 @@ def track_scenario(
         Fraction (0–1) of detections dropped with :func:`hmmtrack.scenarios.thin_evenly`.
     depth_correction : bool
         Correct the ranges with the tag's depth sensor.
+    start_prior : bool
+        Start the particles in ``scenario.start_region`` (where the field team knows the tag
+        to be at the start) instead of the paper's ``scenario.bounds``. Two receivers leave
+        the tag's mirror across their line exactly as likely as the tag; this is the
+        information that picks the right one (``reports/decisions.md``, issue 13's shark
+        pursuit).
     snapshot_times : sequence of float
         UTC seconds at which to keep the particles.
 
@@ -203,18 +224,24 @@ def track_scenario(
     detections = scenario.detections
     if loss_fraction > 0:
         detections = scenarios.thin_evenly(detections, loss_fraction)
+    bounds = scenario.bounds
+    if start_prior:
+        if scenario.start_region is None:
+            raise ValueError(f"scenario {scenario.name!r} has no start_region for start_prior")
+        bounds = scenario.start_region
     config = tracking_config(
         scenario,
         n_particles=n_particles,
         depth="sensor" if depth_correction else "none",
         shallower="clip",
+        bounds=bounds,
     )
     if detections.empty:  # everything dropped: the filter runs on its motion model alone
         pf = ParticleFilter(
             _motion(motion_name),
             RangeRateMeasurement(np.array(config.measurement.covariance)),
             n_particles=n_particles,
-            bounds=scenario.bounds,
+            bounds=bounds,
             rng=as_generator(seed),
         )
         no_data = pd.DataFrame(columns=list(OBSERVATION_COLUMNS), dtype=float)
@@ -294,6 +321,7 @@ def run_trial(
     dataset: int = 0,
     loss_fraction: float = 0.0,
     depth_correction: bool = False,
+    start_prior: bool = False,
 ) -> TrialResult:
     """Run the particle filter once on ``scenario`` and score it against the truth.
 
@@ -311,6 +339,8 @@ def run_trial(
         Fraction (0–1) of detections dropped evenly before tracking.
     depth_correction : bool
         Correct ranges with the tag's depth sensor (the detections' ``depth`` column).
+    start_prior : bool
+        Start in the scenario's ``start_region`` (:func:`track_scenario`).
 
     Returns
     -------
@@ -324,6 +354,7 @@ def run_trial(
         n_particles,
         loss_fraction=loss_fraction,
         depth_correction=depth_correction,
+        start_prior=start_prior,
     )
     runtime = _time.perf_counter() - clock
     estimates = run.estimates
@@ -331,6 +362,7 @@ def run_trial(
     honesty = metrics.uncertainty_metrics(estimates, scenario.truth)
     errors = metrics.position_error(estimates, scenario.truth)
     elapsed = estimates["time"].to_numpy(dtype=float) - float(estimates["time"].iloc[0])
+    after = elapsed >= scores.time_to_convergence if scores.converged else elapsed < 0
     _, keep = np.unique(np.floor(elapsed / ERROR_CURVE_SPACING), return_index=True)
     return TrialResult(
         scenario=scenario.name,
@@ -349,4 +381,14 @@ def run_trial(
         dataset=int(dataset),
         calibration=honesty.calibration,
         false_converged=honesty.false_converged,
+        mirror_share=_mirror_share(scenario, estimates[after]),
+        start_prior=bool(start_prior),
     )
+
+
+def _mirror_share(scenario: Scenario, estimates: pd.DataFrame) -> float:
+    """:func:`hmmtrack.analysis.mirror.mirror_share` of ``estimates`` on a scenario with two
+    receivers (their logged positions); NaN with any other number of receivers."""
+    if scenario.receivers["receiver"].nunique() != 2:
+        return math.nan
+    return mirror_share(estimates, scenario.truth, mirror_track(scenario.truth, scenario.receivers))

@@ -47,6 +47,7 @@ def _comparison_section(comparison: pd.DataFrame) -> str:
                 f"{int(cell['n_converged'])}/{int(cell['n_trials'])}",
                 _percent(cell.get("calibration", math.nan)),
                 _percent(cell.get("false_converged", math.nan)),
+                _percent(cell.get("mirror_share", math.nan)),
             ]
         )
     headers = [
@@ -61,6 +62,7 @@ def _comparison_section(comparison: pd.DataFrame) -> str:
         "converged",
         "truth in 95 % region",
         "false converged",
+        "on the mirror",
     ]
     return (
         "## Motion-model comparison\n\n"
@@ -72,7 +74,10 @@ def _comparison_section(comparison: pd.DataFrame) -> str:
         "95 % ellipse (of the cloud's mean and covariance) holds the truth, 95 % for a "
         "calibrated filter, and the share of seconds declared converged while more than "
         "50 m off (`hmmtrack.analysis.metrics.uncertainty_metrics`; convergence by "
-        "the estimates' `converged` column when the filter reports modes).\n\n"
+        "the estimates' `converged` column when the filter reports modes). On the mirror: "
+        "the share of seconds after convergence nearer the mirror track (the truth "
+        "reflected across the line of the two receivers, which has the same ranges and "
+        "range-rates; `hmmtrack.analysis.mirror`) than the truth.\n\n"
         + markdown_table(headers, rows)
         + "\n"
     )

@@ -14,10 +14,13 @@ measured on them can be compared with the paper's only in kind.
 * :func:`shark_pursuit` — the simulated dataset: a 150 min, 115-fix white-shark track,
   two AUVs following it with a constant offset and a low-pass lag, period 8 s, each ping lost
   with a fixed probability per metre of range, tuned so that 645 and 671 of 1,125 pings are
-  lost on average; optionally a diving shark with a depth-sensor tag.
+  lost on average; optionally a diving shark with a depth-sensor tag. Its ``start_region`` is
+  a box around the team's fix of the shark at launch, for trackers told where the chase began.
 """
 
 from __future__ import annotations
+
+from dataclasses import replace
 
 import numpy as np
 import pandas as pd
@@ -42,6 +45,13 @@ FIELD_TAG_PERIOD = 8.179
 EMISSION_JITTER = 1e-4
 #: GPS error of the hydrophones' logged positions: sd 1.5 m per axis, wandering over a minute
 HYDROPHONE_GPS = GpsNoise(sd=1.5, correlation_time=60.0)
+#: error (m, sd per axis) of the field team's fix of the shark when a pursuit is launched: a
+#: boat's estimate of an animal seen or tagged at the surface a few tens of metres away
+PURSUIT_START_FIX_ERROR = 30.0
+#: half-width (m) of the pursuit's start region around that fix: 3.3 sd, and under half the
+#: ~210 m between the tag and its mirror across the two AUVs' line at launch (offsets of
+#: 150 m at 90 degrees), so the region holds the tag and not its mirror
+PURSUIT_START_HALF_WIDTH = 100.0
 
 
 def _utc(stamp: str) -> float:
@@ -386,6 +396,12 @@ def shark_pursuit(
     is solved so that the expected number of lost pings is ``lost_pings[j]`` (the paper's
     645 and 671 of 1,125).
 
+    The AUVs are placed around a shark whose position the team knows: ``start_region`` is
+    the square of half-width :data:`PURSUIT_START_HALF_WIDTH` around a fix of the shark's
+    first position with Gaussian error :data:`PURSUIT_START_FIX_ERROR` per axis (drawn from
+    a stream of its own, so the rest of the dataset does not depend on it). The paper's
+    filter does not use it (its particles start anywhere in ``bounds``).
+
     Parameters
     ----------
     seed : int, SeedSequence or Generator
@@ -430,7 +446,7 @@ def shark_pursuit(
         )
         for (name, path), expected in zip(receivers.items(), lost_pings, strict=True)
     }
-    return assemble_scenario(
+    scenario = assemble_scenario(
         rng,
         name="shark-pursuit-dive" if dive else "shark-pursuit",
         description=(
@@ -449,3 +465,8 @@ def shark_pursuit(
         end=end,
         transmitter="A69-9001-2020",
     )
+    x0, y0, _ = tag.position(np.array([start]))
+    error = rng.spawn(1)[0].normal(0.0, PURSUIT_START_FIX_ERROR, 2)
+    fx, fy = float(x0[0] + error[0]), float(y0[0] + error[1])
+    half = PURSUIT_START_HALF_WIDTH
+    return replace(scenario, start_region=(fx - half, fx + half, fy - half, fy + half))

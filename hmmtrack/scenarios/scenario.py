@@ -67,6 +67,12 @@ class Scenario:
         :data:`hmmtrack.scenarios.detection.PING_COLUMNS`).
     receivers_truth : DataFrame
         Like ``receivers`` without GPS noise.
+    start_region : tuple of float or None
+        ``(xmin, xmax, ymin, ymax)`` (m): where the field team knows the tag to be at
+        ``start`` (e.g. around its fix of the animal when the pursuit is launched), for a
+        tracker told so instead of the uninformed ``bounds``; ``None``: nothing is known.
+        Two receivers cannot tell the tag from its mirror across their line
+        (:mod:`hmmtrack.analysis.mirror`); this is the prior information that can.
     """
 
     name: str
@@ -83,6 +89,7 @@ class Scenario:
     transmitter: str
     pings: pd.DataFrame
     receivers_truth: pd.DataFrame
+    start_region: tuple[float, float, float, float] | None = None
 
 
 def assemble_scenario(
