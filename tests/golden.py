@@ -12,7 +12,9 @@ and signatures), never what goes into them. The inputs themselves are two cases 
 (:func:`inputs_range_rate`, :func:`inputs_arrival_time`): when a tracking case differs,
 they tell whether the scenario or the tracker changed.
 
-The cases:
+Every run names the paper's filter (:data:`FILTER`), so that a change of the library's
+default filter (:data:`hmmtrack.tracking.filter.DEFAULT_FILTER`) leaves these runs as they
+are. The cases:
 
 * range-rate tracking (:func:`hmmtrack.tracking.pipeline.track`) of the first 20 minutes of the
   shark pursuit (:func:`hmmtrack.scenarios.shark_pursuit`, two moving AUVs), 1,000
@@ -51,6 +53,9 @@ GOLDEN_DIR = Path(__file__).parent / "data" / "golden"
 
 #: particles of every run
 N_PARTICLES = 1000
+#: the filter of every run, named (:data:`hmmtrack.tracking.filter.FILTERS`): the paper's,
+#: whatever the library's default filter is
+FILTER = "paper"
 #: seconds tracked from each scenario's start
 SPAN = 1200.0
 #: seed of the range-rate scenario (the shark pursuit; on seed 5 the velocity and HMM runs
@@ -88,7 +93,8 @@ def range_rate_inputs() -> tuple[pd.DataFrame, pd.DataFrame, TrackingConfig]:
         ``receiver``, ``time`` (s), ``x``, ``y`` (m).
     config : TrackingConfig
         The scenario's period, true ``r0``, sound speed, transmitter and window; search
-        bounds from ``r0`` (``bounds=None``), :data:`N_PARTICLES`, other settings default.
+        bounds from ``r0`` (``bounds=None``), :data:`N_PARTICLES`, the :data:`FILTER`, other
+        settings default.
     """
     sc = scenarios.shark_pursuit(PURSUIT_SEED)
     end = sc.start + SPAN
@@ -102,6 +108,7 @@ def range_rate_inputs() -> tuple[pd.DataFrame, pd.DataFrame, TrackingConfig]:
         start=sc.start,
         end=end,
         n_particles=N_PARTICLES,
+        filter=FILTER,
     )
     return detections, receivers, config
 
@@ -209,7 +216,7 @@ def _arrival_time_tables(result) -> dict[str, pd.DataFrame]:
 def _track_arrival_time(**settings) -> dict[str, pd.DataFrame]:
     detections, receivers, window = arrival_time_inputs()
     config = TrackingConfig.from_keys(
-        measurement="arrival-time", n_particles=N_PARTICLES, **window, **settings
+        measurement="arrival-time", n_particles=N_PARTICLES, filter=FILTER, **window, **settings
     )
     result = tracking.track(detections, receivers, config, seed=TRACK_SEED)
     return _arrival_time_tables(result)

@@ -21,7 +21,7 @@ from hmmtrack.tracking.config import (
     section_classes,
     setting_sections,
 )
-from hmmtrack.tracking.filter import FilterSettings
+from hmmtrack.tracking.filter import DEFAULT_FILTER, FILTERS, FilterSettings
 from hmmtrack.tracking.measurement import MEASUREMENTS
 from hmmtrack.tracking.measurement.arrival_time import ArrivalLikelihood, ArrivalTimeMeasurement
 from hmmtrack.tracking.measurement.clocked import (
@@ -401,3 +401,29 @@ def test_the_ping_measurement_brings_its_own_motion_and_smoothing():
     other = TrackingConfig.from_keys(period=8.0)
     assert other.motion == HMMSettings() and other.smoothing is None
     assert TrackingConfig.from_dict(ping.to_dict()) == ping
+
+
+def test_a_named_filter_sets_its_switches_and_the_section_keys_override_them(tmp_path):
+    """``filter="paper"`` / ``"mode-keeping"`` (:data:`FILTERS`) sets the three switches
+    whatever the default filter is; explicit keys win; renaming the filter in ``override``
+    replaces the switches; a configuration file may name the filter too."""
+    base = {"period": 8.0, "r0": {"a": 10.0}}
+    switches = ("acquisition", "mixture", "monitor")
+    default = TrackingConfig.from_keys(**base).filter
+    assert {k: getattr(default, k) for k in switches} == FILTERS[DEFAULT_FILTER]
+    paper = TrackingConfig.from_keys(**base, filter="paper", n_particles=300)
+    assert {k: getattr(paper.filter, k) for k in switches} == dict.fromkeys(switches, False)
+    keeping = paper.override(filter="mode-keeping")
+    assert (keeping.filter.acquisition, keeping.filter.mixture) == (True, True)
+    assert keeping.filter.n_particles == 300  # the other keys stay
+    assert keeping.override(n_particles=200).filter.mixture  # no rename: switches stay
+    assert not keeping.override(filter="paper").filter.mixture
+    mixed = TrackingConfig.from_keys(**base, filter="mode-keeping", mixture=False)
+    assert (mixed.filter.acquisition, mixed.filter.mixture) == (True, False)
+    path = tmp_path / "run.json"
+    path.write_text(json.dumps({"measurement": base, "filter": {"name": "mode-keeping"}}))
+    assert TrackingConfig.from_json(path).filter == dataclasses.replace(
+        keeping.filter, n_particles=5000
+    )
+    with pytest.raises(ValueError, match="filter name must be one of"):
+        TrackingConfig.from_keys(**base, filter="best")

@@ -316,3 +316,24 @@ def test_depth_correction_reaches_the_ranges_and_both_variants_are_tracked():
     analysis = ex.depth_analysis(n_trials=1, seed=5, n_particles=N_PARTICLES, duration=600.0)
     assert analysis.trials["depth_correction"].tolist() == [False, True]
     assert analysis.max_depth == pytest.approx(diving.truth["depth"].max())
+
+
+def test_the_named_filter_reaches_every_trial(small_scenarios):
+    """``filter="mode-keeping"`` runs acquisition and the mixture (an ``acquired`` event, the
+    modes reported); the default is the paper's filter, named."""
+    swimmer = small_scenarios[0]
+    paper = ex.track_scenario(swimmer, "velocity", 9, N_PARTICLES)
+    keeping = ex.track_scenario(swimmer, "velocity", 9, N_PARTICLES, filter="mode-keeping")
+    assert paper.modes is None and "acquired" not in set(paper.events["kind"])
+    assert keeping.modes is not None and "acquired" in set(keeping.events["kind"])
+    tables = {
+        name: ex.compare_motion_models(
+            [swimmer], ("velocity",), n_trials=1, seed=5, n_particles=N_PARTICLES, filter=name
+        )
+        for name in ("paper", "mode-keeping")
+    }
+    assert (
+        not tables["paper"]
+        .drop(columns="runtime")
+        .equals(tables["mode-keeping"].drop(columns="runtime"))
+    )

@@ -270,16 +270,28 @@ def test_each_scheme_resamples_within_components_without_bias(scheme):
     component_weight = np.bincount(labels, weights)
     counts = np.array([25, 0, 35])  # component 1 dropped
     code = SCHEME_CODES[scheme]
+    x, y = rng.normal(500.0, 30.0, n), rng.normal(-200.0, 10.0, n)
     copies = np.zeros(n)
     for _ in range(400):
         draws = scheme_draws(rng, code, n, 2)
-        ancestors, log_weight = resample_components(
-            weights, labels, counts, component_weight, code, draws
+        ancestors, log_weight, new_weights, summary = resample_components(
+            weights, labels, counts, component_weight, code, draws, x, y
         )
         np.testing.assert_array_equal(labels[ancestors], np.repeat([0, 2], [25, 35]))
         live = component_weight[[0, 2]].sum()
         np.testing.assert_allclose(
             np.exp(log_weight), np.repeat(component_weight[[0, 2]] / live / [25, 35], [25, 35])
+        )
+        np.testing.assert_array_equal(new_weights, np.exp(log_weight))
+        # ESS and weighted mean of the new particles, as the filter keeps them
+        np.testing.assert_allclose(
+            summary,
+            [
+                1.0 / (new_weights @ new_weights),
+                new_weights @ x[ancestors],
+                new_weights @ y[ancestors],
+            ],
+            rtol=1e-12,
         )
         copies += np.bincount(ancestors, minlength=n)
     # each particle is copied N_k w_i / π_k times on average

@@ -6,9 +6,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from hmmtrack.cli import main
+from hmmtrack.cli import build_parser, main
+from hmmtrack.cli.reproduce import FILTER_NAMES
 from hmmtrack.experiments import MOTIONS
 from hmmtrack.report import PAPER, QUICK
+from hmmtrack.tracking.filter import FILTERS
 
 FIGURES = (
     "datasets.png",
@@ -82,6 +84,7 @@ def test_summary_puts_our_numbers_beside_the_papers(quick_run):
     for name in FIGURES:
         assert f"]({name})" in text
     assert "The paper's findings on our analogues" in text
+    assert "filter = paper (the paper's filter)" in text  # the filter run, by default
     assert "## Spread between datasets and between filter runs" in text
 
 
@@ -180,3 +183,10 @@ def test_paired_p_value_equals_the_exact_sign_flip_distribution():
     assert paired_lower_p_value(a, a) == 1.0
     with pytest.raises(ValueError, match="one shape"):
         paired_lower_p_value(a, b[:5])
+
+
+def test_the_filter_option_offers_every_named_filter():
+    assert FILTER_NAMES == tuple(FILTERS)
+    parser = build_parser(["reproduce"])
+    assert parser.parse_args(["reproduce"]).filter == "paper"
+    assert parser.parse_args(["reproduce", "--filter", "mode-keeping"]).filter == "mode-keeping"

@@ -14,6 +14,10 @@ import sys
 from hmmtrack.cli import UserInputError, add_command
 from hmmtrack.io.outputs import check_paths
 
+#: the named filters (:data:`hmmtrack.tracking.filter.FILTERS`), written out so that
+#: ``--help`` imports no tracking code
+FILTER_NAMES = ("paper", "mode-keeping")
+
 DESCRIPTION = (
     "Rerun the paper's experiments on the bundled synthetic datasets and write every figure "
     "(PNG), the trial tables (CSV) and summary.md (our numbers beside the paper's). --quick is "
@@ -74,6 +78,14 @@ def register(subparsers) -> None:
         help="how long to wait for the Dask scheduler to answer (default 30)",
     )
     parser.add_argument("--seed", type=int, default=0, help="experiment seed (default 0)")
+    parser.add_argument(
+        "--filter",
+        choices=FILTER_NAMES,
+        default="paper",
+        help="the filter of every run: paper (the paper's, default) or mode-keeping (particles "
+        "drawn from the first corrections' likelihood, every mode kept by mixture resampling); "
+        "summary.md says which ran",
+    )
     progress = parser.add_mutually_exclusive_group()
     progress.add_argument(
         "--progress",
@@ -135,6 +147,7 @@ def run(args: argparse.Namespace) -> int:
             executor=executor,
             max_workers=args.workers,
             progress=progress,
+            filter=args.filter,
         )
     finally:
         if client is not None:

@@ -17,7 +17,13 @@ from typing import Any
 import numpy as np
 
 from hmmtrack.experiments.executors import get_executor, map_ordered
-from hmmtrack.experiments.trials import DEFAULT_PARTICLES, TrialResult, child_seed, run_trial
+from hmmtrack.experiments.trials import (
+    DEFAULT_PARTICLES,
+    PAPER_FILTER,
+    TrialResult,
+    child_seed,
+    run_trial,
+)
 from hmmtrack.scenarios import Scenario
 
 
@@ -28,7 +34,8 @@ class Cell:
     Trial ``k`` of the cell is seeded with ``SeedSequence`` child ``k`` of ``seed``;
     ``dataset`` says which synthetic dataset of its scenario ``scenario`` is; with
     ``start_prior`` the particles start in the scenario's ``start_region``
-    (:func:`hmmtrack.experiments.trials.track_scenario`).
+    (:func:`hmmtrack.experiments.trials.track_scenario`); ``filter`` names the filter
+    (:data:`hmmtrack.tracking.filter.FILTERS`).
     """
 
     scenario: Scenario
@@ -38,6 +45,7 @@ class Cell:
     depth_correction: bool = False
     dataset: int = 0
     start_prior: bool = False
+    filter: str = PAPER_FILTER
 
 
 @dataclass(frozen=True)
@@ -62,6 +70,7 @@ def _run_batch(batch: _Batch) -> list[TrialResult]:
             loss_fraction=cell.loss_fraction,
             depth_correction=cell.depth_correction,
             start_prior=cell.start_prior,
+            filter=cell.filter,
         )
         for k in batch.trials
     ]

@@ -28,6 +28,7 @@ from hmmtrack.experiments.tables import trials_table
 from hmmtrack.experiments.trials import (
     DEFAULT_PARTICLES,
     MOTIONS,
+    PAPER_FILTER,
     child_seed,
     experiment_seed,
 )
@@ -195,6 +196,7 @@ def compare_motion_models(
     max_workers: int | None = None,
     progress: bool = False,
     start_prior: bool = False,
+    filter: str = PAPER_FILTER,
 ) -> pd.DataFrame:
     """The paper's motion-model comparison: ``n_trials`` filter runs per model per scenario.
 
@@ -217,6 +219,8 @@ def compare_motion_models(
     start_prior : bool
         Start the particles in each scenario's ``start_region`` instead of its ``bounds``
         (:func:`hmmtrack.experiments.trials.track_scenario`); the paper's filter does not.
+    filter : str
+        Named filter of every trial (:data:`hmmtrack.tracking.filter.FILTERS`).
 
     Returns
     -------
@@ -234,6 +238,7 @@ def compare_motion_models(
             child_seed(root, 0, i, j) if d == 0 else child_seed(root, 4, i, j, d),
             dataset=d,
             start_prior=start_prior,
+            filter=filter,
         )
         for i, entry in enumerate(scenario_list)
         for d, scenario in enumerate(_datasets(entry))
@@ -259,6 +264,7 @@ def loss_sweep(
     *,
     max_workers: int | None = None,
     progress: bool = False,
+    filter: str = PAPER_FILTER,
 ) -> pd.DataFrame:
     """The paper's measurement-loss sweep: detections thinned evenly, HMM model.
 
@@ -276,6 +282,8 @@ def loss_sweep(
         Trial ``k`` at fraction ``i`` is seeded with child ``(1, i, k)``.
     executor, max_workers, progress, n_particles
         See :func:`run_trials`.
+    filter : str
+        Named filter of every trial (:data:`hmmtrack.tracking.filter.FILTERS`).
 
     Returns
     -------
@@ -290,7 +298,7 @@ def loss_sweep(
     if scenario is None:
         scenario = paper_scenarios(root, names=("shark_pursuit",))["shark_pursuit"]
     cells = [
-        Cell(scenario, motion, child_seed(root, 1, i), loss_fraction=f)
+        Cell(scenario, motion, child_seed(root, 1, i), loss_fraction=f, filter=filter)
         for i, f in enumerate(fractions)
     ]
     return _trials_table(
@@ -338,6 +346,7 @@ def depth_analysis(
     duration: float | None = None,
     max_workers: int | None = None,
     progress: bool = False,
+    filter: str = PAPER_FILTER,
 ) -> DepthAnalysis:
     """Percent-error curve of ignoring depth, and the diving shark with and without correction.
 
@@ -359,6 +368,8 @@ def depth_analysis(
     motion : str
     duration : float, optional
         Track only the first ``duration`` seconds of the diving shark (:func:`truncate`).
+    filter : str
+        Named filter of every trial (:data:`hmmtrack.tracking.filter.FILTERS`).
 
     Returns
     -------
@@ -373,7 +384,7 @@ def depth_analysis(
     root = experiment_seed(seed)
     diving = paper_scenarios(root, dive=True, duration=duration)["shark_pursuit"]
     cells = [
-        Cell(diving, motion, child_seed(root, 2, 0), depth_correction=correct)
+        Cell(diving, motion, child_seed(root, 2, 0), depth_correction=correct, filter=filter)
         for correct in (False, True)
     ]
     trials = _trials_table(

@@ -176,6 +176,10 @@ def child_seed(root: np.random.SeedSequence, *key: int) -> np.random.SeedSequenc
     )
 
 
+#: the filter of the paper's experiments (:data:`hmmtrack.tracking.filter.FILTERS`), named
+#: so that they run it whatever the library's default filter is
+PAPER_FILTER = "paper"
+
 #: moments of the example runs' particle snapshots: seconds after the start, and the end
 SNAPSHOT_SECONDS = (0.0, 15.0, 40.0, 300.0)
 
@@ -190,6 +194,7 @@ def track_scenario(
     depth_correction: bool = False,
     start_prior: bool = False,
     snapshot_times: Sequence[float] = (),
+    filter: str = PAPER_FILTER,
 ):
     """Track the tag of ``scenario`` with one motion model (no scoring).
 
@@ -213,6 +218,9 @@ def track_scenario(
         pursuit).
     snapshot_times : sequence of float
         UTC seconds at which to keep the particles.
+    filter : str
+        Named filter (:data:`hmmtrack.tracking.filter.FILTERS`): ``"paper"`` or
+        ``"mode-keeping"``.
 
     Returns
     -------
@@ -235,6 +243,7 @@ def track_scenario(
         depth="sensor" if depth_correction else "none",
         shallower="clip",
         bounds=bounds,
+        filter=filter,
     )
     if detections.empty:  # everything dropped: the filter runs on its motion model alone
         pf = ParticleFilter(
@@ -288,11 +297,12 @@ def example_run(
     seed: SeedLike,
     n_particles: int = DEFAULT_PARTICLES,
     motion_name: str = "hmm",
+    filter: str = PAPER_FILTER,
 ) -> ExampleRun:
     """One run with particle snapshots, for the error-over-time figures.
 
     Snapshots at :data:`SNAPSHOT_SECONDS` after the start (those inside the run) and at the
-    end.
+    end; ``filter`` as in :func:`track_scenario`.
 
     Returns
     -------
@@ -300,7 +310,12 @@ def example_run(
     """
     times = [scenario.start + s for s in SNAPSHOT_SECONDS if scenario.start + s < scenario.end]
     result = track_scenario(
-        scenario, motion_name, seed, n_particles, snapshot_times=[*times, scenario.end]
+        scenario,
+        motion_name,
+        seed,
+        n_particles,
+        snapshot_times=[*times, scenario.end],
+        filter=filter,
     )
     estimates = result.estimates
     return ExampleRun(
@@ -322,6 +337,7 @@ def run_trial(
     loss_fraction: float = 0.0,
     depth_correction: bool = False,
     start_prior: bool = False,
+    filter: str = PAPER_FILTER,
 ) -> TrialResult:
     """Run the particle filter once on ``scenario`` and score it against the truth.
 
@@ -341,6 +357,8 @@ def run_trial(
         Correct ranges with the tag's depth sensor (the detections' ``depth`` column).
     start_prior : bool
         Start in the scenario's ``start_region`` (:func:`track_scenario`).
+    filter : str
+        Named filter, as in :func:`track_scenario`.
 
     Returns
     -------
@@ -355,6 +373,7 @@ def run_trial(
         loss_fraction=loss_fraction,
         depth_correction=depth_correction,
         start_prior=start_prior,
+        filter=filter,
     )
     runtime = _time.perf_counter() - clock
     estimates = run.estimates

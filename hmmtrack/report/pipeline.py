@@ -31,6 +31,7 @@ from hmmtrack.experiments import (
     paper_datasets,
 )
 from hmmtrack.experiments.executors import default_workers, get_executor
+from hmmtrack.experiments.trials import PAPER_FILTER
 from hmmtrack.io.outputs import staged_folder
 from hmmtrack.plots import results as plots
 from hmmtrack.plots.experiments import plot_scenario
@@ -39,6 +40,7 @@ from hmmtrack.report.summary import write_summary
 from hmmtrack.scenarios import white_shark_tracks
 from hmmtrack.scenarios.historical import WHITE_SHARK_TRACKS_SEED
 from hmmtrack.scenarios.white_shark_hmm import load_white_shark_hmm, prepare_white_shark_tracks
+from hmmtrack.tracking.filter import FILTERS
 
 
 @dataclass(frozen=True)
@@ -181,6 +183,7 @@ def reproduce(
     executor: Any = "processes",
     max_workers: int | None = None,
     progress: bool = False,
+    filter: str = PAPER_FILTER,
 ) -> Path:
     """Rerun the paper's experiments and write the figures, trial tables and summary.
 
@@ -200,6 +203,9 @@ def reproduce(
         Experiment seed (datasets and trials derive from it).
     executor, max_workers, progress
         See :func:`hmmtrack.experiments.run_trials`.
+    filter : str
+        The filter every run uses, by name (:data:`hmmtrack.tracking.filter.FILTERS`): the
+        paper's (default) or ``"mode-keeping"``; the summary says which.
 
     Returns
     -------
@@ -224,6 +230,7 @@ def reproduce(
             executor=executor,
             max_workers=max_workers,
             progress=progress,
+            filter=filter,
         )
     return out / "summary.md"
 
@@ -237,12 +244,18 @@ def _run(
     executor: Any,
     max_workers: int | None,
     progress: bool,
+    filter: str,
 ) -> None:
     """The run of :func:`reproduce` at ``size``, its files written into ``out``."""
     clock = time.perf_counter()
     all_datasets = paper_datasets(seed, size.n_datasets)
     datasets = {name: versions[0] for name, versions in all_datasets.items()}
-    common = {"seed": seed, "n_particles": size.n_particles, "progress": progress}
+    common = {
+        "seed": seed,
+        "n_particles": size.n_particles,
+        "progress": progress,
+        "filter": filter,
+    }
     pool = get_executor(executor, max_workers)
     try:
         logger.info(
@@ -267,7 +280,7 @@ def _run(
             pool.shutdown()
     logger.info("example runs and figures")
     examples = {
-        scenario.name: example_run(scenario, seed, size.n_particles)
+        scenario.name: example_run(scenario, seed, size.n_particles, filter=filter)
         for scenario in datasets.values()
     }
     comparison.to_csv(out / "motion_model_trials.csv", index=False)
@@ -284,6 +297,7 @@ def _run(
     )
     run = {
         "seed": seed,
+        "filter": f"{filter} ({_switches(filter)})",
         "size": "quick" if quick else "paper scale",
         "synthetic datasets per scenario": size.n_datasets,
         "filter runs per model per dataset": size.n_trials,
@@ -299,3 +313,9 @@ def _run(
     write_summary(
         out / "summary.md", comparison=comparison, loss=loss, depth=depth, figures=figures, run=run
     )
+
+
+def _switches(filter: str) -> str:
+    """What the named filter does, in words (for the summary's run line)."""
+    on = [key for key, value in FILTERS[filter].items() if value]
+    return "the paper's filter" if not on else " + ".join(on)

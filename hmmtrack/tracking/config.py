@@ -17,9 +17,11 @@ its own keys. A configuration file is the same shape in JSON, e.g.::
      "smoothing_lag": 60}
 
 where a section may leave out any key with a default (``name`` too: ``"range-rate"`` and
-``"hmm"``), a relative ``model`` path (and ``clocks``, a clock file of ``hmmtrack sync``) is
-relative to the file, and an unknown key is an error that names the file, the section and
-the valid keys.
+``"hmm"``; the ``filter`` section may name a filter of :data:`hmmtrack.tracking.filter.FILTERS`,
+``"paper"`` or ``"mode-keeping"``, whose switches its own keys then override, else it runs
+:data:`~hmmtrack.tracking.filter.DEFAULT_FILTER`), a relative ``model`` path (and
+``clocks``, a clock file of ``hmmtrack sync``) is relative to the file, and an unknown key
+is an error that names the file, the section and the valid keys.
 
 A *preset* is a bundled file of settings only, without the keys that describe one data set
 (period, ``r0``, transmitter, bounds, start, end), for one kind of deployment; read by name
@@ -40,7 +42,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
-from hmmtrack.tracking.filter import FilterSettings
+from hmmtrack.tracking.filter import FILTERS, FilterSettings
 from hmmtrack.tracking.measurement import MEASUREMENTS
 from hmmtrack.tracking.motion.settings import MOTION_SETTINGS, HMMSettings
 from hmmtrack.tracking.settings import (
@@ -77,13 +79,14 @@ SECTIONS = {"measurement": "range-rate", "motion": "hmm", "filter": None}
 
 
 def section_classes(section: str) -> dict[str | None, type]:
-    """The settings classes of ``section`` by component name (``{None: cls}`` for the
-    ``filter`` section, which has one)."""
+    """The settings classes of ``section`` by component name (the ``filter`` section has
+    one class, :class:`~hmmtrack.tracking.filter.FilterSettings`, under ``None`` and under
+    each of the named filters of :data:`~hmmtrack.tracking.filter.FILTERS`)."""
     if section == "measurement":
         return {name: cls.settings for name, cls in MEASUREMENTS.items()}
     if section == "motion":
         return dict(MOTION_SETTINGS)
-    return {None: FilterSettings}
+    return {None: FilterSettings} | dict.fromkeys(FILTERS, FilterSettings)
 
 
 def _bounds(name: str, value) -> tuple[float, float, float, float]:
@@ -117,7 +120,9 @@ class TrackingConfig(Settings):
         the bundled white-shark HMM by default, or the measurement's own
         (:func:`section_default`).
     filter : FilterSettings
-        Particles, resampling, prediction step and correction policy.
+        Particles, resampling, prediction step and correction policy, and the switches of
+        the mode-keeping filter (``TrackingConfig.from_keys(filter="paper", ...)`` names the
+        paper's filter whatever the default).
     transmitter : str or None
         Transmitter to track; ``None`` when the detections hold just one.
     bounds : (xmin, xmax, ymin, ymax) or None
@@ -278,7 +283,8 @@ class TrackingConfig(Settings):
             change = layer.pop(section, {})
             name = change.get("name", merged[section].get("name"))
             if name != merged[section].get("name"):
-                keys = section_classes(section)[name].keys()
+                # keep the shared keys, not the switches a newly named filter sets
+                keys = set(section_classes(section)[name].keys()) - set(FILTERS.get(name, ()))
                 merged[section] = {k: v for k, v in merged[section].items() if k in keys}
             merged[section] = merged[section] | change
         return TrackingConfig.from_dict(merged | layer, source="settings")
@@ -305,7 +311,9 @@ def section_default(data: Mapping, section: str) -> dict:
     """What a configuration dictionary's ``section`` starts from, before its own keys: the
     component :data:`SECTIONS` names, or for the motion the measurement's ``default_motion``
     (its name and settings, e.g. the ping measurement's random walk) unless the motion
-    section names another model.
+    section names another model, or for a filter section that names a filter of
+    :data:`~hmmtrack.tracking.filter.FILTERS` (``"paper"``, ``"mode-keeping"``) that
+    filter's switches.
 
     Parameters
     ----------
@@ -316,6 +324,9 @@ def section_default(data: Mapping, section: str) -> dict:
     """
     default = {"name": SECTIONS[section]}
     measurement, motion = (data.get(key, {}) for key in ("measurement", "motion"))
+    named = data.get("filter", {})
+    if section == "filter" and isinstance(named, Mapping) and named.get("name") in FILTERS:
+        return {"name": named["name"]} | FILTERS[named["name"]]
     if section == "motion" and isinstance(measurement, Mapping) and isinstance(motion, Mapping):
         kind = MEASUREMENTS.get(measurement.get("name", SECTIONS["measurement"]))
         own = None if kind is None else kind.default_motion

@@ -86,8 +86,10 @@ from hmmtrack.tracking.settings import (
 from hmmtrack.tracking.tempering import Plain
 
 __all__ = [
+    "DEFAULT_FILTER",
     "ESTIMATE_COLUMNS",
     "Estimate",
+    "FILTERS",
     "FilterResult",
     "FilterSettings",
     "ParticleFilter",
@@ -106,6 +108,19 @@ PARALLEL_MIN_WORK = 20_000
 #: passes are too short for thread hand-overs to pay (at N = 10,000 on a loaded 2-core
 #: machine, running them on the prediction's two threads made runs 3-4x slower)
 PARALLEL_MIN_CORRECTION = 50_000
+#: the named filters (the ``filter`` section's ``name``): the switches of
+#: :class:`FilterSettings` each sets. ``paper``: the paper's filter (particles uniform in
+#: the search box, the whole cloud resampled, no monitor); ``mode-keeping``: issue 13's
+#: (particles drawn from the first corrections' likelihood, every mode kept by mixture
+#: resampling; reports/decisions.md, "Mode-keeping filter")
+FILTERS = {
+    "paper": {"acquisition": False, "mixture": False, "monitor": False},
+    "mode-keeping": {"acquisition": True, "mixture": True, "monitor": False},
+}
+#: the filter whose switches are :class:`FilterSettings`' defaults, run by a configuration
+#: that names none (callers that must run the paper's filter, e.g. the golden runs and the
+#: reproduction's paper rows, name ``"paper"``)
+DEFAULT_FILTER = "paper"
 BACKENDS = ("auto", "numba", "numpy")
 RESAMPLE_WHEN = ("always", "ess")
 
@@ -660,10 +675,10 @@ class ParticleFilter:
             # equal weights now; the old weighted mean still lies inside the cloud
             self._weighed = (self.particles.log_weight, self._equal_weights(), float(p.n), origin)
         else:
-            ancestors, log_weight = self.mixture.resample(self, weights)
+            ancestors, log_weight, weights, n_eff, mean = self.mixture.resample(self, weights)
             self._take(p, ancestors)
             self.particles.log_weight = log_weight
-            self.keep_weights(np.exp(log_weight))
+            self._weighed = (log_weight, weights, n_eff, mean)
         self.last_ancestors = ancestors
         for collector in self.collect:
             collector.resampled(self, ancestors)
@@ -885,9 +900,10 @@ class ParticleFilter:
         )
 
 
-def _switch(help_text: str):
-    """A yes/no setting of the filter section, off by default (the paper's filter)."""
-    return setting(False, help=help_text, check=boolean)
+def _switch(help_text: str, key: str | None = None):
+    """A yes/no setting of the filter section: by default as :data:`DEFAULT_FILTER` sets
+    ``key`` (off when it does not)."""
+    return setting(FILTERS[DEFAULT_FILTER].get(key, False), help=help_text, check=boolean)
 
 
 def _tempering_ess(name: str, value) -> float:
@@ -923,15 +939,16 @@ class FilterSettings(Settings):
     mixture : bool
         Keep every mode of the posterior: resample each component of the particle cloud on
         its own (:class:`hmmtrack.tracking.mixture.Mixture`) and report the components
-        (``TrackingResult.modes``); ``False`` (default) resamples the whole cloud.
+        (``TrackingResult.modes``); ``False`` resamples the whole cloud.
     acquisition : bool
         Draw the initial particles from the likelihood of the first corrections on a grid
         over the search box (:class:`hmmtrack.tracking.acquisition.Acquisition`);
-        ``False`` (default, the paper): uniformly in the box.
+        ``False`` (the paper): uniformly in the box.
     monitor : bool
         Test each correction's predictive likelihood; after a long gap or when the tag is
         lost, record an event and re-acquire (:class:`hmmtrack.tracking.monitor.Monitor`);
-        ``False`` (default): no test.
+        ``False``: no test. The defaults of these three are those of :data:`DEFAULT_FILTER`
+        (:data:`FILTERS`).
     modes : bool
         Report the cloud's modes (``TrackingResult.modes``) and put the two heaviest beside
         each estimate, with ``converged`` declared only when one mode holds almost all the
@@ -985,13 +1002,16 @@ class FilterSettings(Settings):
         default_text="the measurement's: none for range-rate, 0.3 for arrival-time, 0.6 for ping",
     )
     mixture: bool = _switch(
-        "keep every mode: resample each component of the particle cloud on its own"
+        "keep every mode: resample each component of the particle cloud on its own",
+        "mixture",
     )
     acquisition: bool = _switch(
-        "draw the initial particles from the likelihood of the first corrections"
+        "draw the initial particles from the likelihood of the first corrections",
+        "acquisition",
     )
     monitor: bool = _switch(
-        "notice a lost tag or a long gap from the predictive likelihood and re-acquire"
+        "notice a lost tag or a long gap from the predictive likelihood and re-acquire",
+        "monitor",
     )
     modes: bool = _switch(
         "report the cloud's modes beside each estimate (always on with the mixture)"

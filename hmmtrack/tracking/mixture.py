@@ -153,6 +153,12 @@ class Mixture:
         log_weight : numpy.ndarray, shape (N,)
             Log weight ``log(π_k / N_k)`` of each new particle (the labels travel with the
             ancestors in the particle field ``component``).
+        weights : numpy.ndarray, shape (N,)
+            Their normalised weights.
+        n_eff : float
+            Their effective sample size ``1 / Σ w²``.
+        mean : (float, float)
+            Their weighted mean position (m).
         """
         p = pf.particles
         labels, component_weight, counts = _recluster_and_allocate(
@@ -168,12 +174,12 @@ class Mixture:
         )
         code = SCHEME_CODES[pf.resampling]
         draws = scheme_draws(pf.rng, code, p.n, int(np.count_nonzero(counts)))
-        ancestors, log_weight = resample_components(
-            weights, labels, counts, component_weight, code, draws
+        ancestors, log_weight, new_weights, summary = resample_components(
+            weights, labels, counts, component_weight, code, draws, p.x, p.y
         )
         # live components numbered 0..K-1 in order (the labels travel with the ancestors)
         p.extra[COMPONENT] = np.cumsum(counts > 0)[labels] - 1
-        return ancestors, log_weight
+        return ancestors, log_weight, new_weights, float(summary[0]), (summary[1], summary[2])
 
     def recluster(self, x, y, weights, labels) -> np.ndarray:
         """New component labels (N,): merge components whose means meet, split those that
@@ -207,7 +213,7 @@ class Mixture:
             float(self.min_separation),
             float(self.split_share),
             float(self.prune_weight),
-        )
+        )[0]
 
 
 #: codes of the resampling schemes in :func:`resample_components`
@@ -231,17 +237,14 @@ def _recluster_and_allocate(
 ):
     """The compiled part of :meth:`Mixture.resample` before the draws: the new labels
     (N,), the component weights (K,) and the particles each gets (K,), :func:`allocate`."""
-    labels = _recluster(
+    labels, component_weight = _recluster(
         x, y, weights, labels, max_components, min_separation, split_share, prune_weight
     )
-    component_weight = np.zeros(labels.max() + 1)
-    for i in range(labels.size):
-        component_weight[labels[i]] += weights[i]
     return labels, component_weight, allocate(component_weight, labels.size, prune_weight, floor)
 
 
 @njit(cache=True)
-def resample_components(weights, labels, counts, component_weight, code, draws):
+def resample_components(weights, labels, counts, component_weight, code, draws, x, y):
     """Resample each component on its own (compiled; the scheme by its code).
 
     Component ``k`` gets ``counts[k]`` ancestors among its particles, drawn by the scheme of
@@ -263,6 +266,8 @@ def resample_components(weights, labels, counts, component_weight, code, draws):
         :data:`SCHEME_CODES`.
     draws : numpy.ndarray
         The scheme's random numbers for the live components in order (:func:`scheme_draws`).
+    x, y : numpy.ndarray, shape (N,)
+        Positions (m), for the new particles' weighted mean.
 
     Returns
     -------
@@ -271,21 +276,37 @@ def resample_components(weights, labels, counts, component_weight, code, draws):
     log_weight : numpy.ndarray, shape (sum(counts),)
         ``log(π_k / N_k)`` with ``π_k`` the component's share of the live components'
         weight.
+    new_weights : numpy.ndarray, shape (sum(counts),)
+        ``exp(log_weight)``.
+    summary : numpy.ndarray, shape (3,)
+        The new particles' ESS ``1 / Σ w²`` and weighted mean x, y (m): what the filter
+        keeps beside the weights (:meth:`hmmtrack.tracking.filter.ParticleFilter.weights`),
+        summed here, one component at a time, rather than by NumPy's dot products (which
+        hand arrays over 10,000 to OpenBLAS threads: a millisecond or more per call on a
+        busy machine).
     """
     n_components = counts.size
     start = np.zeros(n_components + 1, dtype=np.int64)
+    # labels in component order (as a resampling leaves them): each component's particles
+    # are a slice, so no index list is built and no weights are gathered
+    grouped = True
     for i in range(labels.size):
         start[labels[i] + 1] += 1
+        if i > 0 and labels[i] < labels[i - 1]:
+            grouped = False
     for k in range(n_components):
         start[k + 1] += start[k]
-    members = np.empty(labels.size, dtype=np.int64)
-    fill = start[:-1].copy()
-    for i in range(labels.size):
-        members[fill[labels[i]]] = i
-        fill[labels[i]] += 1
+    members = np.empty(0 if grouped else labels.size, dtype=np.int64)
+    if not grouped:
+        fill = start[:-1].copy()
+        for i in range(labels.size):
+            members[fill[labels[i]]] = i
+            fill[labels[i]] += 1
     total = counts.sum()
     ancestors = np.empty(total, dtype=np.int64)
     log_weight = np.empty(total)
+    new_weights = np.empty(total)
+    sum_squares = mean_x = mean_y = 0.0
     live = 0.0
     for k in range(n_components):
         if counts[k] > 0:
@@ -296,8 +317,9 @@ def resample_components(weights, labels, counts, component_weight, code, draws):
         c = counts[k]
         if c == 0:
             continue
-        own = members[start[k] : start[k + 1]]
-        w = weights if n_components == 1 else weights[own]
+        lo, hi = start[k], start[k + 1]
+        own = members[lo:hi] if not grouped else members
+        w = weights[lo:hi] if grouped else weights[own]
         scale = 1.0 / component_weight[k]
         if code == 0:  # multinomial
             spacings = draws[d : d + c + 1]
@@ -307,10 +329,10 @@ def resample_components(weights, labels, counts, component_weight, code, draws):
             expected = c * scale * w
             copies = np.floor(expected).astype(np.int64)
             kept = 0
-            for i in range(own.size):
+            for i in range(hi - lo):
                 for _ in range(copies[i]):
                     if kept < c:
-                        ancestors[at + kept] = own[i]
+                        ancestors[at + kept] = lo + i if grouped else own[i]
                         kept += 1
             left = c - kept
             if left > 0:
@@ -318,7 +340,7 @@ def resample_components(weights, labels, counts, component_weight, code, draws):
                 spacings = draws[d : d + left + 1]
                 drawn = invert(rest, 1.0 / rest.sum(), spacings, left, 1.0 / spacings.sum(), True)
                 for j in range(left):
-                    ancestors[at + kept + j] = own[drawn[j]]
+                    ancestors[at + kept + j] = lo + drawn[j] if grouped else own[drawn[j]]
             chosen = np.empty(0, dtype=np.int64)
             d += c + 1
         elif code == 2:  # stratified
@@ -327,11 +349,21 @@ def resample_components(weights, labels, counts, component_weight, code, draws):
         else:  # systematic
             chosen = invert(w, scale, (np.arange(c) + draws[d]) / c, c, 1.0, False)
             d += 1
+        log_w = math.log(component_weight[k] / live / c)
+        w_k = math.exp(log_w)
+        log_weight[at : at + c] = log_w
+        new_weights[at : at + c] = w_k
         for j in range(chosen.size):
-            ancestors[at + j] = own[chosen[j]]
-        log_weight[at : at + c] = math.log(component_weight[k] / live / c)
+            ancestors[at + j] = lo + chosen[j] if grouped else own[chosen[j]]
+        sx = sy = 0.0
+        for j in range(at, at + c):
+            sx += x[ancestors[j]]
+            sy += y[ancestors[j]]
+        sum_squares += c * w_k * w_k
+        mean_x += w_k * sx
+        mean_y += w_k * sy
         at += c
-    return ancestors, log_weight
+    return ancestors, log_weight, new_weights, np.array([1.0 / sum_squares, mean_x, mean_y])
 
 
 @njit(cache=True)
@@ -351,7 +383,8 @@ def _meet(a, b, min_separation):
 
 @njit(cache=True)
 def _recluster(x, y, weights, labels, max_components, min_separation, split_share, prune_weight):
-    """:meth:`Mixture.recluster`, compiled (its settings as arguments)."""
+    """:meth:`Mixture.recluster`, compiled (its settings as arguments); also the new
+    components' weights (K,), each summed over its particles in index order."""
     n_components = labels.max() + 1
     moments = component_moments(x, y, weights, labels, n_components)
     target = np.arange(n_components)
@@ -363,12 +396,14 @@ def _recluster(x, y, weights, labels, max_components, min_separation, split_shar
     for k in range(n_components):
         present[target[k]] = 1
     rank = np.cumsum(present) - 1
-    new = np.empty(labels.size, dtype=np.int64)
-    for i in range(labels.size):
-        new[i] = rank[target[labels[i]]]
     merged = rank[-1] + 1
     if merged < n_components:
+        new = np.empty(labels.size, dtype=np.int64)
+        for i in range(labels.size):
+            new[i] = rank[target[labels[i]]]
         moments = component_moments(x, y, weights, new, merged)
+    else:
+        new = labels.copy()
     n_components = merged
     min_variance = (0.5 * min_separation) ** 2 * split_share
     for k in range(merged):
@@ -380,7 +415,8 @@ def _recluster(x, y, weights, labels, max_components, min_separation, split_shar
         largest = 0.5 * (var_x + var_y) + math.sqrt(half * half + cov_xy * cov_xy)
         if moments[k, 0] <= prune_weight or largest < min_variance:
             continue
-        members = np.flatnonzero(new == k)
+        # one component: every particle is a member (no pass to list them)
+        members = np.arange(new.size) if merged == 1 else np.flatnonzero(new == k)
         if members.size < 2:
             continue
         # the test on an evenly strided sample of at most SPLIT_SAMPLE particles
@@ -393,7 +429,12 @@ def _recluster(x, y, weights, labels, max_components, min_separation, split_shar
                 if (x[i] - mx) * ax + (y[i] - my) * ay >= cut:
                     new[i] = n_components
             n_components += 1
-    return new
+    if n_components == merged:  # no split: the moments' weights, summed in the same order
+        return new, moments[:, 0].copy()
+    component_weight = np.zeros(n_components)
+    for i in range(new.size):
+        component_weight[new[i]] += weights[i]
+    return new, component_weight
 
 
 @njit(cache=True)
