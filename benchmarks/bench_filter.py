@@ -20,9 +20,9 @@ default threads (the faster of those run) and 5x on one thread, the HMM models 1
 
 A second table (issue 13) prices the mode-keeping filter on the paper's scenarios: the
 CPU time of ``track()`` on the swimmer and the shark pursuit (synthetic dataset 0, the
-whole run) with acquisition and the mixture (``FilterSettings(acquisition=True,
-mixture=True)``) against the plain filter at the same particle count (process CPU time, all
-threads), in the same run, best of ``--repeat``; the budget is 1.3x.
+whole run) with the mode-keeping filter (``filter="mode-keeping"``: acquisition and the
+mixture) against the paper's (``filter="paper"``) at the same particle count (process CPU
+time, all threads), in the same run, best of ``--repeat``; the budget is 1.3x.
 
 A third table (``--section correction``) times one correction and resampling as the
 filter runs them (the compiled weighing into reused arrays, multinomial resampling with the
@@ -145,8 +145,8 @@ def mode_keeping_cost(sizes, repeat: int) -> None:
             motion = motion_model(motion_name)
             for n in sizes:
                 cpu = {}
-                for label, changes in (("plain", {}), ("modes", MODE_KEEPING)):
-                    config = tracking_config(scenario, n_particles=n, **changes)
+                for label, name in (("plain", "paper"), ("modes", "mode-keeping")):
+                    config = tracking_config(scenario, n_particles=n, filter=name)
                     cpu[label] = np.inf
                     for k in range(repeat + 1):  # the first run loads the compiled kernels
                         start = time.process_time()
@@ -190,10 +190,6 @@ def correction_cost(sizes) -> None:
                     correction_cycle(rng, *data, scratch[threads])
                 best[threads] = min(best[threads], (time.perf_counter() - start) / calls)
         print(f"{n:>8}{best[1] * 1e3:>10.3f}{best[2] * 1e3:>10.3f}{best[1] / best[2]:>7.2f}")
-
-
-#: the mode-keeping settings priced by :func:`mode_keeping_cost`
-MODE_KEEPING = {"acquisition": True, "mixture": True}
 
 
 def main() -> None:

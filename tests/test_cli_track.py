@@ -917,3 +917,16 @@ def test_sigma_options_name_a_bad_covariance_of_the_config_file(tmp_path, capsys
     err = capsys.readouterr().err
     assert f"{bad}, command line, section 'measurement' (range-rate): range_rate_correlation" in err
     assert "must lie in (-1, 1), got 2" in err
+
+
+def test_filter_names_the_filter_and_the_switches_override_it():
+    base = ["track", "--detections", "d.csv", "--receivers", "r.csv", "-o", "e.csv"]
+    base += ["--period", "8", "--r0", "a=1"]
+
+    def switches(*extra):
+        built = build_config(build_parser().parse_args([*base, *extra])).filter
+        return built.acquisition, built.mixture, built.monitor
+
+    assert switches("--filter", "paper") == (False, False, False)
+    assert switches("--filter", "mode-keeping") == (True, True, False)
+    assert switches("--filter", "mode-keeping", "--no-mixture", "--monitor") == (True, False, True)

@@ -55,6 +55,7 @@ from hmmtrack.tracking.config import (
     section_classes,
     section_default,
 )
+from hmmtrack.tracking.filter import DEFAULT_FILTER, FILTERS
 from hmmtrack.tracking.measurement.tdoa import per_ping_table
 from hmmtrack.tracking.settings import boolean
 
@@ -236,6 +237,15 @@ def register(subparsers) -> None:
         choices=tuple(section_classes("motion")),
         help=f"motion model (default: {SECTIONS['motion']}; baseline for --measurement ping)",
     )
+    parser.add_argument(
+        "--filter",
+        choices=tuple(FILTERS),
+        help=(
+            "named filter: paper (particles uniform in the box, the whole cloud resampled) or "
+            "mode-keeping (--acquisition --mixture); the switch options override it "
+            f"(default: {DEFAULT_FILTER})"
+        ),
+    )
     for option in settings_options():
         _add(parser, option)
     parser.add_argument(
@@ -263,7 +273,7 @@ def register(subparsers) -> None:
 
 def _given(args: argparse.Namespace) -> dict:
     """The settings given as options, by key (``r0`` pairs as a mapping)."""
-    given = {key: getattr(args, key) for key in ("measurement", "motion")}
+    given = {key: getattr(args, key) for key in ("measurement", "motion", "filter")}
     if given["measurement"] is None and args.burst_sequence is not None:
         given["measurement"] = "ping-sequence"  # a known sequence is the ping-sequence's
     elif given["measurement"] is None and args.burst_interval is not None:
