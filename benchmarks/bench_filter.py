@@ -145,8 +145,8 @@ def mode_keeping_cost(sizes, repeat: int) -> None:
             motion = motion_model(motion_name)
             for n in sizes:
                 cpu = {}
-                for label, name in (("plain", "paper"), ("modes", "mode-keeping")):
-                    config = tracking_config(scenario, n_particles=n, filter=name)
+                for label, filter_name in (("plain", "paper"), ("modes", "mode-keeping")):
+                    config = tracking_config(scenario, n_particles=n, filter=filter_name)
                     cpu[label] = np.inf
                     for k in range(repeat + 1):  # the first run loads the compiled kernels
                         start = time.process_time()

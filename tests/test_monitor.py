@@ -7,10 +7,12 @@ import warnings
 
 import numpy as np
 import pandas as pd
+import pytest
 
+from hmmtrack.tracking.acquisition import grid_loglik
 from hmmtrack.tracking.filter import ParticleFilter
 from hmmtrack.tracking.measurement.range_rate import RANGE_RATE_COLUMNS, RangeRateMeasurement
-from hmmtrack.tracking.monitor import Monitor
+from hmmtrack.tracking.monitor import Monitor, grid_evidence
 from hmmtrack.tracking.motion import BaselineMotion, VelocityMotion
 
 DAY = 86_400.0
@@ -136,3 +138,27 @@ def test_the_monitor_is_quiet_on_clean_runs():
         last = result.estimates.iloc[-1]
         assert np.hypot(last["x"], last["y"]) < 10.0
     assert false_alarms == 0
+
+
+def still_corrections(rng):
+    """Corrections (time, rows) of the still tag heard every 8 s for 2 min."""
+    return [
+        (t, boat_observations(rng, times=[t]).to_numpy()[:, 1:]) for t in np.arange(0.0, 120.0, 8.0)
+    ]
+
+
+def test_the_grid_evidence_is_an_average_over_the_box_not_its_best_cell():
+    """Still (``speed`` 0): the log of the mean likelihood over the cells, far below the
+    best cell's (the comparison the monitor used to make); a swimming prior (1.5 m/s)
+    spreads each earlier correction's likelihood, so the evidence changes but stays
+    below the best cell's."""
+    measurement = RangeRateMeasurement.from_std(5.0, 0.5)
+    corrections = still_corrections(np.random.default_rng(5))
+    _, total = grid_loglik(measurement, BOUNDS, 64, corrections)
+    top = total.max()
+    expected = top + np.log(np.mean(np.exp(total - top)))
+    still = grid_evidence(measurement, BOUNDS, 64, corrections, 0.0)
+    assert still == pytest.approx(expected, abs=1e-9)
+    assert still < top - 5.0
+    swimming = grid_evidence(measurement, BOUNDS, 64, corrections, 1.5)
+    assert swimming != still and swimming < top

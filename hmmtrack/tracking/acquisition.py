@@ -143,7 +143,7 @@ class Acquisition:
         )
 
 
-def grid_loglik(measurement, bounds, cells: int, corrections, dt: float = 1.0):
+def grid_loglik(measurement, bounds, cells: int, corrections, dt: float = 1.0, each: bool = False):
     """The summed log-likelihood of ``corrections`` at the points of a grid over ``bounds``.
 
     Parameters
@@ -160,14 +160,17 @@ def grid_loglik(measurement, bounds, cells: int, corrections, dt: float = 1.0):
         Times (s) and observations in the measurement's form.
     dt : float
         The filter's step (s), for the measurement's ``start`` hook.
+    each : bool
+        Return each correction's terms instead of their sum: ``p(y_k | y_1..k-1)`` at each
+        still point (its own log-likelihood for a measurement without a run state).
 
     Returns
     -------
     grid : Particles
         ``cells**2`` particles at rest at the cell centres (row-major: y, then x).
-    loglik : numpy.ndarray, shape (cells**2,)
-        Sum over the corrections; finite (``-inf`` replaced by the lowest finite value
-        minus 50 nats, a cell that no observation allows).
+    loglik : numpy.ndarray, shape (cells**2,), or (len(corrections), cells**2) with ``each``
+        Sum over the corrections (or each term); finite (``-inf`` replaced by the lowest
+        finite value minus 50 nats, a cell that no observation allows).
     """
     xmin, xmax, ymin, ymax = as_bounds(bounds)
     cx = xmin + (np.arange(cells) + 0.5) * (xmax - xmin) / cells
@@ -178,20 +181,19 @@ def grid_loglik(measurement, bounds, cells: int, corrections, dt: float = 1.0):
     score = getattr(measurement, "score", None)
     state = None if start is None else start(grid, float(corrections[0][0]), dt)
     weights = np.full(grid.n, 1.0 / grid.n)
-    total = np.zeros(grid.n)
-    for time, rows in corrections:
+    terms = np.zeros((len(corrections) if each else 1, grid.n))
+    for k, (time, rows) in enumerate(corrections):
         if score is None:
-            total += measurement.loglik(grid, rows, time=time)
+            terms[k if each else 0] += measurement.loglik(grid, rows, time=time)
         else:
             scored = score(grid, rows, time, state, weights)
-            total += scored.loglik
+            terms[k if each else 0] += scored.loglik
             if scored.commit is not None:
                 scored.commit(grid)
-    finite = np.isfinite(total)
-    if not finite.any():
-        return grid, np.zeros(grid.n)
-    total[~finite] = total[finite].min() - 50.0
-    return grid, total
+    for term in terms:
+        finite = np.isfinite(term)
+        term[~finite] = term[finite].min() - 50.0 if finite.any() else 0.0
+    return grid, terms if each else terms[0]
 
 
 def temper(loglik: np.ndarray, min_ess: float) -> float:

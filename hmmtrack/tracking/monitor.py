@@ -14,12 +14,16 @@ gave the detections before they were heard. :class:`Monitor` tests it at every c
   ``long_gap``, then ``reacquired``);
 * **lost tag**: the predictive log-likelihood per observation falls more than ``drop``
   nats below its running median (of the last ``reference`` normal corrections) in
-  ``patience`` corrections in a row. The suspicion is confirmed when a point of the grid
-  explains these suspicious corrections (those of them within the acquisition window of
-  the latest) better than the particles did by more than ``margin`` nats in all (event
-  ``tag_lost``, then ``reacquired``: the particles take the grid posterior of those
-  corrections, :meth:`hmmtrack.tracking.acquisition.Acquisition.reacquire`). Only the
-  suspicious ones: the earlier corrections may describe the tag before it moved.
+  ``patience`` corrections in a row. The suspicion is confirmed when the grid explains
+  these suspicious corrections (those of them within the acquisition window of the latest)
+  better than the particles did by more than ``margin`` nats in all (event ``tag_lost``,
+  then ``reacquired``: the particles take the grid posterior of those corrections,
+  :meth:`hmmtrack.tracking.acquisition.Acquisition.reacquire`). Only the suspicious ones:
+  the earlier corrections may describe the tag before it moved. Like is compared with like:
+  the particles' predictive likelihood is an average over where they put the tag, so the
+  grid's is an average too (:func:`grid_evidence`: over the box, a tag that may swim
+  ``speed`` m/s between each correction and the latest), not the best of its cells (the
+  best of 4,096 cells beats a good filter by chance).
 
 The grid covers a box of the start box's size centred on the cloud's weighted mean (the
 mirror point of an intersection lies within a ring's diameter of the true one). After a
@@ -36,10 +40,11 @@ from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy import ndimage
 
 from hmmtrack.tracking.acquisition import Acquisition, grid_loglik
 
-__all__ = ["Monitor"]
+__all__ = ["Monitor", "grid_evidence"]
 
 #: corrections before the running median is trusted as the reference
 WARM_UP = 10
@@ -59,8 +64,11 @@ class Monitor:
     patience : int
         Suspicious corrections in a row before the grid is asked.
     margin : float
-        Nats by which the grid's best point must explain the suspicious corrections
-        better than the particles did to declare the tag lost.
+        Nats by which the grid must explain the suspicious corrections better than the
+        particles did to declare the tag lost (:func:`grid_evidence`).
+    speed : float
+        m/s: how fast the tag may swim in the grid's explanation (the synthetic shark
+        pursuit's shark swims at 1.0 m/s in the median, 1.7 m/s at the 99th percentile).
     reference : int
         Normal corrections in the running median.
     gap_ess : float
@@ -74,15 +82,16 @@ class Monitor:
     drop: float = 4.0
     patience: int = 3
     margin: float = 10.0
+    speed: float = 1.5
     reference: int = 50
     gap_ess: float = 0.25
     acquisition: Acquisition = field(default_factory=Acquisition)
 
     def __post_init__(self) -> None:
-        if not (self.max_gap > 0 and self.drop > 0 and self.margin >= 0):
+        if not (self.max_gap > 0 and self.drop > 0 and self.margin >= 0 and self.speed >= 0):
             raise ValueError(
-                f"max_gap and drop must be positive, margin non-negative; got {self.max_gap}, "
-                f"{self.drop}, {self.margin}"
+                f"max_gap and drop must be positive, margin and speed non-negative; got "
+                f"{self.max_gap}, {self.drop}, {self.margin}, {self.speed}"
             )
         for name in ("patience", "reference"):
             value = getattr(self, name)
@@ -135,12 +144,14 @@ class Monitor:
         recent = [(t, r) for t, r, _ in self._history if time - t <= window]
         particles = sum(lp for t, _, lp in self._history if time - t <= window)
         box = self._box(pf)
-        _, grid = grid_loglik(pf.measurement, box, self.acquisition.cells, recent, pf.dt)
-        if grid.max() - particles > self.margin:
+        evidence = grid_evidence(
+            pf.measurement, box, self.acquisition.cells, recent, self.speed, pf.dt
+        )
+        if evidence - particles > self.margin:
             pf.alarm(
                 "tag_lost",
-                f"a point of the grid explains the last {len(recent)} correction(s) better "
-                f"than the particles by {grid.max() - particles:.1f} nats",
+                f"the grid explains the last {len(recent)} correction(s) better than the "
+                f"particles by {evidence - particles:.1f} nats",
             )
             self._reacquire(pf, recent, None, box)
             return True
@@ -168,3 +179,45 @@ def _log_mean_exp(loglik: np.ndarray, weights: np.ndarray) -> float:
     if not math.isfinite(top):
         return -math.inf
     return top + math.log(float(weights @ np.exp(loglik - top)))
+
+
+def grid_evidence(measurement, bounds, cells: int, corrections, speed: float, dt: float = 1.0):
+    """Log-likelihood of ``corrections`` for a tag anywhere in ``bounds`` that may swim.
+
+    The prior puts the tag at the latest correction uniformly over the grid's cells, and at
+    each earlier correction ``t`` uniformly within ``speed · (t_latest − t)`` (a square, in
+    whole cells) of that place: each correction's likelihood on the grid
+    (:func:`hmmtrack.tracking.acquisition.grid_loglik`, its terms) is averaged over that
+    square, the logs summed over the corrections, and their exponentials averaged over the
+    cells. The average of a likelihood under a prior, as the particles' predictive
+    likelihood is; a still tag (``speed`` 0) is the plain average over the cells.
+
+    Parameters
+    ----------
+    measurement, bounds, cells, dt
+        As :func:`hmmtrack.tracking.acquisition.grid_loglik`.
+    corrections : sequence of (float, rows)
+        Times (s, increasing) and observations.
+    speed : float
+        m/s.
+
+    Returns
+    -------
+    float
+        Nats.
+    """
+    _, terms = grid_loglik(measurement, bounds, cells, corrections, dt, each=True)
+    xmin, xmax, ymin, ymax = bounds
+    cell = min((xmax - xmin) / cells, (ymax - ymin) / cells)
+    latest = corrections[-1][0]
+    total = np.zeros((cells, cells))
+    for (time, _), term in zip(corrections, terms, strict=True):
+        reach = int(speed * (latest - time) / cell + 0.5)
+        grid = term.reshape(cells, cells)
+        if reach > 0:
+            top = grid.max()
+            spread = ndimage.uniform_filter(np.exp(grid - top), 2 * reach + 1, mode="nearest")
+            grid = top + np.log(np.maximum(spread, np.finfo(float).tiny))
+        total += grid
+    flat = total.ravel()
+    return _log_mean_exp(flat, np.full(flat.size, 1.0 / flat.size))
