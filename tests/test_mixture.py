@@ -182,6 +182,42 @@ def test_component_moments_match_numpy():
     np.testing.assert_array_equal(moments[3], 0.0)
 
 
+def test_component_moments_are_the_same_on_one_and_two_threads():
+    """Chunk sums combined in chunk order: one answer whatever the number of threads (here
+    98 chunks of 1,024 particles), and the weights as NumPy sums them to 1e-12."""
+    rng = np.random.default_rng(6)
+    n = 100_000
+    x, y = rng.normal(1e5, 20.0, n), rng.normal(-3e4, 5.0, n)
+    weights = rng.random(n)
+    weights /= weights.sum()
+    labels = rng.integers(0, 3, n)
+    serial = component_moments(x, y, weights, labels, 3, threads=1)
+    np.testing.assert_array_equal(component_moments(x, y, weights, labels, 3, threads=2), serial)
+    np.testing.assert_allclose(serial[:, 0], np.bincount(labels, weights), rtol=1e-12)
+
+
+def test_a_mixture_run_is_the_same_on_one_and_two_threads():
+    """60,000 particles (the correction's and the mixture's passes on the filter's threads
+    from 50,000): the same seed gives the same weights and particles on one thread and on
+    two."""
+    runs = []
+    for threads in (1, 2):
+        pf = ParticleFilter(
+            BaselineMotion(WALK),
+            MirrorToy(),
+            60_000,
+            BOX,
+            rng=3,
+            mixture=Mixture(),
+            threads=threads,
+        )
+        result = pf.run(toy_observations(3).iloc[:40])
+        runs.append((result.estimates, pf.particles.x.copy(), pf.weights()[0].copy()))
+    pd.testing.assert_frame_equal(runs[0][0], runs[1][0], check_exact=True)
+    np.testing.assert_array_equal(runs[0][1], runs[1][1])
+    np.testing.assert_array_equal(runs[0][2], runs[1][2])
+
+
 def test_mixture_resampling_keeps_component_weights_and_equal_weights_within():
     pf = ParticleFilter(
         BaselineMotion(WALK), MirrorToy(), 400, BOX, rng=7, mixture=Mixture(), collect=[Modes()]

@@ -379,7 +379,7 @@ class ParticleFilter:
         # processes of hmmtrack.experiments.executors, which run one trial per core)
         self._thread_choice = ThreadChoice(numba.get_num_threads())
         # threads of the latest compiled prediction (else ``threads`` or one): the
-        # corrections' too from PARALLEL_MIN_CORRECTION particles (see _correction_threads)
+        # corrections' too from PARALLEL_MIN_CORRECTION particles (see correction_threads)
         self._threads_in_use = 1 if threads is None else threads
         # (threads, start, particle-steps) of the timed prediction under way: the thread
         # choice is told the cost of each prediction with the correction and resampling that
@@ -441,7 +441,7 @@ class ParticleFilter:
     def estimate(self) -> Estimate:
         """Weighted estimate of the current particles at the current time."""
         p = self._require_particles()
-        summary = _weight_summary(p.x, p.y, p.log_weight, self._correction_threads())
+        summary = _weight_summary(p.x, p.y, p.log_weight, self.correction_threads())
         return _estimate(self.time, *summary[2:])
 
     def _require_particles(self) -> Particles:
@@ -489,7 +489,7 @@ class ParticleFilter:
         if self._weighed is not None and self._weighed[0] is p.log_weight:
             return self._weighed[1:]
         weights, _, mean_x, mean_y, _, _, _, n_eff = _weight_summary(
-            p.x, p.y, p.log_weight, self._correction_threads()
+            p.x, p.y, p.log_weight, self.correction_threads()
         )
         return weights, n_eff, (mean_x, mean_y)
 
@@ -510,7 +510,7 @@ class ParticleFilter:
             p, self._streams, n_steps, self.dt, weights, origin, threads=threads
         )
 
-    def _correction_threads(self) -> int:
+    def correction_threads(self) -> int:
         """Threads of corrections and resamplings: the latest prediction's from
         :data:`PARALLEL_MIN_CORRECTION` particles, else one."""
         return self._threads_in_use if self.n_particles >= PARALLEL_MIN_CORRECTION else 1
@@ -569,7 +569,7 @@ class ParticleFilter:
                 f"expected ({p.n},), at time {self.time} for observations:\n{rows()}"
             )
         status, log_weight, weights, *moments, n_eff = _weigh(
-            p.log_weight, loglik, p.x, p.y, self._correction_threads(), self._buffers(p)
+            p.log_weight, loglik, p.x, p.y, self.correction_threads(), self._buffers(p)
         )
         if status == 1:
             raise ValueError(
@@ -669,7 +669,7 @@ class ParticleFilter:
         p = self.particles
         weights, _, origin = self.weights()
         if self.mixture is None:
-            self._scratch.threads = self._correction_threads()
+            self._scratch.threads = self.correction_threads()
             ancestors = self._resample(self.rng, weights, p.n, self._scratch)
             self._take(p, ancestors)
             # equal weights now; the old weighted mean still lies inside the cloud
@@ -688,7 +688,7 @@ class ParticleFilter:
         spare arrays (those of the particles before the previous resampling, which nothing
         holds on to) on the correction's threads; ``p``'s arrays become the spare ones."""
         spare = self._spare
-        self.particles = p.take(ancestors, True, out=spare, threads=self._correction_threads())
+        self.particles = p.take(ancestors, True, out=spare, threads=self.correction_threads())
         self._spare = p
 
     def _equal_weights(self) -> np.ndarray:

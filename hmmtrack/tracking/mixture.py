@@ -35,10 +35,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 import pandas as pd
 from numba import njit
 
+from hmmtrack.tracking.compiled.chunks import chunking, in_chunks, next_chunk
 from hmmtrack.tracking.particles import split_in_two, sqrt_largest_eigenvalue
 from hmmtrack.tracking.resampling import invert
 
@@ -161,11 +163,16 @@ class Mixture:
             Their weighted mean position (m).
         """
         p = pf.particles
+        labels = p.extra[COMPONENT]
+        moments = component_moments(
+            p.x, p.y, weights, labels, int(labels.max()) + 1, pf.correction_threads()
+        )
         labels, component_weight, counts = _recluster_and_allocate(
             p.x,
             p.y,
             weights,
-            p.extra[COMPONENT],
+            labels,
+            moments,
             int(self.max_components),
             float(self.min_separation),
             float(self.split_share),
@@ -209,6 +216,7 @@ class Mixture:
             y,
             weights,
             labels,
+            _component_moments(x, y, weights, labels, int(labels.max()) + 1),
             int(self.max_components),
             float(self.min_separation),
             float(self.split_share),
@@ -233,12 +241,14 @@ def scheme_draws(rng: np.random.Generator, code: int, n: int, live: int) -> np.n
 
 @njit(cache=True)
 def _recluster_and_allocate(
-    x, y, weights, labels, max_components, min_separation, split_share, prune_weight, floor
-):
-    """The compiled part of :meth:`Mixture.resample` before the draws: the new labels
-    (N,), the component weights (K,) and the particles each gets (K,), :func:`allocate`."""
+    x, y, weights, labels, moments, max_components, min_separation, split_share, prune_weight,
+    floor,
+):  # fmt: skip
+    """The compiled part of :meth:`Mixture.resample` before the draws, from the components'
+    moments (:func:`component_moments`): the new labels (N,), the component weights (K,)
+    and the particles each gets (K,), :func:`allocate`."""
     labels, component_weight = _recluster(
-        x, y, weights, labels, max_components, min_separation, split_share, prune_weight
+        x, y, weights, labels, moments, max_components, min_separation, split_share, prune_weight
     )
     return labels, component_weight, allocate(component_weight, labels.size, prune_weight, floor)
 
@@ -382,11 +392,13 @@ def _meet(a, b, min_separation):
 
 
 @njit(cache=True)
-def _recluster(x, y, weights, labels, max_components, min_separation, split_share, prune_weight):
-    """:meth:`Mixture.recluster`, compiled (its settings as arguments); also the new
-    components' weights (K,), each summed over its particles in index order."""
+def _recluster(
+    x, y, weights, labels, moments, max_components, min_separation, split_share, prune_weight
+):  # fmt: skip
+    """:meth:`Mixture.recluster`, compiled (its settings as arguments), from the current
+    components' moments (:func:`component_moments`); also the new components' weights
+    (K,)."""
     n_components = labels.max() + 1
-    moments = component_moments(x, y, weights, labels, n_components)
     target = np.arange(n_components)
     for j in range(n_components):
         for k in range(j + 1, n_components):
@@ -401,7 +413,7 @@ def _recluster(x, y, weights, labels, max_components, min_separation, split_shar
         new = np.empty(labels.size, dtype=np.int64)
         for i in range(labels.size):
             new[i] = rank[target[labels[i]]]
-        moments = component_moments(x, y, weights, new, merged)
+        moments = _component_moments(x, y, weights, new, merged)
     else:
         new = labels.copy()
     n_components = merged
@@ -472,9 +484,86 @@ def allocate(component_weight, n, prune_weight, floor):
     return np.where(live, counts + floor, 0)
 
 
-@njit(cache=True)
-def component_moments(x, y, weights, labels, n_components):
+@njit(cache=True, nogil=True)
+def _first_members(x, y, labels, n_components):
+    """Position of each component's first particle (K, 2) (NaN for an empty component): the
+    origin of its moments (no cancellation far from the origin of the frame)."""
+    origin = np.full((n_components, 2), np.nan)
+    found = 0
+    for i in range(labels.size):
+        k = labels[i]
+        if origin[k, 0] != origin[k, 0]:
+            origin[k, 0], origin[k, 1] = x[i], y[i]
+            found += 1
+            if found == n_components:
+                break
+    return origin
+
+
+@njit(cache=True, nogil=True)
+def _moment_chunks(x, y, weights, labels, origin, counter, sums):
+    """Per chunk of particles (:func:`hmmtrack.tracking.compiled.chunks.next_chunk`), each
+    component's sums of ``w``, ``w dx``, ``w dy``, ``w dx²``, ``w dy²``, ``w dx dy`` about its
+    origin into ``sums[chunk]`` (chunks not yet claimed only)."""
+    chunk, lo, hi = next_chunk(counter, x.size)
+    while chunk >= 0:
+        own = sums[chunk]
+        for i in range(lo, hi):
+            k = labels[i]
+            dx, dy, w = x[i] - origin[k, 0], y[i] - origin[k, 1], weights[i]
+            own[k, 0] += w
+            own[k, 1] += w * dx
+            own[k, 2] += w * dy
+            own[k, 3] += w * dx * dx
+            own[k, 4] += w * dy * dy
+            own[k, 5] += w * dx * dy
+        chunk, lo, hi = next_chunk(counter, x.size)
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def _moment_chunks_parallel(threads, x, y, weights, labels, origin, counter, sums):
+    """:func:`_moment_chunks` on ``threads`` threads."""
+    for _ in numba.prange(threads):
+        _moment_chunks(x, y, weights, labels, origin, counter, sums)
+
+
+@njit(cache=True, nogil=True)
+def _moments_of_sums(sums, origin):
+    """The chunks' sums combined in chunk order, as :func:`component_moments` returns them."""
+    n_components = origin.shape[0]
+    total = sums[0].copy()
+    for chunk in range(1, sums.shape[0]):
+        total += sums[chunk]
+    out = np.zeros((n_components, 6))
+    for k in range(n_components):
+        s = total[k, 0]
+        if s <= 0.0:
+            continue
+        mx, my = total[k, 1] / s, total[k, 2] / s
+        out[k, 0] = s
+        out[k, 1], out[k, 2] = origin[k, 0] + mx, origin[k, 1] + my
+        out[k, 3] = max(total[k, 3] / s - mx * mx, 0.0)
+        out[k, 4] = max(total[k, 4] / s - my * my, 0.0)
+        out[k, 5] = total[k, 5] / s - mx * my
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _component_moments(x, y, weights, labels, n_components):
+    """:func:`component_moments` on the calling thread (for compiled callers)."""
+    origin = _first_members(x, y, labels, n_components)
+    sums = np.zeros((chunking(x.size)[0], n_components, 6))
+    _moment_chunks(x, y, weights, labels, origin, np.zeros(1, dtype=np.int64), sums)
+    return _moments_of_sums(sums, origin)
+
+
+def component_moments(x, y, weights, labels, n_components: int, threads: int = 1) -> np.ndarray:
     """Weight, weighted mean and covariance of each component.
+
+    The sums run in the chunks of :mod:`hmmtrack.tracking.compiled.chunks` (on ``threads``
+    threads) and are combined in chunk order, so the result does not depend on the number
+    of threads; up to 1,024 particles (one chunk) they are one running sum in particle
+    order.
 
     Parameters
     ----------
@@ -484,6 +573,9 @@ def component_moments(x, y, weights, labels, n_components):
         Component of each particle, ``0..K-1``.
     n_components : int
         ``K``.
+    threads : int
+        Threads for the sums (the filter's :meth:`~hmmtrack.tracking.filter.ParticleFilter
+        .correction_threads`).
 
     Returns
     -------
@@ -492,31 +584,11 @@ def component_moments(x, y, weights, labels, n_components):
         weightless component. Moments are taken about each component's first particle (no
         cancellation far from the origin).
     """
-    sums = np.zeros((n_components, 6))
-    origin = np.full((n_components, 2), np.nan)
-    for i in range(x.size):
-        k = labels[i]
-        if origin[k, 0] != origin[k, 0]:
-            origin[k, 0], origin[k, 1] = x[i], y[i]
-        dx, dy, w = x[i] - origin[k, 0], y[i] - origin[k, 1], weights[i]
-        sums[k, 0] += w
-        sums[k, 1] += w * dx
-        sums[k, 2] += w * dy
-        sums[k, 3] += w * dx * dx
-        sums[k, 4] += w * dy * dy
-        sums[k, 5] += w * dx * dy
-    out = np.zeros((n_components, 6))
-    for k in range(n_components):
-        s = sums[k, 0]
-        if s <= 0.0:
-            continue
-        mx, my = sums[k, 1] / s, sums[k, 2] / s
-        out[k, 0] = s
-        out[k, 1], out[k, 2] = origin[k, 0] + mx, origin[k, 1] + my
-        out[k, 3] = max(sums[k, 3] / s - mx * mx, 0.0)
-        out[k, 4] = max(sums[k, 4] / s - my * my, 0.0)
-        out[k, 5] = sums[k, 5] / s - mx * my
-    return out
+    origin = _first_members(x, y, labels, n_components)
+    sums = np.zeros((chunking(x.size)[0], n_components, 6))
+    args = (x, y, weights, labels, origin)
+    in_chunks(_moment_chunks, _moment_chunks_parallel, x.size, threads, args, sums)
+    return _moments_of_sums(sums, origin)
 
 
 class Modes:
@@ -548,7 +620,9 @@ class Modes:
         labels = p.extra.get(COMPONENT)
         if labels is None:
             labels = _CLUSTERS.recluster(p.x, p.y, weights, np.zeros(p.n, dtype=np.int64))
-        moments = component_moments(p.x, p.y, weights, labels, int(labels.max()) + 1)
+        moments = component_moments(
+            p.x, p.y, weights, labels, int(labels.max()) + 1, pf.correction_threads()
+        )
         heaviest = moments[np.argsort(-moments[:, 0], kind="stable")[:REPORTED_MODES]]
         top = np.full((REPORTED_MODES, 6), np.nan)
         top[: len(heaviest)] = heaviest
