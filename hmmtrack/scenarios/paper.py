@@ -10,7 +10,8 @@ measured on them can be compared with the paper's only in kind.
 * :func:`stationary_tag` — Long Beach: 1,200 s, anchored tag and boat, an AUV driving away
   in 50 m increments, period 8.179 s.
 * :func:`swimmer` — Santa Elena Bay: 349 s, a swimmer moving the tag near shore, two
-  drifting boats that are each repositioned once, period 8.179 s.
+  drifting boats that are each repositioned once, period 8.179 s. Its ``start_region`` is a
+  box around the escort boats' fix of the swimmer at the start.
 * :func:`shark_pursuit` — the simulated dataset: a 150 min, 115-fix white-shark track,
   two AUVs following it with a constant offset and a low-pass lag, period 8 s, each ping lost
   with a fixed probability per metre of range, tuned so that 645 and 671 of 1,125 pings are
@@ -52,6 +53,13 @@ PURSUIT_START_FIX_ERROR = 30.0
 #: ~210 m between the tag and its mirror across the two AUVs' line at launch (offsets of
 #: 150 m at 90 degrees), so the region holds the tag and not its mirror
 PURSUIT_START_HALF_WIDTH = 100.0
+#: error (m, sd per axis) of the escort boats' fix of the swimmer when the run starts: the
+#: swimmer is in sight, 70 m from each boat
+SWIMMER_START_FIX_ERROR = 15.0
+#: half-width (m) of the swimmer's start region around that fix: 3 sd, and under half the
+#: ~99 m between the swimmer and its mirror across the boats' line at the start (both boats
+#: 70 m away at 45 and 135 degrees, on the sea side)
+SWIMMER_START_HALF_WIDTH = 45.0
 
 
 def _utc(stamp: str) -> float:
@@ -248,6 +256,11 @@ def swimmer(seed: SeedLike) -> Scenario:
     Period 8.179 s with 0.1 ms jitter; detection falls off around 250 m (logistic, at most
     90 %, a noisy surf zone); GPS noise 1.5 m on the boats' 1 Hz positions.
 
+    The boats escort a swimmer in sight: ``start_region`` is the square of half-width
+    :data:`SWIMMER_START_HALF_WIDTH` around a fix of the swimmer's first position with
+    Gaussian error :data:`SWIMMER_START_FIX_ERROR` per axis (drawn from a stream of its own,
+    so the rest of the dataset does not depend on it). The paper's filter does not use it.
+
     Parameters
     ----------
     seed : int, SeedSequence or Generator
@@ -272,7 +285,7 @@ def swimmer(seed: SeedLike) -> Scenario:
         receivers[name] = _drifting_boat(
             rng, tag, seconds, station, current, start + rng.uniform(*window)
         )
-    return _field_scenario(
+    scenario = _field_scenario(
         rng,
         name="swimmer",
         description=(
@@ -285,6 +298,7 @@ def swimmer(seed: SeedLike) -> Scenario:
         start=start,
         end=end,
     )
+    return _with_start_region(rng, scenario, tag, SWIMMER_START_FIX_ERROR, SWIMMER_START_HALF_WIDTH)
 
 
 def pursuit_track(
@@ -465,8 +479,22 @@ def shark_pursuit(
         end=end,
         transmitter="A69-9001-2020",
     )
-    x0, y0, _ = tag.position(np.array([start]))
-    error = rng.spawn(1)[0].normal(0.0, PURSUIT_START_FIX_ERROR, 2)
+    return _with_start_region(rng, scenario, tag, PURSUIT_START_FIX_ERROR, PURSUIT_START_HALF_WIDTH)
+
+
+def _with_start_region(
+    rng: np.random.Generator,
+    scenario: Scenario,
+    tag: Trajectory,
+    fix_error: float,
+    half_width: float,
+) -> Scenario:
+    """``scenario`` with its ``start_region``: the square of half-width ``half_width`` (m)
+    around a fix of the tag's first position with Gaussian error ``fix_error`` (m, per axis),
+    drawn from a stream spawned off ``rng`` so the dataset itself does not depend on it."""
+    x0, y0, _ = tag.position(np.array([scenario.start]))
+    error = rng.spawn(1)[0].normal(0.0, fix_error, 2)
     fx, fy = float(x0[0] + error[0]), float(y0[0] + error[1])
-    half = PURSUIT_START_HALF_WIDTH
-    return replace(scenario, start_region=(fx - half, fx + half, fy - half, fy + half))
+    return replace(
+        scenario, start_region=(fx - half_width, fx + half_width, fy - half_width, fy + half_width)
+    )
