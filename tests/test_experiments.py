@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -223,7 +225,9 @@ def test_more_trials_only_append_rows(small_scenarios):
 def test_start_prior_starts_the_particles_in_the_start_region(small_scenarios):
     swimmer, pursuit = small_scenarios
     with pytest.raises(ValueError, match="no start_region"):
-        ex.track_scenario(swimmer, "velocity", 1, N_PARTICLES, start_prior=True)
+        ex.track_scenario(
+            replace(swimmer, start_region=None), "velocity", 1, N_PARTICLES, start_prior=True
+        )
     run = ex.track_scenario(
         pursuit, "velocity", 1, N_PARTICLES, start_prior=True, snapshot_times=[pursuit.start]
     )

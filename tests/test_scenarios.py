@@ -32,7 +32,12 @@ from hmmtrack.scenarios import (
 )
 from hmmtrack.scenarios.detection import arrival_times, loss_per_metre_for
 from hmmtrack.scenarios.historical import ARRAY_SAMPLING, ArraySampling
-from hmmtrack.scenarios.paper import PURSUIT_START_HALF_WIDTH, auv_station_path, pursuit_track
+from hmmtrack.scenarios.paper import (
+    PURSUIT_START_HALF_WIDTH,
+    SWIMMER_START_HALF_WIDTH,
+    auv_station_path,
+    pursuit_track,
+)
 
 matplotlib.use("Agg")
 
@@ -392,6 +397,17 @@ def test_swimmer_boats_drift_and_are_each_repositioned_once():
         # one contiguous repositioning run
         assert np.count_nonzero(np.diff(motoring.astype(int)) == 1) == 1
         assert np.all(speed[~motoring] < 0.6)
+    # the start region holds the swimmer's first position and not its mirror across the
+    # boats' line (about 99 m offshore of it)
+    xmin, xmax, ymin, ymax = s.start_region
+    assert xmax - xmin == ymax - ymin == 2 * SWIMMER_START_HALF_WIDTH
+    mirror = mirror_track(s.truth.iloc[:1], exact)
+    assert mirror["separation"][0] == pytest.approx(99.0, abs=5.0)
+    for x, y, inside in (
+        (s.truth["x"][0], s.truth["y"][0], True),
+        (*mirror[["x", "y"]].iloc[0], False),
+    ):
+        assert (xmin < x < xmax and ymin < y < ymax) == inside
 
 
 def test_shark_pursuit_loses_pings_like_the_paper():
