@@ -9,6 +9,9 @@ import pandas as pd
 import pytest
 
 from hmmtrack import experiments as ex
+from hmmtrack.experiments.configs import tracking_config
+from hmmtrack.tracking import pipeline as tracking
+from hmmtrack.tracking.motion import motion_model
 
 
 def _table(rows):
@@ -224,10 +227,33 @@ def test_more_trials_only_append_rows(small_scenarios):
 
 def test_start_prior_starts_the_particles_in_the_start_region(small_scenarios):
     swimmer, pursuit = small_scenarios
-    with pytest.raises(ValueError, match="no start_region"):
-        ex.track_scenario(
-            replace(swimmer, start_region=None), "velocity", 1, N_PARTICLES, start_prior=True
-        )
+    # no start region recorded: the run starts in the search box, as without the option
+    unknown = replace(swimmer, start_region=None)
+    pd.testing.assert_frame_equal(
+        ex.track_scenario(unknown, "velocity", 1, N_PARTICLES, start_prior=True).estimates,
+        ex.track_scenario(unknown, "velocity", 1, N_PARTICLES).estimates,
+    )
+    assert not ex.run_trial(unknown, "velocity", 1, N_PARTICLES, start_prior=True).start_prior
+    # a known start replaces the named filter's acquisition: the same run as the mixture alone
+    keeping = ex.track_scenario(
+        pursuit, "velocity", 1, N_PARTICLES, start_prior=True, filter="mode-keeping"
+    )
+    mixture_only = tracking.track(
+        pursuit.detections,
+        pursuit.receivers,
+        tracking_config(
+            pursuit,
+            n_particles=N_PARTICLES,
+            depth="none",
+            shallower="clip",
+            bounds=pursuit.start_region,
+            filter="mode-keeping",
+            acquisition=False,
+        ),
+        motion_model("velocity"),
+        seed=1,
+    )
+    pd.testing.assert_frame_equal(keeping.estimates, mixture_only.estimates)
     run = ex.track_scenario(
         pursuit, "velocity", 1, N_PARTICLES, start_prior=True, snapshot_times=[pursuit.start]
     )

@@ -85,6 +85,7 @@ def test_summary_puts_our_numbers_beside_the_papers(quick_run):
         assert f"]({name})" in text
     assert "The paper's findings on our analogues" in text
     assert "filter = paper (the paper's filter)" in text  # the filter run, by default
+    assert "start = the whole search box (the paper's)" in text
     assert "## Spread between datasets and between filter runs" in text
 
 
@@ -190,3 +191,5 @@ def test_the_filter_option_offers_every_named_filter():
     parser = build_parser(["reproduce"])
     assert parser.parse_args(["reproduce"]).filter == "paper"
     assert parser.parse_args(["reproduce", "--filter", "mode-keeping"]).filter == "mode-keeping"
+    assert not parser.parse_args(["reproduce"]).start_prior
+    assert parser.parse_args(["reproduce", "--start-prior"]).start_prior

@@ -86,6 +86,13 @@ def register(subparsers) -> None:
         "drawn from the first corrections' likelihood, every mode kept by mixture resampling); "
         "summary.md says which ran",
     )
+    parser.add_argument(
+        "--start-prior",
+        action="store_true",
+        help="start each run where the field team knew the tag to be at the start (the "
+        "swimmer's and the shark pursuit's start regions; no acquisition there) instead of in "
+        "the whole search box: two receivers cannot tell the tag from its mirror",
+    )
     progress = parser.add_mutually_exclusive_group()
     progress.add_argument(
         "--progress",
@@ -148,6 +155,7 @@ def run(args: argparse.Namespace) -> int:
             max_workers=args.workers,
             progress=progress,
             filter=args.filter,
+            start_prior=args.start_prior,
         )
     finally:
         if client is not None:

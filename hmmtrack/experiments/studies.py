@@ -264,6 +264,7 @@ def loss_sweep(
     *,
     max_workers: int | None = None,
     progress: bool = False,
+    start_prior: bool = False,
     filter: str = PAPER_FILTER,
 ) -> pd.DataFrame:
     """The paper's measurement-loss sweep: detections thinned evenly, HMM model.
@@ -282,6 +283,9 @@ def loss_sweep(
         Trial ``k`` at fraction ``i`` is seeded with child ``(1, i, k)``.
     executor, max_workers, progress, n_particles
         See :func:`run_trials`.
+    start_prior : bool
+        Start in the scenario's ``start_region`` where it records one
+        (:func:`hmmtrack.experiments.trials.track_scenario`).
     filter : str
         Named filter of every trial (:data:`hmmtrack.tracking.filter.FILTERS`).
 
@@ -298,7 +302,14 @@ def loss_sweep(
     if scenario is None:
         scenario = paper_scenarios(root, names=("shark_pursuit",))["shark_pursuit"]
     cells = [
-        Cell(scenario, motion, child_seed(root, 1, i), loss_fraction=f, filter=filter)
+        Cell(
+            scenario,
+            motion,
+            child_seed(root, 1, i),
+            loss_fraction=f,
+            start_prior=start_prior,
+            filter=filter,
+        )
         for i, f in enumerate(fractions)
     ]
     return _trials_table(
@@ -346,6 +357,7 @@ def depth_analysis(
     duration: float | None = None,
     max_workers: int | None = None,
     progress: bool = False,
+    start_prior: bool = False,
     filter: str = PAPER_FILTER,
 ) -> DepthAnalysis:
     """Percent-error curve of ignoring depth, and the diving shark with and without correction.
@@ -368,6 +380,9 @@ def depth_analysis(
     motion : str
     duration : float, optional
         Track only the first ``duration`` seconds of the diving shark (:func:`truncate`).
+    start_prior : bool
+        Start in the diving shark's ``start_region`` where it records one
+        (:func:`hmmtrack.experiments.trials.track_scenario`).
     filter : str
         Named filter of every trial (:data:`hmmtrack.tracking.filter.FILTERS`).
 
@@ -384,7 +399,14 @@ def depth_analysis(
     root = experiment_seed(seed)
     diving = paper_scenarios(root, dive=True, duration=duration)["shark_pursuit"]
     cells = [
-        Cell(diving, motion, child_seed(root, 2, 0), depth_correction=correct, filter=filter)
+        Cell(
+            diving,
+            motion,
+            child_seed(root, 2, 0),
+            depth_correction=correct,
+            start_prior=start_prior,
+            filter=filter,
+        )
         for correct in (False, True)
     ]
     trials = _trials_table(

@@ -211,11 +211,14 @@ def track_scenario(
     depth_correction : bool
         Correct the ranges with the tag's depth sensor.
     start_prior : bool
-        Start the particles in ``scenario.start_region`` (where the field team knows the tag
-        to be at the start) instead of the paper's ``scenario.bounds``. Two receivers leave
-        the tag's mirror across their line exactly as likely as the tag; this is the
+        Where the scenario records a ``start_region`` (where the field team knows the tag to
+        be at the start), start the particles there instead of in the paper's
+        ``scenario.bounds``, and skip the filter's acquisition (there is nothing left for it
+        to find, and its still-tag grid is the weakest start for a moving tag). Two receivers
+        leave the tag's mirror across their line exactly as likely as the tag; this is the
         information that picks the right one (``reports/decisions.md``, issue 13's shark
-        pursuit).
+        pursuit and "Which configuration wins"). A scenario without one starts in its
+        ``bounds``, as without the option.
     snapshot_times : sequence of float
         UTC seconds at which to keep the particles.
     filter : str
@@ -233,10 +236,10 @@ def track_scenario(
     if loss_fraction > 0:
         detections = scenarios.thin_evenly(detections, loss_fraction)
     bounds = scenario.bounds
-    if start_prior:
-        if scenario.start_region is None:
-            raise ValueError(f"scenario {scenario.name!r} has no start_region for start_prior")
+    known_start = {}
+    if start_prior and scenario.start_region is not None:
         bounds = scenario.start_region
+        known_start = {"acquisition": False}
     config = tracking_config(
         scenario,
         n_particles=n_particles,
@@ -244,6 +247,7 @@ def track_scenario(
         shallower="clip",
         bounds=bounds,
         filter=filter,
+        **known_start,
     )
     if detections.empty:  # everything dropped: the filter runs on its motion model alone
         pf = ParticleFilter(
@@ -298,11 +302,12 @@ def example_run(
     n_particles: int = DEFAULT_PARTICLES,
     motion_name: str = "hmm",
     filter: str = PAPER_FILTER,
+    start_prior: bool = False,
 ) -> ExampleRun:
     """One run with particle snapshots, for the error-over-time figures.
 
     Snapshots at :data:`SNAPSHOT_SECONDS` after the start (those inside the run) and at the
-    end; ``filter`` as in :func:`track_scenario`.
+    end; ``filter`` and ``start_prior`` as in :func:`track_scenario`.
 
     Returns
     -------
@@ -316,6 +321,7 @@ def example_run(
         n_particles,
         snapshot_times=[*times, scenario.end],
         filter=filter,
+        start_prior=start_prior,
     )
     estimates = result.estimates
     return ExampleRun(
@@ -401,7 +407,7 @@ def run_trial(
         calibration=honesty.calibration,
         false_converged=honesty.false_converged,
         mirror_share=_mirror_share(scenario, estimates[after]),
-        start_prior=bool(start_prior),
+        start_prior=bool(start_prior and scenario.start_region is not None),
     )
 
 

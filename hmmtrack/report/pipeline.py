@@ -184,6 +184,7 @@ def reproduce(
     max_workers: int | None = None,
     progress: bool = False,
     filter: str = PAPER_FILTER,
+    start_prior: bool = False,
 ) -> Path:
     """Rerun the paper's experiments and write the figures, trial tables and summary.
 
@@ -206,6 +207,11 @@ def reproduce(
     filter : str
         The filter every run uses, by name (:data:`hmmtrack.tracking.filter.FILTERS`): the
         paper's (default) or ``"mode-keeping"``; the summary says which.
+    start_prior : bool
+        Start each run in its scenario's ``start_region`` where it records one (the swimmer's
+        and the shark pursuit's: where the field team knows the tag to be at the start),
+        without acquisition there (:func:`hmmtrack.experiments.trials.track_scenario`); the
+        paper starts in the whole search box.
 
     Returns
     -------
@@ -231,6 +237,7 @@ def reproduce(
             max_workers=max_workers,
             progress=progress,
             filter=filter,
+            start_prior=start_prior,
         )
     return out / "summary.md"
 
@@ -245,6 +252,7 @@ def _run(
     max_workers: int | None,
     progress: bool,
     filter: str,
+    start_prior: bool,
 ) -> None:
     """The run of :func:`reproduce` at ``size``, its files written into ``out``."""
     clock = time.perf_counter()
@@ -255,6 +263,7 @@ def _run(
         "n_particles": size.n_particles,
         "progress": progress,
         "filter": filter,
+        "start_prior": start_prior,
     }
     pool = get_executor(executor, max_workers)
     try:
@@ -280,7 +289,9 @@ def _run(
             pool.shutdown()
     logger.info("example runs and figures")
     examples = {
-        scenario.name: example_run(scenario, seed, size.n_particles, filter=filter)
+        scenario.name: example_run(
+            scenario, seed, size.n_particles, filter=filter, start_prior=start_prior
+        )
         for scenario in datasets.values()
     }
     comparison.to_csv(out / "motion_model_trials.csv", index=False)
@@ -298,6 +309,9 @@ def _run(
     run = {
         "seed": seed,
         "filter": f"{filter} ({_switches(filter)})",
+        "start": "the scenario's start region where it records one, without acquisition there"
+        if start_prior
+        else "the whole search box (the paper's)",
         "size": "quick" if quick else "paper scale",
         "synthetic datasets per scenario": size.n_datasets,
         "filter runs per model per dataset": size.n_trials,
