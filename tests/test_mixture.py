@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 import pytest
+from numba import njit
 
 from hmmtrack import scenarios
 from hmmtrack.experiments.configs import tracking_config
@@ -28,6 +29,7 @@ from hmmtrack.tracking.mixture import (
     with_modes,
 )
 from hmmtrack.tracking.motion.baseline import BaselineMotion
+from hmmtrack.tracking.resampling import Scratch, invert
 
 #: the toy model: distance of the modes from the line (m), noise of ``|x|`` and ``y`` (m),
 #: the first observation's odds for ``x > 0``, random-walk spread (m per s), seconds
@@ -294,6 +296,58 @@ def test_convergence_is_declared_only_when_one_mode_holds_almost_all_the_weight(
     assert merged["converged"].tolist() == [False, False, False, True, False]
     np.testing.assert_array_equal(merged["mode2_weight"], [nan, 0.4, 0.4, 0.0, 0.0])
     np.testing.assert_array_equal(merged["mode2_x"], [nan, 8.0, 8.0, nan, nan])
+
+
+@njit
+def _sum(values):
+    """``values.sum()`` as compiled code forms it (the normaliser of the spacings)."""
+    return values.sum()
+
+
+@pytest.mark.parametrize("grouped", [True, False])
+def test_components_invert_as_each_component_alone_on_any_threads(grouped):
+    # ~6,000 new particles (six chunks of the merge), five components, chunks spanning
+    # several; the oracle inverts each component on its own (resampling.invert)
+    rng = np.random.default_rng(5)
+    n = 6000
+    labels = np.repeat(np.arange(5), [2500, 40, 1500, 1900, 60])
+    if not grouped:
+        labels = rng.permutation(labels)
+    weights = rng.random(n) ** 4
+    weights[rng.random(n) < 0.1] = 0.0
+    weights /= weights.sum()
+    component_weight = np.bincount(labels, weights)
+    counts = np.array([2000, 1100, 0, 1500, 1400])
+    x, y = rng.normal(0.0, 50.0, n), rng.normal(0.0, 50.0, n)
+    for scheme, code in SCHEME_CODES.items():
+        draws = scheme_draws(rng, code, n, 4)
+        runs = [
+            resample_components(weights, labels, counts, component_weight, code, draws, x, y, s)
+            for s in (None, Scratch(threads=1), Scratch(threads=2), Scratch(threads=2))
+        ]
+        for run in runs[1:]:
+            for got, first in zip(run, runs[0], strict=True):
+                np.testing.assert_array_equal(got, first)
+        if scheme == "residual":
+            continue
+        expected, d = [], 0
+        for k in np.flatnonzero(counts):
+            own, c = np.flatnonzero(labels == k), counts[k]
+            if scheme == "multinomial":
+                values, scale, running = (
+                    draws[d : d + c + 1],
+                    1.0 / _sum(draws[d : d + c + 1]),
+                    True,
+                )
+                d += c + 1
+            else:
+                u = draws[d : d + c] if scheme == "stratified" else draws[d]
+                values, scale, running = (np.arange(c) + u) / c, 1.0, False
+                d += c if scheme == "stratified" else 1
+            expected.append(
+                own[invert(weights[own], 1 / component_weight[k], values, c, scale, running)]
+            )
+        np.testing.assert_array_equal(runs[0][0], np.concatenate(expected))
 
 
 @pytest.mark.parametrize("scheme", sorted(SCHEME_CODES))

@@ -42,7 +42,7 @@ from numba import njit
 
 from hmmtrack.tracking.compiled.chunks import chunking, in_chunks, next_chunk
 from hmmtrack.tracking.particles import split_in_two, sqrt_largest_eigenvalue
-from hmmtrack.tracking.resampling import invert
+from hmmtrack.tracking.resampling import Scratch, _merge, _prepare, invert
 
 __all__ = [
     "CONVERGENCE_THRESHOLD",
@@ -137,9 +137,10 @@ class Mixture:
     def resample(self, pf, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Recluster, then resample each component on its own with the filter's scheme.
 
-        One compiled pass each for the reclustering, the allocation and the resampling of
-        all components (:func:`resample_components`), so the cost beside the plain
-        filter's resampling is a few passes over the particles, not a Python loop.
+        One compiled pass each for the reclustering and the allocation, and the resampling
+        of all components (:func:`resample_components`) in the filter's work arrays, its
+        merge on the correction's threads, so the cost beside the plain filter's resampling
+        is a few passes over the particles, not a Python loop.
 
         Parameters
         ----------
@@ -181,8 +182,10 @@ class Mixture:
         )
         code = SCHEME_CODES[pf.resampling]
         draws = scheme_draws(pf.rng, code, p.n, int(np.count_nonzero(counts)))
+        scratch = pf._scratch  # the filter's work arrays, unused by its own scheme here
+        scratch.threads = pf.correction_threads()
         ancestors, log_weight, new_weights, summary = resample_components(
-            weights, labels, counts, component_weight, code, draws, p.x, p.y
+            weights, labels, counts, component_weight, code, draws, p.x, p.y, scratch
         )
         # live components numbered 0..K-1 in order (the labels travel with the ancestors)
         p.extra[COMPONENT] = np.cumsum(counts > 0)[labels] - 1
@@ -253,14 +256,18 @@ def _recluster_and_allocate(
     return labels, component_weight, allocate(component_weight, labels.size, prune_weight, floor)
 
 
-@njit(cache=True)
-def resample_components(weights, labels, counts, component_weight, code, draws, x, y):
+def resample_components(
+    weights, labels, counts, component_weight, code, draws, x, y, scratch: Scratch | None = None
+):  # fmt: skip
     """Resample each component on its own (compiled; the scheme by its code).
 
     Component ``k`` gets ``counts[k]`` ancestors among its particles, drawn by the scheme of
-    :data:`SCHEME_CODES` from its weights normalised by ``component_weight[k]``, through
-    :func:`hmmtrack.tracking.resampling.invert` as the whole-cloud schemes do; residual
-    keeps ``floor(N_k w)`` copies and draws the rest multinomially.
+    :data:`SCHEME_CODES` from its weights normalised by ``component_weight[k]``, by the
+    inversion of :mod:`hmmtrack.tracking.resampling` (multinomial, stratified, systematic:
+    every component's cumulative weights and points formed in one pass, then merged in the
+    chunks of all components' points on ``scratch.threads`` threads; the ancestors do not
+    depend on the threads); residual keeps ``floor(N_k w)`` copies and draws the rest
+    multinomially.
 
     Parameters
     ----------
@@ -278,6 +285,10 @@ def resample_components(weights, labels, counts, component_weight, code, draws, 
         The scheme's random numbers for the live components in order (:func:`scheme_draws`).
     x, y : numpy.ndarray, shape (N,)
         Positions (m), for the new particles' weighted mean.
+    scratch : Scratch, optional
+        Work arrays reused from one call to the next and the threads of the merge (the
+        filter's, :class:`hmmtrack.tracking.resampling.Scratch`); by default fresh arrays
+        and one thread.
 
     Returns
     -------
@@ -295,6 +306,38 @@ def resample_components(weights, labels, counts, component_weight, code, draws, 
         hand arrays over 10,000 to OpenBLAS threads: a millisecond or more per call on a
         busy machine).
     """
+    scratch = Scratch() if scratch is None else scratch
+    total = int(counts.sum())
+    ancestors = np.empty(total, dtype=np.int64)
+    cumulative = scratch.array("cumulative", labels.size)
+    points = scratch.array("points", total)
+    gathered = scratch.array("gathered", labels.size)
+    start, at, last, members, grouped = _prepare_components(
+        weights, labels, counts, component_weight, code, draws, cumulative, points, gathered,
+        ancestors,
+    )  # fmt: skip
+    if code != SCHEME_CODES["residual"]:
+        args = (cumulative, points, start, at, last)
+        in_chunks(_merge_components, _merge_components_parallel, total, scratch.threads, args,
+                  ancestors)  # fmt: skip
+    return _finish_components(
+        start, at, members, grouped, counts, component_weight, code, x, y, ancestors
+    )
+
+
+@njit(cache=True)
+def _prepare_components(
+    weights, labels, counts, component_weight, code, draws, cumulative, points, gathered,
+    ancestors,
+):  # fmt: skip
+    """The serial part of :func:`resample_components` before the merge.
+
+    Component ``k``'s particles are ``start[k]:start[k + 1]`` in label order (themselves
+    when ``grouped``, as a resampling leaves them, else ``members`` of that slice) and its
+    new particles ``at[k]:at[k + 1]``; fills ``cumulative[start[k]:start[k + 1]]`` and
+    ``points[at[k]:at[k + 1]]`` by :func:`hmmtrack.tracking.resampling._prepare` (``last[k]``
+    its last index of positive weight), taking ``gathered`` for the weights of ungrouped
+    labels; residual writes its ancestors (particle indices) at once."""
     n_components = counts.size
     start = np.zeros(n_components + 1, dtype=np.int64)
     # labels in component order (as a resampling leaves them): each component's particles
@@ -311,29 +354,23 @@ def resample_components(weights, labels, counts, component_weight, code, draws, 
         fill = start[:-1].copy()
         for i in range(labels.size):
             members[fill[labels[i]]] = i
+            gathered[fill[labels[i]]] = weights[i]
             fill[labels[i]] += 1
-    total = counts.sum()
-    ancestors = np.empty(total, dtype=np.int64)
-    log_weight = np.empty(total)
-    new_weights = np.empty(total)
-    sum_squares = mean_x = mean_y = 0.0
-    live = 0.0
-    for k in range(n_components):
-        if counts[k] > 0:
-            live += component_weight[k]
-    at = 0
+    at = np.zeros(n_components + 1, dtype=np.int64)
+    last = np.zeros(n_components, dtype=np.int64)
     d = 0
     for k in range(n_components):
         c = counts[k]
+        at[k + 1] = at[k] + c
         if c == 0:
             continue
-        lo, hi = start[k], start[k + 1]
-        own = members[lo:hi] if not grouped else members
-        w = weights[lo:hi] if grouped else weights[own]
+        lo, hi, a = start[k], start[k + 1], at[k]
+        w = weights[lo:hi] if grouped else gathered[lo:hi]
         scale = 1.0 / component_weight[k]
+        cum, own_points = cumulative[lo:hi], points[a : a + c]
         if code == 0:  # multinomial
             spacings = draws[d : d + c + 1]
-            chosen = invert(w, scale, spacings, c, 1.0 / spacings.sum(), True)
+            last[k] = _prepare(w, scale, spacings, c, 1.0 / spacings.sum(), True, cum, own_points)
             d += c + 1
         elif code == 1:  # residual
             expected = c * scale * w
@@ -342,7 +379,7 @@ def resample_components(weights, labels, counts, component_weight, code, draws, 
             for i in range(hi - lo):
                 for _ in range(copies[i]):
                     if kept < c:
-                        ancestors[at + kept] = lo + i if grouped else own[i]
+                        ancestors[a + kept] = lo + i if grouped else members[lo + i]
                         kept += 1
             left = c - kept
             if left > 0:
@@ -350,29 +387,77 @@ def resample_components(weights, labels, counts, component_weight, code, draws, 
                 spacings = draws[d : d + left + 1]
                 drawn = invert(rest, 1.0 / rest.sum(), spacings, left, 1.0 / spacings.sum(), True)
                 for j in range(left):
-                    ancestors[at + kept + j] = lo + drawn[j] if grouped else own[drawn[j]]
-            chosen = np.empty(0, dtype=np.int64)
+                    i = drawn[j]
+                    ancestors[a + kept + j] = lo + i if grouped else members[lo + i]
             d += c + 1
-        elif code == 2:  # stratified
-            chosen = invert(w, scale, (np.arange(c) + draws[d : d + c]) / c, c, 1.0, False)
-            d += c
-        else:  # systematic
-            chosen = invert(w, scale, (np.arange(c) + draws[d]) / c, c, 1.0, False)
-            d += 1
+        else:  # stratified (a uniform per point) or systematic (one for the component)
+            for j in range(c):
+                own_points[j] = (j + draws[d + j if code == 2 else d]) / c
+            last[k] = _prepare(w, scale, own_points, c, 1.0, False, cum, own_points)
+            d += c if code == 2 else 1
+    return start, at, last, members, grouped
+
+
+@njit(cache=True, nogil=True)
+def _merge_components(cumulative, points, start, at, last, counter, out):
+    """:func:`hmmtrack.tracking.resampling._merge` of every chunk of ``out`` not yet claimed
+    (:func:`next_chunk`), piece by piece where a chunk spans several components: ``out``
+    holds each new particle's index within its component (any split of a component's points
+    gives the same)."""
+    chunk, lo, hi = next_chunk(counter, out.size)
+    while chunk >= 0:
+        k = 0
+        while at[k + 1] <= lo:
+            k += 1
+        while k < last.size and at[k] < hi:
+            a, b = at[k], at[k + 1]
+            if max(lo, a) < min(hi, b):
+                cum = cumulative[start[k] : start[k + 1]]
+                _merge(cum, points[a:b], out[a:b], max(lo, a) - a, min(hi, b) - a, last[k])
+            k += 1
+        chunk, lo, hi = next_chunk(counter, out.size)
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def _merge_components_parallel(threads, cumulative, points, start, at, last, counter, out):
+    """:func:`_merge_components` on ``threads`` threads."""
+    for _ in numba.prange(threads):
+        _merge_components(cumulative, points, start, at, last, counter, out)
+
+
+@njit(cache=True)
+def _finish_components(start, at, members, grouped, counts, component_weight, code, x, y,
+                       ancestors):  # fmt: skip
+    """The serial part of :func:`resample_components` after the merge: ``ancestors`` made
+    particle indices (but residual's, already so), the log weights, the weights and the
+    summary, one component at a time."""
+    total = ancestors.size
+    log_weight = np.empty(total)
+    new_weights = np.empty(total)
+    sum_squares = mean_x = mean_y = 0.0
+    live = 0.0
+    for k in range(counts.size):
+        if counts[k] > 0:
+            live += component_weight[k]
+    for k in range(counts.size):
+        c = counts[k]
+        if c == 0:
+            continue
+        lo, a = start[k], at[k]
         log_w = math.log(component_weight[k] / live / c)
         w_k = math.exp(log_w)
-        log_weight[at : at + c] = log_w
-        new_weights[at : at + c] = w_k
-        for j in range(chosen.size):
-            ancestors[at + j] = lo + chosen[j] if grouped else own[chosen[j]]
+        log_weight[a : a + c] = log_w
+        new_weights[a : a + c] = w_k
+        if code != 1:
+            for j in range(a, a + c):
+                ancestors[j] = lo + ancestors[j] if grouped else members[lo + ancestors[j]]
         sx = sy = 0.0
-        for j in range(at, at + c):
+        for j in range(a, a + c):
             sx += x[ancestors[j]]
             sy += y[ancestors[j]]
         sum_squares += c * w_k * w_k
         mean_x += w_k * sx
         mean_y += w_k * sy
-        at += c
     return ancestors, log_weight, new_weights, np.array([1.0 / sum_squares, mean_x, mean_y])
 
 
