@@ -318,6 +318,12 @@ class ParticleFilter:
     until the next resampling but one; keep a :meth:`Particles.copy` for longer. Likewise a
     correction writes the log weights and weights into reused arrays: those of one
     correction stay valid through the next.
+
+    Attributes
+    ----------
+    scratch : hmmtrack.tracking.resampling.Scratch
+        The resampling's reused work arrays and thread count, shared with the mixture's
+        per-component resampling.
     """
 
     def __init__(
@@ -359,7 +365,7 @@ class ParticleFilter:
         self.resampling = resampling
         self._resample = get_resampler(resampling)
         # the resampling's work arrays, reused (see resample)
-        self._scratch = Scratch()
+        self.scratch = Scratch()
         self.resample_when = resample_when
         self.ess_threshold = float(ess_threshold)
         self.rng = as_generator(rng)
@@ -669,8 +675,8 @@ class ParticleFilter:
         p = self.particles
         weights, _, origin = self.weights()
         if self.mixture is None:
-            self._scratch.threads = self.correction_threads()
-            ancestors = self._resample(self.rng, weights, p.n, self._scratch)
+            self.scratch.threads = self.correction_threads()
+            ancestors = self._resample(self.rng, weights, p.n, self.scratch)
             self._take(p, ancestors)
             # equal weights now; the old weighted mean still lies inside the cloud
             self._weighed = (self.particles.log_weight, self._equal_weights(), float(p.n), origin)

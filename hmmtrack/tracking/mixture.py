@@ -42,7 +42,7 @@ from numba import njit
 
 from hmmtrack.tracking.compiled.chunks import chunking, in_chunks, next_chunk
 from hmmtrack.tracking.particles import split_in_two, sqrt_largest_eigenvalue
-from hmmtrack.tracking.resampling import Scratch, _merge, _prepare, invert
+from hmmtrack.tracking.resampling import Scratch, invert, merge_points, prepare_points
 
 __all__ = [
     "CONVERGENCE_THRESHOLD",
@@ -182,7 +182,7 @@ class Mixture:
         )
         code = SCHEME_CODES[pf.resampling]
         draws = scheme_draws(pf.rng, code, p.n, int(np.count_nonzero(counts)))
-        scratch = pf._scratch  # the filter's work arrays, unused by its own scheme here
+        scratch = pf.scratch  # the filter's work arrays, unused by its own scheme here
         scratch.threads = pf.correction_threads()
         ancestors, log_weight, new_weights, summary = resample_components(
             weights, labels, counts, component_weight, code, draws, p.x, p.y, scratch
@@ -335,7 +335,7 @@ def _prepare_components(
     Component ``k``'s particles are ``start[k]:start[k + 1]`` in label order (themselves
     when ``grouped``, as a resampling leaves them, else ``members`` of that slice) and its
     new particles ``at[k]:at[k + 1]``; fills ``cumulative[start[k]:start[k + 1]]`` and
-    ``points[at[k]:at[k + 1]]`` by :func:`hmmtrack.tracking.resampling._prepare` (``last[k]``
+    ``points[at[k]:at[k + 1]]`` by :func:`hmmtrack.tracking.resampling.prepare_points` (``last[k]``
     its last index of positive weight), taking ``gathered`` for the weights of ungrouped
     labels; residual writes its ancestors (particle indices) at once."""
     n_components = counts.size
@@ -370,7 +370,9 @@ def _prepare_components(
         cum, own_points = cumulative[lo:hi], points[a : a + c]
         if code == 0:  # multinomial
             spacings = draws[d : d + c + 1]
-            last[k] = _prepare(w, scale, spacings, c, 1.0 / spacings.sum(), True, cum, own_points)
+            last[k] = prepare_points(
+                w, scale, spacings, c, 1.0 / spacings.sum(), True, cum, own_points
+            )
             d += c + 1
         elif code == 1:  # residual
             expected = c * scale * w
@@ -393,14 +395,14 @@ def _prepare_components(
         else:  # stratified (a uniform per point) or systematic (one for the component)
             for j in range(c):
                 own_points[j] = (j + draws[d + j if code == 2 else d]) / c
-            last[k] = _prepare(w, scale, own_points, c, 1.0, False, cum, own_points)
+            last[k] = prepare_points(w, scale, own_points, c, 1.0, False, cum, own_points)
             d += c if code == 2 else 1
     return start, at, last, members, grouped
 
 
 @njit(cache=True, nogil=True)
 def _merge_components(cumulative, points, start, at, last, counter, out):
-    """:func:`hmmtrack.tracking.resampling._merge` of every chunk of ``out`` not yet claimed
+    """:func:`hmmtrack.tracking.resampling.merge_points` of every chunk of ``out`` not yet claimed
     (:func:`next_chunk`), piece by piece where a chunk spans several components: ``out``
     holds each new particle's index within its component (any split of a component's points
     gives the same)."""
@@ -413,7 +415,7 @@ def _merge_components(cumulative, points, start, at, last, counter, out):
             a, b = at[k], at[k + 1]
             if max(lo, a) < min(hi, b):
                 cum = cumulative[start[k] : start[k + 1]]
-                _merge(cum, points[a:b], out[a:b], max(lo, a) - a, min(hi, b) - a, last[k])
+                merge_points(cum, points[a:b], out[a:b], max(lo, a) - a, min(hi, b) - a, last[k])
             k += 1
         chunk, lo, hi = next_chunk(counter, out.size)
 

@@ -38,7 +38,9 @@ __all__ = [
     "inverse_cdf",
     "invert",
     "log_normalise",
+    "merge_points",
     "multinomial",
+    "prepare_points",
     "residual",
     "stratified",
     "systematic",
@@ -99,7 +101,7 @@ def _merge_step(cumulative, points, out, j, k):
 
 
 @njit(cache=True, inline="always")
-def _prepare(weights, weight_scale, values, n, value_scale, running, cumulative, points):
+def prepare_points(weights, weight_scale, values, n, value_scale, running, cumulative, points):
     """Fill ``cumulative[:last + 1]`` with the cumulative sum of ``weights * weight_scale``
     (``inf`` at ``last``, the last index of positive weight, so that rounding can neither
     lose a point nor pick a weightless particle) and ``points[:n]`` with ``values[k] *
@@ -127,7 +129,7 @@ def _prepare(weights, weight_scale, values, n, value_scale, running, cumulative,
 
 
 @njit(cache=True, inline="always")
-def _merge(cumulative, points, out, lo, hi, last):
+def merge_points(cumulative, points, out, lo, hi, last):
     """``out[k]`` = the first ``j`` with ``cumulative[j] > points[k]`` for ``k`` in
     ``lo..hi-1`` (ascending points; ``cumulative[last]`` is ``inf``).
 
@@ -162,29 +164,33 @@ def invert(weights, weight_scale, values, n, value_scale, running):
     clipped to the last index of positive weight (so that rounding in the cumulative sum
     can neither lose a point nor pick a weightless particle).
 
-    :func:`_prepare` forms the cumulative weights and the points, :func:`_merge` inverts
+    :func:`prepare_points` forms the cumulative weights and the points, :func:`merge_points` inverts
     them; :class:`Scratch` does the same into reused arrays, in chunks on threads.
     """
     out = np.empty(n, dtype=np.int64)
     cumulative = np.empty(weights.size)
     points = np.empty(n)
-    last = _prepare(weights, weight_scale, values, n, value_scale, running, cumulative, points)
-    _merge(cumulative, points, out, 0, n, last)
+    last = prepare_points(
+        weights, weight_scale, values, n, value_scale, running, cumulative, points
+    )
+    merge_points(cumulative, points, out, 0, n, last)
     return out
 
 
 @njit(cache=True)
 def _prepare_into(weights, weight_scale, values, n, value_scale, running, cumulative, points):
-    """:func:`_prepare` as a call of its own (before the chunked merge)."""
-    return _prepare(weights, weight_scale, values, n, value_scale, running, cumulative, points)
+    """:func:`prepare_points` as a call of its own (before the chunked merge)."""
+    return prepare_points(
+        weights, weight_scale, values, n, value_scale, running, cumulative, points
+    )
 
 
 @njit(cache=True, nogil=True)
 def _merge_kernel(cumulative, points, last, counter, out):
-    """:func:`_merge` of every chunk of ``out`` not yet claimed (:func:`next_chunk`)."""
+    """:func:`merge_points` of every chunk of ``out`` not yet claimed (:func:`next_chunk`)."""
     chunk, lo, hi = next_chunk(counter, out.size)
     while chunk >= 0:
-        _merge(cumulative, points, out, lo, hi, last)
+        merge_points(cumulative, points, out, lo, hi, last)
         chunk, lo, hi = next_chunk(counter, out.size)
 
 
