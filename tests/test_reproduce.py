@@ -84,8 +84,10 @@ def test_summary_puts_our_numbers_beside_the_papers(quick_run):
     for name in FIGURES:
         assert f"]({name})" in text
     assert "The paper's findings on our analogues" in text
-    assert "filter = paper (the paper's filter)" in text  # the filter run, by default
-    assert "start = the whole search box (the paper's)" in text
+    # the run's configuration, by default the mode-keeping filter from the known start
+    assert "filter = mode-keeping (acquisition + mixture)" in text
+    assert "start = the scenario's start region where it records one" in text
+    assert "these runs start where the field team knew the tag to be" in text
     assert "## Spread between datasets and between filter runs" in text
 
 
@@ -189,7 +191,7 @@ def test_paired_p_value_equals_the_exact_sign_flip_distribution():
 def test_the_filter_option_offers_every_named_filter():
     assert FILTER_NAMES == tuple(FILTERS)
     parser = build_parser(["reproduce"])
-    assert parser.parse_args(["reproduce"]).filter == "paper"
-    assert parser.parse_args(["reproduce", "--filter", "mode-keeping"]).filter == "mode-keeping"
-    assert not parser.parse_args(["reproduce"]).start_prior
-    assert parser.parse_args(["reproduce", "--start-prior"]).start_prior
+    assert parser.parse_args(["reproduce"]).filter == "mode-keeping"
+    assert parser.parse_args(["reproduce", "--filter", "paper"]).filter == "paper"
+    assert parser.parse_args(["reproduce"]).start_prior
+    assert not parser.parse_args(["reproduce", "--no-start-prior"]).start_prior

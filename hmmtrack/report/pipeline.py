@@ -31,7 +31,6 @@ from hmmtrack.experiments import (
     paper_datasets,
 )
 from hmmtrack.experiments.executors import default_workers, get_executor
-from hmmtrack.experiments.trials import PAPER_FILTER
 from hmmtrack.io.outputs import staged_folder
 from hmmtrack.plots import results as plots
 from hmmtrack.plots.experiments import plot_scenario
@@ -183,8 +182,8 @@ def reproduce(
     executor: Any = "processes",
     max_workers: int | None = None,
     progress: bool = False,
-    filter: str = PAPER_FILTER,
-    start_prior: bool = False,
+    filter: str = "mode-keeping",
+    start_prior: bool = True,
 ) -> Path:
     """Rerun the paper's experiments and write the figures, trial tables and summary.
 
@@ -205,13 +204,16 @@ def reproduce(
     executor, max_workers, progress
         See :func:`hmmtrack.experiments.run_trials`.
     filter : str
-        The filter every run uses, by name (:data:`hmmtrack.tracking.filter.FILTERS`): the
-        paper's (default) or ``"mode-keeping"``; the summary says which.
+        The filter every run uses, by name (:data:`hmmtrack.tracking.filter.FILTERS`):
+        ``"mode-keeping"`` (default) or the paper's (``"paper"``); the summary says which.
     start_prior : bool
         Start each run in its scenario's ``start_region`` where it records one (the swimmer's
         and the shark pursuit's: where the field team knows the tag to be at the start),
-        without acquisition there (:func:`hmmtrack.experiments.trials.track_scenario`); the
-        paper starts in the whole search box.
+        without acquisition there (:func:`hmmtrack.experiments.trials.track_scenario`);
+        False starts in the whole search box, as the paper does. ``filter="paper",
+        start_prior=False`` is the paper's algorithm. The defaults are the configuration
+        that met the paper's errors at every experiment seed (``reports/decisions.md``,
+        issue 13).
 
     Returns
     -------
