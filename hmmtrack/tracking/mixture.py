@@ -42,7 +42,7 @@ from numba import njit
 
 from hmmtrack.tracking.compiled.chunks import chunking, in_chunks, next_chunk
 from hmmtrack.tracking.particles import split_in_two, sqrt_largest_eigenvalue
-from hmmtrack.tracking.resampling import Scratch, invert, merge_points, prepare_points
+from hmmtrack.tracking.resampling import Scratch, invert, merge_segments, prepare_points
 
 __all__ = [
     "CONVERGENCE_THRESHOLD",
@@ -317,9 +317,7 @@ def resample_components(
         ancestors,
     )  # fmt: skip
     if code != SCHEME_CODES["residual"]:
-        args = (cumulative, points, start, at, last)
-        in_chunks(_merge_components, _merge_components_parallel, total, scratch.threads, args,
-                  ancestors)  # fmt: skip
+        merge_segments(cumulative, points, start, at, last, scratch.threads, ancestors)
     return _finish_components(
         start, at, members, grouped, counts, component_weight, code, x, y, ancestors
     )
@@ -398,33 +396,6 @@ def _prepare_components(
             last[k] = prepare_points(w, scale, own_points, c, 1.0, False, cum, own_points)
             d += c if code == 2 else 1
     return start, at, last, members, grouped
-
-
-@njit(cache=True, nogil=True)
-def _merge_components(cumulative, points, start, at, last, counter, out):
-    """:func:`hmmtrack.tracking.resampling.merge_points` of every chunk of ``out`` not yet claimed
-    (:func:`next_chunk`), piece by piece where a chunk spans several components: ``out``
-    holds each new particle's index within its component (any split of a component's points
-    gives the same)."""
-    chunk, lo, hi = next_chunk(counter, out.size)
-    while chunk >= 0:
-        k = 0
-        while at[k + 1] <= lo:
-            k += 1
-        while k < last.size and at[k] < hi:
-            a, b = at[k], at[k + 1]
-            if max(lo, a) < min(hi, b):
-                cum = cumulative[start[k] : start[k + 1]]
-                merge_points(cum, points[a:b], out[a:b], max(lo, a) - a, min(hi, b) - a, last[k])
-            k += 1
-        chunk, lo, hi = next_chunk(counter, out.size)
-
-
-@njit(cache=True, nogil=True, parallel=True)
-def _merge_components_parallel(threads, cumulative, points, start, at, last, counter, out):
-    """:func:`_merge_components` on ``threads`` threads."""
-    for _ in numba.prange(threads):
-        _merge_components(cumulative, points, start, at, last, counter, out)
 
 
 @njit(cache=True)

@@ -39,6 +39,7 @@ __all__ = [
     "invert",
     "log_normalise",
     "merge_points",
+    "merge_segments",
     "multinomial",
     "prepare_points",
     "residual",
@@ -186,19 +187,54 @@ def _prepare_into(weights, weight_scale, values, n, value_scale, running, cumula
 
 
 @njit(cache=True, nogil=True)
-def _merge_kernel(cumulative, points, last, counter, out):
-    """:func:`merge_points` of every chunk of ``out`` not yet claimed (:func:`next_chunk`)."""
+def _merge_kernel(cumulative, points, start, at, last, counter, out):
+    """:func:`merge_points` of every chunk of ``out`` not yet claimed (:func:`next_chunk`),
+    piece by piece where a chunk spans several segments (:func:`merge_segments`)."""
     chunk, lo, hi = next_chunk(counter, out.size)
     while chunk >= 0:
-        merge_points(cumulative, points, out, lo, hi, last)
+        k = 0
+        while at[k + 1] <= lo:
+            k += 1
+        while k < last.size and at[k] < hi:
+            a, b = at[k], at[k + 1]
+            if max(lo, a) < min(hi, b):
+                cum = cumulative[start[k] : start[k + 1]]
+                merge_points(cum, points[a:b], out[a:b], max(lo, a) - a, min(hi, b) - a, last[k])
+            k += 1
         chunk, lo, hi = next_chunk(counter, out.size)
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def _merge_parallel(threads, cumulative, points, last, counter, out):
+def _merge_parallel(threads, cumulative, points, start, at, last, counter, out):
     """:func:`_merge_kernel` on ``threads`` threads."""
     for _ in numba.prange(threads):
-        _merge_kernel(cumulative, points, last, counter, out)
+        _merge_kernel(cumulative, points, start, at, last, counter, out)
+
+
+def merge_segments(cumulative, points, start, at, last, threads: int, out) -> None:
+    """:func:`merge_points` of several independent inversions at once, in the chunks of
+    :mod:`hmmtrack.tracking.compiled.chunks` on ``threads`` threads.
+
+    Segment ``k`` has the cumulative weights ``cumulative[start[k]:start[k + 1]]`` (its
+    last index of positive weight ``last[k]``) and the ascending points
+    ``points[at[k]:at[k + 1]]``; ``out[at[k]:at[k + 1]]`` receives their indices within the
+    segment. One segment is the whole cloud's inversion (:class:`Scratch`); the mixture
+    filter's components are several (:func:`hmmtrack.tracking.mixture.resample_components`).
+    Any split of the points into chunks gives the same indices, so they do not depend on
+    ``threads``.
+
+    Parameters
+    ----------
+    cumulative, points : numpy.ndarray
+        From :func:`prepare_points`, segment after segment.
+    start : numpy.ndarray, shape (K + 1,) int64
+    at : numpy.ndarray, shape (K + 1,) int64
+    last : numpy.ndarray, shape (K,) int64
+    threads : int
+    out : numpy.ndarray, shape (at[K],) int64
+    """
+    args = (cumulative, points, start, at, last)
+    in_chunks(_merge_kernel, _merge_parallel, out.size, threads, args, out)
 
 
 class Scratch:
@@ -244,7 +280,8 @@ def _invert_with(scratch, weights, weight_scale, values, n, value_scale, running
     args = (weights, weight_scale, values, n, value_scale, running, cumulative, points)
     last = _prepare_into(*args)
     out = np.empty(n, dtype=np.int64)
-    in_chunks(_merge_kernel, _merge_parallel, n, scratch.threads, (cumulative, points, last), out)
+    whole = np.array([0, weights.size], dtype=np.int64), np.array([0, n], dtype=np.int64)
+    merge_segments(cumulative, points, *whole, np.array([last]), scratch.threads, out)
     return out
 
 
