@@ -8,6 +8,7 @@ import dataclasses
 from types import SimpleNamespace
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from hmmtrack.experiments.clock_runs import (
@@ -18,16 +19,20 @@ from hmmtrack.experiments.clock_runs import (
 from hmmtrack.experiments.grouping import grouped_config
 from hmmtrack.scenarios.realistic import moored_array
 from hmmtrack.tracking.config import TrackingConfig
+from hmmtrack.tracking.filter import ParticleFilter
 from hmmtrack.tracking.measurement import MEASUREMENTS
-from hmmtrack.tracking.measurement.clocked import default_clock_model
+from hmmtrack.tracking.measurement.clocked import ClockState, default_clock_model
+from hmmtrack.tracking.measurement.detection import LogisticDetection
 from hmmtrack.tracking.measurement.sequence import (
     DRIFT_DENSITY,
     DRIFT_SD,
     PERIOD_BROADENING,
     PHASE_DENSITY,
+    SequenceState,
     broadened_sigma,
     period_clock_noise,
 )
+from hmmtrack.tracking.motion import VelocityMotion
 from hmmtrack.tracking.pipeline import track
 from hmmtrack.tracking.receivers import ReceiverTracks
 
@@ -72,9 +77,78 @@ def test_a_period_gives_the_period_clock_and_broadening_a_sequence_does_not():
     assert built["period"].broadening == PERIOD_BROADENING
     assert built["burst_sequence"].clock_noise == (PHASE_DENSITY, DRIFT_DENSITY, DRIFT_SD)
     assert built["burst_sequence"].broadening == 0.0
-    assert dataclasses.replace(built["period"], clock_noise=(), broadening=0.0) == (
-        dataclasses.replace(built["burst_sequence"], clock_noise=())
-    )
+    assert built["period"].schedule_period == pytest.approx(sc.period, rel=1e-3)
+    assert built["burst_sequence"].schedule_period is None
+    assert dataclasses.replace(
+        built["period"], clock_noise=(), broadening=0.0, schedule_period=None
+    ) == dataclasses.replace(built["burst_sequence"], clock_noise=())
+
+
+#: three moorings (m), their detection curve, and a tag at TAG pinging every PERIOD s from
+#: FIRST; ping k is heard by receiver k % 3 only, every fifth by none
+MOORINGS = pd.DataFrame(
+    {"receiver": ["r0", "r1", "r2"], "time": np.nan, "x": [0.0, 300.0, 150.0], "y": [0, 0, 260.0]}
+)
+CURVE = LogisticDetection(range_50=250.0, width=50.0)
+TAG, PERIOD, FIRST, SOUND = (100.0, 120.0), 8.0, 1000.0, 1500.0
+
+
+def _one_receiver_pings() -> pd.DataFrame:
+    rows = []
+    for k in range(12):
+        if k % 5 == 4:
+            continue
+        name, x, y = MOORINGS.iloc[k % 3][["receiver", "x", "y"]]
+        rows.append((FIRST + k * PERIOD + np.hypot(TAG[0] - x, TAG[1] - y) / SOUND, name))
+    return pd.DataFrame(rows, columns=["time", "receiver"])
+
+
+def test_one_receiver_per_ping_scores_heard_and_unheard_pings_as_the_arrival_time_filter():
+    # the detection curve's terms are the arrival-time measurement's, per particle and to the
+    # last bit for the silences (the same code on the same clocks: reference emission E,
+    # period P); the timing terms differ by design (a per-particle clock with a reset
+    # share against one shared covariance), so only these are compared
+    detections = _one_receiver_pings()
+    tracks = ReceiverTracks.from_frame(MOORINGS)
+    keys = {"period": PERIOD, "sound_speed": SOUND, "detection_curve": CURVE}
+    built, obs = {}, {}
+    for name in ("arrival-time", "ping-sequence"):
+        settings = TrackingConfig.from_keys(measurement=name, **keys).measurement
+        cls = MEASUREMENTS[name]
+        obs[name] = cls.observations(detections, tracks, settings)
+        built[name] = cls.from_settings(settings, obs[name], tracks)
+    arrival, grouped = built["arrival-time"], built["ping-sequence"]
+    assert obs["ping-sequence"]["heard"].eq(1).all()
+    pf = ParticleFilter(VelocityMotion(0.05, 0.02), arrival, 500, (-200, 500, -200, 460), rng=3)
+    pf.initialise(FIRST)
+    p = pf.particles
+    p.speed = np.zeros(p.n)  # (a tag at rest: its range at emission is its range now)
+    rng = np.random.default_rng(3)
+    emission = FIRST + rng.normal(0.0, 0.05, p.n)
+    period = grouped.schedule_period
+    p.extra.update(emission_time=emission, period=np.full(p.n, period), period_rate=np.zeros(p.n))
+    p.extra.update(sequence_offset=emission, sequence_drift=np.zeros(p.n))
+    time = FIRST + 11 * PERIOD  # silences of pings 0-10 (r0 and r2 hear none of ping 1)
+    silence_at, _ = arrival._silence_loglik(p, time, ClockState(1.0, silence_from=FIRST))
+    silence_gp, _ = grouped._silence(p, time, SequenceState(1.0, scheduled=0.0, silence_from=FIRST))
+    np.testing.assert_array_equal(silence_gp, silence_at)
+    assert np.ptp(silence_at) > 5.0  # informative: unheard close to a receiver costs
+    # heard: log p(range) of the one receiver of the last ping, the curve's share of each score
+    state = ClockState(1.0, covariance=arrival.clock.initial_covariance(1e-3), silence_from=np.inf)
+    weights = p.normalised_weights()
+    rows_at = arrival.as_matrix(obs["arrival-time"].iloc[[-1]])
+    rows_gp = grouped.as_matrix(obs["ping-sequence"].iloc[[-1]])
+    ping_time = float(rows_at[0, 0])
+
+    def heard(measurement, score):
+        with_curve = score(measurement)
+        return with_curve - score(dataclasses.replace(measurement, silence=None))
+
+    heard_at = heard(arrival, lambda m: m._loglik(p, rows_at, ping_time, state, weights)[0])
+    heard_gp = heard(grouped, lambda m: m._sequence_score(p, rows_gp, ping_time, None, 1e-3)[0])
+    expected = CURVE.log_probability(np.hypot(p.x - rows_at[0, 1], p.y - rows_at[0, 2]))
+    np.testing.assert_allclose(heard_gp, heard_at, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(heard_gp, expected, rtol=0, atol=1e-8)
 
 
 @pytest.fixture(scope="module")

@@ -8,9 +8,9 @@ pings of the ``"ping-sequence"`` measurement (:mod:`hmmtrack.tracking.measuremen
 given the tag's period (a sequence of one interval, with the arrival-time clock model's
 random walk): each ping's arrivals are scored jointly, its emission time integrated out
 against the particle's clock. :func:`grouping_rows` runs both on the same detections of the
-clock-aware cases (:func:`hmmtrack.experiments.arrival.cases`), the arrival-time filter with
-and without the detection curve (the grouped measurement has none), and scores them as the
-study does (:func:`~hmmtrack.experiments.clock_runs.score_run`), with each run's CPU time.
+clock-aware cases (:func:`hmmtrack.experiments.arrival.cases`), each with and without the
+case's detection curve (unheard pings as information), and scores them as the study does
+(:func:`~hmmtrack.experiments.clock_runs.score_run`), with each run's CPU time.
 This module runs and scores; it writes nothing.
 """
 
@@ -42,20 +42,26 @@ GROUPING_CASES = (
 
 
 #: the methods of :func:`grouping_rows`
-METHODS = ("arrival-time", "arrival-time, no detection curve", "grouped pings")
+METHODS = (
+    "arrival-time",
+    "arrival-time, no detection curve",
+    "grouped pings",
+    "grouped pings, no detection curve",
+)
 
 
 def grouped_config(options: dict, period: float, bounds, settings: dict | None = None):
     """The grouped run's configuration: the ``"ping-sequence"`` measurement of a tag of
-    ``period`` (s), the arrival-time run's particles and window (``options`` of
-    :func:`~hmmtrack.experiments.clock_runs.clock_inputs`), the case's search ``bounds``,
-    and more ``settings`` by key."""
+    ``period`` (s), the arrival-time run's particles, window and detection curve
+    (``options`` of :func:`~hmmtrack.experiments.clock_runs.clock_inputs`), the case's
+    search ``bounds``, and more ``settings`` by key."""
     config = options["config"]
     keys = {
         "measurement": "ping-sequence",
         "period": float(period),
         "bounds": bounds,
         "n_particles": config.filter.n_particles,
+        "detection_curve": config.measurement.detection_curve,
         "start": config.start,
         "end": config.end,
     }
@@ -69,6 +75,8 @@ def _run(method: str, case, seed: int, detections, options: dict, settings):
         return track_arrival(detections, sc.receivers, options)
     if method == "arrival-time, no detection curve":
         return track_arrival(detections, sc.receivers, without_silences(options))
+    if method == "grouped pings, no detection curve":
+        options = without_silences(options)
     config = grouped_config(options, sc.period, case.search_bounds, settings)
     return track(detections, sc.receivers, config, options["motion"], seed=seed)
 
@@ -83,8 +91,8 @@ def grouping_rows(
     duration: float = DURATION,
     settings: dict | None = None,
 ) -> pd.DataFrame:
-    """The arrival-time filter (with and without the detection curve) and the grouped pings
-    on the same detections, per case and seed.
+    """The arrival-time filter and the grouped pings, each with and without the detection
+    curve, on the same detections, per case and seed.
 
     Parameters
     ----------
@@ -122,7 +130,7 @@ def grouping_rows(
                 row = {"scenario": name, "seed": seed, "method": method}
                 row |= score_run(result.estimates, case.scenario.truth)
                 row["cpu_s"] = time.process_time() - began
-                if method == "grouped pings":
+                if method.startswith("grouped"):
                     obs = result.observations
                     row["heard_per_ping"] = float(obs.groupby("ping").size().mean())
                     row["echoes_dropped"] = int(obs.attrs.get("echoes_dropped", 0))

@@ -82,10 +82,13 @@ __all__ = [
     "ClockState",
     "ClockedArrivalTime",
     "arrival_observations",
+    "curve_to_dict",
     "default_clock_model",
+    "detection_curve_setting",
     "receiver_tracks",
     "search_box",
     "search_radius_setting",
+    "silence_since",
 ]
 
 #: particle fields of the emission clock's mean (s, s, s per ping)
@@ -132,6 +135,34 @@ def _detection_curve(name: str, value) -> LogisticDetection:
     return curve
 
 
+def detection_curve_setting():
+    """The ``detection_curve`` key of a measurement section that scores unheard pings: the
+    receivers' logistic probability of hearing a ping against range
+    (:class:`~hmmtrack.tracking.measurement.detection.LogisticDetection`, in a file
+    ``{"range_50": m, "width": m}``); ``None``: missed pings carry no information."""
+    return setting(
+        None,
+        help=(
+            "probability of hearing a ping against range, 1 / (1 + exp((r - RANGE_50) / WIDTH)) "
+            "(both in metres), so that pings the particles say should have been heard but were "
+            "not count against them"
+        ),
+        check=_detection_curve,
+        parse=float,
+        metavar=("RANGE_50", "WIDTH"),
+        nargs=2,
+        default_text="none, missed pings tell nothing",
+    )
+
+
+def curve_to_dict(out: dict, curve: LogisticDetection | None) -> dict:
+    """``out`` (a settings section's :meth:`~hmmtrack.tracking.settings.Settings.to_dict`)
+    with its detection curve as ``{"range_50", "width"}`` (m) when there is one."""
+    if curve is not None:
+        out["detection_curve"] = {"range_50": curve.range_50, "width": curve.width}
+    return out
+
+
 @dataclass(frozen=True)
 class ArrivalTimeSettings(Settings):
     """The ``measurement`` section of the ``"arrival-time"`` measurement.
@@ -166,28 +197,12 @@ class ArrivalTimeSettings(Settings):
         parse=float,
         metavar="SECONDS",
     )
-    detection_curve: LogisticDetection | None = setting(
-        None,
-        help=(
-            "probability of hearing a ping against range, 1 / (1 + exp((r - RANGE_50) / WIDTH)) "
-            "(both in metres), so that pings the particles say should have been heard but were "
-            "not count against them"
-        ),
-        check=_detection_curve,
-        parse=float,
-        metavar=("RANGE_50", "WIDTH"),
-        nargs=2,
-        default_text="none, missed pings tell nothing",
-    )
+    detection_curve: LogisticDetection | None = detection_curve_setting()
     search_radius: float = search_radius_setting()
 
     def to_dict(self) -> dict:
         """As :meth:`Settings.to_dict`, the detection curve as ``{"range_50", "width"}``."""
-        out = super().to_dict()
-        if self.detection_curve is not None:
-            curve = self.detection_curve
-            out["detection_curve"] = {"range_50": curve.range_50, "width": curve.width}
-        return out
+        return curve_to_dict(super().to_dict(), self.detection_curve)
 
 
 @njit(cache=True)
@@ -701,37 +716,58 @@ class ClockedArrivalTime:
         return loglik, (clocks, covariance, silence_from), lost
 
     def _silence_loglik(self, p, time: float, state: ClockState) -> tuple[np.ndarray, float]:
-        """Unheard pings whose expected arrival fell since the last correction, and the
-        start of the next window.
+        """:func:`silence_since` the last correction of the particles' clocks."""
+        return silence_since(
+            self.silence, p.emission_time, p.period, p.x, p.y, time, state.dt,
+            state.silence_from, self.clock.nominal_period, self.arrival.sound_speed,
+        )  # fmt: skip
 
-        Each particle's pings are stepped by its period; a period rate is left out (over
-        the at most 8 pings looked at it moves an arrival by well under ``tolerance``).
-        """
-        s = self.silence
-        window_start = state.silence_from
-        cut = time + 0.5 * state.dt - s.tolerance  # detections up to time + dt/2 are in
-        if cut <= window_start:
-            return np.zeros(p.n), window_start
-        # pings of a particle whose arrival can fall in the window, with one to spare
-        n_back = min(int(np.ceil((cut - window_start) / self.clock.nominal_period)) + 1, 8)
-        listening, at = s.listening(time, state.dt)
-        if not listening:
-            return np.zeros(p.n), cut
-        loglik = silence_loglik_recent_pings(
-            p.emission_time,
-            p.period,
-            p.x,
-            p.y,
-            at,
-            n_back,
-            s.heard_times(listening),
-            window_start,
-            cut,
-            s.detection,
-            s.tolerance,
-            self.arrival.sound_speed,
-        )
-        return loglik, cut
+
+def silence_since(
+    silence: SilenceModel, emission_time, period, x, y, time: float, dt: float,
+    window_start: float, nominal_period: float, sound_speed: float,
+) -> tuple[np.ndarray, float]:  # fmt: skip
+    """Log-likelihood (N,) of the pings unheard since the last correction, and the start of
+    the next window (s).
+
+    The window runs from ``window_start`` (the last correction's cut) to this correction's
+    cut, ``time + dt/2`` less the silence model's tolerance (detections up to
+    ``time + dt/2`` are in the correction at ``time``). Each particle's pings
+    ``emission_time + k·period`` due at a listening receiver in the window and not heard
+    there score ``log(1 − p(range))``
+    (:func:`~hmmtrack.tracking.measurement.detection.silence_loglik_recent_pings`); a
+    period rate is left out (over the at most 8 pings looked at it moves an arrival by well
+    under the tolerance).
+
+    Parameters
+    ----------
+    silence : SilenceModel
+    emission_time, period : numpy.ndarray, shape (N,)
+        Each particle's reference emission (s) and period (s).
+    x, y : numpy.ndarray, shape (N,)
+        Particle positions (m).
+    time, dt : float
+        The correction's time and the filter's step (s).
+    window_start : float
+        The last correction's cut (s).
+    nominal_period : float
+        The tag's nominal period (s): how many pings back to look.
+    sound_speed : float
+        m/s.
+    """
+    cut = time + 0.5 * dt - silence.tolerance
+    if cut <= window_start:
+        return np.zeros(np.shape(x)[0]), window_start
+    # pings of a particle whose arrival can fall in the window, with one to spare
+    n_back = min(int(np.ceil((cut - window_start) / nominal_period)) + 1, 8)
+    listening, at = silence.listening(time, dt)
+    if not listening:
+        return np.zeros(np.shape(x)[0]), cut
+    loglik = silence_loglik_recent_pings(
+        emission_time, period, x, y, at, n_back, silence.heard_times(listening), window_start,
+        cut, silence.detection, silence.tolerance, sound_speed,
+    )  # fmt: skip
+    return loglik, cut
 
 
 def _parts(particles, rows: np.ndarray) -> tuple[np.ndarray, ...]:

@@ -18,6 +18,8 @@ alignment's estimate of its emission, off by about the travel time to the neares
 receiver). A wrong phase matches a ping only by chance (a window of a few tenths of a second
 in intervals of tens of seconds), the right one nearly all; fewer than half the pings matched
 is refused as "no alignment". The walk is vectorised over phases, a few milliseconds per ping.
+A fixed-period tag (one interval) is walked ping to ping instead (:func:`_period_walk`): its
+schedule wanders about any line by more than the window.
 
 **Scoring** (:class:`PingSequence`, the ``"ping-sequence"`` measurement). The emission of a
 matched ping is ``scheduled + u + j``: ``u`` the tag's offset from the aligned schedule, which
@@ -64,12 +66,17 @@ import pandas as pd
 from numba import njit
 
 from hmmtrack.io import read_burst_sequence
+from hmmtrack.tracking.measurement.arrival_time import emission_distance
 from hmmtrack.tracking.measurement.base import Score
 from hmmtrack.tracking.measurement.clocked import (
     TEMPERING_ESS,
+    curve_to_dict,
     default_clock_model,
+    detection_curve_setting,
     receiver_tracks,
+    silence_since,
 )
+from hmmtrack.tracking.measurement.detection import LogisticDetection, SilenceModel, softplus
 from hmmtrack.tracking.measurement.pings import ping_observations
 from hmmtrack.tracking.measurement.tdoa import (
     CLUSTER_SIGMAS,
@@ -100,6 +107,7 @@ __all__ = [
     "SequenceState",
     "align_sequence",
     "broadened_sigma",
+    "heard_loglik",
     "period_clock_noise",
     "sequence_observations",
     "sequence_ping_integral",
@@ -118,6 +126,10 @@ SEQUENCE_FIELDS = (
 )
 #: the first pings tried as the alignment's anchor (a spurious first group cannot spoil it)
 ANCHORS = 3
+#: largest change of a fixed-period tag's schedule per period, relative to the period,
+#: allowed between two matched pings (:func:`_period_walk`): the arrival-time clock model's
+#: initial period sd (1e-3 of the period)
+PERIOD_GAP_SD = 1e-3
 #: share of the pings after the anchor the alignment must match
 MIN_MATCHED = 0.5
 #: prior sd (s) of the tag's offset from the aligned schedule before its first ping: the
@@ -229,6 +241,40 @@ def _walk(times: np.ndarray, cumulative: np.ndarray, n_phases: int, tolerance: f
     return steps, a, b
 
 
+def _period_walk(times: np.ndarray, cumulative: np.ndarray, tolerance: float):
+    """:func:`_walk` of a sequence of one interval (a fixed-period tag), ping to ping.
+
+    A real tag's schedule wanders about any straight line by up to seconds an hour (its
+    period walks, DESIGN.md), beyond a grouping window, so one line refitted to every match
+    loses the pings. Here a ping is matched by its gap to the last matched ping: ``n``
+    periods, the nearest whole number, matched when the gap is within ``tolerance`` plus
+    :data:`PERIOD_GAP_SD` per period of ``n·P`` (the schedule moves by well under that per
+    ping). A ping that fits the last match but one is matched too, so that one stray
+    detection matched by chance cannot lose the rest. The line through the matches is the
+    walk's (the drift's prior included, the same sums in the same order).
+    """
+    period = cumulative[1] - cumulative[0]
+    steps = np.full((1, times.size), -1, dtype=np.int64)
+    steps[0, 0] = 0
+    recent = [0]  # the last two matches
+    for j in range(1, times.size):
+        for m in reversed(recent):
+            gap = times[j] - times[m]
+            n = round(gap / period)
+            if n >= 1 and abs(gap - n * period) <= tolerance + PERIOD_GAP_SD * n * period:
+                steps[0, j] = steps[0, m] + n
+                recent = [recent[-1], j]
+                break
+    ridge = (tolerance / DRIFT_SD) ** 2
+    count, sc, scc, sy, scy = 1.0, 0.0, 0.0, 0.0, 0.0  # the anchor: c = 0, y = 0
+    for j in np.flatnonzero(steps[0] > 0):
+        c = cumulative[steps[0, j]] - cumulative[0]
+        y = times[j] - c
+        count, sc, scc, sy, scy = count + 1.0, sc + c, scc + c * c, sy + y, scy + c * y
+    b = (count * scy - sc * sy) / (count * (scc + ridge) - sc * sc)
+    return steps, np.array([(sy - b * sc) / count]), np.array([b])
+
+
 def align_sequence(
     first_arrivals, sequence, tolerance: float, source: str = "the burst sequence"
 ) -> SequenceAlignment:
@@ -259,7 +305,11 @@ def align_sequence(
     cumulative = _cumulative(sequence, float(times[-1] - times[0]) + sequence.max())
     best = None
     for anchor in range(min(ANCHORS, times.size)):
-        steps, a, b = _walk(times[anchor:] - times[anchor], cumulative, sequence.size, tolerance)
+        shifted = times[anchor:] - times[anchor]
+        if sequence.size == 1:
+            steps, a, b = _period_walk(shifted, cumulative, tolerance)
+        else:
+            steps, a, b = _walk(shifted, cumulative, sequence.size, tolerance)
         matched = (steps >= 0).sum(axis=1)
         order = np.argsort(-matched, kind="stable")
         phase = int(order[0])
@@ -528,6 +578,25 @@ def sequence_ping_loglik(
         updated[4, p] = w0 * parts[0, 6] + w1 * parts[1, 6] + spread * db * db
 
 
+@njit(cache=True)
+def heard_loglik(
+    x, y, vx, vy, depth, arrival, receiver_x, receiver_y, row_offset, time, sound_speed,
+    range_50, width, loglik,
+):  # fmt: skip
+    """Add to ``loglik`` (N,) each particle's ``log p(range)`` of being heard by every
+    receiver of one ping (logistic curve ``range_50``, ``width``, m; range at emission as
+    :func:`~hmmtrack.tracking.measurement.tdoa.ping_residuals` takes it), the term the
+    arrival-time measurement adds per detection."""
+    slowness = 1.0 / sound_speed
+    for p in range(x.size):
+        for j in range(arrival.size):
+            d = emission_distance(
+                x[p], y[p], vx[p], vy[p], depth[p] + row_offset[j], time - arrival[j],
+                receiver_x[j], receiver_y[j], slowness,
+            )  # fmt: skip
+            loglik[p] -= softplus((d - range_50) / width)
+
+
 # ---------------------------------------------------------------------------- measurement
 
 
@@ -564,6 +633,11 @@ class PingSequenceSettings(PingSettings):
         interval, so that its pings are grouped and scored jointly against the tag's clock
         (``hmmtrack track --measurement ping-sequence --period P``; the arrival-time
         measurement scores the same tag's detections one at a time).
+    detection_curve : LogisticDetection or None
+        With ``period``: the receivers' probability of hearing a ping against range, as the
+        arrival-time measurement's (each receiver that heard a ping scores ``log p``, each
+        listening one that did not ``log(1 − p)``); ``None``: who heard a ping tells
+        nothing.
     """
 
     name: ClassVar[str] = "ping-sequence"
@@ -592,8 +666,15 @@ class PingSequenceSettings(PingSettings):
         default_text="none",
     )
 
+    detection_curve: LogisticDetection | None = detection_curve_setting()
+
     def validate(self) -> None:
         super().validate()
+        if self.detection_curve is not None and self.period is None:
+            raise ValueError(
+                "detection_curve needs period: unheard pings are scored against a "
+                "fixed-period tag's schedule (a burst_sequence tag's are not)"
+            )
         if (self.burst_sequence is None) == (self.period is None):
             raise ValueError(
                 "the ping-sequence measurement needs burst_sequence (a file) or, for a "
@@ -604,6 +685,10 @@ class PingSequenceSettings(PingSettings):
                 "burst_sequence gives the tag's intervals: burst_interval is for tags whose "
                 "sequence is unknown; give one of them"
             )
+
+    def to_dict(self) -> dict:
+        """As :meth:`PingSettings.to_dict`, the detection curve as ``{"range_50", "width"}``."""
+        return curve_to_dict(super().to_dict(), self.detection_curve)
 
     def intervals(self) -> tuple[np.ndarray, str]:
         """The sequence (s) and what it is, for messages (its file, ``"the given
@@ -617,12 +702,25 @@ class PingSequenceSettings(PingSettings):
 
 @dataclass
 class SequenceState:
-    """The mutable state of one run of :class:`PingSequence`: each particle's posterior
-    mean emission time of the latest ping (s, (N,)) and the scheduled time of the ping the
-    clocks last saw (s; ``None`` before the first)."""
+    """The mutable state of one run of :class:`PingSequence`.
 
+    Attributes
+    ----------
+    dt : float
+        The filter's prediction step (s).
+    emission : numpy.ndarray or None
+        Each particle's posterior mean emission time of the latest ping (s, (N,)).
+    scheduled : float or None
+        The scheduled time of the ping the clocks last saw (s; ``None`` before the first).
+    silence_from : float
+        With a silence model, unheard pings count from this time on (s): the last
+        correction's cut (:func:`~hmmtrack.tracking.measurement.clocked.silence_since`).
+    """
+
+    dt: float = 1.0
     emission: np.ndarray | None = None
     scheduled: float | None = None
+    silence_from: float = -np.inf
 
 
 @dataclass(frozen=True)
@@ -642,10 +740,22 @@ class PingSequence(PingTDOA):
         Share of the cloud's spread added to the arrival sd while the cloud is wide
         (:func:`broadened_sigma`); 0: none. A fixed-period tag takes
         :data:`PERIOD_BROADENING`.
+    silence : SilenceModel or None
+        A fixed-period tag's detection curve as information, as the arrival-time
+        measurement's (:class:`~hmmtrack.tracking.measurement.clocked.ClockedArrivalTime`):
+        each detection adds ``log p(range)``, each ping a particle's clock says a listening
+        receiver should have heard and did not ``log(1 − p(range))``
+        (:func:`~hmmtrack.tracking.measurement.clocked.silence_since`, its detection times
+        the arrivals). ``None``: who heard a ping tells nothing.
+    schedule_period : float or None
+        The aligned schedule's period (s; the tag's period times one plus the alignment's
+        drift), by which a particle's clock steps to the pings the silences look at.
     """
 
     clock_noise: tuple[float, float, float] = (PHASE_DENSITY, DRIFT_DENSITY, DRIFT_SD)
     broadening: float = 0.0
+    silence: SilenceModel | None = None
+    schedule_period: float | None = None
 
     name: ClassVar[str] = "ping-sequence"
     settings: ClassVar[type] = PingSequenceSettings
@@ -672,12 +782,25 @@ class PingSequence(PingTDOA):
     @classmethod
     def from_settings(cls, settings: PingSequenceSettings, observations: pd.DataFrame, receivers):
         """:meth:`PingTDOA.from_settings`, with the clock noise of a fixed-period tag
-        (:func:`period_clock_noise`) when ``settings.period`` is given."""
+        (:func:`period_clock_noise`), its broadening, its schedule's period and, with a
+        detection curve, its silence model when ``settings.period`` is given."""
         built = super().from_settings(settings, observations, receivers)
         if settings.period is None:
             return built
+        silence = None
+        if settings.detection_curve is not None:
+            silence = SilenceModel.from_observations(
+                observations.assign(time=observations["arrival"]),
+                receiver_tracks(receivers),
+                settings.detection_curve,
+            )
+        drift = observations.attrs["alignment"].drift
         return dataclasses.replace(
-            built, clock_noise=period_clock_noise(settings.period), broadening=PERIOD_BROADENING
+            built,
+            clock_noise=period_clock_noise(settings.period),
+            broadening=PERIOD_BROADENING,
+            silence=silence,
+            schedule_period=settings.period * (1.0 + drift),
         )
 
     def start(self, particles, time: float, dt: float = 1.0) -> SequenceState:
@@ -685,7 +808,7 @@ class PingSequence(PingTDOA):
         ``clock_noise[2]``); a fresh run state."""
         prior = _prior_clock(particles.n, self.clock_noise[2])
         particles.extra.update(zip(SEQUENCE_FIELDS, prior, strict=True))
-        return SequenceState()
+        return SequenceState(dt=float(dt))
 
     @staticmethod
     def as_matrix(table: pd.DataFrame) -> np.ndarray:
@@ -704,7 +827,9 @@ class PingSequence(PingTDOA):
         """The pings' log-likelihood; the clocks' Kalman step and the emission times of the
         last scoring are committed with the final weights. With :attr:`broadening`, the
         arrival sd is widened by the cloud's spread before the correction
-        (:func:`broadened_sigma`)."""
+        (:func:`broadened_sigma`). With :attr:`silence`, the pings unheard since the last
+        correction count once the clocks have seen a ping (:meth:`_silence`); the first
+        such ping starts the silences' window at its earliest emission."""
         latest = []
         sigma = self.sigma
         if self.broadening > 0.0:
@@ -716,16 +841,36 @@ class PingSequence(PingTDOA):
             loglik, emission, clock, scheduled = self._sequence_score(
                 particles, rows, time, state.scheduled, sigma
             )
-            latest[:] = [emission, clock, scheduled]
+            cut = state.silence_from
+            if self.silence is not None and state.scheduled is not None:
+                silence, cut = self._silence(particles, time, state)
+                loglik += silence
+            latest[:] = [emission, clock, scheduled, cut]
             return loglik
 
         def commit(particles):
-            emission, clock, scheduled = latest
+            emission, clock, scheduled, cut = latest
+            if self.silence is not None and state.scheduled is None and scheduled is not None:
+                cut = float(np.min(emission))  # silences count from the first ping on
             state.emission = emission
             state.scheduled = scheduled
+            state.silence_from = cut
             particles.extra.update(zip(SEQUENCE_FIELDS, clock, strict=True))
 
         return Score(scored(particles, weights), rescore=scored, commit=commit)
+
+    def _silence(self, p, time: float, state: SequenceState) -> tuple[np.ndarray, float]:
+        """:func:`~hmmtrack.tracking.measurement.clocked.silence_since` the last correction
+        of the particles' clocks: particle ``i`` emits at ``s + u_i + k·P(1 + b_i)``, ``s``
+        the scheduled time of the clocks' last ping, ``u_i`` and ``b_i`` its offset and
+        drift there, ``P`` :attr:`schedule_period`."""
+        offset = np.asarray(p.extra["sequence_offset"], dtype=float)
+        drift = np.asarray(p.extra["sequence_drift"], dtype=float)
+        period = self.schedule_period
+        return silence_since(
+            self.silence, state.scheduled + offset, period * (1.0 + drift), p.x, p.y, time,
+            state.dt, state.silence_from, period, self.sound_speed,
+        )  # fmt: skip
 
     def _sequence_score(self, p, rows, time, last_scheduled, sigma):
         """Log-likelihood (N,), emission times (N,), clocks (5, N) and the clocks' last
@@ -757,6 +902,12 @@ class PingSequence(PingTDOA):
                 )  # fmt: skip
                 clock, last_scheduled = updated, scheduled
             total += loglik
+            if self.silence is not None:
+                detection = self.silence.detection
+                heard_loglik(
+                    *motion, *ping_rows, time, self.sound_speed, detection.range_50,
+                    detection.width, total,
+                )  # fmt: skip
         return total, emission, clock, last_scheduled
 
 
