@@ -50,7 +50,13 @@ Pings the alignment did not match are scored as random-interval pings
 interval: its pings grouped and scored as above, with the arrival-time measurement's clock
 model instead of a crystal's (:func:`period_clock_noise`: a real tag's period wanders) and the
 arrival sd widened while the cloud is wide (:func:`broadened_sigma`), so that a ping heard
-by three receivers offers the tempered cloud a basin rather than a point.
+by three receivers offers the tempered cloud a basin rather than a point. Given a detection
+curve it also scores who heard each ping, as the arrival-time measurement does: ``log p`` of
+the range of every receiver that heard it (:func:`heard_loglik`) and ``log(1 − p)`` of every
+ping the particle's clock says a listening receiver missed
+(:func:`~hmmtrack.tracking.measurement.clocked.silence_since`, the same code). Without it, a
+ping heard by two receivers leaves the tag and its mirror across their line equally likely,
+and a cloud can follow the mirror for minutes.
 """
 
 from __future__ import annotations
@@ -151,7 +157,8 @@ DRIFT_DENSITY = 1e-14
 _LOG_2PI = math.log(2.0 * math.pi)
 #: share of the cloud's spread added to a fixed-period tag's arrival sd
 #: (:func:`broadened_sigma`): 2 % turns a cloud spread over 700 m into a 10 ms (14 m) basin
-#: (reasons in reports/decisions.md, "Fixed-period tags with ping grouping")
+#: (reasons in reports/decisions.md, "Fixed-period tags with ping grouping"; held-out
+#: seeds in "Fixed-period grouping with the detection curve")
 PERIOD_BROADENING = 0.02
 #: arrival sd (s) of the sequence measurement: the 1 ms it was measured with (its clock puts
 #: each emission to a millisecond; the random-interval ping's 2 ms is for its untimed pings)
