@@ -206,7 +206,8 @@ def test_acquisition_grid_scores_the_first_corrections_through_the_protocol(buil
     pf, scored = started_filter(case, measurement, observations)
     ticks = np.rint(scored["time"].to_numpy() - pf.time).astype(int)
     pf.acquisition = acquisition = Acquisition()
-    pf._acquire(pf.time, ticks, scored, getattr(measurement, "as_matrix", None))
+    as_matrix = getattr(measurement, "as_matrix", None)
+    pf._acquire(pf.time, ticks, scored if as_matrix is None else as_matrix(scored))
     assert [e["kind"] for e in pf.events] == ["acquired"]
     corrections = [(pf.time + t, scored[ticks == t]) for t in np.unique(ticks)[:4]]
     if getattr(measurement, "as_matrix", None) is not None:

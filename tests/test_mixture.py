@@ -364,7 +364,7 @@ def test_each_scheme_resamples_within_components_without_bias(scheme):
     copies = np.zeros(n)
     for _ in range(400):
         draws = scheme_draws(rng, code, n, 2)
-        ancestors, log_weight, new_weights, summary = resample_components(
+        ancestors, log_weight, new_weights, summary, _, _ = resample_components(
             weights, labels, counts, component_weight, code, draws, x, y
         )
         np.testing.assert_array_equal(labels[ancestors], np.repeat([0, 2], [25, 35]))

@@ -404,6 +404,10 @@ class ParticleFilter:
         self._correction_arrays: tuple | None = None
         #: ancestor indices (N,) of the last resampling (None before any); read by smoothers
         self.last_ancestors: np.ndarray | None = None
+        #: with a mixture, its components' weight, mean and covariance (K, 6) after the last
+        #: resampling (:meth:`hmmtrack.tracking.mixture.Mixture.resample`); read by
+        #: :class:`hmmtrack.tracking.mixture.Modes`
+        self.component_moments: np.ndarray | None = None
         #: the measurement's state of this run (its ``start`` hook's; None without one)
         self.measurement_state = None
         # (log weights, normalised weights, ESS, a point inside the cloud) after the last
@@ -430,6 +434,7 @@ class ParticleFilter:
         self.time = float(time)
         self.events = []
         self.last_ancestors = None
+        self.component_moments = None
         self._weighed = None
         estimate = self.estimate()
         if self._start is not None:
@@ -681,7 +686,9 @@ class ParticleFilter:
             # equal weights now; the old weighted mean still lies inside the cloud
             self._weighed = (self.particles.log_weight, self._equal_weights(), float(p.n), origin)
         else:
-            ancestors, log_weight, weights, n_eff, mean = self.mixture.resample(self, weights)
+            ancestors, log_weight, weights, n_eff, mean, self.component_moments = (
+                self.mixture.resample(self, weights)
+            )
             self._take(p, ancestors)
             self.particles.log_weight = log_weight
             self._weighed = (log_weight, weights, n_eff, mean)
@@ -787,20 +794,21 @@ class ParticleFilter:
         ticks = np.rint((times - start) / self.dt).astype(np.int64)
         inside = (ticks >= 0) & (ticks <= n_ticks)
         self.initialise(start)
-        if self.acquisition is not None:
-            self._acquire(start, ticks[inside], obs[inside], matrix_of=self._as_matrix)
-        if not inside.all():
-            self._record(
-                "observations_outside_window",
-                f"{int((~inside).sum())} observation(s) (rows {obs.index[~inside][:10].tolist()}"
-                f"{'...' if (~inside).sum() > 10 else ''}) outside [{start}, {end}] left out",
-            )
+        outside = obs.index[~inside]
         obs, ticks = obs[inside], ticks[inside]
         order = np.argsort(ticks, kind="stable")
         obs, ticks = obs.iloc[order], ticks[order]
         # the measurement's own matrix form of all observations, converted once (a pandas
         # slice per correction costs more than the correction)
         matrix = obs if self._as_matrix is None else self._as_matrix(obs)
+        if self.acquisition is not None:
+            self._acquire(start, ticks, matrix)
+        if outside.size:
+            self._record(
+                "observations_outside_window",
+                f"{outside.size} observation(s) (rows {outside[:10].tolist()}"
+                f"{'...' if outside.size > 10 else ''}) outside [{start}, {end}] left out",
+            )
         snap_ticks = self._snapshot_ticks(snapshot_times, start, n_ticks)
         stops = np.union1d(np.union1d(ticks, snap_ticks), [0, n_ticks])
         # each stop's observations are rows lo:hi (one search for all stops, plain ints)
@@ -825,16 +833,19 @@ class ParticleFilter:
             yield estimate
             current = stop
 
-    def _acquire(self, start: float, ticks: np.ndarray, obs, matrix_of) -> None:
-        """Run the acquisition on the first corrections (ticks ``(M,)`` of the rows of
-        ``obs``, sorted or not) and record an ``acquired`` event (no warning)."""
+    def _acquire(self, start: float, ticks: np.ndarray, rows) -> None:
+        """Run the acquisition on the first corrections and record an ``acquired`` event
+        (no warning). ``ticks`` (M,), ascending, are the prediction steps of ``rows``, the
+        observations in the measurement's form in the same order (sliced per correction,
+        as :meth:`iterate` slices them)."""
         first = np.unique(ticks)[: self.acquisition.corrections]
-        corrections = []
-        for tick in first.tolist():
-            rows = obs[ticks == tick]
-            corrections.append(
-                (start + tick * self.dt, rows if matrix_of is None else matrix_of(rows))
-            )
+        bounds = zip(
+            first.tolist(),
+            np.searchsorted(ticks, first).tolist(),
+            np.searchsorted(ticks, first + 1).tolist(),
+            strict=True,
+        )
+        corrections = [(start + tick * self.dt, rows[lo:hi]) for tick, lo, hi in bounds]
         detail = self.acquisition.acquire(self, corrections)
         if detail is not None:
             self.events.append({"time": self.time, "kind": "acquired", "detail": detail})

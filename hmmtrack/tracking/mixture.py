@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numba
 import numpy as np
@@ -42,10 +43,17 @@ from numba import njit
 
 from hmmtrack.tracking.compiled.chunks import chunking, in_chunks, next_chunk
 from hmmtrack.tracking.particles import split_in_two, sqrt_largest_eigenvalue
-from hmmtrack.tracking.resampling import Scratch, invert, merge_segments, prepare_points
+from hmmtrack.tracking.resampling import (
+    Scratch,
+    invert,
+    merge_points,
+    merge_segments,
+    prepare_points,
+)
 
 __all__ = [
     "CONVERGENCE_THRESHOLD",
+    "Components",
     "ESTIMATE_MODE_COLUMNS",
     "MODE_COLUMNS",
     "ONE_MODE_WEIGHT",
@@ -134,13 +142,16 @@ class Mixture:
         """One component holds every fresh particle."""
         pf.particles.extra[COMPONENT] = np.zeros(pf.particles.n, dtype=np.int64)
 
-    def resample(self, pf, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def resample(self, pf, weights: np.ndarray) -> tuple:
         """Recluster, then resample each component on its own with the filter's scheme.
 
-        One compiled pass each for the reclustering and the allocation, and the resampling
-        of all components (:func:`resample_components`) in the filter's work arrays, its
-        merge on the correction's threads, so the cost beside the plain filter's resampling
-        is a few passes over the particles, not a Python loop.
+        Two compiled calls around the scheme's draws: the components' moments, the
+        reclustering and the allocation (:func:`_recluster_and_allocate`; the moments on
+        the correction's threads first when it has more than one), then the resampling of
+        all components (:func:`resample_components`) in the filter's work arrays, its merge
+        on the correction's threads, which also sums the new particles' ESS, mean and
+        component moments. So the cost beside the plain filter's resampling is a few
+        passes over the particles, not a Python loop.
 
         Parameters
         ----------
@@ -162,13 +173,19 @@ class Mixture:
             Their effective sample size ``1 / Σ w²``.
         mean : (float, float)
             Their weighted mean position (m).
+        moments : numpy.ndarray, shape (K, 6)
+            The new particles' :func:`component_moments` (the same numbers), ``K`` the live
+            components (what :class:`Modes` reports).
         """
         p = pf.particles
         labels = p.extra[COMPONENT]
-        moments = component_moments(
-            p.x, p.y, weights, labels, int(labels.max()) + 1, pf.correction_threads()
+        threads = pf.correction_threads()
+        moments = (
+            _NO_MOMENTS
+            if threads == 1
+            else component_moments(p.x, p.y, weights, labels, int(labels.max()) + 1, threads)
         )
-        labels, component_weight, counts = _recluster_and_allocate(
+        labels, component_weight, counts, live = _recluster_and_allocate(
             p.x,
             p.y,
             weights,
@@ -181,15 +198,16 @@ class Mixture:
             math.ceil(self.min_share * p.n),
         )
         code = SCHEME_CODES[pf.resampling]
-        draws = scheme_draws(pf.rng, code, p.n, int(np.count_nonzero(counts)))
+        draws = scheme_draws(pf.rng, code, p.n, live)
         scratch = pf.scratch  # the filter's work arrays, unused by its own scheme here
-        scratch.threads = pf.correction_threads()
-        ancestors, log_weight, new_weights, summary = resample_components(
+        scratch.threads = threads
+        new = resample_components(
             weights, labels, counts, component_weight, code, draws, p.x, p.y, scratch
         )
         # live components numbered 0..K-1 in order (the labels travel with the ancestors)
-        p.extra[COMPONENT] = np.cumsum(counts > 0)[labels] - 1
-        return ancestors, log_weight, new_weights, float(summary[0]), (summary[1], summary[2])
+        p.extra[COMPONENT] = new.labels
+        n_eff, mean_x, mean_y = new.summary.tolist()
+        return new.ancestors, new.log_weight, new.weights, n_eff, (mean_x, mean_y), new.moments
 
     def recluster(self, x, y, weights, labels) -> np.ndarray:
         """New component labels (N,): merge components whose means meet, split those that
@@ -229,6 +247,8 @@ class Mixture:
 
 #: codes of the resampling schemes in :func:`resample_components`
 SCHEME_CODES = {"multinomial": 0, "residual": 1, "stratified": 2, "systematic": 3}
+#: "no moments given": :func:`_recluster_and_allocate` sums them itself
+_NO_MOMENTS = np.zeros((0, 6))
 
 
 def scheme_draws(rng: np.random.Generator, code: int, n: int, live: int) -> np.ndarray:
@@ -248,17 +268,56 @@ def _recluster_and_allocate(
     floor,
 ):  # fmt: skip
     """The compiled part of :meth:`Mixture.resample` before the draws, from the components'
-    moments (:func:`component_moments`): the new labels (N,), the component weights (K,)
-    and the particles each gets (K,), :func:`allocate`."""
+    moments (:func:`component_moments`; summed here, on this thread, when ``moments`` has
+    no rows): the new labels (N,), the component weights (K,), the particles each gets
+    (K,), :func:`allocate`, and the number of components that get any."""
+    if moments.shape[0] == 0:
+        moments = _component_moments(x, y, weights, labels, labels.max() + 1)
     labels, component_weight = _recluster(
         x, y, weights, labels, moments, max_components, min_separation, split_share, prune_weight
     )
-    return labels, component_weight, allocate(component_weight, labels.size, prune_weight, floor)
+    counts = allocate(component_weight, labels.size, prune_weight, floor)
+    return labels, component_weight, counts, np.count_nonzero(counts)
+
+
+class Components(NamedTuple):
+    """What :func:`resample_components` returns.
+
+    Attributes
+    ----------
+    ancestors : numpy.ndarray, shape (M,), int64
+        Grouped by component, in component order (``M = sum(counts)``).
+    log_weight : numpy.ndarray, shape (M,)
+        ``log(π_k / N_k)`` with ``π_k`` the component's share of the live components'
+        weight.
+    weights : numpy.ndarray, shape (M,)
+        ``exp(log_weight)``.
+    summary : numpy.ndarray, shape (3,)
+        The new particles' ESS ``1 / Σ w²`` and weighted mean x, y (m): what the filter
+        keeps beside the weights (:meth:`hmmtrack.tracking.filter.ParticleFilter.weights`),
+        summed here, one component at a time, rather than by NumPy's dot products (which
+        hand arrays over 10,000 to OpenBLAS threads: a millisecond or more per call on a
+        busy machine).
+    labels : numpy.ndarray, shape (N,), int64
+        The old particles' labels renumbered ``0..K'-1`` over the live components (those
+        with ``counts > 0``): the new particles take them from their ancestors.
+    moments : numpy.ndarray, shape (K', 6)
+        :func:`component_moments` of the new particles (positions of the ancestors, the
+        new weights and labels): the same sums in the same order, taken in the pass that
+        forms the ESS and mean instead of a pass of their own.
+    """
+
+    ancestors: np.ndarray
+    log_weight: np.ndarray
+    weights: np.ndarray
+    summary: np.ndarray
+    labels: np.ndarray
+    moments: np.ndarray
 
 
 def resample_components(
     weights, labels, counts, component_weight, code, draws, x, y, scratch: Scratch | None = None
-):  # fmt: skip
+) -> Components:  # fmt: skip
     """Resample each component on its own (compiled; the scheme by its code).
 
     Component ``k`` gets ``counts[k]`` ancestors among its particles, drawn by the scheme of
@@ -267,7 +326,7 @@ def resample_components(
     every component's cumulative weights and points formed in one pass, then merged in the
     chunks of all components' points on ``scratch.threads`` threads; the ancestors do not
     depend on the threads); residual keeps ``floor(N_k w)`` copies and draws the rest
-    multinomially.
+    multinomially. On one thread the whole is one compiled call.
 
     Parameters
     ----------
@@ -284,43 +343,50 @@ def resample_components(
     draws : numpy.ndarray
         The scheme's random numbers for the live components in order (:func:`scheme_draws`).
     x, y : numpy.ndarray, shape (N,)
-        Positions (m), for the new particles' weighted mean.
+        Positions (m), for the new particles' weighted mean and moments.
     scratch : Scratch, optional
         Work arrays reused from one call to the next and the threads of the merge (the
         filter's, :class:`hmmtrack.tracking.resampling.Scratch`); by default fresh arrays
         and one thread.
-
-    Returns
-    -------
-    ancestors : numpy.ndarray, shape (sum(counts),), int64
-        Grouped by component, in component order.
-    log_weight : numpy.ndarray, shape (sum(counts),)
-        ``log(π_k / N_k)`` with ``π_k`` the component's share of the live components'
-        weight.
-    new_weights : numpy.ndarray, shape (sum(counts),)
-        ``exp(log_weight)``.
-    summary : numpy.ndarray, shape (3,)
-        The new particles' ESS ``1 / Σ w²`` and weighted mean x, y (m): what the filter
-        keeps beside the weights (:meth:`hmmtrack.tracking.filter.ParticleFilter.weights`),
-        summed here, one component at a time, rather than by NumPy's dot products (which
-        hand arrays over 10,000 to OpenBLAS threads: a millisecond or more per call on a
-        busy machine).
     """
     scratch = Scratch() if scratch is None else scratch
     total = int(counts.sum())
-    ancestors = np.empty(total, dtype=np.int64)
     cumulative = scratch.array("cumulative", labels.size)
     points = scratch.array("points", total)
     gathered = scratch.array("gathered", labels.size)
-    start, at, last, members, grouped = _prepare_components(
+    ancestors = np.empty(total, dtype=np.int64)
+    inputs = (weights, labels, counts, component_weight, code, draws)
+    if scratch.threads == 1 or code == SCHEME_CODES["residual"]:
+        return Components(*_resample_serial(*inputs, cumulative, points, gathered, ancestors, x, y))
+    prepared = _prepare_components(*inputs, cumulative, points, gathered, ancestors)
+    start, at, last = prepared[:3]
+    merge_segments(cumulative, points, start, at, last, scratch.threads, ancestors)
+    finished = _finish_components(prepared, counts, component_weight, code, x, y, ancestors)
+    return Components(*finished)
+
+
+@njit(cache=True)
+def _resample_serial(
+    weights, labels, counts, component_weight, code, draws, cumulative, points, gathered,
+    ancestors, x, y,
+):  # fmt: skip
+    """:func:`resample_components` on this thread in one call: each component's merge by
+    :func:`hmmtrack.tracking.resampling.merge_points` over its whole segment (any split of
+    the points into chunks gives the same ancestors)."""
+    prepared = _prepare_components(
         weights, labels, counts, component_weight, code, draws, cumulative, points, gathered,
         ancestors,
     )  # fmt: skip
-    if code != SCHEME_CODES["residual"]:
-        merge_segments(cumulative, points, start, at, last, scratch.threads, ancestors)
-    return _finish_components(
-        start, at, members, grouped, counts, component_weight, code, x, y, ancestors
-    )
+    start, at, last = prepared[:3]
+    if code != 1:
+        for k in range(counts.size):
+            a, b = at[k], at[k + 1]
+            if b > a:
+                merge_points(
+                    cumulative[start[k] : start[k + 1]], points[a:b], ancestors[a:b], 0, b - a,
+                    last[k],
+                )  # fmt: skip
+    return _finish_components(prepared, counts, component_weight, code, x, y, ancestors)
 
 
 @njit(cache=True)
@@ -335,14 +401,19 @@ def _prepare_components(
     new particles ``at[k]:at[k + 1]``; fills ``cumulative[start[k]:start[k + 1]]`` and
     ``points[at[k]:at[k + 1]]`` by :func:`hmmtrack.tracking.resampling.prepare_points` (``last[k]``
     its last index of positive weight), taking ``gathered`` for the weights of ungrouped
-    labels; residual writes its ancestors (particle indices) at once."""
+    labels; residual writes its ancestors (particle indices) at once. Also each label
+    renumbered over the live components, ``relabelled`` (N,): the number of live components
+    up to it, less one."""
     n_components = counts.size
     start = np.zeros(n_components + 1, dtype=np.int64)
+    rank = np.cumsum(counts > 0) - 1
+    relabelled = np.empty(labels.size, dtype=np.int64)
     # labels in component order (as a resampling leaves them): each component's particles
     # are a slice, so no index list is built and no weights are gathered
     grouped = True
     for i in range(labels.size):
         start[labels[i] + 1] += 1
+        relabelled[i] = rank[labels[i]]
         if i > 0 and labels[i] < labels[i - 1]:
             grouped = False
     for k in range(n_components):
@@ -395,23 +466,34 @@ def _prepare_components(
                 own_points[j] = (j + draws[d + j if code == 2 else d]) / c
             last[k] = prepare_points(w, scale, own_points, c, 1.0, False, cum, own_points)
             d += c if code == 2 else 1
-    return start, at, last, members, grouped
+    return start, at, last, members, grouped, relabelled
 
 
 @njit(cache=True)
-def _finish_components(start, at, members, grouped, counts, component_weight, code, x, y,
-                       ancestors):  # fmt: skip
+def _finish_components(prepared, counts, component_weight, code, x, y, ancestors):
     """The serial part of :func:`resample_components` after the merge: ``ancestors`` made
-    particle indices (but residual's, already so), the log weights, the weights and the
-    summary, one component at a time."""
+    particle indices (but residual's, already so), the log weights, the weights, the
+    summary, the renumbered labels and the new particles' component moments, one component
+    at a time (the moments' sums in the chunks of
+    :func:`hmmtrack.tracking.compiled.chunks.chunking` over the new particles, about each
+    component's first new particle, as :func:`component_moments` sums them)."""
+    start, at, members, grouped, relabelled = (
+        prepared[0], prepared[1], prepared[3], prepared[4], prepared[5],
+    )  # fmt: skip
     total = ancestors.size
     log_weight = np.empty(total)
     new_weights = np.empty(total)
     sum_squares = mean_x = mean_y = 0.0
     live = 0.0
+    n_live = 0
     for k in range(counts.size):
         if counts[k] > 0:
             live += component_weight[k]
+            n_live += 1
+    origin = np.empty((n_live, 2))
+    size = chunking(total)[1]
+    sums = np.zeros((chunking(total)[0], n_live, 6))
+    r = 0  # the live rank of component k
     for k in range(counts.size):
         c = counts[k]
         if c == 0:
@@ -424,14 +506,26 @@ def _finish_components(start, at, members, grouped, counts, component_weight, co
         if code != 1:
             for j in range(a, a + c):
                 ancestors[j] = lo + ancestors[j] if grouped else members[lo + ancestors[j]]
+        origin[r, 0], origin[r, 1] = x[ancestors[a]], y[ancestors[a]]
         sx = sy = 0.0
         for j in range(a, a + c):
             sx += x[ancestors[j]]
             sy += y[ancestors[j]]
+            own = sums[j // size, r]
+            dx, dy, w = x[ancestors[j]] - origin[r, 0], y[ancestors[j]] - origin[r, 1], w_k
+            own[0] += w
+            own[1] += w * dx
+            own[2] += w * dy
+            own[3] += w * dx * dx
+            own[4] += w * dy * dy
+            own[5] += w * dx * dy
         sum_squares += c * w_k * w_k
         mean_x += w_k * sx
         mean_y += w_k * sy
-    return ancestors, log_weight, new_weights, np.array([1.0 / sum_squares, mean_x, mean_y])
+        r += 1
+    summary = np.array([1.0 / sum_squares, mean_x, mean_y])
+    moments = _moments_of_sums(sums, origin)
+    return ancestors, log_weight, new_weights, summary, relabelled, moments
 
 
 @njit(cache=True)
@@ -673,18 +767,19 @@ class Modes:
         """Nothing to record."""
 
     def resampled(self, pf, ancestors) -> None:
-        p = pf.particles
-        weights = pf.weights()[0]
-        labels = p.extra.get(COMPONENT)
-        if labels is None:
+        """The modes of the resampled cloud: the mixture's components (their moments as the
+        mixture's resampling summed them, :attr:`~hmmtrack.tracking.filter.ParticleFilter
+        .component_moments`), else the clusters of the cloud."""
+        if pf.mixture is not None:
+            moments = pf.component_moments
+        else:
+            p = pf.particles
+            weights = pf.weights()[0]
             labels = _CLUSTERS.recluster(p.x, p.y, weights, np.zeros(p.n, dtype=np.int64))
-        moments = component_moments(
-            p.x, p.y, weights, labels, int(labels.max()) + 1, pf.correction_threads()
-        )
-        heaviest = moments[np.argsort(-moments[:, 0], kind="stable")[:REPORTED_MODES]]
-        top = np.full((REPORTED_MODES, 6), np.nan)
-        top[: len(heaviest)] = heaviest
-        self._rows.append((pf.time, len(moments), top))
+            moments = component_moments(
+                p.x, p.y, weights, labels, int(labels.max()) + 1, pf.correction_threads()
+            )
+        self._rows.append((pf.time, len(moments), _heaviest(moments)))
 
     def result(self) -> dict[str, pd.DataFrame]:
         """The table; √λ₁ of the modes computed once for all rows."""
@@ -702,6 +797,17 @@ class Modes:
 
 #: the clustering of :class:`Modes` without a mixture
 _CLUSTERS = Mixture()
+
+
+@njit(cache=True)
+def _heaviest(moments):
+    """The :data:`REPORTED_MODES` rows of ``moments`` (K, 6) of largest weight, heaviest
+    first (ties in row order), NaN rows where ``K`` is smaller."""
+    top = np.full((REPORTED_MODES, 6), np.nan)
+    order = np.argsort(-moments[:, 0], kind="mergesort")
+    for r in range(min(REPORTED_MODES, order.size)):
+        top[r] = moments[order[r]]
+    return top
 
 
 def with_modes(estimates: pd.DataFrame, modes: pd.DataFrame) -> pd.DataFrame:
