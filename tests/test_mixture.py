@@ -328,6 +328,17 @@ def test_components_invert_as_each_component_alone_on_any_threads(grouped):
         for run in runs[1:]:
             for got, first in zip(run, runs[0], strict=True):
                 np.testing.assert_array_equal(got, first)
+        # the labels renumbered over the live components, and the new particles' moments
+        # summed with the ancestors: the very numbers of a pass of component_moments
+        relabelled = (np.cumsum(counts > 0) - 1)[labels]
+        np.testing.assert_array_equal(runs[0].labels, relabelled)
+        ancestors = runs[0].ancestors
+        np.testing.assert_array_equal(
+            runs[0].moments,
+            component_moments(
+                x[ancestors], y[ancestors], runs[0].weights, relabelled[ancestors], 4
+            ),
+        )
         if scheme == "residual":
             continue
         expected, d = [], 0

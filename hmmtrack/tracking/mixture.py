@@ -789,10 +789,12 @@ class Modes:
         modes = np.concatenate([top[..., :3], spread[..., None]], axis=2).reshape(
             n, 4 * REPORTED_MODES
         )
-        out = pd.DataFrame(modes, columns=list(MODE_COLUMNS[2:]))
-        out.insert(0, "components", np.array([row[1] for row in self._rows], dtype=np.int64))
-        out.insert(0, "time", np.array([row[0] for row in self._rows], dtype=float))
-        return {"modes": out}
+        columns = {
+            "time": np.array([row[0] for row in self._rows], dtype=float),
+            "components": np.array([row[1] for row in self._rows], dtype=np.int64),
+            **dict(zip(MODE_COLUMNS[2:], modes.T, strict=True)),
+        }
+        return {"modes": pd.DataFrame(columns)}
 
 
 #: the clustering of :class:`Modes` without a mixture
@@ -841,4 +843,5 @@ def with_modes(estimates: pd.DataFrame, modes: pd.DataFrame) -> pd.DataFrame:
     columns["converged"] = (estimates["sqrt_lambda1"].to_numpy() < CONVERGENCE_THRESHOLD) & (
         columns["mode1_weight"] >= ONE_MODE_WEIGHT
     )
-    return estimates.assign(**columns)
+    # one concatenation, not an insertion per column (assign: half a millisecond a run)
+    return pd.concat([estimates, pd.DataFrame(columns, index=estimates.index)], axis=1)
