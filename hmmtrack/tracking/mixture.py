@@ -506,19 +506,28 @@ def _finish_components(prepared, counts, component_weight, code, x, y, ancestors
         if code != 1:
             for j in range(a, a + c):
                 ancestors[j] = lo + ancestors[j] if grouped else members[lo + ancestors[j]]
-        origin[r, 0], origin[r, 1] = x[ancestors[a]], y[ancestors[a]]
+        ox, oy = x[ancestors[a]], y[ancestors[a]]
+        origin[r, 0], origin[r, 1] = ox, oy
         sx = sy = 0.0
-        for j in range(a, a + c):
-            sx += x[ancestors[j]]
-            sy += y[ancestors[j]]
-            own = sums[j // size, r]
-            dx, dy, w = x[ancestors[j]] - origin[r, 0], y[ancestors[j]] - origin[r, 1], w_k
-            own[0] += w
-            own[1] += w * dx
-            own[2] += w * dy
-            own[3] += w * dx * dx
-            own[4] += w * dy * dy
-            own[5] += w * dx * dy
+        j = a
+        while j < a + c:  # the component's particles in each chunk: one row of sums
+            chunk = j // size
+            end = min(a + c, (chunk + 1) * size)
+            s0 = s1 = s2 = s3 = s4 = s5 = 0.0
+            for i in range(j, end):
+                xi, yi = x[ancestors[i]], y[ancestors[i]]
+                sx += xi
+                sy += yi
+                dx, dy, w = xi - ox, yi - oy, w_k
+                s0 += w
+                s1 += w * dx
+                s2 += w * dy
+                s3 += w * dx * dx
+                s4 += w * dy * dy
+                s5 += w * dx * dy
+            own = sums[chunk, r]
+            own[0], own[1], own[2], own[3], own[4], own[5] = s0, s1, s2, s3, s4, s5
+            j = end
         sum_squares += c * w_k * w_k
         mean_x += w_k * sx
         mean_y += w_k * sy
