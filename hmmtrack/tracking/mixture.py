@@ -510,23 +510,15 @@ def _finish_components(prepared, counts, component_weight, code, x, y, ancestors
         origin[r, 0], origin[r, 1] = ox, oy
         sx = sy = 0.0
         j = a
-        while j < a + c:  # the component's particles in each chunk: one row of sums
+        while j < a + c:  # the component's particles in each chunk
             chunk = j // size
             end = min(a + c, (chunk + 1) * size)
-            s0 = s1 = s2 = s3 = s4 = s5 = 0.0
+            own = sums[chunk]
             for i in range(j, end):
                 xi, yi = x[ancestors[i]], y[ancestors[i]]
                 sx += xi
                 sy += yi
-                dx, dy, w = xi - ox, yi - oy, w_k
-                s0 += w
-                s1 += w * dx
-                s2 += w * dy
-                s3 += w * dx * dx
-                s4 += w * dy * dy
-                s5 += w * dx * dy
-            own = sums[chunk, r]
-            own[0], own[1], own[2], own[3], own[4], own[5] = s0, s1, s2, s3, s4, s5
+                _add_moments(own, r, w_k, xi - ox, yi - oy)
             j = end
         sum_squares += c * w_k * w_k
         mean_x += w_k * sx
@@ -671,14 +663,20 @@ def _moment_chunks(x, y, weights, labels, origin, counter, sums):
         own = sums[chunk]
         for i in range(lo, hi):
             k = labels[i]
-            dx, dy, w = x[i] - origin[k, 0], y[i] - origin[k, 1], weights[i]
-            own[k, 0] += w
-            own[k, 1] += w * dx
-            own[k, 2] += w * dy
-            own[k, 3] += w * dx * dx
-            own[k, 4] += w * dy * dy
-            own[k, 5] += w * dx * dy
+            _add_moments(own, k, weights[i], x[i] - origin[k, 0], y[i] - origin[k, 1])
         chunk, lo, hi = next_chunk(counter, x.size)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _add_moments(own, k, w, dx, dy):
+    """Add a particle of weight ``w`` at ``(dx, dy)`` from its component's origin to the
+    component's sums ``own[k]``: ``w``, ``w dx``, ``w dy``, ``w dx²``, ``w dy²``, ``w dx dy``."""
+    own[k, 0] += w
+    own[k, 1] += w * dx
+    own[k, 2] += w * dy
+    own[k, 3] += w * dx * dx
+    own[k, 4] += w * dy * dy
+    own[k, 5] += w * dx * dy
 
 
 @njit(cache=True, nogil=True, parallel=True)
