@@ -287,8 +287,8 @@ def test_hmm_without_resting_state_meets_the_acceptance_with_more_heading_diffus
     cloud; it loses the shark pursuit, see hmmtrack.tracking.motion.HMM_HEADING_DIFFUSION) the
     HMM converges on every chosen seed and is under 10 m on at least 90 % of them (measured:
     95 % at three filter seeds; 97 % over 100 scenario seeds) and under 12 m on all, with the
-    paper's filter, which these measurements are of. (The default filter keeps a second mode
-    of 5-8 % of the weight 33-40 m off on seed 14 for the whole run, so it never declares
+    paper's filter, which these measurements are of. (On seed 14 the default filter keeps a
+    second mode 33-40 m off, 5-8 % of the weight from 600 s to the end, so it never declares
     convergence there, at 3.8 m mean error: reports/decisions.md, "The library's default
     filter".)"""
     motion = motion_model("hmm", heading_diffusion=0.5, resting=None)

@@ -45,6 +45,7 @@ from hmmtrack.cli import UserInputError, add_command, add_time_unit
 from hmmtrack.io.outputs import atomic_files, check_paths
 from hmmtrack.tracking import pipeline as tracking
 from hmmtrack.tracking.config import (
+    MEASUREMENT_FILTERS,
     SECTIONS,
     TrackingConfig,
     merge_settings,
@@ -244,7 +245,9 @@ def register(subparsers) -> None:
             "named filter: mode-keeping (--acquisition --mixture: particles drawn from the "
             "first detections' likelihood, every mode of the posterior kept) or paper (the "
             "paper's algorithm: particles uniform in the box, the whole cloud resampled); the "
-            f"switch options override it (default: {DEFAULT_FILTER}, for every measurement)"
+            f"switch options override it (default: {DEFAULT_FILTER}; "
+            + "; ".join(f"{f} for --measurement {m}" for m, f in MEASUREMENT_FILTERS.items())
+            + ")"
         ),
     )
     for option in settings_options():

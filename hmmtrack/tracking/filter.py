@@ -721,7 +721,9 @@ class ParticleFilter:
         """Advance to ``time`` and correct with ``observations`` made there (online use).
 
         The first call initialises the filter at ``time``. Later times must lie on the
-        prediction grid ``t0 + k dt`` at or after the current time.
+        prediction grid ``t0 + k dt`` at or after the current time. A filter with an
+        :attr:`acquisition` is refused: it draws the first particles from corrections an
+        online filter has not seen yet (``acquisition=False``, or the ``"paper"`` filter).
 
         Parameters
         ----------
@@ -736,6 +738,12 @@ class ParticleFilter:
             After the correction, before resampling.
         """
         if self.particles is None:
+            if self.acquisition is not None:
+                raise ValueError(
+                    "an online filter (step) cannot draw its first particles from corrections "
+                    "it has not seen: build it without acquisition (acquisition=False, e.g. "
+                    "the 'paper' filter)"
+                )
             estimate = self.initialise(time)
         else:
             n_steps = round((time - self.time) / self.dt)
@@ -910,8 +918,18 @@ class ParticleFilter:
 
 def _switch(help_text: str, key: str | None = None):
     """A yes/no setting of the filter section: by default as :data:`DEFAULT_FILTER` sets
-    ``key`` (off when it does not)."""
-    return setting(FILTERS[DEFAULT_FILTER].get(key, False), help=help_text, check=boolean)
+    ``key`` (off when it does not), and as the named filter of the run sets it."""
+    named = None
+    if key is not None:
+        named = "the --filter's: " + ", ".join(
+            f"{'on' if switches[key] else 'off'} for {name}" for name, switches in FILTERS.items()
+        )
+    return setting(
+        FILTERS[DEFAULT_FILTER].get(key, False),
+        help=help_text,
+        check=boolean,
+        default_text=named,
+    )
 
 
 def _tempering_ess(name: str, value) -> float:
