@@ -10,16 +10,16 @@ import pandas as pd
 import pytest
 from scipy import stats
 
+from hmmtrack.experiments import closed_loop_study
 from hmmtrack.experiments.closed_loop import (
     _Channel,
     arrival_time_tracker,
     fly_closed_loop,
     plan_phase,
 )
-from hmmtrack.experiments.configs import arrival_config
 from hmmtrack.scenarios.realistic import realistic_shark_pursuit
 from hmmtrack.scenarios.steering import RotatingPlan
-from hmmtrack.tracking.config import TrackingConfig, merge_settings, nest, read_preset
+from hmmtrack.tracking.config import TrackingConfig
 from hmmtrack.tracking.pipeline import track
 
 PLAN = RotatingPlan()  # the "observable" plan
@@ -31,11 +31,9 @@ def observable_case(seed: int):
 
 
 def preset_config(case, duration: float, n_particles: int) -> TrackingConfig:
-    """The ``two-moving-receivers`` preset on ``case``'s first ``duration`` s, ``n_particles``."""
-    settings = merge_settings(
-        read_preset("two-moving-receivers"), nest({"n_particles": n_particles})
-    )
-    return arrival_config(case, settings, duration)
+    """The ``two-moving-receivers`` preset on ``case``'s first ``duration`` s, ``n_particles``,
+    with the closed-loop study's filter (no acquisition online)."""
+    return closed_loop_study.preset_config(case, n_particles, duration)
 
 
 def fly(case, duration, n_particles=300, filter_seed=5, **options):
@@ -186,6 +184,8 @@ def test_bad_inputs_are_clear_errors():
         fly_closed_loop(case, PLAN, arrival_time_tracker(config, 0), max_speed=0.0)
     with pytest.raises(ValueError, match="without a detection curve"):
         arrival_time_tracker(config.override(detection_curve={"range_50": 160, "width": 40}), 0)
+    with pytest.raises(ValueError, match="set acquisition to False"):
+        arrival_time_tracker(config.override(filter="mode-keeping"), 0)
 
 
 def case_start(case, name: str) -> np.ndarray:

@@ -7,6 +7,7 @@ import pytest
 from scipy import special
 
 from hmmtrack.hmm import Gamma, MovementHMM, VonMises
+from hmmtrack.tracking.acquisition import Acquisition
 from hmmtrack.tracking.filter import (
     ESTIMATE_COLUMNS,
     ParticleFilter,
@@ -126,6 +127,9 @@ def test_online_steps_reproduce_the_offline_run():
         assert estimate.sqrt_lambda1 == pytest.approx(row["sqrt_lambda1"], abs=1e-9)
     with pytest.raises(ValueError, match="prediction grid"):
         online.step(T0 + time + 0.5)
+    # the acquisition draws from corrections an online filter has not seen yet
+    with pytest.raises(ValueError, match="without acquisition"):
+        make_filter("velocity", acquisition=Acquisition()).step(T0)
 
 
 @pytest.mark.parametrize("backend", ["numba", "numpy"])

@@ -227,10 +227,10 @@ def test_the_acceptance_rule_keeps_most_geometries(acceptance_cases, chosen_seed
         assert acceptance_cases[seed][1] >= DATA_ERROR_LIMIT
 
 
-def run_scores(scenario, motion, seed):
-    """Default configuration (FilterSettings' particle count): metrics and 95 % coverage;
-    ``motion`` a name or a motion model."""
-    config = scenario_config(scenario, n_particles=FilterSettings().n_particles)
+def run_scores(scenario, motion, seed, **changes):
+    """Default configuration (FilterSettings' particle count) with ``changes``: metrics and
+    95 % coverage; ``motion`` a name or a motion model."""
+    config = scenario_config(scenario, n_particles=FilterSettings().n_particles, **changes)
     if isinstance(motion, str):
         config, motion = config.override(motion=motion), None
     result = tracking.track(scenario.detections, scenario.receivers, config, motion, seed=seed)
@@ -286,11 +286,15 @@ def test_hmm_without_resting_state_meets_the_acceptance_with_more_heading_diffus
     """Without the resting state but with heading diffusion 0.5 rad/√s (a less ballistic
     cloud; it loses the shark pursuit, see hmmtrack.tracking.motion.HMM_HEADING_DIFFUSION) the
     HMM converges on every chosen seed and is under 10 m on at least 90 % of them (measured:
-    95 % at three filter seeds; 97 % over 100 scenario seeds) and under 12 m on all."""
+    95 % at three filter seeds; 97 % over 100 scenario seeds) and under 12 m on all, with the
+    paper's filter, which these measurements are of. (On seed 14 the default filter keeps a
+    second mode 33-40 m off, 5-8 % of the weight from 600 s to the end, so it never declares
+    convergence there, at 3.8 m mean error: reports/decisions.md, "The library's default
+    filter".)"""
     motion = motion_model("hmm", heading_diffusion=0.5, resting=None)
     errors = []
     for seed in chosen_seeds:
-        scores, _ = run_scores(acceptance_cases[seed][0], motion, seed)
+        scores, _ = run_scores(acceptance_cases[seed][0], motion, seed, filter="paper")
         assert scores.converged, seed
         errors.append(scores.mean_error_after_convergence)
     assert np.mean(np.array(errors) < 10.0) >= 0.9
@@ -300,7 +304,9 @@ def test_hmm_without_resting_state_meets_the_acceptance_with_more_heading_diffus
 @pytest.mark.filterwarnings("ignore:.*observations_outside_window:RuntimeWarning")
 def test_resampling_settings_reach_the_filter(stationary):
     """Resampling after every correction leaves equal weights (n_eff = N) between
-    corrections; ESS-triggered resampling with a low threshold leaves them unequal."""
+    corrections; ESS-triggered resampling with a low threshold leaves them unequal. (Before
+    the first correction the default filter's particles carry the acquisition's importance
+    weights: no resampling has happened yet.)"""
     n = 300
     config = scenario_config(
         stationary, n_particles=n, end=stationary.start + 120, motion="velocity"
@@ -313,8 +319,9 @@ def test_resampling_settings_reach_the_filter(stationary):
         seed=2,
     )
     corrected = set(always.observations["time"].round())
-    between = ~always.estimates["time"].isin(corrected).to_numpy()
-    between[:1] = False
+    scored = always.observations.loc[always.observations["range_rate"].notna(), "time"]
+    times = always.estimates["time"]
+    between = ~times.isin(corrected).to_numpy() & (times > scored.min()).to_numpy()
     np.testing.assert_allclose(always.estimates["n_eff"].to_numpy()[between], n)
     assert (lazy.estimates["n_eff"].to_numpy()[between] < 0.9 * n).mean() > 0.3
 
@@ -373,7 +380,9 @@ def test_measurement_covariance_from_a_simulation(stationary):
 def test_streamed_estimates_are_the_kept_ones_written(stationary, tmp_path, monkeypatch):
     """With a sink (``estimates_to``) the estimates leave as tables of at most
     ``ESTIMATE_ROWS`` rows, none is kept, and an ``io.EstimatesWriter`` sink writes the very
-    file ``io.write_estimates`` writes from the kept estimates (the CLI's streamed output)."""
+    file ``io.write_estimates`` writes from the kept estimates (the CLI's streamed output),
+    the mode columns of the default (mode-keeping) filter included: each table takes the
+    modes recorded so far."""
     monkeypatch.setattr(filter_module, "ESTIMATE_ROWS", 70)
     config = scenario_config(stationary, n_particles=200, end=stationary.start + 200)
     data = stationary.detections, stationary.receivers
@@ -390,5 +399,7 @@ def test_streamed_estimates_are_the_kept_ones_written(stationary, tmp_path, monk
         streamed = tracking.track(*data, config, seed=3, estimates_to=sink)
     assert streamed.estimates is None
     assert tables == [70, 70, 61] and writer.rows == len(kept.estimates) == 201
+    assert {"mode2_x", "converged"} <= set(kept.estimates.columns)
+    pd.testing.assert_frame_equal(streamed.modes, kept.modes)
     assert (tmp_path / "streamed.csv").read_text() == (tmp_path / "kept.csv").read_text()
     pd.testing.assert_frame_equal(streamed.events, kept.events)

@@ -45,6 +45,7 @@ from hmmtrack.cli import UserInputError, add_command, add_time_unit
 from hmmtrack.io.outputs import atomic_files, check_paths
 from hmmtrack.tracking import pipeline as tracking
 from hmmtrack.tracking.config import (
+    MEASUREMENT_FILTERS,
     SECTIONS,
     TrackingConfig,
     merge_settings,
@@ -241,9 +242,12 @@ def register(subparsers) -> None:
         "--filter",
         choices=tuple(FILTERS),
         help=(
-            "named filter: paper (particles uniform in the box, the whole cloud resampled) or "
-            "mode-keeping (--acquisition --mixture); the switch options override it "
-            f"(default: {DEFAULT_FILTER})"
+            "named filter: mode-keeping (--acquisition --mixture: particles drawn from the "
+            "first detections' likelihood, every mode of the posterior kept) or paper (the "
+            "paper's algorithm: particles uniform in the box, the whole cloud resampled); the "
+            f"switch options override it (default: {DEFAULT_FILTER}; "
+            + "; ".join(f"{f} for --measurement {m}" for m, f in MEASUREMENT_FILTERS.items())
+            + ")"
         ),
     )
     for option in settings_options():
@@ -450,10 +454,9 @@ def run(args: argparse.Namespace) -> int:
         tracked = tracking.tracked_detections(detections, config)
         snapshot_times = choose_snapshots(*tracking.time_window(tracked["time"], config))
     # estimates (the smoothed ones when the run smooths) go to the output as they are made
-    # (memory bounded by the particles, not the span) unless the metrics, the plot, the modes
-    # or a smoothed run's per-ping table need them all at the end
-    modes = config.filter.modes or config.filter.mixture
-    stream = truth is None and not args.plot and not modes
+    # (memory bounded by the particles and the modes table, not the estimates) unless the
+    # metrics, the plot or a smoothed run's per-ping table need them all at the end
+    stream = truth is None and not args.plot
     stream = stream and not (args.per_ping and config.smoothing)  # (it uses the smoothed)
     outputs = [args.output, args.plot, args.per_ping]
     with atomic_files(*filter(None, outputs)) as written:

@@ -508,7 +508,8 @@ def arrival_time_tracker(config: TrackingConfig, seed: SeedLike = None) -> Parti
     ----------
     config : TrackingConfig
         ``measurement="arrival-time"`` with ``period`` and ``bounds`` (m) set (e.g. the
-        ``two-moving-receivers`` preset with ``case.search_bounds``).
+        ``two-moving-receivers`` preset with ``case.search_bounds``), without acquisition
+        (an online filter has not heard the corrections it would draw from).
     seed : int, SeedSequence or Generator
 
     Returns
@@ -527,6 +528,12 @@ def arrival_time_tracker(config: TrackingConfig, seed: SeedLike = None) -> Parti
             "arrival_time_tracker: the closed loop runs without a detection curve (the "
             "silence model is built from the whole detection table, future pings included); "
             "remove detection_curve from the configuration"
+        )
+    if config.filter.acquisition:
+        raise ValueError(
+            "arrival_time_tracker: the closed loop steps its filter online, which cannot draw "
+            "its first particles from detections not yet heard; set acquisition to False "
+            "(e.g. filter='paper')"
         )
     measurement = ClockedArrivalTime.from_settings(
         config.measurement, observations=None, receivers=None

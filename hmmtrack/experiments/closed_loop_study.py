@@ -49,6 +49,9 @@ from hmmtrack.tracking.measurement.clock import to_common_time
 PLAN = RotatingPlan()
 #: the bundled preset whose filter is stepped online
 PRESET = "two-moving-receivers"
+#: the named filter stepped online (:data:`hmmtrack.tracking.filter.FILTERS`): the paper's,
+#: without acquisition (undefined online) and as closed_loop.md was measured
+CLOSED_LOOP_FILTER = "paper"
 SMOOTHING_LAG = 60
 #: geometry and errors are measured from this many seconds on
 SETTLED = 300
@@ -60,8 +63,10 @@ MODES = {"open loop (truth)": "truth", "closed loop (estimate)": "estimate"}
 
 def preset_config(case, n_particles: int | None = None, duration=DURATION) -> TrackingConfig:
     """The preset on ``case`` over the first ``duration`` seconds (with ``n_particles``
-    instead of the preset's when given)."""
-    particles = nest({"n_particles": n_particles})
+    instead of the preset's when given), with the paper's filter: the loop steps its filter
+    online, where the default filter's acquisition (from the first corrections) is undefined,
+    and ``closed_loop.md`` was measured with it."""
+    particles = nest({"n_particles": n_particles, "filter": CLOSED_LOOP_FILTER})
     return arrival_config(case, merge_settings(read_preset(PRESET), particles), duration)
 
 

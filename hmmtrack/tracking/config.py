@@ -55,6 +55,7 @@ from hmmtrack.tracking.settings import (
 
 __all__ = [
     "DESCRIPTIVE_KEYS",
+    "MEASUREMENT_FILTERS",
     "PRESET_DIR",
     "SECTIONS",
     "TrackingConfig",
@@ -76,6 +77,12 @@ PRESET_DIR = Path(__file__).resolve().parents[1] / "data" / "presets"
 
 #: the sections of a configuration, with the name a section without ``name`` takes
 SECTIONS = {"measurement": "range-rate", "motion": "hmm", "filter": None}
+#: the named filter (:data:`~hmmtrack.tracking.filter.FILTERS`) a configuration that names
+#: none runs with these measurements instead of
+#: :data:`~hmmtrack.tracking.filter.DEFAULT_FILTER`: on YAPS's array, which hears each ping
+#: at many receivers, the mode-keeping filter kept one component throughout and its smoothed
+#: median was 0.03-0.09 m higher (reports/decisions.md, "The library's default filter")
+MEASUREMENT_FILTERS = {"ping": "paper"}
 
 
 def section_classes(section: str) -> dict[str | None, type]:
@@ -313,7 +320,8 @@ def section_default(data: Mapping, section: str) -> dict:
     (its name and settings, e.g. the ping measurement's random walk) unless the motion
     section names another model, or for a filter section that names a filter of
     :data:`~hmmtrack.tracking.filter.FILTERS` (``"paper"``, ``"mode-keeping"``) that
-    filter's switches.
+    filter's switches, and for one that names none the switches of the measurement's filter
+    in :data:`MEASUREMENT_FILTERS` (the ping measurement: ``"paper"``).
 
     Parameters
     ----------
@@ -325,10 +333,17 @@ def section_default(data: Mapping, section: str) -> dict:
     default = {"name": SECTIONS[section]}
     measurement, motion = (data.get(key, {}) for key in ("measurement", "motion"))
     named = data.get("filter", {})
-    if section == "filter" and isinstance(named, Mapping) and named.get("name") in FILTERS:
-        return {"name": named["name"]} | FILTERS[named["name"]]
+    measured = (
+        measurement.get("name", SECTIONS["measurement"])
+        if isinstance(measurement, Mapping)
+        else None
+    )
+    if section == "filter" and isinstance(named, Mapping):
+        name = named.get("name", MEASUREMENT_FILTERS.get(measured))
+        if name in FILTERS:
+            return {"name": name} | FILTERS[name]
     if section == "motion" and isinstance(measurement, Mapping) and isinstance(motion, Mapping):
-        kind = MEASUREMENTS.get(measurement.get("name", SECTIONS["measurement"]))
+        kind = MEASUREMENTS.get(measured)
         own = None if kind is None else kind.default_motion
         if own is not None and motion.get("name", own["name"]) == own["name"]:
             default = dict(own)

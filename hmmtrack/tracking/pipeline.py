@@ -299,6 +299,18 @@ def _discard(estimates: pd.DataFrame) -> None:
     """A sink that keeps nothing (the filter's estimates of a streamed, smoothed run)."""
 
 
+def _with_modes_so_far(sink: Callable[[pd.DataFrame], None], modes: Modes):
+    """``sink`` fed each table of estimates with the modes beside it (:func:`with_modes`),
+    from the modes recorded so far: the filter resamples at a time before it yields that
+    time's estimate, so every resampling at or before a table's last time is recorded and
+    the columns are those of the whole run's table."""
+
+    def write(estimates: pd.DataFrame) -> None:
+        sink(with_modes(estimates, modes.result()["modes"]))
+
+    return write
+
+
 @dataclass(frozen=True)
 class TrackingResult:
     """What :func:`track` returns, for every measurement.
@@ -455,9 +467,12 @@ def track(
         A sink for the per-second estimates, called with tables of them as they are made
         (:meth:`hmmtrack.tracking.filter.ParticleFilter.run`), e.g.
         :class:`hmmtrack.io.EstimatesWriter`: memory then stays bounded by the particles,
-        not the span, and the result's ``estimates`` are ``None``. When the run smooths,
-        the sink takes the smoothed estimates instead (``lag`` steps late), the filter's
-        are dropped, and the result's ``smoothed`` are ``None`` too.
+        not the span, and the result's ``estimates`` are ``None``. With the modes reported
+        (``config.filter.modes`` or ``mixture``) each table carries their columns
+        (:func:`hmmtrack.tracking.mixture.with_modes`), and the result keeps the modes table
+        (one row per resampling). When the run smooths, the sink takes the smoothed
+        estimates instead (``lag`` steps late), the filter's are dropped, and the result's
+        ``smoothed`` are ``None`` too.
 
     Returns
     -------
@@ -487,11 +502,6 @@ def track(
     bounds = measurement.start_box(
         observations, receivers, settings, config.bounds, config.start if start is None else start
     )
-    if estimates_to is not None and (config.filter.modes or config.filter.mixture):
-        raise ValueError(
-            "the mode columns are added to the estimates after the run: estimates_to cannot "
-            "be used with filter.modes or filter.mixture"
-        )
     start, end = time_window(observations["time"].to_numpy(), config, start, end)
     scored, measurement_events = measurement.split(observations)
     _require_usable(observations, scored, start, end, config, detections.attrs.get("source"))
@@ -502,6 +512,9 @@ def track(
         if estimates_to is not None:
             estimates_to = _discard  # the sink takes the smoothed estimates instead
     pf = particle_filter(config.filter, measurement, bounds, motion, seed=seed, collect=collectors)
+    modes = next((c for c in pf.collect if isinstance(c, Modes)), None)
+    if estimates_to is not None and estimates_to is not _discard and modes is not None:
+        estimates_to = _with_modes_so_far(estimates_to, modes)
     result = pf.run(scored, start, end, snapshot_times, estimates_to=estimates_to)
     events = pd.concat(
         [df for df in (measurement_events, result.events) if not df.empty]
@@ -509,7 +522,7 @@ def track(
         ignore_index=True,
     ).sort_values("time", kind="stable", ignore_index=True)
     estimates = result.estimates
-    if "modes" in result.collected:
+    if "modes" in result.collected and estimates is not None:  # (streamed: added per table)
         estimates = with_modes(estimates, result.collected["modes"])
     return TrackingResult(
         estimates=estimates,
