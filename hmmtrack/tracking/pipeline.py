@@ -303,10 +303,15 @@ def _with_modes_so_far(sink: Callable[[pd.DataFrame], None], modes: Modes):
     """``sink`` fed each table of estimates with the modes beside it (:func:`with_modes`),
     from the modes recorded so far: the filter resamples at a time before it yields that
     time's estimate, so every resampling at or before a table's last time is recorded and
-    the columns are those of the whole run's table."""
+    the columns are those of the whole run's table. Each table reads the modes from the
+    latest resampling at or before the previous table's last time on, so the cost per
+    table does not grow with the run."""
+    first = 0
 
     def write(estimates: pd.DataFrame) -> None:
-        sink(with_modes(estimates, modes.result()["modes"]))
+        nonlocal first
+        sink(with_modes(estimates, modes.table(first)))
+        first = modes.latest(float(estimates["time"].iloc[-1]))
 
     return write
 
