@@ -25,11 +25,12 @@ mixture) against the paper's (``filter="paper"``) at the same particle count (pr
 time, all threads), in the same run, best of ``--repeat``; the budget is 1.3x.
 
 A third table (``--section correction``) times one correction and resampling as the
-filter runs them (the compiled weighing into reused arrays, multinomial resampling with the
-filter's work arrays, the gather into the spare particles) on one thread and on two, for
-N = 10,000 to 100,000 (or ``--sizes``), interleaved, best of 40 rounds: the measurement
-behind the filter's ``PARALLEL_MIN_CORRECTION`` (corrections on the prediction's threads
-from that many particles).
+filter runs them (the range-rate log-likelihood of one observation, the compiled weighing
+into reused arrays, multinomial resampling with the filter's work arrays, the gather into
+the spare particles) on one thread and on two, for N = 10,000 to 100,000 (or ``--sizes``),
+interleaved, best of 40 rounds, with the best time of each of these stages: the
+measurement behind the filter's ``PARALLEL_MIN_CORRECTION`` (corrections on the
+prediction's threads from that many particles).
 
 Run: ``python benchmarks/bench_filter.py`` (``--quick`` for a 600 s trial and N up to
 10,000; ``--sizes 10000`` picks the particle numbers; ``--repeat k`` keeps the best of k
@@ -52,6 +53,7 @@ from hmmtrack import scenarios
 from hmmtrack.experiments.configs import tracking_config
 from hmmtrack.hmm import Gamma, MovementHMM, VonMises
 from hmmtrack.tracking import pipeline
+from hmmtrack.tracking.compiled.chunks import default_threads
 from hmmtrack.tracking.compiled.weighing import weigh
 from hmmtrack.tracking.filter import ParticleFilter
 from hmmtrack.tracking.measurement.range_rate import RangeRateMeasurement
@@ -163,33 +165,59 @@ def mode_keeping_cost(sizes, repeat: int) -> None:
                 )
 
 
-def correction_cycle(rng, particles, spare, loglik, arrays, scratch: Scratch) -> None:
-    """One correction and resampling as the filter runs them, on ``scratch.threads``."""
+#: the stages of one correction and resampling (:func:`correction_cycle`)
+STAGES = ("loglik", "weigh", "resample", "gather")
+
+
+def correction_cycle(rng, particles, spare, rows, arrays, scratch: Scratch, clock) -> None:
+    """One correction and resampling as the filter runs them, on ``scratch.threads``: the
+    range-rate log-likelihood of ``rows``, the weighing, multinomial resampling and the
+    gather; ``clock[stage]`` accumulates each stage's wall-clock time (s)."""
     p, threads = particles, scratch.threads
+    start = time.perf_counter()
+    with default_threads(threads):
+        loglik = MEASUREMENT.loglik(p, rows)
+    marks = [start, time.perf_counter()]
     _, _, weights, _, _ = weigh(p.log_weight, loglik, p.x, p.y, threads, arrays)
+    marks.append(time.perf_counter())
     ancestors = multinomial(rng, weights, p.n, scratch)
+    marks.append(time.perf_counter())
     p.take(ancestors, True, out=spare, threads=threads)
+    marks.append(time.perf_counter())
+    for k, stage in enumerate(STAGES):
+        clock[stage] += marks[k + 1] - marks[k]
 
 
 def correction_cost(sizes) -> None:
-    """Print one correction and resampling on one thread against two (same run)."""
+    """Print one correction and resampling on one thread against two (same run), and the
+    best time of each stage."""
     rng = np.random.default_rng(0)
-    print(f"{'N':>8}{'1 thr ms':>10}{'2 thr ms':>10}{'1 / 2':>7}")
+    rows = MEASUREMENT.as_matrix(observations(60.0).iloc[[2]])
+    stage_columns = "".join(f"{f'{stage} 1/2 us':>20}" for stage in STAGES)
+    print(f"{'N':>8}{'1 thr ms':>10}{'2 thr ms':>10}{'1 / 2':>7}{stage_columns}")
     for n in sizes:
         particles = Particles.uniform(rng, n, BOUNDS)
-        data = (particles, particles.copy(), 2.0 * rng.normal(size=n), (np.empty(n), np.empty(n)))
+        data = (particles, particles.copy(), rows, (np.empty(n), np.empty(n)))
         best = {1: np.inf, 2: np.inf}
+        stages = {threads: dict.fromkeys(STAGES, np.inf) for threads in best}
         scratch = {threads: Scratch(threads) for threads in best}
         calls = max(1, 200_000 // n)
         for threads in best:
-            correction_cycle(rng, *data, scratch[threads])
+            correction_cycle(rng, *data, scratch[threads], dict.fromkeys(STAGES, 0.0))
         for _ in range(40):
             for threads in best:
+                clock = dict.fromkeys(STAGES, 0.0)
                 start = time.perf_counter()
                 for _ in range(calls):
-                    correction_cycle(rng, *data, scratch[threads])
+                    correction_cycle(rng, *data, scratch[threads], clock)
                 best[threads] = min(best[threads], (time.perf_counter() - start) / calls)
-        print(f"{n:>8}{best[1] * 1e3:>10.3f}{best[2] * 1e3:>10.3f}{best[1] / best[2]:>7.2f}")
+                for stage, total in clock.items():
+                    stages[threads][stage] = min(stages[threads][stage], total / calls)
+        row = "".join(
+            f"{f'{stages[1][stage] * 1e6:.0f} / {stages[2][stage] * 1e6:.0f}':>20}"
+            for stage in STAGES
+        )
+        print(f"{n:>8}{best[1] * 1e3:>10.3f}{best[2] * 1e3:>10.3f}{best[1] / best[2]:>7.2f}{row}")
 
 
 def main() -> None:

@@ -68,6 +68,7 @@ import pandas as pd
 
 from hmmtrack.random import SeedLike, as_generator
 from hmmtrack.tracking.compiled import streams as rs
+from hmmtrack.tracking.compiled.chunks import default_threads
 from hmmtrack.tracking.compiled.threads import ThreadChoice
 from hmmtrack.tracking.compiled.weighing import weigh
 from hmmtrack.tracking.measurement.base import Score
@@ -545,7 +546,13 @@ class ParticleFilter:
 
         The measurement scores (its ``score`` hook, else ``loglik``), the correction policy
         applies the log-likelihood, the measurement commits (``Score.commit``), the
-        collectors record."""
+        collectors record. The measurement's chunked kernels run on the correction's
+        threads (:func:`~hmmtrack.tracking.compiled.chunks.default_threads`)."""
+        with default_threads(self.correction_threads()):
+            return self._scored_correction(rows, table)
+
+    def _scored_correction(self, rows, table) -> Estimate:
+        """:meth:`_correct`'s steps."""
         p = self.particles
         measurement = self.measurement
         time = self.time
