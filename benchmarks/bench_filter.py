@@ -29,8 +29,8 @@ filter runs them (the range-rate log-likelihood of one observation, the compiled
 into reused arrays, multinomial resampling with the filter's work arrays, the gather into
 the spare particles) on one thread and on two, for N = 10,000 to 100,000 (or ``--sizes``),
 interleaved, best of 40 rounds, with the best time of each of these stages: the
-measurement behind the filter's ``PARALLEL_MIN_CORRECTION`` (corrections on the
-prediction's threads from that many particles).
+measurement behind the filter's ``PARALLEL_MIN_CORRECTION`` (from that many particles
+the filter times corrections on one thread and on two and keeps the faster).
 
 Run: ``python benchmarks/bench_filter.py`` (``--quick`` for a 600 s trial and N up to
 10,000; ``--sizes 10000`` picks the particle numbers; ``--repeat k`` keeps the best of k

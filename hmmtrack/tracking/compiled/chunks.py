@@ -173,11 +173,15 @@ def in_chunks(kernel, parallel, n: int, threads: int | None, args: tuple, out) -
     after this one started OpenMP threads, every call runs on the calling thread.
     """
     global _OPENMP_STARTED
-    n_chunks, _ = chunking(n)
     counter = np.zeros(1, dtype=np.int64)
-    previous = numba.get_num_threads()  # of this thread (numba's default: all); starts the layer
     if threads is None:
-        threads = getattr(_DEFAULT, "threads", None) or previous
+        threads = getattr(_DEFAULT, "threads", None)
+    if threads == 1:  # straight to the kernel: asking numba for its threads costs more
+        kernel(*args, counter, out)
+        return
+    n_chunks, _ = chunking(n)
+    previous = numba.get_num_threads()  # of this thread (numba's default: all); starts the layer
+    threads = previous if threads is None else threads
     threads = max(1, min(threads, n_chunks, numba.config.NUMBA_NUM_THREADS))
     if threads > 1 and not _FORKED_AFTER_OPENMP:
         layer = numba.threading_layer()
