@@ -31,8 +31,8 @@ __all__ = [
     "N_CHUNKS",
     "N_MOMENTS",
     "chunking",
-    "in_chunks",
     "default_threads",
+    "in_chunks",
     "moments_pass",
     "next_chunk",
     "run_chunks",
@@ -161,11 +161,11 @@ def in_chunks(kernel, parallel, n: int, threads: int | None, args: tuple, out) -
     """Run ``kernel(*args, counter, out)`` over all chunks of ``n`` particles.
 
     With ``threads`` > 1 (``None``: that of the enclosing :func:`default_threads` block, else
-    ``numba.get_num_threads()``), ``parallel(threads,
-    *args, counter, out)`` (tuple arguments spread into their items) runs the kernel on
-    that many threads of numba's threading layer at once (OpenMP's threads wait awake for
-    a while between calls, so a call starts in a few microseconds), each claiming the next
-    unclaimed chunk whenever it finishes one (:func:`next_chunk`): a thread that starts
+    ``numba.get_num_threads()``), ``parallel(threads, *args, counter, out)`` (tuple
+    arguments spread into their items) runs the kernel on that many threads of numba's
+    threading layer at once (OpenMP's threads wait awake for a while between calls, so a
+    call starts in a few microseconds), each claiming the next unclaimed chunk whenever it
+    finishes one (:func:`next_chunk`): a thread that starts
     late or is slowed by other work on the machine simply runs fewer chunks. Every chunk
     writes its own particles and its own row of ``out``, so the results do not depend on
     which thread ran it. Under numba's "workqueue" layer only one Python thread at a time

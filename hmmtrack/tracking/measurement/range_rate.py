@@ -23,13 +23,13 @@ of each receiver anchors its ranges (its range is the given ``r0``) but has no r
 so it is not passed to the likelihood (:meth:`RangeRateMeasurement.split` makes it an
 ``"anchor_detection"`` event).
 
-The log-likelihood is a compiled loop over particles and observations, in the chunks of
+The log-likelihood is a compiled loop over particles and observations, on the (M, 6) matrix
+form of the observations (:meth:`RangeRateMeasurement.as_matrix`: the filter converts a
+whole run's observations once and scores row slices), in the chunks of
 :mod:`hmmtrack.tracking.compiled.chunks` on the threads of the enclosing
 :func:`~hmmtrack.tracking.compiled.chunks.default_threads` block (the filter's correction
-threads; the same values on any number), on the (M, 6) matrix
-form of the observations (:meth:`RangeRateMeasurement.as_matrix`: the filter converts a
-whole run's observations once and scores row slices); :func:`predicted_range_and_rate` is
-the same prediction in NumPy (for tests and plots).
+threads; the same values on any number); :func:`predicted_range_and_rate` is the same
+prediction in NumPy (for tests and plots).
 
 This module does not resample or move particles, and does not compute ranges from
 detection times (that is :mod:`hmmtrack.tracking.measurement.ranging`).
