@@ -490,7 +490,7 @@ def test_automatic_threads_measure_both_and_give_the_threads_1_answer():
 def test_correction_threads_are_chosen_by_timing_and_give_the_threads_1_answer():
     """From PARALLEL_MIN_CORRECTION particles corrections are timed on one thread and on
     all, apart from the predictions; below it they run on one thread."""
-    obs = circling_observations(duration=120.0)
+    obs = circling_observations(duration=60.0)
     n = PARALLEL_MIN_CORRECTION
     auto = make_filter("velocity", n=n, seed=3)
     a = auto.run(obs).estimates

@@ -107,11 +107,11 @@ ESTIMATE_ROWS = 10_000
 #: faster (pass ``threads=`` to fix the number)
 PARALLEL_MIN_WORK = 20_000
 #: below this many particles corrections and resamplings run on one thread; from it the
-#: filter times them on one thread and on all and keeps the faster: at 10,000 particles a
-#: correction's chunked passes are about 0.25 ms of one-thread work against about 6 us for
-#: each of its four hand-overs between threads on a quiet machine (reports/decisions.md,
+#: filter times them on one thread and on all and keeps the faster. Lower, trying two
+#: threads costs more than it can gain on a loaded machine: at 10,000 particles and load 13
+#: a two-thread correction took about 70 ms against 0.3 ms on one (reports/decisions.md,
 #: "Correction threads chosen by timing")
-PARALLEL_MIN_CORRECTION = 10_000
+PARALLEL_MIN_CORRECTION = 50_000
 #: the named filters (the ``filter`` section's ``name``): the switches of
 #: :class:`FilterSettings` each sets. ``paper``: the paper's filter (particles uniform in
 #: the search box, the whole cloud resampled, no monitor); ``mode-keeping``: issue 13's
