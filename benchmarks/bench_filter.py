@@ -7,8 +7,8 @@ resampling after every correction, estimates every second. For N = 1,000, 10,000
 1 s, both variants, and the tracking default: the bundled white-shark model fitted at
 60 s, time-consistent, with heading diffusion) it prints particle-steps per second of
 ``ParticleFilter`` with its compiled kernels on one thread, on two (the machine's two
-cores) and on the default threads (``threads=None``: one or two, chosen by timing, for the
-predictions and for the corrections apart), of the same filter with ``backend="numpy"``
+cores) and on the default threads (``threads=None``: one or two, chosen by timing), of the
+same filter with ``backend="numpy"``
 (every second one vectorised ``motion.propagate`` with a NumPy ``Generator``), the ratio of
 the fastest compiled run to the NumPy one, the rate of the compiled prediction alone on one
 thread (no corrections: the ceiling the per-correction work is measured against), and the
@@ -31,8 +31,8 @@ filter runs them (the range-rate log-likelihood of one observation, the compiled
 into reused arrays, multinomial resampling with the filter's work arrays, the gather into
 the spare particles) on one thread and on two, for N = 10,000 to 100,000 (or ``--sizes``),
 interleaved, best of 40 rounds, with the best time of each of these stages: the
-measurement behind the filter's ``PARALLEL_MIN_CORRECTION`` (from that many particles
-the filter times corrections on one thread and on two and keeps the faster).
+measurement behind the filter's ``PARALLEL_MIN_CORRECTION`` (corrections on the
+prediction's threads from that many particles).
 
 Run: ``python benchmarks/bench_filter.py`` (``--quick`` for a 600 s trial and N up to
 10,000; ``--sizes 10000`` picks the particle numbers; ``--repeat k`` keeps the best of k

@@ -9,7 +9,6 @@ from scipy import special
 from hmmtrack.hmm import Gamma, MovementHMM, VonMises
 from hmmtrack.tracking.filter import (
     ESTIMATE_COLUMNS,
-    PARALLEL_MIN_CORRECTION,
     ParticleFilter,
     _weigh,
     _weight_summary,
@@ -485,20 +484,3 @@ def test_automatic_threads_measure_both_and_give_the_threads_1_answer():
     b = make_filter("velocity", n=5000, seed=3, threads=1).run(obs).estimates
     pd.testing.assert_frame_equal(a, b)
     assert all(cost is not None for cost in auto._thread_choice.cost.values())
-
-
-def test_correction_threads_are_chosen_by_timing_and_give_the_threads_1_answer():
-    """From PARALLEL_MIN_CORRECTION particles corrections are timed on one thread and on
-    all, apart from the predictions; below it they run on one thread."""
-    obs = circling_observations(duration=60.0)
-    n = PARALLEL_MIN_CORRECTION
-    auto = make_filter("velocity", n=n, seed=3)
-    a = auto.run(obs).estimates
-    b = make_filter("velocity", n=n, seed=3, threads=1).run(obs).estimates
-    pd.testing.assert_frame_equal(a, b)
-    if numba.get_num_threads() > 1:
-        assert all(cost is not None for cost in auto._correction_choice.cost.values())
-    small = make_filter("velocity", n=n - 1, seed=3)
-    small.run(obs)
-    assert small.correction_threads() == 1
-    assert all(cost is None for cost in small._correction_choice.cost.values())

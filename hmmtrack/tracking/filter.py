@@ -36,13 +36,12 @@ per-second moments; with ``backend="numpy"`` every second is one call of
 ``motion.propagate`` instead (the reference path, and the one for motion models without a
 compiled kernel). The compiled path draws from per-particle random streams, so one seed
 gives one answer whatever the number of threads; by default the number of threads is chosen
-by timing one thread against all (:class:`ThreadChoice`), because on a shared machine more
-threads are often slower. A correction is a handful of compiled passes (log-likelihood; the
-normalisation with the moments and ESS in one compiled call,
-:func:`hmmtrack.tracking.compiled.weighing.weigh`; the resampling's inverse CDF and gather
-into the spare particle arrays); from :data:`PARALLEL_MIN_CORRECTION` particles their
-threads are chosen by timing too, each correction with its resampling, apart from the
-predictions' (a 2-thread prediction can pay where a 2-thread correction does not);
+by timing one thread against all (:class:`ThreadChoice`; a prediction with the correction
+and resampling after it), because on a shared machine more threads are often slower. A
+correction is a handful of compiled passes (log-likelihood; the normalisation with the
+moments and ESS in one compiled call, :func:`hmmtrack.tracking.compiled.weighing.weigh`;
+the resampling's inverse CDF and gather into the spare particle arrays), on the threads of
+the latest prediction from :data:`PARALLEL_MIN_CORRECTION` particles;
 :meth:`ParticleFilter.iterate` converts all observations once to the measurement model's
 matrix form when the model offers one (``as_matrix``) instead of slicing a table at every
 correction. After each resampling :attr:`ParticleFilter.last_ancestors` holds the ancestor
@@ -106,11 +105,9 @@ ESTIMATE_ROWS = 10_000
 #: for more threads to pay); above it the filter times one and all threads and keeps the
 #: faster (pass ``threads=`` to fix the number)
 PARALLEL_MIN_WORK = 20_000
-#: below this many particles corrections and resamplings run on one thread; from it the
-#: filter times them on one thread and on all and keeps the faster. Lower, trying two
-#: threads costs more than it can gain on a loaded machine: at 10,000 particles and load 13
-#: a two-thread correction took about 70 ms against 0.3 ms on one (reports/decisions.md,
-#: "Correction threads chosen by timing")
+#: below this many particles corrections and resamplings run on one thread: their chunked
+#: passes are too short for thread hand-overs to pay (at N = 10,000 on a loaded 2-core
+#: machine, running them on the prediction's two threads made runs 3-4x slower)
 PARALLEL_MIN_CORRECTION = 50_000
 #: the named filters (the ``filter`` section's ``name``): the switches of
 #: :class:`FilterSettings` each sets. ``paper``: the paper's filter (particles uniform in
@@ -294,10 +291,10 @@ class ParticleFilter:
         Threads for compiled prediction; ``None`` uses one thread for small calls (fewer
         than :data:`PARALLEL_MIN_WORK` particle-steps) and otherwise whichever of one
         thread and ``numba.get_num_threads()`` (when the filter is made) has been faster per
-        particle-step so far (:class:`ThreadChoice`); corrections (each with its
-        resampling) of at least :data:`PARALLEL_MIN_CORRECTION` particles likewise, timed
-        apart from the predictions; with ``threads`` given, those corrections run on
-        ``threads`` too. Results do not depend on it.
+        particle-step so far (:class:`ThreadChoice`), each prediction timed with the
+        correction and resampling that follow it; corrections and resamplings of at least
+        :data:`PARALLEL_MIN_CORRECTION` particles run on the threads of the latest
+        prediction. Results do not depend on it.
     correction : Plain, Tempered or None
         Correction policy (:mod:`hmmtrack.tracking.tempering`); ``None``: :class:`Plain`.
     collect : sequence of collectors
@@ -388,14 +385,13 @@ class ParticleFilter:
         # numba's thread count of this thread (``numba.set_num_threads``: 1 in the worker
         # processes of hmmtrack.experiments.executors, which run one trial per core)
         self._thread_choice = ThreadChoice(numba.get_num_threads())
-        # the same choice for corrections (see _start_correction)
-        self._correction_choice = ThreadChoice(numba.get_num_threads())
-        # threads of the latest correction (see correction_threads)
-        self._correction_threads = 1
-        # (threads, start) of the timed correction under way: its cost (with the
-        # resampling after it) is told to the correction's choice when the next prediction
-        # or correction starts
-        self._correcting: tuple[int, float] | None = None
+        # threads of the latest compiled prediction (else ``threads`` or one): the
+        # corrections' too from PARALLEL_MIN_CORRECTION particles (see correction_threads)
+        self._threads_in_use = 1 if threads is None else threads
+        # (threads, start, particle-steps) of the timed prediction under way: the thread
+        # choice is told the cost of each prediction with the correction and resampling that
+        # follow it, when the next prediction starts
+        self._cycle: tuple[int, float, int] | None = None
         self.particles: Particles | None = None
         self.time: float | None = None
         self.events: list[dict] = []
@@ -435,8 +431,7 @@ class ParticleFilter:
         self.motion.initialise(self.rng, self.particles)
         self._streams = rs.new_streams(self.rng, self.n_particles)
         self._spare = None
-        self._correcting = None
-        self._correction_threads = self._fixed_correction_threads() or 1
+        self._cycle = None
         self.time = float(time)
         self.events = []
         self.last_ancestors = None
@@ -513,51 +508,24 @@ class ParticleFilter:
     def _advance(self, p: Particles, n_steps: int, weights: np.ndarray, origin) -> np.ndarray:
         work = p.n * n_steps
         started = clock.perf_counter()
-        self._end_correction(started)
+        if self._cycle is not None:  # the previous cycle ends here, before the next choice
+            last_threads, last_started, last_work = self._cycle
+            self._thread_choice.record(last_threads, (started - last_started) / last_work)
         threads = self.threads
         if threads is None:
             threads = 1 if work < PARALLEL_MIN_WORK else self._thread_choice.pick()
         threads = min(threads, numba.config.NUMBA_NUM_THREADS)
-        moments = self.motion.advance(
+        self._threads_in_use = threads
+        timed = self.threads is None and work >= PARALLEL_MIN_WORK
+        self._cycle = (threads, started, work) if timed else None
+        return self.motion.advance(
             p, self._streams, n_steps, self.dt, weights, origin, threads=threads
         )
-        if self.threads is None and work >= PARALLEL_MIN_WORK:
-            self._thread_choice.record(threads, (clock.perf_counter() - started) / work)
-        return moments
 
     def correction_threads(self) -> int:
-        """Threads of corrections and resamplings: those of the latest correction (one
-        below :data:`PARALLEL_MIN_CORRECTION` particles)."""
-        return self._correction_threads
-
-    def _fixed_correction_threads(self) -> int | None:
-        """Threads of every correction when they are not chosen by timing (one below
-        :data:`PARALLEL_MIN_CORRECTION` particles, else ``threads`` when given); else
-        ``None``."""
-        if self.n_particles < PARALLEL_MIN_CORRECTION:
-            return 1
-        if self.threads is not None:
-            return min(self.threads, numba.config.NUMBA_NUM_THREADS)
-        return None
-
-    def _start_correction(self) -> None:
-        """Choose the threads of the correction starting now (:meth:`correction_threads`)
-        and start timing it."""
-        started = clock.perf_counter()
-        self._end_correction(started)
-        threads = self._fixed_correction_threads()
-        if threads is None:
-            threads = self._correction_choice.pick()
-            self._correcting = (threads, started)
-        self._correction_threads = threads
-
-    def _end_correction(self, now: float) -> None:
-        """Tell the correction's thread choice the cost per particle of the timed
-        correction under way, with the resampling after it."""
-        if self._correcting is not None:
-            threads, started = self._correcting
-            self._correction_choice.record(threads, (now - started) / self.n_particles)
-            self._correcting = None
+        """Threads of corrections and resamplings: the latest prediction's from
+        :data:`PARALLEL_MIN_CORRECTION` particles, else one."""
+        return self._threads_in_use if self.n_particles >= PARALLEL_MIN_CORRECTION else 1
 
     # ------------------------------------------------------------------ correct
 
@@ -580,7 +548,6 @@ class ParticleFilter:
         applies the log-likelihood, the measurement commits (``Score.commit``), the
         collectors record. The measurement's chunked kernels run on the correction's
         threads (:func:`~hmmtrack.tracking.compiled.chunks.default_threads`)."""
-        self._start_correction()
         with default_threads(self.correction_threads()):
             return self._scored_correction(rows, table)
 
@@ -794,7 +761,6 @@ class ParticleFilter:
         if observations is not None and _n_rows(observations) > 0:
             estimate = self.correct(observations)
             self.resample_if_due()
-            self._end_correction(clock.perf_counter())
         return estimate
 
     # ------------------------------------------------------------------ offline
@@ -871,7 +837,6 @@ class ParticleFilter:
                 snapshots[self.time] = self.particles.to_frame()
             if hi > lo:
                 self.resample_if_due()
-                self._end_correction(clock.perf_counter())
             yield estimate
             current = stop
 
