@@ -31,6 +31,7 @@ __all__ = [
     "N_CHUNKS",
     "N_MOMENTS",
     "chunking",
+    "block_threads",
     "default_threads",
     "in_chunks",
     "moments_pass",
@@ -146,6 +147,11 @@ def default_threads(threads: int) -> Iterator[None]:
         yield
     finally:
         _DEFAULT.threads = outer
+
+
+def block_threads(otherwise: int) -> int:
+    """The thread count of the enclosing :func:`default_threads` block, else ``otherwise``."""
+    return getattr(_DEFAULT, "threads", None) or otherwise
 
 
 def run_chunks(kernel, parallel, n: int, n_steps: int, threads: int | None, *args) -> np.ndarray:

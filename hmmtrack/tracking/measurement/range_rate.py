@@ -27,9 +27,9 @@ The log-likelihood is a compiled loop over particles and observations, on the (M
 form of the observations (:meth:`RangeRateMeasurement.as_matrix`: the filter converts a
 whole run's observations once and scores row slices), in the chunks of
 :mod:`hmmtrack.tracking.compiled.chunks` on the threads of the enclosing
-:func:`~hmmtrack.tracking.compiled.chunks.default_threads` block (the filter's correction
-threads; the same values on any number); :func:`predicted_range_and_rate` is the same
-prediction in NumPy (for tests and plots).
+:func:`~hmmtrack.tracking.compiled.chunks.default_threads` block (the filter's corrections
+on more than one thread), else on one (the same values on any number);
+:func:`predicted_range_and_rate` is the same prediction in NumPy (for tests and plots).
 
 This module does not resample or move particles, and does not compute ranges from
 detection times (that is :mod:`hmmtrack.tracking.measurement.ranging`).
@@ -47,7 +47,7 @@ import numpy as np
 import pandas as pd
 from numba import njit
 
-from hmmtrack.tracking.compiled.chunks import in_chunks, next_chunk
+from hmmtrack.tracking.compiled.chunks import block_threads, in_chunks, next_chunk
 from hmmtrack.tracking.measurement import ranging
 from hmmtrack.tracking.measurement.base import (
     EVENT_COLUMNS,
@@ -505,7 +505,7 @@ class RangeRateMeasurement:
             p.x, p.y, p.cos_heading, p.sin_heading, p.speed,
             np.ascontiguousarray(self.as_matrix(obs)), self._precision, self._log_norm,
         )  # fmt: skip
-        in_chunks(_range_rate_kernel, _range_rate_parallel, p.n, None, args, out)
+        in_chunks(_range_rate_kernel, _range_rate_parallel, p.n, block_threads(1), args, out)
         return out
 
     @staticmethod
