@@ -6,17 +6,19 @@ resampling after every correction, estimates every second. For N = 1,000, 10,000
 100,000 particles and the velocity and HMM motion models (a two-state model fitted at
 1 s, both variants, and the tracking default: the bundled white-shark model fitted at
 60 s, time-consistent, with heading diffusion) it prints particle-steps per second of
-``ParticleFilter`` with its compiled kernels on one thread and on two (the machine's two
-cores), of the same filter with ``backend="numpy"`` (every second one vectorised
-``motion.propagate`` with a NumPy ``Generator``), the ratio of the faster compiled run to
-the NumPy one, the rate of the compiled prediction alone on one thread (no corrections:
-the ceiling the per-correction work is measured against), and the one-thread run's
-particle-steps per second of process CPU time (``M/CPU-s``: what a run costs however busy
-the machine is). Wall-clock numbers depend on the machine and its load, printed at the
-start and the end (CPU model, cores, 1-, 5- and 15-minute load averages); the headline
-figures are ratios to the NumPy filter measured in the same run. The last lines compare
-them at N = 10,000 with issue 16's targets: velocity at least 8x the NumPy filter on the
-default threads (the faster of those run) and 5x on one thread, the HMM models 10x.
+``ParticleFilter`` with its compiled kernels on one thread, on two (the machine's two
+cores) and on the default threads (``threads=None``: one or two, chosen by timing), of the
+same filter with ``backend="numpy"``
+(every second one vectorised ``motion.propagate`` with a NumPy ``Generator``), the ratio of
+the fastest compiled run to the NumPy one, the rate of the compiled prediction alone on one
+thread (no corrections: the ceiling the per-correction work is measured against), and the
+one-thread run's particle-steps per second of process CPU time (``M/CPU-s``: what a run
+costs however busy the machine is). Wall-clock numbers depend on the machine and its load,
+printed at the start and the end (CPU model, cores, 1-, 5- and 15-minute load averages);
+the headline figures are ratios to the NumPy filter measured in the same run. The last
+lines compare them at N = 10,000 with issue 16's targets: velocity at least 8x the NumPy
+filter on the default threads (the ``threads=None`` run) and 5x on one thread, the HMM
+models 10x.
 
 A second table (issue 13) prices the mode-keeping filter on the paper's scenarios: the
 CPU time of ``track()`` on the swimmer and the shark pursuit (synthetic dataset 0, the
@@ -25,11 +27,12 @@ mixture) against the paper's (``filter="paper"``) at the same particle count (pr
 time, all threads), in the same run, best of ``--repeat``; the budget is 1.3x.
 
 A third table (``--section correction``) times one correction and resampling as the
-filter runs them (the compiled weighing into reused arrays, multinomial resampling with the
-filter's work arrays, the gather into the spare particles) on one thread and on two, for
-N = 10,000 to 100,000 (or ``--sizes``), interleaved, best of 40 rounds: the measurement
-behind the filter's ``PARALLEL_MIN_CORRECTION`` (corrections on the prediction's threads
-from that many particles).
+filter runs them (the range-rate log-likelihood of one observation, the compiled weighing
+into reused arrays, multinomial resampling with the filter's work arrays, the gather into
+the spare particles) on one thread and on two, for N = 10,000 to 100,000 (or ``--sizes``),
+interleaved, best of 40 rounds, with the best time of each of these stages: the
+measurement behind the filter's ``PARALLEL_MIN_CORRECTION`` (corrections on the
+prediction's threads from that many particles).
 
 Run: ``python benchmarks/bench_filter.py`` (``--quick`` for a 600 s trial and N up to
 10,000; ``--sizes 10000`` picks the particle numbers; ``--repeat k`` keeps the best of k
@@ -52,6 +55,7 @@ from hmmtrack import scenarios
 from hmmtrack.experiments.configs import tracking_config
 from hmmtrack.hmm import Gamma, MovementHMM, VonMises
 from hmmtrack.tracking import pipeline
+from hmmtrack.tracking.compiled.chunks import default_threads
 from hmmtrack.tracking.compiled.weighing import weigh
 from hmmtrack.tracking.filter import ParticleFilter
 from hmmtrack.tracking.measurement.range_rate import RangeRateMeasurement
@@ -163,33 +167,59 @@ def mode_keeping_cost(sizes, repeat: int) -> None:
                 )
 
 
-def correction_cycle(rng, particles, spare, loglik, arrays, scratch: Scratch) -> None:
-    """One correction and resampling as the filter runs them, on ``scratch.threads``."""
+#: the stages of one correction and resampling (:func:`correction_cycle`)
+STAGES = ("loglik", "weigh", "resample", "gather")
+
+
+def correction_cycle(rng, particles, spare, rows, arrays, scratch: Scratch, clock) -> None:
+    """One correction and resampling as the filter runs them, on ``scratch.threads``: the
+    range-rate log-likelihood of ``rows``, the weighing, multinomial resampling and the
+    gather; ``clock[stage]`` accumulates each stage's wall-clock time (s)."""
     p, threads = particles, scratch.threads
+    start = time.perf_counter()
+    with default_threads(threads):
+        loglik = MEASUREMENT.loglik(p, rows)
+    marks = [start, time.perf_counter()]
     _, _, weights, _, _ = weigh(p.log_weight, loglik, p.x, p.y, threads, arrays)
+    marks.append(time.perf_counter())
     ancestors = multinomial(rng, weights, p.n, scratch)
+    marks.append(time.perf_counter())
     p.take(ancestors, True, out=spare, threads=threads)
+    marks.append(time.perf_counter())
+    for k, stage in enumerate(STAGES):
+        clock[stage] += marks[k + 1] - marks[k]
 
 
 def correction_cost(sizes) -> None:
-    """Print one correction and resampling on one thread against two (same run)."""
+    """Print one correction and resampling on one thread against two (same run), and the
+    best time of each stage."""
     rng = np.random.default_rng(0)
-    print(f"{'N':>8}{'1 thr ms':>10}{'2 thr ms':>10}{'1 / 2':>7}")
+    rows = MEASUREMENT.as_matrix(observations(60.0).iloc[[2]])
+    stage_columns = "".join(f"{f'{stage} 1/2 us':>20}" for stage in STAGES)
+    print(f"{'N':>8}{'1 thr ms':>10}{'2 thr ms':>10}{'1 / 2':>7}{stage_columns}")
     for n in sizes:
         particles = Particles.uniform(rng, n, BOUNDS)
-        data = (particles, particles.copy(), 2.0 * rng.normal(size=n), (np.empty(n), np.empty(n)))
+        data = (particles, particles.copy(), rows, (np.empty(n), np.empty(n)))
         best = {1: np.inf, 2: np.inf}
+        stages = {threads: dict.fromkeys(STAGES, np.inf) for threads in best}
         scratch = {threads: Scratch(threads) for threads in best}
         calls = max(1, 200_000 // n)
         for threads in best:
-            correction_cycle(rng, *data, scratch[threads])
+            correction_cycle(rng, *data, scratch[threads], dict.fromkeys(STAGES, 0.0))
         for _ in range(40):
             for threads in best:
+                clock = dict.fromkeys(STAGES, 0.0)
                 start = time.perf_counter()
                 for _ in range(calls):
-                    correction_cycle(rng, *data, scratch[threads])
+                    correction_cycle(rng, *data, scratch[threads], clock)
                 best[threads] = min(best[threads], (time.perf_counter() - start) / calls)
-        print(f"{n:>8}{best[1] * 1e3:>10.3f}{best[2] * 1e3:>10.3f}{best[1] / best[2]:>7.2f}")
+                for stage, total in clock.items():
+                    stages[threads][stage] = min(stages[threads][stage], total / calls)
+        row = "".join(
+            f"{f'{stages[1][stage] * 1e6:.0f} / {stages[2][stage] * 1e6:.0f}':>20}"
+            for stage in STAGES
+        )
+        print(f"{n:>8}{best[1] * 1e3:>10.3f}{best[2] * 1e3:>10.3f}{best[1] / best[2]:>7.2f}{row}")
 
 
 def main() -> None:
@@ -235,7 +265,8 @@ def main() -> None:
         f"{duration:.0f} s trial, {len(obs)} observations from 2 receivers, "
         f"{numba.config.NUMBA_NUM_THREADS} numba threads; best of {args.repeat}"
     )
-    compiled_columns = "".join(f"{f'{t} thr s':>9}{'M/s':>7}" for t in threads)
+    threads = [*threads, None]  # None: the filter's default, chosen by timing
+    compiled_columns = "".join(f"{f'{t} thr s' if t else 'auto s':>9}{'M/s':>7}" for t in threads)
     print(
         f"{'model':<20}{'N':>8}{compiled_columns}{'numpy s':>9}{'M/s':>7}{'ratio':>7}"
         f"{'predict-only M/s':>18}{'M/CPU-s':>9}"
@@ -271,8 +302,7 @@ def main() -> None:
                 f"{reference / fastest:>7.1f}{kernel / 1e6:>18.1f}{cpu_rate:>9.1f}"
             )
             if n == 10_000:
-                ratios[name] = {t: reference / wall for t, wall in walls.items()}
-                ratios[name]["default"] = reference / fastest
+                ratios[name] = {t or "default": reference / wall for t, wall in walls.items()}
     print(describe("end"))
     for name, by_threads in ratios.items():
         kind = "velocity" if name == "velocity" else "hmm"
@@ -280,7 +310,7 @@ def main() -> None:
             if target_kind != kind or t not in by_threads:
                 continue
             ratio = by_threads[t]
-            label = "default threads" if t == "default" else f"{t} thread"
+            label = "default threads (auto)" if t == "default" else f"{t} thread"
             verdict = "met" if ratio >= least else "NOT met"
             print(
                 f"target at N = 10,000, {name}, {label}: >= {least:.0f}x NumPy; "

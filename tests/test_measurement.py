@@ -3,6 +3,7 @@ import pandas as pd
 import pytest
 from scipy.stats import multivariate_normal
 
+from hmmtrack.tracking.compiled.chunks import default_threads
 from hmmtrack.tracking.measurement.range_rate import RangeRateMeasurement, predicted_range_and_rate
 from hmmtrack.tracking.particles import Particles
 
@@ -113,6 +114,26 @@ def test_compiled_loglik_equals_the_numpy_prediction():
     np.testing.assert_allclose(
         RangeRateMeasurement(COVARIANCE).loglik(p, obs), expected, rtol=1e-12
     )
+
+
+def test_loglik_in_chunks_is_the_same_on_any_number_of_threads():
+    """The log-likelihood runs in chunks of 1,024 particles on the threads of the enclosing
+    default_threads block; each particle's value is computed alone (last chunk partial)."""
+    rng = np.random.default_rng(8)
+    n = 3 * 1024 + 77
+    p = Particles.from_state(
+        x=rng.uniform(-500, 500, n),
+        y=rng.uniform(-500, 500, n),
+        heading=rng.uniform(-np.pi, np.pi, n),
+        speed=rng.gamma(2.0, 0.5, n),
+    )
+    model, obs = RangeRateMeasurement(COVARIANCE), observations()
+    with default_threads(1):
+        one = model.loglik(p, obs)
+    with default_threads(2):
+        two = model.loglik(p, obs)
+    np.testing.assert_array_equal(one, two)
+    np.testing.assert_array_equal(one[-100:], model.loglik(p.take(np.arange(n - 100, n)), obs))
 
 
 def test_matrix_form_scores_row_slices_like_the_table():

@@ -59,6 +59,7 @@ import itertools
 import time as clock
 import warnings
 from collections.abc import Callable, Iterator, Sequence
+from contextlib import nullcontext
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -68,6 +69,7 @@ import pandas as pd
 
 from hmmtrack.random import SeedLike, as_generator
 from hmmtrack.tracking.compiled import streams as rs
+from hmmtrack.tracking.compiled.chunks import default_threads
 from hmmtrack.tracking.compiled.threads import ThreadChoice
 from hmmtrack.tracking.compiled.weighing import weigh
 from hmmtrack.tracking.measurement.base import Score
@@ -547,7 +549,17 @@ class ParticleFilter:
 
         The measurement scores (its ``score`` hook, else ``loglik``), the correction policy
         applies the log-likelihood, the measurement commits (``Score.commit``), the
-        collectors record."""
+        collectors record. On more than one thread, the correction runs the measurement's
+        chunked kernels on its threads too
+        (:func:`~hmmtrack.tracking.compiled.chunks.default_threads`); on one, they run on
+        their own default (the range-rate log-likelihood on one thread, the ping
+        measurement's on all of numba's)."""
+        threads = self.correction_threads()
+        with default_threads(threads) if threads > 1 else nullcontext():
+            return self._scored_correction(rows, table)
+
+    def _scored_correction(self, rows, table) -> Estimate:
+        """:meth:`_correct`'s steps."""
         p = self.particles
         measurement = self.measurement
         time = self.time

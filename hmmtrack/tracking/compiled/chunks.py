@@ -17,6 +17,8 @@ from __future__ import annotations
 
 import os
 import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
 
 import numba
 import numpy as np
@@ -29,6 +31,8 @@ __all__ = [
     "N_CHUNKS",
     "N_MOMENTS",
     "chunking",
+    "block_threads",
+    "default_threads",
     "in_chunks",
     "moments_pass",
     "next_chunk",
@@ -126,6 +130,30 @@ def _note_fork() -> None:
 os.register_at_fork(after_in_child=_note_fork)
 
 
+#: the thread count of :func:`in_chunks` calls that name none, per Python thread, while a
+#: :func:`default_threads` block runs (else numba's thread count of the calling thread)
+_DEFAULT = threading.local()
+
+
+@contextmanager
+def default_threads(threads: int) -> Iterator[None]:
+    """Run the :func:`in_chunks` calls of this block that name no thread count (e.g. a
+    measurement's log-likelihood, whose ``loglik`` has no thread argument) on ``threads``
+    threads: how :class:`hmmtrack.tracking.filter.ParticleFilter` puts its measurement's
+    chunked kernels on the threads of its corrections. Only speed depends on it."""
+    outer = getattr(_DEFAULT, "threads", None)
+    _DEFAULT.threads = threads
+    try:
+        yield
+    finally:
+        _DEFAULT.threads = outer
+
+
+def block_threads(otherwise: int) -> int:
+    """The thread count of the enclosing :func:`default_threads` block, else ``otherwise``."""
+    return getattr(_DEFAULT, "threads", None) or otherwise
+
+
 def run_chunks(kernel, parallel, n: int, n_steps: int, threads: int | None, *args) -> np.ndarray:
     """Run ``kernel(*args, counter, sums)`` over all chunks of ``n`` particles
     (:func:`in_chunks`) and return the weighted moments ``(n_steps, 5)`` (the per-chunk sums
@@ -138,11 +166,12 @@ def run_chunks(kernel, parallel, n: int, n_steps: int, threads: int | None, *arg
 def in_chunks(kernel, parallel, n: int, threads: int | None, args: tuple, out) -> None:
     """Run ``kernel(*args, counter, out)`` over all chunks of ``n`` particles.
 
-    With ``threads`` > 1 (``None``: ``numba.get_num_threads()``), ``parallel(threads,
-    *args, counter, out)`` (tuple arguments spread into their items) runs the kernel on
-    that many threads of numba's threading layer at once (OpenMP's threads wait awake for
-    a while between calls, so a call starts in a few microseconds), each claiming the next
-    unclaimed chunk whenever it finishes one (:func:`next_chunk`): a thread that starts
+    With ``threads`` > 1 (``None``: that of the enclosing :func:`default_threads` block, else
+    ``numba.get_num_threads()``), ``parallel(threads, *args, counter, out)`` (tuple
+    arguments spread into their items) runs the kernel on that many threads of numba's
+    threading layer at once (OpenMP's threads wait awake for a while between calls, so a
+    call starts in a few microseconds), each claiming the next unclaimed chunk whenever it
+    finishes one (:func:`next_chunk`): a thread that starts
     late or is slowed by other work on the machine simply runs fewer chunks. Every chunk
     writes its own particles and its own row of ``out``, so the results do not depend on
     which thread ran it. Under numba's "workqueue" layer only one Python thread at a time
@@ -150,8 +179,13 @@ def in_chunks(kernel, parallel, n: int, threads: int | None, args: tuple, out) -
     after this one started OpenMP threads, every call runs on the calling thread.
     """
     global _OPENMP_STARTED
-    n_chunks, _ = chunking(n)
     counter = np.zeros(1, dtype=np.int64)
+    if threads is None:
+        threads = getattr(_DEFAULT, "threads", None)
+    if threads == 1:  # straight to the kernel: asking numba for its threads costs more
+        kernel(*args, counter, out)
+        return
+    n_chunks, _ = chunking(n)
     previous = numba.get_num_threads()  # of this thread (numba's default: all); starts the layer
     threads = previous if threads is None else threads
     threads = max(1, min(threads, n_chunks, numba.config.NUMBA_NUM_THREADS))
