@@ -79,6 +79,10 @@ class Option:
         The settings class of the first of them.
     field : dataclasses.Field
         Its field (the same help, check and default in all of them).
+    fields : tuple of dataclasses.Field
+        The field of each component: a word any of them parses is accepted on the command
+        line (e.g. the ping measurement's ``--arrival-sigma pings``), and checked again by
+        the run's own component when its configuration is built.
     """
 
     key: str
@@ -86,6 +90,7 @@ class Option:
     components: tuple
     owner: type
     field: dataclasses.Field
+    fields: tuple = ()
 
     @property
     def flag(self) -> str:
@@ -126,19 +131,25 @@ def settings_options() -> Iterator[Option]:
                     seen.setdefault(field.name, []).append((name, cls, field))
         for key, found in seen.items():
             _, owner, field = found[0]
-            yield Option(key, section, tuple(name for name, _, _ in found), owner, field)
+            names = tuple(name for name, _, _ in found)
+            fields = tuple(f for _, _, f in found)
+            yield Option(key, section, names, owner, field, fields)
 
 
 def _checked(option: Option):
-    """argparse type of a one-word option: parsed and checked by its setting."""
-    parse, check = option.field.metadata["parse"], option.field.metadata["check"]
+    """argparse type of a one-word option: parsed and checked by its setting (the first
+    component's that accepts it; the first one's error otherwise)."""
 
     def convert(text: str):
-        try:
-            value = parse(text)
-            return value if check is None else check(option.key, value)
-        except ValueError as exc:
-            raise argparse.ArgumentTypeError(str(exc)) from None
+        errors = []
+        for field in option.fields or (option.field,):
+            parse, check = field.metadata["parse"], field.metadata["check"]
+            try:
+                value = parse(text)
+                return value if check is None else check(option.key, value)
+            except ValueError as exc:
+                errors.append(exc)
+        raise argparse.ArgumentTypeError(str(errors[0])) from None
 
     return convert
 
@@ -472,6 +483,10 @@ def run(args: argparse.Namespace) -> int:
                     estimates_to=writer if stream else None,
                 )
             figure = _report(result, args, receivers, truth)
+            attrs = result.observations.attrs
+            if "arrival_sigma" in attrs:  # (a ping measurement's: say what it chose)
+                chosen = f"{1e3 * attrs['arrival_sigma']:.3g} ms"
+                print(f"arrival sd: {chosen} ({attrs['arrival_sigma_source']})", file=sys.stderr)
             if not stream:
                 writer(result.estimates if result.smoothed is None else result.smoothed)
         if figure is not None:
