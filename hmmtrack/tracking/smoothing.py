@@ -1,4 +1,5 @@
-"""Fixed-lag smoothing of a particle filter by ancestor tracing.
+"""Fixed-lag smoothing of a particle filter: by ancestor tracing, or for a random walk by
+backward simulation.
 
 A filter estimate at time ``t`` uses detections up to ``t`` only. Offline (or a little
 late online) the estimate at ``t`` can also use what came after: follow the particles
@@ -13,6 +14,13 @@ Conventions: the filter pushes, every step, the particle positions and log weigh
 the correction (before resampling) and ``parent``: for each particle, the index of the
 particle of the previous push it descends from (the resampling indices; ``None`` when no
 resampling happened in between).
+
+Under a random-walk motion the steps before a sharp correction (a ping heard by many
+receivers) keep only the few ancestors that survived its resamplings, and the traced
+estimate there is as noisy as those few. :class:`BackwardSmoother` draws paths back through
+the filter's clouds instead (:func:`backward_block`): each step, a path moves to any
+particle near where it is, weighted by the filter, so the smoothed mean at every step rests
+on hundreds of distinct particles.
 
 :class:`Smoothed` is the smoother as a collector of
 :class:`hmmtrack.tracking.filter.ParticleFilter` (``collect=[Smoothed(lag)]``): it pushes
@@ -47,7 +55,8 @@ BACKWARD_PATHS = 500
 #: from the step's filter weights: enough that every path leaves a depleted lineage within a
 #: few steps
 BACKWARD_MOVES = 2
-#: columns of the smoothed estimates table (the filter's estimates plus ``n_ancestors``)
+#: columns of the smoothed estimates table (the filter's estimates plus ``n_ancestors``: the
+#: distinct ancestors traced, or the distinct particles the backward paths pass through)
 SMOOTHED_COLUMNS = ("time", "x", "y", "var_x", "var_y", "cov_xy", "sqrt_lambda1", "n_ancestors")
 
 

@@ -43,6 +43,11 @@ The particles are where the tag is at the filter's correction time (the ping's f
 arrival, on the 1 s grid); each range is taken from where the particle was at emission
 (:func:`hmmtrack.tracking.measurement.arrival_time.emission_distance`, its velocity).
 
+The core sd ``σ`` is a setting, or with :data:`FROM_PINGS` the robust sd of the pings' own
+least-squares fixes (:func:`arrival_sigma`,
+:func:`hmmtrack.tracking.measurement.pings.arrival_spread`): a property of the data (0.2 ms
+on the simulated array, 0.62 ms on YAPS's ssu1), reported in the run's summary.
+
 :class:`PingTDOA` is the ``"ping"`` measurement of
 :data:`hmmtrack.tracking.measurement.MEASUREMENTS` (detections grouped into pings by
 :mod:`hmmtrack.tracking.measurement.pings`); its :class:`PingTrace` collector reports each
@@ -119,9 +124,10 @@ STEPS_PER_SD = 2.0
 PING_TRACE_COLUMNS = (
     "ping", "time", "emission_time", "x", "y", "x_sd", "y_sd", "n_receivers", "receivers",
 )  # fmt: skip
-#: default sd (s) of a direct arrival's residual: the synchronised clocks' error (0.3 ms on
-#: YAPS's ssu1) plus the tag's unmodelled motion between emission and the 1 s grid (reasons
-#: in reports/decisions.md, "Ping measurement", "Defaults of the ping measurement")
+#: default sd (s) of a direct arrival's residual: 2 ms, chosen on YAPS's ssu1, kept over the
+#: pings' own sd (:data:`FROM_PINGS`, 0.62 ms there), which misses YAPS's 3.0 m median
+#: (reports/decisions.md, "Ping measurement", "Defaults of the ping measurement", "The
+#: arrival sd from the pings")
 ARRIVAL_SIGMA = 2e-3
 #: the ``arrival_sigma`` that has it estimated from the pings before filtering
 #: (:func:`~hmmtrack.tracking.measurement.pings.arrival_spread`)
