@@ -80,9 +80,9 @@ class Option:
     field : dataclasses.Field
         Its field (the same help, check and default in all of them).
     fields : tuple of dataclasses.Field
-        The field of each component: a word any of them parses is accepted on the command
-        line (e.g. the ping measurement's ``--arrival-sigma pings``), and checked again by
-        the run's own component when its configuration is built.
+        The field of each component: a word that one with its own parser takes is accepted
+        on the command line (e.g. the ping measurement's ``--arrival-sigma pings``), and
+        checked again by the run's own component when its configuration is built.
     """
 
     key: str
@@ -137,12 +137,15 @@ def settings_options() -> Iterator[Option]:
 
 
 def _checked(option: Option):
-    """argparse type of a one-word option: parsed and checked by its setting (the first
-    component's that accepts it; the first one's error otherwise)."""
+    """argparse type of a one-word option: parsed and checked by its setting, or when the
+    first component's refuses it by another component's that parses words its own way (the
+    ping measurement's ``--arrival-sigma pings``); the first one's error otherwise."""
+    parse = option.field.metadata["parse"]
+    own = [f for f in option.fields if f.metadata["parse"] is not parse]
 
     def convert(text: str):
         errors = []
-        for field in option.fields or (option.field,):
+        for field in (option.field, *own):
             parse, check = field.metadata["parse"], field.metadata["check"]
             try:
                 value = parse(text)
