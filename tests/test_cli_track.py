@@ -472,6 +472,15 @@ def test_every_setting_has_its_generated_option_with_its_default():
     assert build_config(parser.parse_args([*ping, "--sigma-position", "3"])).motion == (
         TrackingConfig.from_keys(measurement="ping", sigma_position=3.0).motion
     )
+    # the ping measurement's arrival sd may be estimated from the pings; a number overrides
+    sigma = {
+        word: build_config(parser.parse_args([*ping, "--arrival-sigma", word]))
+        for word in ("pings", "0.0004")
+    }
+    assert sigma["pings"].measurement.arrival_sigma == "pings"
+    assert sigma["0.0004"].measurement.arrival_sigma == 0.0004
+    with pytest.raises(ValueError, match=r"\(arrival-time\): arrival_sigma must be a number"):
+        build_config(parser.parse_args([*base, *arrival, "--arrival-sigma", "pings"]))
 
 
 REAL = Path(__file__).resolve().parents[2] / "shared" / "data" / "yaps_ssu1"

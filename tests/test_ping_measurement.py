@@ -9,7 +9,7 @@ import pytest
 from scipy import integrate, stats
 
 from hmmtrack.tracking.measurement.arrival_time import emission_distance
-from hmmtrack.tracking.measurement.pings import ping_observations, ping_window
+from hmmtrack.tracking.measurement.pings import arrival_spread, ping_observations, ping_window
 from hmmtrack.tracking.measurement.tdoa import (
     gaussian_ping_loglik,
     per_ping_table,
@@ -153,3 +153,35 @@ def test_per_ping_smoothed_position_is_the_row_of_the_correction_step():
     table = per_ping_table(pings, observations, smoothed)
     assert table["emission_time"].tolist() == [100.4] and table["n_receivers"].tolist() == [3]
     assert table["smoothed_x"].tolist() == [10.0] and table["smoothed_y"].tolist() == [3.0]
+
+
+def synthetic_pings(rng, sigma, outliers, n_pings=80, spacing=100.0, sound=1500.0):
+    """Pings of a tag wandering in a 3 x 3 array heard by every receiver, arrivals with
+    Gaussian jitter ``sigma`` (s) and a share ``outliers`` delayed by 5-50 ms (multipath)."""
+    grid = np.arange(3) * spacing
+    xy = np.array([(x, y) for x in grid for y in grid])
+    rows = []
+    for ping in range(n_pings):
+        tag = rng.uniform(0.0, 2 * spacing, 2)
+        emission = EPOCH + 30.0 * ping
+        arrival = emission + np.hypot(*(xy - tag).T) / sound + rng.normal(0.0, sigma, len(xy))
+        late = rng.random(len(xy)) < outliers
+        arrival[late] += rng.uniform(5e-3, 5e-2, late.sum())
+        for (x, y), t in zip(xy, arrival, strict=True):
+            rows.append((ping, t, x, y, len(xy)))
+    return pd.DataFrame(rows, columns=["ping", "arrival", "receiver_x", "receiver_y", "heard"])
+
+
+@pytest.mark.parametrize("sigma", [2e-4, 6e-4, 2e-3])
+def test_arrival_spread_recovers_a_known_arrival_sd(sigma):
+    """Fixes of single pings (x, y, emission time) leave residuals whose robust, degrees-of-
+    freedom-corrected sd is the arrivals' own: measured over seeds 0-19 with 80 pings of 9
+    receivers and 2 % multipath, 0.94-1.18x the true sd at every sd (without multipath
+    0.88-1.02x), outlier share 1.0-4.4 %."""
+    rng = np.random.default_rng(7)
+    spread = arrival_spread(synthetic_pings(rng, sigma, 0.02), 1500.0)
+    assert spread.pings == 80 and spread.residuals == 720
+    assert 0.85 * sigma < spread.sigma < 1.25 * sigma
+    assert 0.005 < spread.outlier_fraction < 0.05
+    few = synthetic_pings(rng, sigma, 0.0).assign(heard=3)
+    assert np.isnan(arrival_spread(few, 1500.0).sigma)  # three receivers show no spread

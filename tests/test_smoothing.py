@@ -9,6 +9,7 @@ import pytest
 
 from hmmtrack.tracking.smoothing import (
     SINK_ROWS,
+    BackwardSmoother,
     FixedLagSmoother,
     Smoothed,
     smoothed_table,
@@ -129,3 +130,73 @@ def test_the_bridge_draws_a_line_across_a_long_gap_between_fixes_only():
     np.testing.assert_array_equal(tables[0]["x"].to_numpy()[:200], bridged)
     away = run_smoothed(Smoothed(0, bridge=(np.array([0.0, 600.0]), 45.0)), x.repeat(4))
     np.testing.assert_array_equal(away["smoothed"]["x"], x.repeat(4))  # 600 s: not a gap
+
+
+def kalman_smoothed_random_walk(observed, step_sd, obs_sd):
+    """Rauch-Tung-Striebel means of a 1-D random walk (flat start) observed every step."""
+    n = len(observed)
+    mean, var = np.empty(n), np.empty(n)
+    m, v = observed[0], obs_sd**2
+    for t in range(n):
+        if t:
+            v += step_sd**2
+            gain = v / (v + obs_sd**2)
+            m, v = m + gain * (observed[t] - m), (1 - gain) * v
+        mean[t], var[t] = m, v
+    smoothed = mean.copy()
+    for t in range(n - 2, -1, -1):
+        gain = var[t] / (var[t] + step_sd**2)
+        smoothed[t] = mean[t] + gain * (smoothed[t + 1] - mean[t])
+    return smoothed, var
+
+
+def smoothed_random_walk(seed, n_steps=200, n=2000, step_sd=0.5, obs_sd=0.5, lag=20):
+    """A bootstrap filter of a 2-D random walk seen through noisy positions every step,
+    smoothed by :class:`BackwardSmoother` and by ancestor tracing (:class:`FixedLagSmoother`)
+    at the same lag; RMS distances (m) of theirs and the filter's means from the exact
+    (Rauch-Tung-Striebel) smoother over the rows with a full lag, and the tables."""
+    rng = np.random.default_rng(seed)
+    truth = np.cumsum(rng.normal(0, step_sd, (n_steps, 2)), axis=0)
+    observed = truth + rng.normal(0, obs_sd, truth.shape)
+    backward, traced = BackwardSmoother(lag, step_sd, seed=seed), FixedLagSmoother(lag)
+    rows = {"backward": [], "traced": []}
+    particles = observed[0] + rng.normal(0, obs_sd, (n, 2))
+    filtered = np.empty((n_steps, 2))
+    parent = None
+    for t in range(n_steps):
+        if t:
+            particles = particles + rng.normal(0, step_sd, (n, 2))
+        log_weight = -0.5 * np.sum((particles - observed[t]) ** 2, axis=1) / obs_sd**2
+        w = np.exp(log_weight - log_weight.max())
+        filtered[t] = (w / w.sum()) @ particles
+        state = (float(t), particles[:, 0], particles[:, 1], log_weight, parent)
+        rows["backward"] += backward.push(*state)
+        rows["traced"] += filter(None, [traced.push(*state)])
+        parent = rng.choice(n, n, p=w / w.sum())
+        particles = particles[parent]
+    rows["backward"] += backward.finish()
+    rows["traced"] += traced.finish()
+    tables = {kind: smoothed_table(r) for kind, r in rows.items()}
+    exact = np.column_stack(
+        [kalman_smoothed_random_walk(observed[:, k], step_sd, obs_sd)[0] for k in (0, 1)]
+    )
+    inner = slice(0, n_steps - 2 * lag)  # (the last rows see fewer later steps)
+
+    def distance(estimate):
+        return float(np.sqrt(np.mean(np.sum((estimate - exact)[inner] ** 2, axis=1))))
+
+    errors = {kind: distance(table[["x", "y"]].to_numpy()) for kind, table in tables.items()}
+    return errors | {"filter": distance(filtered)}, tables
+
+
+def test_backward_simulation_matches_the_kalman_smoother_of_a_random_walk():
+    """Backward simulation's means are the exact smoother's within its Monte Carlo noise (500
+    paths), nearer than ancestor tracing's at the same lag and far nearer than the filter's
+    (measured, seeds 0-4: RMS 0.040-0.067 m from the exact smoother, tracing 0.119-0.181 m,
+    the filter 0.28-0.33 m; at its fewest, 25-75 distinct particles on the backward paths
+    against 7-15 traced ancestors)."""
+    errors, tables = smoothed_random_walk(3)
+    print(errors)
+    assert tables["backward"]["time"].tolist() == list(range(200))
+    assert errors["backward"] < 0.1 and errors["backward"] < 0.5 * errors["traced"]
+    assert errors["filter"] > 3 * errors["backward"]

@@ -80,6 +80,10 @@ class Option:
         The settings class of the first of them.
     field : dataclasses.Field
         Its field (the same help, check and default in all of them).
+    fields : tuple of dataclasses.Field
+        The field of each component: a word that one with its own parser takes is accepted
+        on the command line (e.g. the ping measurement's ``--arrival-sigma pings``), and
+        checked again by the run's own component when its configuration is built.
     """
 
     key: str
@@ -87,6 +91,7 @@ class Option:
     components: tuple
     owner: type
     field: dataclasses.Field
+    fields: tuple = ()
 
     @property
     def flag(self) -> str:
@@ -127,19 +132,28 @@ def settings_options() -> Iterator[Option]:
                     seen.setdefault(field.name, []).append((name, cls, field))
         for key, found in seen.items():
             _, owner, field = found[0]
-            yield Option(key, section, tuple(name for name, _, _ in found), owner, field)
+            names = tuple(name for name, _, _ in found)
+            fields = tuple(f for _, _, f in found)
+            yield Option(key, section, names, owner, field, fields)
 
 
 def _checked(option: Option):
-    """argparse type of a one-word option: parsed and checked by its setting."""
-    parse, check = option.field.metadata["parse"], option.field.metadata["check"]
+    """argparse type of a one-word option: parsed and checked by its setting, or when the
+    first component's refuses it by another component's that parses words its own way (the
+    ping measurement's ``--arrival-sigma pings``); the first one's error otherwise."""
+    parse = option.field.metadata["parse"]
+    own = [f for f in option.fields if f.metadata["parse"] is not parse]
 
     def convert(text: str):
-        try:
-            value = parse(text)
-            return value if check is None else check(option.key, value)
-        except ValueError as exc:
-            raise argparse.ArgumentTypeError(str(exc)) from None
+        errors = []
+        for field in (option.field, *own):
+            parse, check = field.metadata["parse"], field.metadata["check"]
+            try:
+                value = parse(text)
+                return value if check is None else check(option.key, value)
+            except ValueError as exc:
+                errors.append(exc)
+        raise argparse.ArgumentTypeError(str(errors[0])) from None
 
     return convert
 
@@ -475,6 +489,10 @@ def run(args: argparse.Namespace) -> int:
                     estimates_to=writer if stream else None,
                 )
             figure = _report(result, args, receivers, truth)
+            attrs = result.observations.attrs
+            if "arrival_sigma" in attrs:  # (a ping measurement's: say what it chose)
+                chosen = f"{1e3 * attrs['arrival_sigma']:.3g} ms"
+                print(f"arrival sd: {chosen} ({attrs['arrival_sigma_source']})", file=sys.stderr)
             if not stream:
                 writer(result.estimates if result.smoothed is None else result.smoothed)
         if figure is not None:

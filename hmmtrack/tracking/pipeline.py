@@ -48,6 +48,7 @@ from hmmtrack.tracking.measurement import MEASUREMENTS
 from hmmtrack.tracking.measurement.base import EVENT_COLUMNS
 from hmmtrack.tracking.mixture import Mixture, Modes, with_modes
 from hmmtrack.tracking.monitor import Monitor
+from hmmtrack.tracking.motion.baseline import BaselineMotion
 from hmmtrack.tracking.receivers import ReceiverTracks
 from hmmtrack.tracking.smoothing import Smoothed
 from hmmtrack.tracking.tempering import Tempered
@@ -513,7 +514,14 @@ def track(
     collectors = [*collect]
     if config.smoothing is not None:
         bridge = measurement.bridge(scored) if hasattr(measurement, "bridge") else None
-        collectors.append(Smoothed(config.smoothing, sink=estimates_to, bridge=bridge))
+        backward = (
+            motion.sigma
+            if isinstance(motion, BaselineMotion) and getattr(measurement, "backward", False)
+            else None
+        )  # (backward simulation: a random walk's smoother, where the measurement asks)
+        collectors.append(
+            Smoothed(config.smoothing, sink=estimates_to, bridge=bridge, backward=backward)
+        )
         if estimates_to is not None:
             estimates_to = _discard  # the sink takes the smoothed estimates instead
     pf = particle_filter(config.filter, measurement, bounds, motion, seed=seed, collect=collectors)

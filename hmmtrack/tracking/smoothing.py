@@ -1,4 +1,5 @@
-"""Fixed-lag smoothing of a particle filter by ancestor tracing.
+"""Fixed-lag smoothing of a particle filter: by ancestor tracing, or for a random walk by
+backward simulation.
 
 A filter estimate at time ``t`` uses detections up to ``t`` only. Offline (or a little
 late online) the estimate at ``t`` can also use what came after: follow the particles
@@ -14,6 +15,13 @@ the correction (before resampling) and ``parent``: for each particle, the index 
 particle of the previous push it descends from (the resampling indices; ``None`` when no
 resampling happened in between).
 
+Under a random-walk motion the steps before a sharp correction (a ping heard by many
+receivers) keep only the few ancestors that survived its resamplings, and the traced
+estimate there is as noisy as those few. :class:`BackwardSmoother` draws paths back through
+the filter's clouds instead (:func:`backward_block`): each step, a path moves to any
+particle near where it is, weighted by the filter, so the smoothed mean at every step rests
+on hundreds of distinct particles.
+
 :class:`Smoothed` is the smoother as a collector of
 :class:`hmmtrack.tracking.filter.ParticleFilter` (``collect=[Smoothed(lag)]``): it pushes
 every step the filter settles and traces the ancestry of every resampling.
@@ -23,12 +31,15 @@ This module does not run filters; it only consumes what they record.
 
 from __future__ import annotations
 
+import math
 from collections import deque
 from collections.abc import Callable
 
 import numpy as np
 import pandas as pd
+from numba import njit
 
+from hmmtrack.tracking.compiled.streams import uniform
 from hmmtrack.tracking.particles import sqrt_largest_eigenvalue
 
 #: rows of each table handed to a sink of smoothed estimates (as the filter's, its
@@ -37,7 +48,15 @@ SINK_ROWS = 10_000
 #: gaps (in bridge gaps) beyond which a tag is taken to be away rather than between two fixes
 #: of one path: its rows are passed on unbridged, so that the rows held back stay bounded
 BRIDGE_LONGEST = 10
-#: columns of the smoothed estimates table (the filter's estimates plus ``n_ancestors``)
+#: paths drawn back through each block by :class:`BackwardSmoother`: the smoothed mean's
+#: Monte Carlo sd is the posterior's over √ of this (0.03 of it)
+BACKWARD_PATHS = 500
+#: Metropolis-Hastings moves per path and step of :func:`backward_block`, each a proposal
+#: from the step's filter weights: enough that every path leaves a depleted lineage within a
+#: few steps
+BACKWARD_MOVES = 2
+#: columns of the smoothed estimates table (the filter's estimates plus ``n_ancestors``: the
+#: distinct ancestors traced, or the distinct particles the backward paths pass through)
 SMOOTHED_COLUMNS = ("time", "x", "y", "var_x", "var_y", "cov_xy", "sqrt_lambda1", "n_ancestors")
 
 
@@ -179,6 +198,171 @@ class FixedLagSmoother:
         return rows
 
 
+@njit(cache=True)
+def _draw(cumulative, u):
+    """Index of ``u`` (in [0, total)) in the cumulative weights (binary search)."""
+    lo, hi = 0, cumulative.size - 1
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if cumulative[mid] > u:
+            hi = mid
+        else:
+            lo = mid + 1
+    return lo
+
+
+@njit(cache=True)
+def backward_block(x, y, log_weight, parent, step_sd, paths, moves, state):
+    """Backward simulation of a random walk through a block of filter steps: ``paths``
+    trajectories drawn from the last step's weights, then back one step at a time, each
+    from ``w_t^i · N(x_{t+1}; x_t^i, step_sd²)`` by ``moves`` independent
+    Metropolis-Hastings moves proposed from the weights ``w_t``, started at the
+    particle's resampling ancestor (FFBSi with MCMC moves: Bunch & Godsill 2013, Dubarry &
+    Douc 2011). With no move accepted a path is its traced ancestry; each accepted move
+    leaves a lineage the resamplings depleted for any particle of the filter near the path.
+
+    Parameters
+    ----------
+    x, y : (T, N) float arrays
+        Particle positions after each step's correction (m).
+    log_weight : (T, N) float array
+        Their log weights.
+    parent : (T, N) int array
+        ``parent[t, i]``: the index at step ``t − 1`` of particle ``i``'s ancestor (row 0
+        not used).
+    step_sd : float
+        The random walk's sd per axis over one step (m).
+    paths : int
+        Trajectories drawn.
+    moves : int
+        Moves per path and step (:data:`BACKWARD_MOVES`).
+    state : numpy.uint64
+        State of the draws' stream (:func:`hmmtrack.tracking.compiled.streams.uniform`).
+
+    Returns
+    -------
+    (T, 6) float array
+        Per step: the trajectories' mean x, y (m), var x, var y, cov xy (m²) and the number
+        of distinct particles they pass through.
+    """
+    n_steps, n = x.shape
+    out = np.empty((n_steps, 6))
+    cumulative = np.empty(n)
+    index = np.empty(paths, dtype=np.int64)
+    seen = np.zeros(n, dtype=np.int64)
+    scale = -0.5 / (step_sd * step_sd)
+    for t in range(n_steps - 1, -1, -1):
+        top = log_weight[t].max()
+        total = 0.0
+        for i in range(n):
+            total += math.exp(log_weight[t, i] - top)
+            cumulative[i] = total
+        for m in range(paths):
+            if t == n_steps - 1:
+                u, state = uniform(state)
+                index[m] = _draw(cumulative, u * total)
+                continue
+            later = index[m]
+            px, py = x[t + 1, later], y[t + 1, later]
+            at = parent[t + 1, later]
+            d2 = (px - x[t, at]) ** 2 + (py - y[t, at]) ** 2
+            for _ in range(moves):
+                u, state = uniform(state)
+                proposal = _draw(cumulative, u * total)
+                proposed = (px - x[t, proposal]) ** 2 + (py - y[t, proposal]) ** 2
+                u, state = uniform(state)
+                if u <= math.exp(scale * (proposed - d2)):
+                    at, d2 = proposal, proposed
+            index[m] = at
+        mx = my = 0.0
+        for m in range(paths):
+            mx += x[t, index[m]]
+            my += y[t, index[m]]
+        mx /= paths
+        my /= paths
+        vx = vy = cxy = 0.0
+        distinct = 0
+        for m in range(paths):
+            dx, dy = x[t, index[m]] - mx, y[t, index[m]] - my
+            vx += dx * dx
+            vy += dy * dy
+            cxy += dx * dy
+            if seen[index[m]] != t + 1:
+                seen[index[m]] = t + 1
+                distinct += 1
+        out[t, 0], out[t, 1], out[t, 5] = mx, my, distinct
+        out[t, 2], out[t, 3], out[t, 4] = vx / paths, vy / paths, cxy / paths
+    return out
+
+
+class BackwardSmoother:
+    """Fixed-lag smoother of a random walk by backward simulation: push filter steps in,
+    get smoothed rows at least ``lag`` steps late, in blocks.
+
+    Every ``lag`` steps the last ``2·lag`` are simulated back (:func:`backward_block`) and
+    the first ``lag`` of them passed on: each row's smoothing uses between ``lag`` and
+    ``2·lag − 1`` later steps. Unlike ancestor tracing, the paths pass through any of the
+    filter's particles at every step, not only the ancestors that survived the resamplings
+    since: a sharp correction does not leave the steps before it a few lineages.
+
+    Parameters
+    ----------
+    lag : int
+        Steps (≥ 1).
+    step_sd : float
+        The random walk's sd per axis over one step (m).
+    seed : int
+        Seed of the backward draws (each block its own, drawn from it).
+    paths : int
+        Trajectories per block.
+    moves : int
+        Metropolis-Hastings moves per path and step.
+    """
+
+    def __init__(
+        self,
+        lag: int,
+        step_sd: float,
+        seed: int,
+        paths: int = BACKWARD_PATHS,
+        moves: int = BACKWARD_MOVES,
+    ):
+        self.lag = FixedLagSmoother(lag).lag
+        if self.lag < 1:
+            raise ValueError(f"backward simulation needs a lag of at least 1 step, got {lag}")
+        self.step_sd = float(step_sd)
+        self.paths = int(paths)
+        self.moves = int(moves)
+        self._seeds = np.random.default_rng(seed)
+        self._steps: list[tuple] = []
+
+    def push(self, time: float, x, y, log_weight, parent=None) -> list[tuple]:
+        """Record one filter step (positions and log weights after its correction, and
+        ``parent`` as :meth:`FixedLagSmoother.push`); the smoothed rows
+        (:data:`SMOOTHED_COLUMNS` but ``sqrt_lambda1``) that became due."""
+        x = np.array(x, dtype=float)
+        parent = np.arange(x.size) if parent is None else np.asarray(parent, dtype=np.int64)
+        self._steps.append(
+            (float(time), x, np.array(y, dtype=float), np.array(log_weight, dtype=float), parent)
+        )
+        if len(self._steps) < 2 * self.lag:
+            return []
+        return self._flush(self.lag)
+
+    def finish(self) -> list[tuple]:
+        """The rows of every step still held."""
+        return self._flush(len(self._steps)) if self._steps else []
+
+    def _flush(self, count: int) -> list[tuple]:
+        times, x, y, log_weight, parent = (np.stack(c) for c in zip(*self._steps, strict=True))
+        state = np.uint64(self._seeds.integers(2**63))
+        moments = backward_block(
+            x, y, log_weight, parent, self.step_sd, self.paths, self.moves, state
+        )
+        self._steps = self._steps[count:]
+        return [(times[k], *moments[k, :5].tolist(), int(moments[k, 5])) for k in range(count)]
+
+
 def smoothed_table(rows) -> pd.DataFrame:
     """Table of smoothed estimates (columns :data:`SMOOTHED_COLUMNS`) from smoother rows."""
     raw = pd.DataFrame(
@@ -215,6 +399,10 @@ class Smoothed:
         ``knots`` (K,) sorted float array: times (s) of the corrections that fix the position
         (the filter step nearest each is a fix); ``gap`` (s): fixes farther apart than this are
         bridged by a straight line (see above). ``None``: no bridging.
+    backward : float, optional
+        The sd (m/√s) of a random-walk motion: smooth by backward simulation
+        (:class:`BackwardSmoother`, seeded from the filter's generator without drawing from
+        it) instead of ancestor tracing. ``None``: ancestor tracing.
     """
 
     #: the filter predicts one step at a time, so that every second is pushed
@@ -225,13 +413,20 @@ class Smoothed:
         lag: int,
         sink: Callable[[pd.DataFrame], None] | None = None,
         bridge: tuple[np.ndarray, float] | None = None,
+        backward: float | None = None,
     ) -> None:
         self.lag = FixedLagSmoother(lag).lag  # (checked there)
         self.sink = sink
         self.bridge = bridge
+        self.backward = backward
 
     def start(self, pf) -> None:
-        self._smoother = FixedLagSmoother(self.lag)
+        if self.backward is None:
+            self._smoother = FixedLagSmoother(self.lag)
+        else:
+            seed = int(pf.rng.spawn(1)[0].integers(2**63))
+            step_sd = self.backward * math.sqrt(pf.dt)
+            self._smoother = BackwardSmoother(self.lag, step_sd, seed)
         self._parent: np.ndarray | None = None
         self._rows: list[tuple] = []
         self._half_step = 0.5 * pf.dt
@@ -240,9 +435,9 @@ class Smoothed:
 
     def settled(self, pf) -> None:
         p = pf.particles
-        row = self._smoother.push(pf.time, p.x, p.y, p.log_weight, self._parent)
+        rows = self._smoother.push(pf.time, p.x, p.y, p.log_weight, self._parent)
         self._parent = None
-        if row is not None:
+        for row in rows if self.backward is not None else filter(None, [rows]):
             self._bridged(row)
 
     def _bridged(self, row: tuple) -> None:

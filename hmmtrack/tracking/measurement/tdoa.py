@@ -43,6 +43,11 @@ The particles are where the tag is at the filter's correction time (the ping's f
 arrival, on the 1 s grid); each range is taken from where the particle was at emission
 (:func:`hmmtrack.tracking.measurement.arrival_time.emission_distance`, its velocity).
 
+The core sd ``σ`` is a setting, or with :data:`FROM_PINGS` the robust sd of the pings' own
+least-squares fixes (:func:`arrival_sigma`,
+:func:`hmmtrack.tracking.measurement.pings.arrival_spread`): a property of the data (0.2 ms
+on the simulated array, 0.62 ms on YAPS's ssu1), reported in the run's summary.
+
 :class:`PingTDOA` is the ``"ping"`` measurement of
 :data:`hmmtrack.tracking.measurement.MEASUREMENTS` (detections grouped into pings by
 :mod:`hmmtrack.tracking.measurement.pings`); its :class:`PingTrace` collector reports each
@@ -73,7 +78,12 @@ from hmmtrack.tracking.measurement.clocked import (
     search_box,
     search_radius_setting,
 )
-from hmmtrack.tracking.measurement.pings import PING_TOLERANCE, ping_observations
+from hmmtrack.tracking.measurement.pings import (
+    PING_TOLERANCE,
+    SPREAD_RECEIVERS,
+    arrival_spread,
+    ping_observations,
+)
 from hmmtrack.tracking.measurement.ranging import SOUND_SPEED
 from hmmtrack.tracking.settings import Settings, fraction, positive, setting
 from hmmtrack.tracking.tempering import Tempered
@@ -83,6 +93,7 @@ __all__ = [
     "STEPS_PER_SD",
     "PING_TRACE_COLUMNS",
     "ARRIVAL_SIGMA",
+    "FROM_PINGS",
     "OUTLIER_FRACTION",
     "FIX_RECEIVERS",
     "MISSED_PING_SLACK",
@@ -95,6 +106,7 @@ __all__ = [
     "PingTrace",
     "cluster_excess",
     "gaussian_ping_loglik",
+    "arrival_sigma",
     "arrival_sigma_setting",
     "ping_integral",
     "per_ping_table",
@@ -112,10 +124,14 @@ STEPS_PER_SD = 2.0
 PING_TRACE_COLUMNS = (
     "ping", "time", "emission_time", "x", "y", "x_sd", "y_sd", "n_receivers", "receivers",
 )  # fmt: skip
-#: default sd (s) of a direct arrival's residual: the synchronised clocks' error (0.3 ms on
-#: YAPS's ssu1) plus the tag's unmodelled motion between emission and the 1 s grid (reasons
-#: in reports/decisions.md, "Ping measurement", "Defaults of the ping measurement")
+#: default sd (s) of a direct arrival's residual: 2 ms, chosen on YAPS's ssu1, kept over the
+#: pings' own sd (:data:`FROM_PINGS`, 0.62 ms there), which misses YAPS's 3.0 m median
+#: (reports/decisions.md, "Ping measurement", "Defaults of the ping measurement", "The
+#: arrival sd from the pings")
 ARRIVAL_SIGMA = 2e-3
+#: the ``arrival_sigma`` that has it estimated from the pings before filtering
+#: (:func:`~hmmtrack.tracking.measurement.pings.arrival_spread`)
+FROM_PINGS = "pings"
 #: default share of outliers: multipath and mistimed arrivals must be allowed for
 OUTLIER_FRACTION = 0.05
 #: tempering of a ping's correction: a ping heard by many receivers places the tag to a
@@ -396,6 +412,29 @@ def split_pings(rows: np.ndarray, offset_column: int):
         yield part, tuple(np.ascontiguousarray(part[:, k]) for k in (0, 1, 2, offset_column))
 
 
+def arrival_sigma(setting: float | str, observations: pd.DataFrame, sound_speed: float) -> float:
+    """The arrival sd (s) a run uses: ``setting``, or with :data:`FROM_PINGS` the robust sd
+    of the pings' own fixes (:func:`~hmmtrack.tracking.measurement.pings.arrival_spread`),
+    :data:`ARRIVAL_SIGMA` when no ping was heard by enough receivers to show one. The
+    value chosen and how are recorded in ``observations.attrs["arrival_sigma"]`` (s) and
+    ``["arrival_sigma_source"]`` (what a run's summary reports)."""
+    if setting != FROM_PINGS:
+        chosen, source = float(setting), "as configured"
+    else:
+        spread = arrival_spread(observations, sound_speed)
+        if np.isfinite(spread.sigma):
+            chosen = spread.sigma
+            source = (
+                f"estimated from {spread.pings} pings heard by {SPREAD_RECEIVERS} or more "
+                f"receivers, {100 * spread.outlier_fraction:.1f} % of their arrivals outliers"
+            )
+        else:
+            chosen = ARRIVAL_SIGMA
+            source = f"no ping heard by {SPREAD_RECEIVERS} or more receivers: the default"
+    observations.attrs.update(arrival_sigma=chosen, arrival_sigma_source=source)
+    return chosen
+
+
 def _burst_interval(name: str, value) -> tuple[float, float]:
     low, high = (positive(f"{name} {end}", v) for end, v in zip(("MIN", "MAX"), value, strict=True))
     if not low <= high:
@@ -403,13 +442,25 @@ def _burst_interval(name: str, value) -> tuple[float, float]:
     return low, high
 
 
-def arrival_sigma_setting(default: float):
-    """The ``arrival_sigma`` key of a ping measurement's section (s), with its default."""
+def _arrival_sigma(name: str, value) -> float | str:
+    return value if value == FROM_PINGS else positive(name, value)
+
+
+def _parse_arrival_sigma(text: str) -> float | str:
+    return text if text == FROM_PINGS else float(text)
+
+
+def arrival_sigma_setting(default: float | str):
+    """The ``arrival_sigma`` key of a ping measurement's section (s, or :data:`FROM_PINGS`:
+    estimated from the pings), with its default."""
     return setting(
         default,
-        help="standard deviation of a direct arrival's residual (s)",
-        check=positive,
-        parse=float,
+        help=(
+            f"standard deviation of a direct arrival's residual (s), or '{FROM_PINGS}': "
+            f"estimated from fixes of the pings heard by {SPREAD_RECEIVERS} or more receivers"
+        ),
+        check=_arrival_sigma,
+        parse=_parse_arrival_sigma,
         metavar="SECONDS",
     )
 
@@ -428,9 +479,11 @@ class PingSettings(Settings):
         Speed of sound (m/s); ``None``: the one the clock file's fit estimated when the
         detections were synchronised (``attrs["sound_speed"]``), else
         :data:`~hmmtrack.tracking.measurement.ranging.SOUND_SPEED`.
-    arrival_sigma : float
+    arrival_sigma : float or str
         Sd (s) of a direct arrival's residual: receiver clocks' error after
-        synchronisation, timing jitter and the tag's motion within the filter's step.
+        synchronisation, timing jitter and the tag's motion within the filter's step;
+        :data:`FROM_PINGS`: estimated from the pings
+        (:func:`~hmmtrack.tracking.measurement.pings.arrival_spread`).
     outlier_fraction : float
         Share ``ε`` of arrivals that are outliers (multipath, mistimed).
     ping_tolerance : float
@@ -460,7 +513,7 @@ class PingSettings(Settings):
         metavar="M_PER_S",
         default_text=f"the clock file's, else {SOUND_SPEED:g}",
     )
-    arrival_sigma: float = arrival_sigma_setting(ARRIVAL_SIGMA)
+    arrival_sigma: float | str = arrival_sigma_setting(ARRIVAL_SIGMA)
     outlier_fraction: float = setting(
         OUTLIER_FRACTION,
         help="share of arrivals that are outliers (multipath, mistimed)",
@@ -532,6 +585,10 @@ class PingTDOA:
     default_correction: ClassVar[Tempered] = Tempered(PING_TEMPERING_ESS)
     default_motion: ClassVar[dict] = PING_MOTION
     default_smoothing_lag: ClassVar[int] = PING_SMOOTHING_LAG
+    #: smoothed by backward simulation under a random walk
+    #: (:class:`hmmtrack.tracking.smoothing.BackwardSmoother`): a sharp ping leaves the
+    #: steps before it few traced ancestors
+    backward: ClassVar[bool] = True
 
     @classmethod
     def observations(cls, detections: pd.DataFrame, receivers, settings) -> pd.DataFrame:
@@ -552,13 +609,15 @@ class PingTDOA:
         """The measurement of ``settings``; the outlier's support is the observations'
         grouping window plus the receivers' largest travel time (any particle's residual
         spread fits in it); the sound speed is the settings', else the clock file's (the
-        observations' ``attrs``), else the default."""
+        observations' ``attrs``), else the default; the arrival sd is the settings', or
+        with :data:`FROM_PINGS` the pings' own (:func:`arrival_sigma`)."""
         positions = observations[["receiver_x", "receiver_y"]].to_numpy()
         window = observations.attrs.get("window", settings.ping_tolerance)
         sound_speed = settings.sound_speed or observations.attrs.get("sound_speed")
+        sound_speed = SOUND_SPEED if sound_speed is None else float(sound_speed)
         return cls(
-            SOUND_SPEED if sound_speed is None else float(sound_speed),
-            settings.arrival_sigma,
+            sound_speed,
+            arrival_sigma(settings.arrival_sigma, observations, sound_speed),
             settings.outlier_fraction,
             window + largest_travel_time(np.unique(positions.round(), axis=0)),
             settings.search_radius,
