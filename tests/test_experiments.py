@@ -279,6 +279,7 @@ def test_trial_scores_and_error_curve_match_metrics(small_scenarios):
     honesty = metrics.uncertainty_metrics(run.estimates, swimmer.truth)
     assert result.false_converged == honesty.false_converged
     np.testing.assert_equal(result.calibration, honesty.calibration)
+    np.testing.assert_equal(result.region_scale, honesty.region_scale)
     # the mirror share is taken over the seconds after convergence, on the logged receivers
     from hmmtrack.analysis.mirror import mirror_share, mirror_track
 

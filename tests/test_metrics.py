@@ -199,6 +199,29 @@ def test_uncertainty_metrics_calibration_and_false_convergence():
         estimates.drop(columns="converged").assign(sqrt_lambda1=20.0), truth
     )
     assert np.isnan(never.calibration) and never.seconds_after_convergence == 0
+    assert np.isnan(never.region_scale)
+    # the consistent filter needs no scaling; regions twice as wide need halving
+    assert honest.region_scale == pytest.approx(1.0, abs=0.05)
+    wide = estimates.assign(var_x=16.0, var_y=36.0)
+    wide["x"] -= np.where((times >= 2000) & (times < 2400), 60.0, 0.0)
+    assert metrics.uncertainty_metrics(wide, truth).region_scale == pytest.approx(0.5, abs=0.03)
+
+
+def test_region_scale_hand_values_and_chi2_oracle():
+    # the 95 % quantile of twenty values is the 19th smallest (inverted CDF)
+    nees = np.arange(1.0, 21.0)
+    assert metrics.region_scale(nees) == pytest.approx(np.sqrt(19.0 / 5.991464547107979))
+    assert metrics.region_scale([5.991464547107979] * 3) == pytest.approx(1.0)
+    # two degenerate covariances in twenty: more than 5 %, no scale helps
+    assert metrics.region_scale([1.0] * 18 + [np.inf] * 2) == np.inf
+    # NEES of errors drawn from covariance P against a stated covariance 9 P: chi2(2) / 9
+    rng = np.random.default_rng(5)
+    chi2 = (rng.standard_normal((20000, 2)) ** 2).sum(axis=1)
+    assert metrics.region_scale(chi2) == pytest.approx(1.0, abs=0.03)
+    assert metrics.region_scale(chi2 / 9.0) == pytest.approx(1 / 3, abs=0.01)
+    assert metrics.region_scale(chi2, level=0.5) == pytest.approx(1.0, abs=0.03)
+    with pytest.raises(ValueError, match="non-empty 1-D array without NaN"):
+        metrics.region_scale([1.0, np.nan])
 
 
 def test_a_collapsed_cloud_holds_no_truth():

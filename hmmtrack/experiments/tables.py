@@ -71,7 +71,8 @@ def summarise_trials(
         trials, m), ``time_to_convergence`` (mean over converged trials, s; NaN when none
         converged) and ``max_time_to_convergence`` (s); with the trials' ``calibration``,
         ``false_converged`` and ``mirror_share`` columns, their means (over the trials
-        where they are defined).
+        where they are defined), and with ``region_scale`` its median (a lost trial's
+        scale is in the hundreds and would swamp a mean).
     """
     groups = table.groupby(list(by), sort=False)
     converged_times = table["time_to_convergence"].where(table["converged"])
@@ -93,6 +94,8 @@ def summarise_trials(
     for column in ("calibration", "false_converged", "mirror_share"):
         if column in table.columns:
             summary[column] = groups[column].mean()
+    if "region_scale" in table.columns:
+        summary["region_scale"] = groups["region_scale"].median()
     return summary.reset_index()
 
 

@@ -73,6 +73,7 @@ TRIAL_COLUMNS = (
     "mean_error_after_convergence",
     "rmse_after_convergence",
     "calibration",
+    "region_scale",
     "false_converged",
     "mirror_share",
     "runtime",
@@ -115,6 +116,10 @@ class TrialResult:
     calibration : float
         Share of the seconds after convergence whose 95 % region holds the truth (NaN when
         never converged; :func:`hmmtrack.analysis.metrics.uncertainty_metrics`).
+    region_scale : float
+        Factor by which those seconds' 95 % regions would have to be scaled to hold the
+        truth in exactly 95 % of them (1 calibrated, below 1 too wide; NaN when never
+        converged; :func:`hmmtrack.analysis.metrics.region_scale`).
     false_converged : float
         Share of the seconds declared converged with an error above 50 m.
     mirror_share : float
@@ -143,6 +148,7 @@ class TrialResult:
     error: np.ndarray = field(repr=False)
     dataset: int = 0
     calibration: float = math.nan
+    region_scale: float = math.nan
     false_converged: float = math.nan
     mirror_share: float = math.nan
     start_prior: bool = False
@@ -405,6 +411,7 @@ def run_trial(
         error=errors[keep],
         dataset=int(dataset),
         calibration=honesty.calibration,
+        region_scale=honesty.region_scale,
         false_converged=honesty.false_converged,
         mirror_share=_mirror_share(scenario, estimates[after]),
         start_prior=bool(start_prior and scenario.start_region is not None),

@@ -46,6 +46,7 @@ def _comparison_section(comparison: pd.DataFrame) -> str:
                 paper_number(paper_tc),
                 f"{int(cell['n_converged'])}/{int(cell['n_trials'])}",
                 _percent(cell.get("calibration", math.nan)),
+                fmt(cell.get("region_scale", math.nan), 2),
                 _percent(cell.get("false_converged", math.nan)),
                 _percent(cell.get("mirror_share", math.nan)),
             ]
@@ -61,6 +62,7 @@ def _comparison_section(comparison: pd.DataFrame) -> str:
         "paper (s)",
         "converged",
         "truth in 95 % region",
+        "region's scale",
         "false converged",
         "on the mirror",
     ]
@@ -72,7 +74,11 @@ def _comparison_section(comparison: pd.DataFrame) -> str:
         "a trial that never converges is scored over its whole run, as the paper does). "
         "Honesty of the stated uncertainty: the share of seconds after convergence whose "
         "95 % ellipse (of the cloud's mean and covariance) holds the truth, 95 % for a "
-        "calibrated filter, and the share of seconds declared converged while more than "
+        "calibrated filter; the region's scale, the median over trials of the factor by "
+        "which those ellipses would have to be scaled to hold the truth in exactly 95 % of "
+        "the seconds (1 calibrated, 0.5 twice as wide as the errors need, "
+        "`hmmtrack.analysis.metrics.region_scale`); and the share of seconds declared "
+        "converged while more than "
         "50 m off (`hmmtrack.analysis.metrics.uncertainty_metrics`; convergence by "
         "the estimates' `converged` column when the filter reports modes). On the mirror: "
         "the share of seconds after convergence nearer the mirror track (the truth "
