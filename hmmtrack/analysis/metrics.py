@@ -455,7 +455,7 @@ def uncertainty_metrics(
     Over those seconds this ellipse stands for the mixture's 95 % region: on the paper's
     three datasets the highest-density region of the Gaussian mixture of the filter's
     components (weights, means, covariances) held the truth in a share of the seconds
-    within 0.6 percentage points of the ellipse's, and that of the particles themselves
+    within 0.1 percentage points of the ellipse's, and that of the particles themselves
     within 2.2 points (``reports/decisions.md``, "Calibration after convergence"), so the
     estimates table needs no per-component columns for it.
 
