@@ -384,6 +384,14 @@ def normalised_estimation_error(
     return np.where(definite, nees, np.inf)
 
 
+def _checked_nees(nees) -> np.ndarray:
+    """``nees`` as a float array (n,), refused unless 1-D, non-empty and without NaN."""
+    nees = np.asarray(nees, dtype=float)
+    if nees.ndim != 1 or nees.size == 0 or np.isnan(nees).any():
+        raise ValueError(f"nees must be a non-empty 1-D array without NaN, got shape {nees.shape}")
+    return nees
+
+
 def ellipse_coverage(nees, level: float = 0.95) -> float:
     """Share of estimates whose ``level`` ellipse holds the truth.
 
@@ -400,10 +408,7 @@ def ellipse_coverage(nees, level: float = 0.95) -> float:
         Fraction of ``nees`` ≤ :func:`ellipse_scale` (``level``); equal to ``level`` on
         average for a consistent filter, below it for an overconfident one.
     """
-    nees = np.asarray(nees, dtype=float)
-    if nees.ndim != 1 or nees.size == 0 or np.isnan(nees).any():
-        raise ValueError(f"nees must be a non-empty 1-D array without NaN, got shape {nees.shape}")
-    return float(np.mean(nees <= ellipse_scale(level)))
+    return float(np.mean(_checked_nees(nees) <= ellipse_scale(level)))
 
 
 def region_scale(nees, level: float = 0.95) -> float:
@@ -429,10 +434,7 @@ def region_scale(nees, level: float = 0.95) -> float:
         consistent filter, 0.5 for ellipses twice as wide as the errors need, 2 for ellipses
         half as wide; ``inf`` when more than ``1 − level`` of the covariances are degenerate.
     """
-    nees = np.asarray(nees, dtype=float)
-    if nees.ndim != 1 or nees.size == 0 or np.isnan(nees).any():
-        raise ValueError(f"nees must be a non-empty 1-D array without NaN, got shape {nees.shape}")
-    quantile = np.quantile(nees, level, method="inverted_cdf")
+    quantile = np.quantile(_checked_nees(nees), level, method="inverted_cdf")
     return float(np.sqrt(quantile / ellipse_scale(level)))
 
 
