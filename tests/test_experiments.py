@@ -94,6 +94,11 @@ def test_summarise_trials_means_over_trials_and_converged_times():
     assert summary.loc["hmm", "rmse_after_convergence"] == pytest.approx(9.0)
     assert summary.loc["hmm", "time_to_convergence"] == pytest.approx(10.0)
     assert summary.loc["baseline", "time_to_convergence"] == pytest.approx(30.0)
+    # the region's scale is a median: one lost trial (scale 300) does not swamp it
+    scaled = ex.summarise_trials(
+        _table([(0.0, True, 10.0, 4.0)] * 3).assign(region_scale=[0.5, 0.6, 300.0])
+    )
+    assert scaled["region_scale"].tolist() == [0.6]
 
 
 def test_trials_table_order_does_not_depend_on_finishing_order():

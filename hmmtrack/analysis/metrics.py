@@ -429,7 +429,7 @@ def region_scale(nees, level: float = 0.95) -> float:
     Returns
     -------
     float
-        ``sqrt(quantile(nees, level) / ellipse_scale(level))`` (the quantile the smallest
+        ``sqrt(quantile(nees, level) / ellipse_scale(level))`` (the quantile: the smallest
         value with at least ``level`` of the NEES at or below it), dimensionless: 1 for a
         consistent filter, 0.5 for ellipses twice as wide as the errors need, 2 for ellipses
         half as wide; ``inf`` when more than ``1 − level`` of the covariances are degenerate.
