@@ -20,6 +20,7 @@ from hmmtrack.tracking.mixture import (
     ESTIMATE_MODE_COLUMNS,
     MODE_COLUMNS,
     SCHEME_CODES,
+    SPLIT_SAMPLE,
     Mixture,
     Modes,
     allocate,
@@ -149,6 +150,23 @@ def test_components_whose_means_meet_are_merged_and_far_ones_are_not():
     assert (new[:400] == new[0]).all()
     assert (new[400:] != new[0]).all()
     assert new.max() == 1
+
+
+def test_a_component_whose_sampled_particles_carry_no_weight_is_left_whole():
+    # the split test looks at an evenly strided sample of a large component; when the
+    # component's weight sits on particles outside it (a sharp likelihood), the sample's
+    # weights sum to zero and there is nothing to judge a split by: the component stays
+    # whole (this raised ZeroDivisionError in a two-AUV study run)
+    x, y, _ = blobs(5, (3000, 3000), ((0.0, 0.0), (300.0, 0.0)), 5.0)
+    stride = -(-x.size // SPLIT_SAMPLE)
+    weights = np.ones(x.size)
+    weights[::stride] = 0.0
+    weights /= weights.sum()
+    labels = Mixture().recluster(x, y, weights, np.zeros(x.size, dtype=np.int64))
+    assert (labels == 0).all()
+    # the same clouds with the weight on the sample are split
+    weights = np.ones(x.size) / x.size
+    assert Mixture().recluster(x, y, weights, np.zeros(x.size, dtype=np.int64)).max() == 1
 
 
 def test_no_split_beyond_max_components():

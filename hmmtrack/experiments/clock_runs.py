@@ -26,6 +26,7 @@ import numpy as np
 import pandas as pd
 
 from hmmtrack.analysis.metrics import position_error, time_to_convergence
+from hmmtrack.experiments.trials import PAPER_FILTER
 from hmmtrack.scenarios.clocks import ClockScenario
 from hmmtrack.tracking.config import TrackingConfig
 from hmmtrack.tracking.filter import FilterResult, FilterSettings
@@ -128,7 +129,8 @@ def clock_inputs(case: ClockScenario, seed, n_particles: int, motion: str, durat
     detections : pandas.DataFrame
         Clock-corrected detections before the end of the run.
     config : TrackingConfig
-        The range-rate method's: mean period, true ``r0``, the run's window.
+        The range-rate method's: the paper's filter, mean period, true ``r0``, the run's
+        window.
     options : dict
         The arrival-time run of :func:`track_arrival`: ``config`` (mean period, the case's
         search box and detection curve, particles, window), ``motion`` and ``seed``.
@@ -138,6 +140,7 @@ def clock_inputs(case: ClockScenario, seed, n_particles: int, motion: str, durat
     detections = case.corrected_detections()
     detections = detections[detections["time"] < end].reset_index(drop=True)
     config = TrackingConfig.from_keys(
+        filter=PAPER_FILTER,  # the paper's method, whatever the library's default filter
         period=sc.period,
         r0=sc.r0,
         sound_speed=sc.sound_speed,

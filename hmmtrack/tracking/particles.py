@@ -394,7 +394,8 @@ def split_in_two(x, y, w, min_variance, n_bins):
     x, y : numpy.ndarray, shape (N,)
         Positions (m).
     w : numpy.ndarray, shape (N,)
-        Non-negative weights, positive sum.
+        Non-negative weights; a cloud whose weights sum to zero (e.g. a sample of a
+        component whose weight sits on other particles) is not split.
     min_variance : float
         m²: a cloud whose largest variance is below it is not split.
     n_bins : int
@@ -420,6 +421,8 @@ def split_in_two(x, y, w, min_variance, n_bins):
         total += w[i]
         mx += w[i] * x[i]
         my += w[i] * y[i]
+    if not total > 0.0:  # no weight to judge a split by
+        return 0.0, 0.0, 0.0, 0.0, math.nan, math.nan, 1.0, 0.0, math.inf
     mx, my = mx / total, my / total
     sxx = sxy = syy = 0.0
     for i in range(x.size):
