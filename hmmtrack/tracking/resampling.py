@@ -34,6 +34,7 @@ __all__ = [
     "RESAMPLERS",
     "Scratch",
     "effective_sample_size",
+    "first_above",
     "get_resampler",
     "inverse_cdf",
     "invert",
@@ -80,9 +81,9 @@ def _checked_weights(weights: np.ndarray) -> tuple[np.ndarray, float]:
 
 
 @njit(cache=True, inline="always")
-def _first_above(cumulative, point, lo, hi):
-    """Smallest ``j`` in ``lo..hi`` with ``cumulative[j] > point`` (binary search; needs
-    ``cumulative[hi] > point``)."""
+def first_above(cumulative, point, lo, hi):
+    """Smallest ``j`` in ``lo..hi`` with ``cumulative[j] > point`` (binary search; ``hi``
+    when none below it is: the inversion of a point in the cumulative weights)."""
     while lo < hi:
         mid = (lo + hi) >> 1
         if cumulative[mid] <= point:
@@ -143,10 +144,10 @@ def merge_points(cumulative, points, out, lo, hi, last):
     size = (m + 3) // 4
     e0, e1, e2 = lo + min(size, m), lo + min(2 * size, m), lo + min(3 * size, m)
     k0, k1, k2, k3 = lo, e0, e1, e2
-    j0 = _first_above(cumulative, points[k0], 0, last) if k0 < e0 else last
-    j1 = _first_above(cumulative, points[k1], j0, last) if k1 < e1 else last
-    j2 = _first_above(cumulative, points[k2], j1, last) if k2 < e2 else last
-    j3 = _first_above(cumulative, points[k3], j2, last) if k3 < hi else last
+    j0 = first_above(cumulative, points[k0], 0, last) if k0 < e0 else last
+    j1 = first_above(cumulative, points[k1], j0, last) if k1 < e1 else last
+    j2 = first_above(cumulative, points[k2], j1, last) if k2 < e2 else last
+    j3 = first_above(cumulative, points[k3], j2, last) if k3 < hi else last
     while k0 < e0 and k1 < e1 and k2 < e2 and k3 < hi:
         j0, k0 = _merge_step(cumulative, points, out, j0, k0)
         j1, k1 = _merge_step(cumulative, points, out, j1, k1)

@@ -41,6 +41,7 @@ from numba import njit
 
 from hmmtrack.tracking.compiled.streams import uniform
 from hmmtrack.tracking.particles import sqrt_largest_eigenvalue
+from hmmtrack.tracking.resampling import first_above
 
 #: rows of each table handed to a sink of smoothed estimates (as the filter's, its
 #: ``ESTIMATE_ROWS``: memory per table of a few hundred kB)
@@ -199,19 +200,6 @@ class FixedLagSmoother:
 
 
 @njit(cache=True)
-def _draw(cumulative, u):
-    """Index of ``u`` (in [0, total)) in the cumulative weights (binary search)."""
-    lo, hi = 0, cumulative.size - 1
-    while lo < hi:
-        mid = (lo + hi) // 2
-        if cumulative[mid] > u:
-            hi = mid
-        else:
-            lo = mid + 1
-    return lo
-
-
-@njit(cache=True)
 def backward_block(x, y, log_weight, parent, step_sd, paths, moves, state):
     """Backward simulation of a random walk through a block of filter steps: ``paths``
     trajectories drawn from the last step's weights, then back one step at a time, each
@@ -260,7 +248,7 @@ def backward_block(x, y, log_weight, parent, step_sd, paths, moves, state):
         for m in range(paths):
             if t == n_steps - 1:
                 u, state = uniform(state)
-                index[m] = _draw(cumulative, u * total)
+                index[m] = first_above(cumulative, u * total, 0, n - 1)
                 continue
             later = index[m]
             px, py = x[t + 1, later], y[t + 1, later]
@@ -268,7 +256,7 @@ def backward_block(x, y, log_weight, parent, step_sd, paths, moves, state):
             d2 = (px - x[t, at]) ** 2 + (py - y[t, at]) ** 2
             for _ in range(moves):
                 u, state = uniform(state)
-                proposal = _draw(cumulative, u * total)
+                proposal = first_above(cumulative, u * total, 0, n - 1)
                 proposed = (px - x[t, proposal]) ** 2 + (py - y[t, proposal]) ** 2
                 u, state = uniform(state)
                 if u <= math.exp(scale * (proposed - d2)):
