@@ -210,8 +210,13 @@ def pooled_sd(residual: np.ndarray, heard: np.ndarray, counts: np.ndarray) -> fl
     counts : (P,) int array
         Receivers per ping (≥ 4).
     """
-    scaled = np.abs(residual) * np.sqrt(counts / (counts - 3.0))[:, None]
-    return 1.4826 * float(np.median(scaled[heard]))
+    return 1.4826 * float(np.median(_scaled_residuals(residual, counts)[heard]))
+
+
+def _scaled_residuals(residual: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    """``|residual|`` (P, R) scaled by ``√(n/(n − 3))`` for each ping's three fitted
+    parameters (``n = counts`` (P,), its receivers): comparable across pings."""
+    return np.abs(residual) * np.sqrt(counts / (counts - 3.0))[:, None]
 
 
 @dataclass(frozen=True)
@@ -277,6 +282,5 @@ def arrival_spread(
     residual, sigma = ping_fixes(arrival, xy, depth, sound_speed)
     heard = np.isfinite(residual)
     counts = heard.sum(axis=1)
-    scaled = np.abs(residual) * np.sqrt(counts / (counts - 3.0))[:, None]
-    outliers = float(np.mean(scaled[heard] > OUTLIER_SDS * sigma))
+    outliers = float(np.mean(_scaled_residuals(residual, counts)[heard] > OUTLIER_SDS * sigma))
     return ArrivalSpread(sigma, outliers, int(pings.size), int(heard.sum()))
