@@ -240,9 +240,9 @@ def _walk(times: np.ndarray, cumulative: np.ndarray, n_phases: int, tolerance: f
         scc += ok * c * c
         sy += ok * y
         scy += ok * c * y
-        det = count * (scc + ridge) - sc * sc
-        b = np.where(ok, (count * scy - sc * sy) / det, b)
-        a = np.where(ok, (sy - b * sc) / count, a)
+        fitted_a, fitted_b = _ridge_line(count, sc, scc, sy, scy, ridge)
+        b = np.where(ok, fitted_b, b)
+        a = np.where(ok, fitted_a, a)
         last = np.where(ok, step, last)
         steps[ok, j] = step[ok]
     return steps, a, b
@@ -278,8 +278,17 @@ def _period_walk(times: np.ndarray, cumulative: np.ndarray, tolerance: float):
         c = cumulative[steps[0, j]] - cumulative[0]
         y = times[j] - c
         count, sc, scc, sy, scy = count + 1.0, sc + c, scc + c * c, sy + y, scy + c * y
+    a, b = _ridge_line(count, sc, scc, sy, scy, ridge)
+    return steps, np.array([a]), np.array([b])
+
+
+def _ridge_line(count, sc, scc, sy, scy, ridge):
+    """Intercept and slope of the line ``y = a + b c`` through matched pings from their sums
+    (count, Σc, Σc², Σy, Σcy; floats or arrays), the slope shrunk towards 0 by ``ridge``
+    (the drift's prior, in units of a match's variance): the fit of :func:`_walk` and
+    :func:`_period_walk`."""
     b = (count * scy - sc * sy) / (count * (scc + ridge) - sc * sc)
-    return steps, np.array([(sy - b * sc) / count]), np.array([b])
+    return (sy - b * sc) / count, b
 
 
 def align_sequence(
