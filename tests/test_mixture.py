@@ -7,6 +7,8 @@ the data equally), with a first observation that favours ``x > 0`` by 0.7 to 0.3
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -293,6 +295,31 @@ def test_modes_without_a_mixture_are_the_clusters_of_the_cloud():
     assert row.mode2_x == pytest.approx(-DISTANCE, abs=3.0)
     assert row.mode1_weight == pytest.approx(FIRST_ODDS, abs=0.05)
     assert row.mode1_weight + row.mode2_weight == pytest.approx(1.0)
+
+
+def test_a_streamed_runs_modes_keep_only_the_rows_still_needed():
+    """Without ``keep``, the rows before the latest resampling at or before a released time
+    are dropped (a 30-day streamed run must not hold ~290,000 rows): each table from a
+    released time is the kept table's rows from the same resampling on, and the whole
+    run's table is not returned."""
+    weights = np.arange(1.0, 4.0)[::-1] / 6.0
+    moments = np.column_stack([weights, np.zeros((3, 2)), np.ones((3, 2)), np.zeros(3)])
+    kept, streamed = Modes(), Modes(keep=False)
+    for modes in (kept, streamed):
+        modes.start(None)
+    for t in range(5000):
+        pf = SimpleNamespace(mixture=True, time=float(t // 2), component_moments=moments)
+        for modes in (kept, streamed):
+            modes.resampled(pf, None)
+        if t % 300 == 299:
+            since = t // 2 - 150.5
+            whole = kept.table()
+            first = max(np.flatnonzero(whole["time"] <= since), default=0)
+            expect = whole.iloc[first:].reset_index(drop=True)
+            pd.testing.assert_frame_equal(streamed.table(since=since), expect)
+            streamed.release(since)
+    assert len(streamed.table()) <= 2 * 150 + 300 and len(kept.table()) == 5000
+    assert streamed.result() == {} and len(kept.result()["modes"]) == 5000
 
 
 def test_convergence_is_declared_only_when_one_mode_holds_almost_all_the_weight():

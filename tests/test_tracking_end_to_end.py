@@ -400,6 +400,6 @@ def test_streamed_estimates_are_the_kept_ones_written(stationary, tmp_path, monk
     assert streamed.estimates is None
     assert tables == [70, 70, 61] and writer.rows == len(kept.estimates) == 201
     assert {"mode2_x", "converged"} <= set(kept.estimates.columns)
-    pd.testing.assert_frame_equal(streamed.modes, kept.modes)
+    assert streamed.modes is None and len(kept.modes) > 0  # (they left with the estimates)
     assert (tmp_path / "streamed.csv").read_text() == (tmp_path / "kept.csv").read_text()
     pd.testing.assert_frame_equal(streamed.events, kept.events)

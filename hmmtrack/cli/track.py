@@ -468,7 +468,7 @@ def run(args: argparse.Namespace) -> int:
         tracked = tracking.tracked_detections(detections, config)
         snapshot_times = choose_snapshots(*tracking.time_window(tracked["time"], config))
     # estimates (the smoothed ones when the run smooths) go to the output as they are made
-    # (memory bounded by the particles and the modes table, not the estimates) unless the
+    # (memory bounded by the particles and the observations, not the span) unless the
     # metrics, the plot or a smoothed run's per-ping table need them all at the end
     stream = truth is None and not args.plot
     stream = stream and not (args.per_ping and config.smoothing)  # (it uses the smoothed)

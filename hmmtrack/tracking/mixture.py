@@ -764,12 +764,18 @@ class Modes:
 
     every_step = False
 
+    def __init__(self, keep: bool = True):
+        #: whether the whole run's table is kept (:meth:`result`); a streamed run's modes
+        #: leave with its estimates (:meth:`release`), so only the rows still needed are
+        self.keep = keep
+
     def start(self, pf) -> None:
         # one row per resampling: time, number of modes, then the REPORTED_MODES heaviest
         # modes' six moments; grown by doubling (a 30-day run resamples ~300,000 times:
-        # 34 MB here, where a list of per-row tuples and arrays took about 100 MB)
+        # 34 MB of rows, up to twice that with the doubling's slack, when kept)
         self._table = np.empty((1024, 2 + 6 * REPORTED_MODES))
         self._n = 0
+        self._needed = 0  # rows before this one are released (not kept)
 
     def corrected(self, pf) -> None:
         """Nothing to record (the components are reclustered at resampling)."""
@@ -791,15 +797,28 @@ class Modes:
                 p.x, p.y, weights, labels, int(labels.max()) + 1, pf.correction_threads()
             )
         if self._n == len(self._table):
-            self._table = np.concatenate([self._table, np.empty_like(self._table)])
+            self._make_room()
         self._table[self._n, :2] = pf.time, len(moments)
         self._table[self._n, 2:] = _heaviest(moments).ravel()
         self._n += 1
 
-    def table(self, first: int = 0) -> pd.DataFrame:
-        """The modes table (:data:`MODE_COLUMNS`) from the ``first``-th resampling on;
-        √λ₁ of the modes computed once for all its rows."""
-        rows = self._table[first : self._n]
+    def _make_room(self) -> None:
+        """Room for one more row: the released rows dropped when they are at least half the
+        table (a streamed run's table stays a few tables of estimates long), else the
+        table doubled."""
+        if not self.keep and 2 * self._needed >= len(self._table):
+            kept = self._n - self._needed
+            self._table[:kept] = self._table[self._needed : self._n]
+            self._n, self._needed = kept, 0
+        else:
+            self._table = np.concatenate([self._table, np.empty_like(self._table)])
+
+    def table(self, since: float | None = None) -> pd.DataFrame:
+        """The modes table (:data:`MODE_COLUMNS`): every row recorded (and not released),
+        or from the latest resampling at or before ``since`` (s) on, the first row a table
+        of estimates after ``since`` needs (:func:`with_modes`); √λ₁ of the modes computed
+        once for all its rows."""
+        rows = self._table[self._needed if since is None else self._latest(since) : self._n]
         top = rows[:, 2:].reshape(len(rows), REPORTED_MODES, 6)
         spread = sqrt_largest_eigenvalue(top[..., 3], top[..., 4], top[..., 5])
         modes = np.concatenate([top[..., :3], spread[..., None]], axis=2).reshape(
@@ -812,14 +831,21 @@ class Modes:
         }
         return pd.DataFrame(columns)
 
-    def latest(self, time: float) -> int:
-        """Index of the latest resampling at or before ``time`` (0 when there is none): the
-        first row a table of estimates after ``time`` needs (:func:`with_modes`)."""
-        return max(int(np.searchsorted(self._table[: self._n, 0], time, side="right")) - 1, 0)
+    def _latest(self, time: float) -> int:
+        """Row of the latest resampling at or before ``time`` (the first row kept when
+        there is none)."""
+        times = self._table[self._needed : self._n, 0]
+        return self._needed + max(int(np.searchsorted(times, time, side="right")) - 1, 0)
+
+    def release(self, time: float) -> None:
+        """Estimates up to ``time`` (s) have taken their modes: without :attr:`keep`, the
+        rows before the latest resampling at or before ``time`` may be dropped."""
+        if not self.keep:
+            self._needed = self._latest(time)
 
     def result(self) -> dict[str, pd.DataFrame]:
-        """The whole run's table."""
-        return {"modes": self.table()}
+        """The whole run's table, when kept."""
+        return {"modes": self.table()} if self.keep else {}
 
 
 #: the clustering of :class:`Modes` without a mixture
