@@ -48,6 +48,13 @@ def range_rate_case() -> Case:
     return Case(sc.detections[sc.detections["time"] <= end], sc.receivers, config, sc.truth)
 
 
+def range_rate_gps_case() -> Case:
+    """The range-rate case with the receivers' GPS error as an offset per receiver (the
+    stationary tag's boat is moored: its offset constant)."""
+    case = range_rate_case()
+    return dataclasses.replace(case, config=case.config.override(measurement="range-rate-gps"))
+
+
 def arrival_time_case() -> Case:
     case = moored_array(2, duration=600.0)
     sc = case.scenario
@@ -84,6 +91,7 @@ def ping_sequence_case() -> Case:
 
 CASES = {
     "range-rate": range_rate_case,
+    "range-rate-gps": range_rate_gps_case,
     "arrival-time": arrival_time_case,
     "ping": ping_case,
     "ping-sequence": ping_sequence_case,

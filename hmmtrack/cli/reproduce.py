@@ -99,6 +99,14 @@ def register(subparsers) -> None:
         "with --no-start-prior in the whole search box as the paper does: two receivers cannot "
         "tell the tag from its mirror. The paper's algorithm: --filter paper --no-start-prior",
     )
+    parser.add_argument(
+        "--measurement",
+        choices=("range-rate", "range-rate-gps"),
+        default="range-rate",
+        help="the measurement of every run: range-rate (default, the paper's) or "
+        "range-rate-gps (each receiver's GPS error an offset correlated in time, integrated "
+        "out per particle); summary.md says which ran",
+    )
     progress = parser.add_mutually_exclusive_group()
     progress.add_argument(
         "--progress",
@@ -162,6 +170,7 @@ def run(args: argparse.Namespace) -> int:
             progress=progress,
             filter=args.filter,
             start_prior=args.start_prior,
+            measurement=args.measurement,
         )
     finally:
         if client is not None:

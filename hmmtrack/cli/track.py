@@ -333,9 +333,12 @@ def build_config(args: argparse.Namespace) -> TrackingConfig:
             _check_used(option, settings)
     if not args.config:
         measurement = settings.get("measurement", {})
-        needed = {"range-rate": ("period", "r0"), "ping": (), "ping-sequence": ()}.get(
-            measurement.get("name", "range-rate"), ("period",)
-        )
+        needed = {
+            "range-rate": ("period", "r0"),
+            "range-rate-gps": ("period", "r0"),
+            "ping": (),
+            "ping-sequence": (),
+        }.get(measurement.get("name", "range-rate"), ("period",))
         missing = [f"--{k}" for k in needed if k not in measurement]
         if missing:
             raise UserInputError(f"give {' and '.join(missing)}, or a --config file with them")

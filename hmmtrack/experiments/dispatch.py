@@ -35,7 +35,8 @@ class Cell:
     ``dataset`` says which synthetic dataset of its scenario ``scenario`` is; with
     ``start_prior`` the particles start in the scenario's ``start_region``
     (:func:`hmmtrack.experiments.trials.track_scenario`); ``filter`` names the filter
-    (:data:`hmmtrack.tracking.filter.FILTERS`).
+    (:data:`hmmtrack.tracking.filter.FILTERS`) and ``measurement`` the measurement
+    (:func:`hmmtrack.experiments.trials.track_scenario`).
     """
 
     scenario: Scenario
@@ -46,6 +47,7 @@ class Cell:
     dataset: int = 0
     start_prior: bool = False
     filter: str = PAPER_FILTER
+    measurement: str = "range-rate"
 
 
 @dataclass(frozen=True)
@@ -71,6 +73,7 @@ def _run_batch(batch: _Batch) -> list[TrialResult]:
             depth_correction=cell.depth_correction,
             start_prior=cell.start_prior,
             filter=cell.filter,
+            measurement=cell.measurement,
         )
         for k in batch.trials
     ]

@@ -197,6 +197,7 @@ def compare_motion_models(
     progress: bool = False,
     start_prior: bool = False,
     filter: str = PAPER_FILTER,
+    measurement: str = "range-rate",
 ) -> pd.DataFrame:
     """The paper's motion-model comparison: ``n_trials`` filter runs per model per scenario.
 
@@ -221,6 +222,8 @@ def compare_motion_models(
         (:func:`hmmtrack.experiments.trials.track_scenario`); the paper's filter does not.
     filter : str
         Named filter of every trial (:data:`hmmtrack.tracking.filter.FILTERS`).
+    measurement : str
+        Measurement of every trial (:func:`hmmtrack.experiments.trials.track_scenario`).
 
     Returns
     -------
@@ -239,6 +242,7 @@ def compare_motion_models(
             dataset=d,
             start_prior=start_prior,
             filter=filter,
+            measurement=measurement,
         )
         for i, entry in enumerate(scenario_list)
         for d, scenario in enumerate(_datasets(entry))
@@ -266,6 +270,7 @@ def loss_sweep(
     progress: bool = False,
     start_prior: bool = False,
     filter: str = PAPER_FILTER,
+    measurement: str = "range-rate",
 ) -> pd.DataFrame:
     """The paper's measurement-loss sweep: detections thinned evenly, HMM model.
 
@@ -288,6 +293,8 @@ def loss_sweep(
         (:func:`hmmtrack.experiments.trials.track_scenario`).
     filter : str
         Named filter of every trial (:data:`hmmtrack.tracking.filter.FILTERS`).
+    measurement : str
+        Measurement of every trial (:func:`hmmtrack.experiments.trials.track_scenario`).
 
     Returns
     -------
@@ -309,6 +316,7 @@ def loss_sweep(
             loss_fraction=f,
             start_prior=start_prior,
             filter=filter,
+            measurement=measurement,
         )
         for i, f in enumerate(fractions)
     ]
@@ -359,6 +367,7 @@ def depth_analysis(
     progress: bool = False,
     start_prior: bool = False,
     filter: str = PAPER_FILTER,
+    measurement: str = "range-rate",
 ) -> DepthAnalysis:
     """Percent-error curve of ignoring depth, and the diving shark with and without correction.
 
@@ -385,6 +394,8 @@ def depth_analysis(
         (:func:`hmmtrack.experiments.trials.track_scenario`).
     filter : str
         Named filter of every trial (:data:`hmmtrack.tracking.filter.FILTERS`).
+    measurement : str
+        Measurement of every trial (:func:`hmmtrack.experiments.trials.track_scenario`).
 
     Returns
     -------
@@ -406,6 +417,7 @@ def depth_analysis(
             depth_correction=correct,
             start_prior=start_prior,
             filter=filter,
+            measurement=measurement,
         )
         for correct in (False, True)
     ]

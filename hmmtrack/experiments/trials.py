@@ -201,6 +201,7 @@ def track_scenario(
     start_prior: bool = False,
     snapshot_times: Sequence[float] = (),
     filter: str = PAPER_FILTER,
+    measurement: str = "range-rate",
 ):
     """Track the tag of ``scenario`` with one motion model (no scoring).
 
@@ -230,6 +231,9 @@ def track_scenario(
     filter : str
         Named filter (:data:`hmmtrack.tracking.filter.FILTERS`): ``"paper"`` or
         ``"mode-keeping"``.
+    measurement : {"range-rate", "range-rate-gps"}
+        The paper's measurement, or the same with the receivers' GPS error correlated in
+        time (:mod:`hmmtrack.tracking.measurement.gps_offset`), at their default noise.
 
     Returns
     -------
@@ -253,6 +257,7 @@ def track_scenario(
         shallower="clip",
         bounds=bounds,
         filter=filter,
+        measurement=measurement,
         **known_start,
     )
     if detections.empty:  # everything dropped: the filter runs on its motion model alone
@@ -309,11 +314,12 @@ def example_run(
     motion_name: str = "hmm",
     filter: str = PAPER_FILTER,
     start_prior: bool = False,
+    measurement: str = "range-rate",
 ) -> ExampleRun:
     """One run with particle snapshots, for the error-over-time figures.
 
     Snapshots at :data:`SNAPSHOT_SECONDS` after the start (those inside the run) and at the
-    end; ``filter`` and ``start_prior`` as in :func:`track_scenario`.
+    end; ``filter``, ``start_prior`` and ``measurement`` as in :func:`track_scenario`.
 
     Returns
     -------
@@ -328,6 +334,7 @@ def example_run(
         snapshot_times=[*times, scenario.end],
         filter=filter,
         start_prior=start_prior,
+        measurement=measurement,
     )
     estimates = result.estimates
     return ExampleRun(
@@ -350,6 +357,7 @@ def run_trial(
     depth_correction: bool = False,
     start_prior: bool = False,
     filter: str = PAPER_FILTER,
+    measurement: str = "range-rate",
 ) -> TrialResult:
     """Run the particle filter once on ``scenario`` and score it against the truth.
 
@@ -369,8 +377,8 @@ def run_trial(
         Correct ranges with the tag's depth sensor (the detections' ``depth`` column).
     start_prior : bool
         Start in the scenario's ``start_region`` (:func:`track_scenario`).
-    filter : str
-        Named filter, as in :func:`track_scenario`.
+    filter, measurement : str
+        Named filter and measurement, as in :func:`track_scenario`.
 
     Returns
     -------
@@ -386,6 +394,7 @@ def run_trial(
         depth_correction=depth_correction,
         start_prior=start_prior,
         filter=filter,
+        measurement=measurement,
     )
     runtime = _time.perf_counter() - clock
     estimates = run.estimates

@@ -1,0 +1,386 @@
+"""Ranges and range-rates with the receivers' GPS error correlated in time (Rao-Blackwellised).
+
+:class:`GpsOffsetMeasurement` is the ``"range-rate-gps"`` measurement of
+:data:`hmmtrack.tracking.measurement.MEASUREMENTS`: the observations, search box, events and
+recovery of the paper's :class:`~hmmtrack.tracking.measurement.range_rate.RangeRateMeasurement`,
+with another noise model for the range.
+
+Why. A receiver's logged position carries its GPS error, which wanders over about a minute,
+so consecutive pings (8 s apart) see nearly the same error: the paper's likelihood, which
+treats each ping as independent, must use a range sd several times the error's own (5 m
+against 1.3 m) so as not to over-count them, and a cloud that stops forgetting old pings (a
+still tag) is then either too wide (5 m) or overconfident (1.3 m; reports/decisions.md,
+"Calibration after convergence"). Here the error is in the model instead.
+
+The model. Receiver ``k``'s range error is a slowly varying offset ``b_k(t)`` plus white noise,
+
+    r_obs = |x - rx_k| + b_k(t) + w,    w ~ N(0, sigma_white^2),
+
+(``sigma_white``: the settings' ``sigma_range``), where ``b_k`` is the projection of the
+receiver's GPS error on the line of sight: an Ornstein-Uhlenbeck process of stationary sd
+``gps_sd`` and time constant ``gps_correlation_time`` (``tau``), so between two of the
+receiver's pings ``dt`` apart
+
+    b_k(t + dt) = rho b_k(t) + N(0, (1 - rho^2) gps_sd^2),    rho = exp(-dt / tau).
+
+A moored receiver's position is one fix (one logged row), whose error never decorrelates:
+its offset is constant (``rho = 1``), a run-long bias that the filter learns but does not
+average away. Taking the scalar projection as an AR(1) of its own ignores the turning of the
+line of sight between pings (a few degrees per ping at the ranges of the paper's datasets);
+the white noise holds the emission jitter and what that approximation leaves.
+
+Given a particle's position the offsets are linear-Gaussian, so they are integrated out by a
+Kalman filter per particle and receiver (Rao-Blackwellisation): each particle carries the
+offsets' posterior means (fields ``gps_offset_0 .. gps_offset_{R-1}``, one per receiver of
+the observations, resampled with the particle), and the posterior variance ``P_k``, which
+does not depend on the particle's position, is the run state. A correction scores each
+particle by the Kalman predictive density
+
+    N(r_obs; |x - rx_k| + rho m_k, rho^2 P_k + (1 - rho^2) gps_sd^2 + sigma_white^2)
+
+and commits the Kalman update of ``m_k`` and ``P_k`` once the weights are final. A receiver's
+first scored ping starts from the stationary prior (mean 0, variance ``gps_sd^2``). Without
+the run state (:meth:`GpsOffsetMeasurement.loglik`, used by the acquisition's grid and the
+recovery on a range ring) the offsets are at that prior: the paper's likelihood with a range
+variance of ``gps_sd^2 + sigma_white^2``.
+
+The range-rate stays white (sd ``sigma_range_rate``, uncorrelated with the range): the
+observed rate comes from arrival times, which carry no GPS error, and the GPS error enters the
+predicted rate only through the receiver's velocity, averaged over 20 s of fixes
+(``velocity_window``): ``gps_sd sqrt(2 (1 - exp(-20 / tau))) / 20 s`` = 0.06 m/s for the
+defaults, against the 0.5 m/s sd, and correlated over two or three pings at most.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import ClassVar
+
+import numpy as np
+import pandas as pd
+from numba import njit
+
+from hmmtrack.tracking.measurement.base import Score
+from hmmtrack.tracking.measurement.range_rate import (
+    RangeRateMeasurement,
+    RangeRateSettings,
+)
+from hmmtrack.tracking.particles import Particles
+from hmmtrack.tracking.receivers import ReceiverTracks
+from hmmtrack.tracking.settings import positive, setting
+from hmmtrack.tracking.tempering import Tempered
+
+__all__ = ["GpsOffsetMeasurement", "GpsOffsetSettings", "OffsetState", "offset_steps"]
+
+#: stationary sd (m) of a receiver's GPS error along any horizontal direction: a consumer or
+#: SBAS-aided receiver's horizontal error of 2-2.5 m rms is 1.4-1.8 m per axis
+GPS_SD = 1.5
+#: e-folding time (s) of the GPS error: multipath and atmospheric errors of a GPS fix wander
+#: over about a minute
+GPS_CORRELATION_TIME = 60.0
+#: the ESS fraction below which a correction is tempered by default: a range known to a metre
+#: against a start region hundreds of metres wide leaves a handful of particles in one pass
+#: (held-out seeds 5-6: the shark pursuit lost with the velocity model without tempering;
+#: reports/decisions.md, "Correlated GPS error in the measurement")
+GPS_TEMPERING_ESS = 0.5
+#: sd (m) of the range error that is independent from ping to ping: the emission jitter
+#: (0.15-0.2 m) and what the model leaves out (the turning line of sight, detections taken at
+#: the filter's 1 s steps); 0.5 m made the still tag's regions overconfident
+#: (reports/decisions.md, "Correlated GPS error in the measurement")
+SIGMA_WHITE = 1.0
+
+
+@dataclass(frozen=True)
+class GpsOffsetSettings(RangeRateSettings):
+    """The ``measurement`` section of the ``"range-rate-gps"`` measurement: the range-rate
+    section's keys, ``sigma_range`` being the range error's part that is independent from
+    ping to ping (default :data:`SIGMA_WHITE`; ``range_rate_correlation`` must be 0: the
+    range-rate's error is independent of the range's), and the receivers' GPS error.
+
+    Parameters
+    ----------
+    gps_sd : float
+        Stationary sd (m) of a receiver's GPS error along a line of sight.
+    gps_correlation_time : float
+        Its e-folding time ``tau`` (s).
+    """
+
+    name: ClassVar[str] = "range-rate-gps"
+
+    sigma_range: float = setting(
+        SIGMA_WHITE,
+        help=(
+            "standard deviation of the range error (m); range-rate-gps: its part independent "
+            "from ping to ping, the GPS offset apart"
+        ),
+        check=positive,
+        parse=float,
+        metavar="METRES",
+    )
+
+    gps_sd: float = setting(
+        GPS_SD,
+        help="sd of a receiver's GPS error along a line of sight (m)",
+        check=positive,
+        parse=float,
+        metavar="METRES",
+    )
+    gps_correlation_time: float = setting(
+        GPS_CORRELATION_TIME,
+        help="e-folding time of the receivers' GPS error (s)",
+        check=positive,
+        parse=float,
+        metavar="SECONDS",
+    )
+
+    def validate(self) -> None:
+        """The range and range-rate errors are independent here."""
+        if self.range_rate_correlation != 0.0:
+            raise ValueError(
+                "range_rate_correlation must be 0 for the range-rate-gps measurement (its "
+                f"range and range-rate errors are independent), got {self.range_rate_correlation}"
+            )
+
+
+@dataclass
+class OffsetState:
+    """A run's shared part of the offsets' Kalman filters, one entry per receiver.
+
+    Attributes
+    ----------
+    variance : (R,) float
+        Posterior variance ``P_k`` (m²) of receiver ``k``'s offset after its latest ping.
+    time : (R,) float
+        Time (s) of that ping; NaN before the receiver's first scored ping.
+    """
+
+    variance: np.ndarray
+    time: np.ndarray
+
+
+def offset_steps(state: OffsetState, receiver: np.ndarray, time: float, gps_sd, tau, white):
+    """The shared Kalman scalars of one correction's rows, in order.
+
+    Parameters
+    ----------
+    state : OffsetState
+        Before the correction (not changed).
+    receiver : (M,) int
+        Receiver index of each row.
+    time : float
+        The correction's time (s).
+    gps_sd, white : float
+        ``gps_sd`` and ``sigma_white`` (m).
+    tau : (R,) float
+        Each receiver's correlation time (s; ``inf``: a moored receiver's constant offset).
+
+    Returns
+    -------
+    rho, predictive, gain : (M,) float
+        The AR(1) factor of each row's offset since the receiver's previous row (0 at its
+        first: the stationary prior), the predictive variance ``S`` (m²) of its range and the
+        Kalman gain ``P_pred / S``.
+    after : OffsetState
+        The state after the rows.
+    """
+    variance, last = state.variance.copy(), state.time.copy()
+    m = receiver.size
+    rho, predictive, gain = np.empty(m), np.empty(m), np.empty(m)
+    for j, k in enumerate(receiver.tolist()):
+        rho[j] = 0.0 if np.isnan(last[k]) else math.exp(-(time - last[k]) / tau[k])
+        prior = rho[j] ** 2 * variance[k] + (1.0 - rho[j] ** 2) * gps_sd**2
+        predictive[j] = prior + white**2
+        gain[j] = prior / predictive[j]
+        variance[k] = prior * white**2 / predictive[j]
+        last[k] = time
+    return rho, predictive, gain, OffsetState(variance, last)
+
+
+@dataclass(frozen=True, eq=False)
+class GpsOffsetMeasurement(RangeRateMeasurement):
+    """Ranges with a per-receiver GPS offset integrated out by a Kalman filter per particle
+    (module docstring), range-rates white.
+
+    Parameters
+    ----------
+    covariance : (2, 2) array_like
+        The likelihood without run state (offsets at their stationary prior):
+        ``diag(gps_sd² + sigma_white², sigma_range_rate²)``, m², m²/s².
+    receivers : tuple of str
+        The receivers whose offsets the particles carry, in field order.
+    moored : tuple of bool
+        Whether each receiver is moored (its offset constant); default none.
+    gps_sd, gps_correlation_time : float
+        As :class:`GpsOffsetSettings`.
+    sigma_white : float
+        Sd (m) of the range error independent from ping to ping (the settings'
+        ``sigma_range``).
+    """
+
+    receivers: tuple[str, ...] = ()
+    moored: tuple[bool, ...] = ()
+    gps_sd: float = GPS_SD
+    gps_correlation_time: float = GPS_CORRELATION_TIME
+    sigma_white: float = SIGMA_WHITE
+    name: ClassVar[str] = "range-rate-gps"
+    settings: ClassVar[type] = GpsOffsetSettings
+    default_correction: ClassVar[Tempered] = Tempered(GPS_TEMPERING_ESS)
+    _index: dict = field(init=False, repr=False, compare=False)
+    _tau: np.ndarray = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.covariance[0, 1] != 0.0:
+            raise ValueError("the range and range-rate errors must be uncorrelated")
+        object.__setattr__(self, "receivers", tuple(str(r) for r in self.receivers))
+        moored = tuple(bool(m) for m in self.moored) or (False,) * len(self.receivers)
+        if len(moored) != len(self.receivers):
+            raise ValueError(
+                f"moored has {len(moored)} entries for {len(self.receivers)} receivers"
+            )
+        object.__setattr__(self, "moored", moored)
+        object.__setattr__(self, "_index", {r: k for k, r in enumerate(self.receivers)})
+        tau = np.where(moored, np.inf, self.gps_correlation_time).astype(np.float64)
+        object.__setattr__(self, "_tau", tau)
+
+    @classmethod
+    def of(
+        cls,
+        receivers,
+        sigma_range_rate: float,
+        gps_sd: float = GPS_SD,
+        gps_correlation_time: float = GPS_CORRELATION_TIME,
+        sigma_white: float = SIGMA_WHITE,
+        moored=(),
+    ) -> GpsOffsetMeasurement:
+        """The measurement of these receivers (``moored``: which are) and noise levels (m,
+        m/s, s)."""
+        covariance = np.diag([gps_sd**2 + sigma_white**2, sigma_range_rate**2])
+        return cls(
+            covariance, tuple(receivers), tuple(moored), gps_sd, gps_correlation_time, sigma_white
+        )
+
+    @classmethod
+    def from_settings(
+        cls, settings: GpsOffsetSettings, observations: pd.DataFrame, receivers=None
+    ) -> GpsOffsetMeasurement:
+        """The measurement of ``settings`` for the receivers of ``observations``; which
+        are moored is read from ``receivers`` (a positions table or
+        :class:`~hmmtrack.tracking.receivers.ReceiverTracks`; ``None``: none is)."""
+        names = pd.unique(observations["receiver"].astype(str))
+        moored = ()
+        if receivers is not None:
+            tracks = (
+                receivers
+                if isinstance(receivers, ReceiverTracks)
+                else ReceiverTracks.from_frame(receivers, velocity_window=settings.velocity_window)
+            )
+            moored = tuple(tracks.is_moored(name) for name in names)
+        return cls.of(
+            names,
+            settings.sigma_range_rate,
+            settings.gps_sd,
+            settings.gps_correlation_time,
+            settings.sigma_range,
+            moored,
+        )
+
+    @property
+    def fields(self) -> tuple[str, ...]:
+        """The particle fields of the offsets' means (m), one per receiver."""
+        return tuple(f"gps_offset_{k}" for k in range(len(self.receivers)))
+
+    def as_matrix(self, obs) -> np.ndarray:
+        """Observations as an (M, 7) float matrix: :data:`RANGE_RATE_COLUMNS` and the
+        receiver's index in :attr:`receivers` (an array is taken as already converted)."""
+        if isinstance(obs, np.ndarray):
+            return obs
+        receiver = [self._index[str(r)] for r in np.asarray(obs["receiver"])]
+        return np.column_stack([RangeRateMeasurement.as_matrix(obs), receiver])
+
+    def start(self, particles: Particles, time: float, dt: float = 1.0) -> OffsetState:
+        """Offsets' means 0 in every particle; variances at the prior, no ping yet."""
+        for name in self.fields:
+            particles.extra[name] = np.zeros(particles.n)
+        r = len(self.receivers)
+        return OffsetState(np.full(r, self.gps_sd**2), np.full(r, np.nan))
+
+    def score(self, particles: Particles, rows: np.ndarray, time: float, state, weights):
+        """The Kalman predictive log density of the rows for every particle; the offsets'
+        Kalman update is committed once the weights are final."""
+        rows = self.as_matrix(rows)
+        steps = offset_steps(
+            state,
+            rows[:, 6].astype(np.int64),
+            time,
+            self.gps_sd,
+            self._tau,
+            self.sigma_white,
+        )
+        latest = []
+
+        def scored(particles, weights=None):
+            p = particles
+            means = np.column_stack([p.extra[name] for name in self.fields])
+            loglik, updated = offset_loglik(
+                p.x, p.y, p.cos_heading, p.sin_heading, p.speed, np.ascontiguousarray(rows),
+                means, *steps[:3], float(self.covariance[1, 1]),
+            )  # fmt: skip
+            latest[:] = [updated]
+            return loglik
+
+        def commit(particles):
+            for k, name in enumerate(self.fields):
+                particles.extra[name] = np.ascontiguousarray(latest[0][:, k])
+            state.variance, state.time = steps[3].variance, steps[3].time
+
+        return Score(scored(particles), rescore=scored, commit=commit)
+
+
+def offset_loglik(
+    x, y, cos_heading, sin_heading, speed, rows, means, rho, predictive, gain, rate_var
+):
+    """Per-particle log-likelihood (N,) and updated offset means (N, R) of one correction
+    (:func:`_offset_kernel`)."""
+    loglik = np.empty(x.size)
+    updated = np.empty_like(means)
+    _offset_kernel(
+        x, y, cos_heading, sin_heading, speed, rows, means, rho, predictive, gain, rate_var,
+        loglik, updated,
+    )  # fmt: skip
+    return loglik, updated
+
+
+@njit(cache=True, nogil=True)
+def _offset_kernel(
+    x, y, cos_heading, sin_heading, speed, z, means, rho, predictive, gain, rate_var, out,
+    updated,
+):  # fmt: skip
+    """For every particle: the Kalman predictive log density of each row ``j`` of ``z``
+    ((M, 7): :data:`RANGE_RATE_COLUMNS` and the receiver index ``k``) with offset mean
+    ``rho[j] * m_k`` and variance ``predictive[j]``, plus the white range-rate's (variance
+    ``rate_var``), summed into ``out`` (N,); the offset means after each row's update
+    (``m_k + gain[j] * innovation``) into ``updated`` (N, R), starting from ``means``."""
+    rate_norm = -0.5 * math.log(2.0 * math.pi * rate_var)
+    for i in range(x.size):
+        for k in range(means.shape[1]):
+            updated[i, k] = means[i, k]
+        vx = speed[i] * cos_heading[i]
+        vy = speed[i] * sin_heading[i]
+        total = 0.0
+        for j in range(z.shape[0]):
+            k = int(z[j, 6])
+            dx = z[j, 2] - x[i]
+            dy = z[j, 3] - y[i]
+            r_hat = math.sqrt(dx * dx + dy * dy)
+            r_dot_hat = (dx * (z[j, 4] - vx) + dy * (z[j, 5] - vy)) / r_hat if r_hat > 0 else 0.0
+            mean = rho[j] * updated[i, k]
+            innovation = z[j, 0] - r_hat - mean
+            total += -0.5 * (
+                math.log(2.0 * math.pi * predictive[j]) + innovation * innovation / predictive[j]
+            )
+            updated[i, k] = mean + gain[j] * innovation
+            e_v = r_dot_hat - z[j, 1]
+            total += rate_norm - 0.5 * e_v * e_v / rate_var
+        out[i] = total
