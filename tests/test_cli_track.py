@@ -251,7 +251,10 @@ def test_options_without_a_config_file(scenario_files, tmp_path, capsys, caplog)
     ("change", "message"),
     [
         (["--model", "x.json", "--motion", "baseline"], "--motion hmm only"),
-        (["--measurement", "arrival-time", "--r0", "a=1"], "--measurement range-rate only"),
+        (
+            ["--measurement", "arrival-time", "--r0", "a=1"],
+            "--measurement range-rate or range-rate-gps only",
+        ),
     ],
 )
 def test_bad_options_are_clear_errors(scenario_files, tmp_path, capsys, change, message):
@@ -390,6 +393,20 @@ def test_smooth_works_with_the_range_rate_measurement_too(scenario_files, tmp_pa
     with pytest.raises(SystemExit):
         main([*track_args(paths, tmp_path / "e.csv"), "--smooth", "-1"])
     assert "smoothing_lag must be a whole number >= 0" in capsys.readouterr().err
+
+
+def test_gps_offset_measurement_from_the_command_line(scenario_files, tmp_path):
+    """``--measurement range-rate-gps`` and its GPS settings reach the library's run, whose
+    estimates differ from the paper's measurement's."""
+    _, paths = scenario_files
+    gps, paper = tmp_path / "gps.csv", tmp_path / "paper.csv"
+    options = ["--measurement", "range-rate-gps", "--gps-correlation-time", "90"]
+    assert main([*track_args(paths, gps), "--motion", "velocity", *options]) == 0
+    assert main([*track_args(paths, paper), "--motion", "velocity"]) == 0
+    expected = library_estimates(
+        paths, motion="velocity", measurement="range-rate-gps", gps_correlation_time=90.0
+    )
+    assert_written_is(gps, expected, paper)
 
 
 def test_config_file_with_overrides(tmp_path):

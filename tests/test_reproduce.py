@@ -195,3 +195,10 @@ def test_the_filter_option_offers_every_named_filter():
     assert parser.parse_args(["reproduce", "--filter", "paper"]).filter == "paper"
     assert parser.parse_args(["reproduce"]).start_prior
     assert not parser.parse_args(["reproduce", "--no-start-prior"]).start_prior
+
+
+def test_the_measurement_option_names_the_paper_s_by_default():
+    parser = build_parser(["reproduce"])
+    assert parser.parse_args(["reproduce"]).measurement == "range-rate"
+    chosen = parser.parse_args(["reproduce", "--measurement", "range-rate-gps"])
+    assert chosen.measurement == "range-rate-gps"

@@ -16,10 +16,9 @@ The model. Receiver ``k``'s range error is a slowly varying offset ``b_k(t)`` pl
 
     r_obs = |x - rx_k| + b_k(t) + w,    w ~ N(0, sigma_white^2),
 
-(``sigma_white``: the settings' ``sigma_range``), where ``b_k`` is the projection of the
-receiver's GPS error on the line of sight: an Ornstein-Uhlenbeck process of stationary sd
-``gps_sd`` and time constant ``gps_correlation_time`` (``tau``), so between two of the
-receiver's pings ``dt`` apart
+where ``b_k`` is the projection of the receiver's GPS error on the line of sight: an
+Ornstein-Uhlenbeck process of stationary sd ``gps_sd`` and time constant
+``gps_correlation_time`` (``tau``), so between two of the receiver's pings ``dt`` apart
 
     b_k(t + dt) = rho b_k(t) + N(0, (1 - rho^2) gps_sd^2),    rho = exp(-dt / tau).
 
@@ -94,9 +93,9 @@ SIGMA_WHITE = 1.0
 @dataclass(frozen=True)
 class GpsOffsetSettings(RangeRateSettings):
     """The ``measurement`` section of the ``"range-rate-gps"`` measurement: the range-rate
-    section's keys, ``sigma_range`` being the range error's part that is independent from
-    ping to ping (default :data:`SIGMA_WHITE`; ``range_rate_correlation`` must be 0: the
-    range-rate's error is independent of the range's), and the receivers' GPS error.
+    section's keys (``sigma_range`` unused: the range's error is the GPS offset and
+    ``sigma_white``; ``range_rate_correlation`` must be 0: the range-rate's error is
+    independent of the range's), and the receivers' GPS error.
 
     Parameters
     ----------
@@ -104,20 +103,13 @@ class GpsOffsetSettings(RangeRateSettings):
         Stationary sd (m) of a receiver's GPS error along a line of sight.
     gps_correlation_time : float
         Its e-folding time ``tau`` (s).
+    sigma_white : float
+        Sd (m) of the range error independent from ping to ping. A key of its own, not the
+        paper's ``sigma_range``: a configuration switched from ``range-rate`` keeps that
+        key's value (5 m), which would silently be taken for this one.
     """
 
     name: ClassVar[str] = "range-rate-gps"
-
-    sigma_range: float = setting(
-        SIGMA_WHITE,
-        help=(
-            "standard deviation of the range error (m); range-rate-gps: its part independent "
-            "from ping to ping, the GPS offset apart"
-        ),
-        check=positive,
-        parse=float,
-        metavar="METRES",
-    )
 
     gps_sd: float = setting(
         GPS_SD,
@@ -132,6 +124,13 @@ class GpsOffsetSettings(RangeRateSettings):
         check=positive,
         parse=float,
         metavar="SECONDS",
+    )
+    sigma_white: float = setting(
+        SIGMA_WHITE,
+        help="sd of the range error independent from ping to ping (m)",
+        check=positive,
+        parse=float,
+        metavar="METRES",
     )
 
     def validate(self) -> None:
@@ -214,8 +213,7 @@ class GpsOffsetMeasurement(RangeRateMeasurement):
     gps_sd, gps_correlation_time : float
         As :class:`GpsOffsetSettings`.
     sigma_white : float
-        Sd (m) of the range error independent from ping to ping (the settings'
-        ``sigma_range``).
+        As :class:`GpsOffsetSettings`.
     """
 
     receivers: tuple[str, ...] = ()
@@ -282,7 +280,7 @@ class GpsOffsetMeasurement(RangeRateMeasurement):
             settings.sigma_range_rate,
             settings.gps_sd,
             settings.gps_correlation_time,
-            settings.sigma_range,
+            settings.sigma_white,
             moored,
         )
 
