@@ -73,15 +73,15 @@ from hmmtrack.tracking.tempering import Tempered
 __all__ = ["GpsOffsetMeasurement", "GpsOffsetSettings", "OffsetState", "offset_steps"]
 
 #: stationary sd (m) of a receiver's GPS error along any horizontal direction: a consumer or
-#: SBAS-aided receiver's horizontal error of 2-2.5 m rms is 1.4-1.8 m per axis
+#: SBAS-aided receiver's horizontal error of 2-2.5 m rms is 1.4-1.8 m per axis (the
+#: simulators' :data:`hmmtrack.scenarios.paper.HYDROPHONE_GPS` draws 1.5 m, 60 s)
 GPS_SD = 1.5
 #: e-folding time (s) of the GPS error: multipath and atmospheric errors of a GPS fix wander
 #: over about a minute
 GPS_CORRELATION_TIME = 60.0
 #: the ESS fraction below which a correction is tempered by default: a range known to a metre
 #: against a start region hundreds of metres wide leaves a handful of particles in one pass
-#: (held-out seeds 5-6: the shark pursuit lost with the velocity model without tempering;
-#: reports/decisions.md, "Correlated GPS error in the measurement")
+#: (reports/decisions.md, "Correlated GPS error in the measurement")
 GPS_TEMPERING_ESS = 0.5
 #: sd (m) of the range error that is independent from ping to ping: the emission jitter
 #: (0.15-0.2 m) and what the model leaves out (the turning line of sight, detections taken at
