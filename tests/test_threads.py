@@ -9,12 +9,17 @@ def test_thread_choice_tries_both_keeps_the_cheaper_and_backs_off():
         k = choice.pick()
         picks.append(k)
         choice.record(k, costs[k])
-    assert picks[:3] == [1, 2, 1]
-    retries = [i for i, k in enumerate(picks) if k == 2]
-    # after the first probe, retries come in bursts of RETRY_CALLS; the interval between
-    # them doubles from 32 each time the retry loses
     burst = ThreadChoice.RETRY_CALLS
-    assert retries == [1, *range(33, 33 + burst), *range(99, 99 + burst), *range(229, 229 + burst)]
+    assert picks[: 2 * burst + 1] == [1] * burst + [2] * burst + [1]
+    retries = [i for i, k in enumerate(picks) if k == 2]
+    # after the first trial, retries come in bursts of RETRY_CALLS; the interval between
+    # them doubles from 32 each time the retry loses
+    assert retries == [
+        *range(burst, 2 * burst),
+        *range(37, 37 + burst),
+        *range(103, 103 + burst),
+        *range(233, 233 + burst),
+    ]
     assert choice.explore_every == 256 and choice.best() == 1
     costs[2] = 1e-8  # the machine became quiet: the next retry wins and two threads stay
     later = []
@@ -28,3 +33,23 @@ def test_thread_choice_tries_both_keeps_the_cheaper_and_backs_off():
     for _ in range(40):
         assert single.pick() == 1
         single.record(1, 1e-8)
+
+
+def test_thread_choice_is_not_flipped_by_one_slow_call():
+    """Medians on both sides: a cold first call of a trial, or one slow call of the option in
+    use (a lost time slice), does not change the choice; slow calls that persist do."""
+    choice = ThreadChoice(2)
+    costs = {1: 2e-8, 2: 1.5e-8}  # two threads are faster (a quiet machine)
+    picks = []
+    for call in range(200):
+        k = choice.pick()
+        picks.append(k)
+        slow = call == 3 or call in (50, 120)  # two threads' first call, then two spikes
+        choice.record(k, costs[k] * (5.0 if slow else 1.0))
+    assert choice.best() == 2
+    # one thread only in its retries, each lost (the interval doubled from 16 to 128)
+    assert picks[6:].count(1) == 3 * ThreadChoice.RETRY_CALLS
+    assert choice.explore_every == 128
+    for _ in range(ThreadChoice.RECENT):  # the second core becomes busy
+        choice.record(2, 9e-8)
+    assert choice.best() == 1
