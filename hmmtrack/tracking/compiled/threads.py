@@ -46,6 +46,8 @@ class ThreadChoice:
         self.options = (1, max_threads) if max_threads > 1 else (1,)
         #: s per particle-step of each option (None until measured)
         self.cost: dict[int, float | None] = dict.fromkeys(self.options)
+        #: calls recorded of each option (what a run ran on: benchmarks print it)
+        self.calls: dict[int, int] = dict.fromkeys(self.options, 0)
         self.explore_every = 16
         self._calls_since_explore = 0
         # latest costs of each option: its calls in use, its retry, or its first trial
@@ -80,6 +82,7 @@ class ThreadChoice:
     def record(self, threads: int, cost: float) -> None:
         """Note that a call with ``threads`` (as :meth:`pick` said) cost ``cost`` s per
         particle-step."""
+        self.calls[threads] += 1
         latest = self._latest[threads]
         latest.append(cost)
         if self.cost[threads] is None:  # the first trial of this option
