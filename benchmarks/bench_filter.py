@@ -13,7 +13,9 @@ same filter with ``backend="numpy"``
 the fastest compiled run to the NumPy one, the rate of the compiled prediction alone on one
 thread (no corrections: the ceiling the per-correction work is measured against), and the
 one-thread run's particle-steps per second of process CPU time (``M/CPU-s``: what a run
-costs however busy the machine is). Wall-clock numbers depend on the machine and its load,
+costs however busy the machine is), and the share of the last default-thread run's timed
+cycles that ran on more than one thread (``auto >1 thr``: what the timing chose). Wall-clock
+numbers depend on the machine and its load,
 printed at the start and the end (CPU model, cores, 1-, 5- and 15-minute load averages);
 the headline figures are ratios to the NumPy filter measured in the same run. The last
 lines compare them at N = 10,000 with issue 16's targets: velocity at least 8x the NumPy
@@ -269,7 +271,7 @@ def main() -> None:
     compiled_columns = "".join(f"{f'{t} thr s' if t else 'auto s':>9}{'M/s':>7}" for t in threads)
     print(
         f"{'model':<20}{'N':>8}{compiled_columns}{'numpy s':>9}{'M/s':>7}{'ratio':>7}"
-        f"{'predict-only M/s':>18}{'M/CPU-s':>9}"
+        f"{'predict-only M/s':>18}{'M/CPU-s':>9}{'auto >1 thr':>12}"
     )
     ratios = {}
     for name, motion in models.items():
@@ -278,9 +280,9 @@ def main() -> None:
         ParticleFilter(motion, MEASUREMENT, 100, BOUNDS, rng=0).run(warm_up, start=0.0, end=20.0)
         for n in sizes:
             steps = n * duration
-            row, walls, cpu_rate = "", {}, None
+            row, walls, cpu_rate, share = "", {}, None, ""
             for t in threads:
-                wall, cpu, _ = best_time(
+                wall, cpu, pf = best_time(
                     lambda k, m=motion, n=n, t=t: ParticleFilter(
                         m, MEASUREMENT, n, BOUNDS, rng=k, threads=t
                     ),
@@ -288,6 +290,9 @@ def main() -> None:
                 )  # fmt: skip
                 walls[t] = wall
                 cpu_rate = cpu_rate or steps / cpu / 1e6
+                if t is None:  # the last auto run's timed cycles on more than one thread
+                    calls = pf._thread_choice.calls
+                    share = f"{1 - calls[1] / max(1, sum(calls.values())):.2f}"
                 row += f"{wall:>9.3f}{steps / wall / 1e6:>7.1f}"
             reference, _, _ = best_time(
                 lambda k, m=motion, n=n: ParticleFilter(
@@ -299,7 +304,7 @@ def main() -> None:
             fastest = min(walls.values())
             print(
                 f"{name:<20}{n:>8}{row}{reference:>9.3f}{steps / reference / 1e6:>7.1f}"
-                f"{reference / fastest:>7.1f}{kernel / 1e6:>18.1f}{cpu_rate:>9.1f}"
+                f"{reference / fastest:>7.1f}{kernel / 1e6:>18.1f}{cpu_rate:>9.1f}{share:>12}"
             )
             if n == 10_000:
                 ratios[name] = {t or "default": reference / wall for t, wall in walls.items()}

@@ -198,8 +198,8 @@ class Mixture:
             math.ceil(self.min_share * p.n),
         )
         code = SCHEME_CODES[pf.resampling]
-        draws = scheme_draws(pf.rng, code, p.n, live)
         scratch = pf.scratch  # the filter's work arrays, unused by its own scheme here
+        draws = scheme_draws(pf.rng, code, p.n, live, scratch)
         scratch.threads = threads
         new = resample_components(
             weights, labels, counts, component_weight, code, draws, p.x, p.y, scratch
@@ -251,14 +251,21 @@ SCHEME_CODES = {"multinomial": 0, "residual": 1, "stratified": 2, "systematic": 
 _NO_MOMENTS = np.zeros((0, 6))
 
 
-def scheme_draws(rng: np.random.Generator, code: int, n: int, live: int) -> np.ndarray:
+def scheme_draws(
+    rng: np.random.Generator, code: int, n: int, live: int, scratch: Scratch | None = None
+) -> np.ndarray:
     """The random numbers :func:`resample_components` consumes for ``n`` particles in
     ``live`` components: standard exponentials (multinomial and residual: the spacings of
     each component's sorted uniforms, ``N_k + 1`` each), one uniform per particle
     (stratified) or per component (systematic). The same stream as the whole-cloud scheme
-    run on each component in turn (:mod:`hmmtrack.tracking.resampling`; residual aside)."""
+    run on each component in turn (:mod:`hmmtrack.tracking.resampling`; residual aside).
+    With ``scratch`` (the filter's), the exponentials come from its work array, those drawn
+    ahead included (:meth:`~hmmtrack.tracking.resampling.Scratch.exponentials`: the same
+    numbers)."""
     if code <= SCHEME_CODES["residual"]:
-        return rng.standard_exponential(n + live)
+        if scratch is None:
+            return rng.standard_exponential(n + live)
+        return scratch.exponentials(rng, n + live)
     return rng.random(n if code == SCHEME_CODES["stratified"] else live)
 
 

@@ -13,16 +13,25 @@ from __future__ import annotations
 __all__ = ["ThreadChoice"]
 
 
+def _median(costs: list[float]) -> float:
+    """The middle of ``costs`` (the upper middle of an even count): a sort of at most
+    ``ThreadChoice.RECENT`` numbers, cheaper than NumPy's median on every call."""
+    return sorted(costs)[len(costs) // 2]
+
+
 class ThreadChoice:
     """Chooses between one thread and ``max_threads`` for compiled calls by timing both.
 
-    The cost (s per particle-step) of the option in use is a running average of its calls;
-    that of the other is the best of its latest retry, a burst of ``RETRY_CALLS`` calls (an
-    option left idle starts cold: its first call is slow). The first calls try each option
-    once; afterwards the cheaper one runs, and the other is retried after ``explore_every``
-    calls -- an interval that doubles (up to 1024) each time the retry loses and resets to
-    16 when it wins, so that a machine whose load changes is followed without paying often
-    for a bad option. Only speed depends on the choice, never results.
+    The cost (s per particle-step) of an option is the median of its latest calls: the last
+    ``RECENT`` of the option in use, the ``RETRY_CALLS`` of the other's latest retry (a burst
+    of calls; an option left idle starts cold, its first call slow). Medians on both sides,
+    because a running average of the option in use against the best call of a retry let
+    one slow call (a page fault, a time slice lost) flip the choice, and a
+    one-call trial at the start let a cold call decide it. The first calls try each option
+    ``RETRY_CALLS`` times; afterwards the cheaper one runs, and the other is retried after
+    ``explore_every`` calls -- an interval that doubles (up to 1024) each time the retry
+    loses and resets to 16 when it wins, so that a machine whose load changes is followed
+    without paying often for a bad option. Only speed depends on the choice, never results.
 
     Parameters
     ----------
@@ -31,14 +40,18 @@ class ThreadChoice:
     """
 
     RETRY_CALLS = 3
+    RECENT = 5
 
     def __init__(self, max_threads: int) -> None:
         self.options = (1, max_threads) if max_threads > 1 else (1,)
         #: s per particle-step of each option (None until measured)
         self.cost: dict[int, float | None] = dict.fromkeys(self.options)
+        #: calls recorded of each option (what a run ran on: benchmarks print it)
+        self.calls: dict[int, int] = dict.fromkeys(self.options, 0)
         self.explore_every = 16
         self._calls_since_explore = 0
-        self._retry: list[float] = []  # costs of the retry under way
+        # latest costs of each option: its calls in use, its retry, or its first trial
+        self._latest: dict[int, list[float]] = {k: [] for k in self.options}
         self._retry_left = 0
 
     def best(self) -> int:
@@ -62,25 +75,29 @@ class ThreadChoice:
         if self._calls_since_explore < self.explore_every:
             return self.best()
         self._calls_since_explore = 0
-        self._retry, self._retry_left = [], self.RETRY_CALLS
+        self._latest[self._other()] = []
+        self._retry_left = self.RETRY_CALLS
         return self._other()
 
     def record(self, threads: int, cost: float) -> None:
         """Note that a call with ``threads`` (as :meth:`pick` said) cost ``cost`` s per
         particle-step."""
-        old = self.cost[threads]
-        if old is None:  # first measurement of this option
-            self.cost[threads] = cost
-            if None not in self.cost.values():
-                self._settle(won=self.best() == threads)
+        self.calls[threads] += 1
+        latest = self._latest[threads]
+        latest.append(cost)
+        if self.cost[threads] is None:  # the first trial of this option
+            if len(latest) == self.RETRY_CALLS:
+                self.cost[threads] = _median(latest)
+                if None not in self.cost.values():
+                    self._settle(won=self.best() == threads)
         elif self._retry_left and threads == self._other():
-            self._retry.append(cost)
             self._retry_left -= 1
             if not self._retry_left:
-                self.cost[threads] = min(self._retry)
+                self.cost[threads] = _median(latest)
                 self._settle(won=self.best() == threads)
         else:
-            self.cost[threads] = 0.5 * (old + cost)
+            del latest[: -self.RECENT]
+            self.cost[threads] = _median(latest)
 
     def _settle(self, won: bool) -> None:
         self.explore_every = 16 if won else min(2 * self.explore_every, 1024)
