@@ -760,11 +760,12 @@ def per_ping_table(
         The run's observations (:func:`hmmtrack.tracking.measurement.pings.ping_observations`).
     smoothed : pandas.DataFrame, optional
         The run's smoothed estimates (one per second): their row at each ping's correction
-        time as ``smoothed_x``, ``smoothed_y`` (m), the step of ``x`` and ``y``. Under a
-        motion without velocity (the random walk) a ping places the particles where the tag
-        was at its emission, and the correction's step on the 1 s grid is up to half a
-        second from it: this row, not the track interpolated at the emission time, is the
-        smoothed position at the emission.
+        time as ``smoothed_x``, ``smoothed_y`` (m), the step of ``x`` and ``y``: the
+        smoothed position at the emission, up to half a step plus the travel time away.
+        The track interpolated at the emission time is worse: it mixes in the row of a
+        neighbouring step, and under the random walk the smoothed rows before a sharp ping
+        rest on the few particles its tempered resamplings left (reports/decisions.md,
+        "The ping runs against the bound").
 
     Returns
     -------
