@@ -951,8 +951,17 @@ def test_filter_names_the_filter_and_the_switches_override_it():
 
     def switches(*extra):
         built = build_config(build_parser().parse_args([*base, *extra])).filter
-        return built.acquisition, built.mixture, built.monitor
+        return built.acquisition, built.mixture, built.long_gap, built.monitor
 
-    assert switches("--filter", "paper") == (False, False, False)
-    assert switches("--filter", "mode-keeping") == (True, True, False)
-    assert switches("--filter", "mode-keeping", "--no-mixture", "--monitor") == (True, False, True)
+    assert switches("--filter", "paper") == (False, False, False, False)
+    assert switches("--filter", "mode-keeping") == (True, True, True, False)
+    assert switches() == (True, True, True, False)  # the default: the long-gap rule, no loss test
+    assert switches("--monitor") == (True, True, True, True)  # --monitor adds the loss test
+    assert switches("--filter", "paper", "--long-gap") == (False, False, True, False)
+    assert switches("--filter", "mode-keeping", "--no-mixture", "--monitor") == (
+        True,
+        False,
+        True,
+        True,
+    )
+    assert switches("--no-long-gap", "--monitor") == (True, True, False, True)

@@ -405,11 +405,11 @@ def test_the_ping_measurement_brings_its_own_motion_and_smoothing():
 
 
 def test_a_named_filter_sets_its_switches_and_the_section_keys_override_them(tmp_path):
-    """``filter="paper"`` / ``"mode-keeping"`` (:data:`FILTERS`) sets the three switches
+    """``filter="paper"`` / ``"mode-keeping"`` (:data:`FILTERS`) sets the four switches
     whatever the default filter is; explicit keys win; renaming the filter in ``override``
     replaces the switches; a configuration file may name the filter too."""
     base = {"period": 8.0, "r0": {"a": 10.0}}
-    switches = ("acquisition", "mixture", "monitor")
+    switches = ("acquisition", "mixture", "long_gap", "monitor")
     default = TrackingConfig.from_keys(**base).filter
     assert {k: getattr(default, k) for k in switches} == FILTERS[DEFAULT_FILTER]
     paper = TrackingConfig.from_keys(**base, filter="paper", n_particles=300)
@@ -434,7 +434,7 @@ def test_the_ping_measurement_runs_the_papers_filter_unless_told():
     """A configuration that names no filter runs :data:`DEFAULT_FILTER` (mode-keeping) with
     every measurement but those of :data:`MEASUREMENT_FILTERS` (ping: the paper's); a named
     filter or an explicit switch wins, and the switches survive a round trip."""
-    switches = ("acquisition", "mixture", "monitor")
+    switches = ("acquisition", "mixture", "long_gap", "monitor")
 
     def on(config):
         return tuple(getattr(config.filter, k) for k in switches)
@@ -442,17 +442,19 @@ def test_the_ping_measurement_runs_the_papers_filter_unless_told():
     assert MEASUREMENT_FILTERS == {"ping": "paper"}
     for measurement in ("range-rate", "arrival-time", "ping-sequence"):
         config = TrackingConfig.from_keys(measurement=measurement, period=8.0)
-        assert on(config) == (True, True, False), measurement
+        assert on(config) == (True, True, True, False), measurement
     ping = TrackingConfig.from_keys(measurement="ping")
-    assert on(ping) == (False, False, False)
+    assert on(ping) == (False, False, False, False)
     assert TrackingConfig.from_dict(ping.to_dict()) == ping
     assert on(TrackingConfig.from_keys(measurement="ping", filter="mode-keeping")) == (
+        True,
         True,
         True,
         False,
     )
     assert on(TrackingConfig.from_keys(measurement="ping", acquisition=True)) == (
         True,
+        False,
         False,
         False,
     )

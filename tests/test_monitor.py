@@ -1,5 +1,6 @@
 """The monitor (:mod:`hmmtrack.tracking.monitor`): a long gap and a lost tag are noticed,
-recorded and re-acquired; on clean runs it stays quiet."""
+recorded and re-acquired; on clean runs it stays quiet. The library's default filter
+carries the long-gap rule, not the lost-tag test."""
 
 from __future__ import annotations
 
@@ -10,10 +11,11 @@ import pandas as pd
 import pytest
 
 from hmmtrack.tracking.acquisition import grid_loglik
-from hmmtrack.tracking.filter import ParticleFilter
+from hmmtrack.tracking.filter import FilterSettings, ParticleFilter
 from hmmtrack.tracking.measurement.range_rate import RANGE_RATE_COLUMNS, RangeRateMeasurement
 from hmmtrack.tracking.monitor import Monitor, grid_evidence
 from hmmtrack.tracking.motion import BaselineMotion, VelocityMotion
+from hmmtrack.tracking.pipeline import particle_filter
 
 DAY = 86_400.0
 N = 200
@@ -96,6 +98,78 @@ def test_one_detection_after_30_days_gives_an_event_a_reacquisition_and_a_wide_c
     assert error > 500.0 and spread < 10.0  # confident and wrong
     error, spread = ends[True]
     assert spread > 100.0 and not (spread < 10.0 and error > 50.0)
+
+
+def default_filter(dt, seed, **switches):
+    """The filter ``track`` builds from a configuration that names no filter (the library's
+    default, :data:`hmmtrack.tracking.filter.DEFAULT_FILTER`), with the test's parts."""
+    settings = FilterSettings(n_particles=N, prediction_step=dt, **switches)
+    measurement = RangeRateMeasurement.from_std(5.0, 0.5)
+    return particle_filter(settings, measurement, BOUNDS, VelocityMotion(0.05, 0.02), seed=seed)
+
+
+def quietly_run(pf, observations):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        return pf.run(observations)
+
+
+def test_the_default_filter_reacquires_after_30_days_and_is_not_confidently_wrong():
+    """The 30-day case through the library's default (no monitor switch): ``long_gap`` and
+    ``reacquired`` events after the acquisition's, and the end either near the tag or
+    honestly uncertain, on 3 seeds; without the long-gap rule the same filter collapses
+    onto a confident wrong point."""
+    rng = np.random.default_rng(1)
+    tag = (700.0, -500.0)
+    after = boat_observations(rng, tag=tag, times=[30 * DAY + 16.0])
+    observations = pd.concat([boat_observations(rng), after], ignore_index=True)
+    confident_and_wrong = 0
+    for seed in range(3):
+        result = quietly_run(default_filter(600.0, seed), observations)
+        assert list(result.events["kind"]) == ["acquired", "long_gap", "reacquired"]
+        assert result.events["time"].iloc[-1] == pytest.approx(30 * DAY + 16.0, abs=600.0)
+        last = result.estimates.iloc[-1]
+        error = np.hypot(last["x"] - tag[0], last["y"] - tag[1])
+        assert last["sqrt_lambda1"] > 100.0 or error < 50.0
+        without = quietly_run(default_filter(600.0, seed, long_gap=False), observations)
+        last = without.estimates.iloc[-1]
+        error = np.hypot(last["x"] - tag[0], last["y"] - tag[1])
+        confident_and_wrong += last["sqrt_lambda1"] < 10.0 and error > 100.0
+    assert confident_and_wrong >= 2
+
+
+def test_the_default_filter_raises_no_event_on_a_clean_run():
+    """A still tag heard every 8 s for 20 min (3 seeds) through the default filter: the
+    acquisition's event only, and the run ends within 10 m."""
+    for seed in range(3):
+        rng = np.random.default_rng(200 + seed)
+        observations = boat_observations(rng, times=np.arange(0.0, 1200.0, 8.0))
+        result = quietly_run(default_filter(1.0, seed), observations)
+        assert list(result.events["kind"]) == ["acquired"]
+        last = result.estimates.iloc[-1]
+        assert np.hypot(last["x"], last["y"]) < 10.0
+
+
+def test_the_switches_build_the_two_rules():
+    """The default carries the long-gap rule alone (and so never asks for the weights
+    before a correction); ``monitor`` adds the lost-tag test; the paper's filter has
+    neither; a monitor with neither rule is refused."""
+    measurement = RangeRateMeasurement.from_std(5.0, 0.5)
+
+    def built(**keys):
+        settings = FilterSettings(n_particles=N, **keys)
+        return particle_filter(settings, measurement, BOUNDS, BaselineMotion(0.3)).monitor
+
+    default = built()
+    assert (default.long_gap, default.loss) == (True, False)
+    assert default.max_gap == 1800.0
+    monitored = built(monitor=True)
+    assert (monitored.long_gap, monitored.loss) == (True, True)
+    only_loss = built(long_gap=False, monitor=True)
+    assert (only_loss.long_gap, only_loss.loss) == (False, True)
+    assert built(acquisition=False, mixture=False, long_gap=False) is None
+    with pytest.raises(ValueError, match="long_gap or loss"):
+        Monitor(long_gap=False, loss=False)
 
 
 def jump_observations(seed: int) -> pd.DataFrame:

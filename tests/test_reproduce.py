@@ -85,7 +85,7 @@ def test_summary_puts_our_numbers_beside_the_papers(quick_run):
         assert f"]({name})" in text
     assert "The paper's findings on our analogues" in text
     # the run's configuration, by default the mode-keeping filter from the known start
-    assert "filter = mode-keeping (acquisition + mixture)" in text
+    assert "filter = mode-keeping (acquisition + mixture + long_gap)" in text
     assert "start = the scenario's start region where it records one" in text
     assert "these runs start where the field team knew the tag to be" in text
     assert "## Spread between datasets and between filter runs" in text

@@ -256,8 +256,9 @@ def register(subparsers) -> None:
         "--filter",
         choices=tuple(FILTERS),
         help=(
-            "named filter: mode-keeping (--acquisition --mixture: particles drawn from the "
-            "first detections' likelihood, every mode of the posterior kept) or paper (the "
+            "named filter: mode-keeping (--acquisition --mixture --long-gap: particles drawn "
+            "from the first detections' likelihood, every mode of the posterior kept, the tag "
+            "re-acquired after a long silence) or paper (the "
             "paper's algorithm: particles uniform in the box, the whole cloud resampled); the "
             f"switch options override it (default: {DEFAULT_FILTER}; "
             + "; ".join(f"{f} for --measurement {m}" for m, f in MEASUREMENT_FILTERS.items())

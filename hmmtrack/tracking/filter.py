@@ -120,10 +120,12 @@ DRAW_AHEAD_MIN = 50_000
 #: :class:`FilterSettings` each sets. ``paper``: the paper's filter (particles uniform in
 #: the search box, the whole cloud resampled, no monitor); ``mode-keeping``: issue 13's
 #: (particles drawn from the first corrections' likelihood, every mode kept by mixture
-#: resampling; reports/decisions.md, "Mode-keeping filter")
+#: resampling, re-acquired after a long gap; reports/decisions.md, "Mode-keeping filter"
+#: and "The long gap in the default filter"). The lost-tag test (``monitor``) is in
+#: neither: on the shark pursuit it re-acquires onto the mirror as often as onto the tag
 FILTERS = {
-    "paper": {"acquisition": False, "mixture": False, "monitor": False},
-    "mode-keeping": {"acquisition": True, "mixture": True, "monitor": False},
+    "paper": {"acquisition": False, "mixture": False, "long_gap": False, "monitor": False},
+    "mode-keeping": {"acquisition": True, "mixture": True, "long_gap": True, "monitor": False},
 }
 #: the filter whose switches are :class:`FilterSettings`' defaults, run by a configuration
 #: that names none, for every measurement: it keeps both intersections of two rings where
@@ -318,8 +320,9 @@ class ParticleFilter:
         corrections (:class:`hmmtrack.tracking.acquisition.Acquisition`); ``None``:
         uniformly in the bounds (the paper).
     monitor : Monitor or None
-        Test every correction's predictive likelihood and re-acquire a lost tag
-        (:class:`hmmtrack.tracking.monitor.Monitor`); ``None``: no test.
+        Test every correction for a long gap since the previous one and (with its ``loss``
+        rule) for a lost tag, and re-acquire (:class:`hmmtrack.tracking.monitor.Monitor`);
+        ``None``: no test.
 
     Notes
     -----
@@ -587,7 +590,7 @@ class ParticleFilter:
             score = self._score(p, rows, time, self.measurement_state, self.weights()[0])
         for kind, detail in score.events:
             self._record(kind, detail)
-        prior = None if self.monitor is None else self.weights()[0]
+        prior = None if self.monitor is None or not self.monitor.loss else self.weights()[0]
         estimate = self.correction.correct(self, score, table)
         if score.commit is not None:
             score.commit(self.particles)
@@ -1008,11 +1011,17 @@ class FilterSettings(Settings):
         Draw the initial particles from the likelihood of the first corrections on a grid
         over the search box (:class:`hmmtrack.tracking.acquisition.Acquisition`);
         ``False`` (the paper's): uniformly in the box.
+    long_gap : bool
+        After a correction more than :data:`hmmtrack.tracking.monitor.MAX_GAP` seconds
+        after the previous one, record a ``long_gap`` event and re-acquire the tag from
+        that correction alone (:class:`hmmtrack.tracking.monitor.Monitor`'s long-gap rule);
+        ``False`` (the paper's): the cloud carried across the gap is corrected as usual.
     monitor : bool
-        Test each correction's predictive likelihood; after a long gap or when the tag is
-        lost, record an event and re-acquire (:class:`hmmtrack.tracking.monitor.Monitor`);
-        ``False``: no test. The defaults of these three are those of :data:`DEFAULT_FILTER`
-        (:data:`FILTERS`): mixture and acquisition on, monitor off.
+        Test each correction's predictive likelihood; when the tag is lost, record an event
+        and re-acquire (:class:`hmmtrack.tracking.monitor.Monitor`'s lost-tag test);
+        ``False``: no test. The defaults of these four are those of :data:`DEFAULT_FILTER`
+        (:data:`FILTERS`): mixture, acquisition and the long-gap rule on, the lost-tag test
+        off.
     modes : bool
         Report the cloud's modes (``TrackingResult.modes``) and put the two heaviest beside
         each estimate, with ``converged`` declared only when one mode holds almost all the
@@ -1073,8 +1082,12 @@ class FilterSettings(Settings):
         "draw the initial particles from the likelihood of the first corrections",
         "acquisition",
     )
+    long_gap: bool = _switch(
+        "after a long silence (30 min) record an event and re-acquire from the detections",
+        "long_gap",
+    )
     monitor: bool = _switch(
-        "notice a lost tag or a long gap from the predictive likelihood and re-acquire",
+        "notice a lost tag from the predictive likelihood and re-acquire",
         "monitor",
     )
     modes: bool = _switch(

@@ -1,36 +1,45 @@
-"""Monitor: notice when the tag is lost or a long silence has passed, and re-acquire it.
+"""Monitor: notice when a long silence has passed or the tag is lost, and re-acquire it.
 
 A particle filter that has settled on a wrong point (the mirror intersection of two range
-rings, or a tag that swam off while unheard) goes on reporting it with confidence. Its own
-numbers say so: the *predictive likelihood* of a correction, ``p(y_t | y_1..t-1) ≈ Σ w_i
-p(y_t | x_i)`` with the weights before the correction, is the probability the particles
-gave the detections before they were heard. :class:`Monitor` tests it at every correction:
+rings, or a tag that swam off while unheard) goes on reporting it with confidence.
+:class:`Monitor` holds two rules, each switched on its own:
 
-* **long gap**: a correction more than ``max_gap`` seconds after the previous one. The
-  prior has diffused (or the model's motion does not describe so long a time) and the
-  observations across the gap are not trusted (a range derived over a long gap counts
-  pings over days of clock drift), so the particles are re-placed over a box around the
-  cloud on the grid posterior of this correction alone, tempered to stay wide (event
-  ``long_gap``, then ``reacquired``);
-* **lost tag**: the predictive log-likelihood per observation falls more than ``drop``
-  nats below its running median (of the last ``reference`` normal corrections) in
-  ``patience`` corrections in a row. The suspicion is confirmed when the grid explains
-  these suspicious corrections (those of them within the acquisition window of the latest)
-  better than the particles did by more than ``margin`` nats in all (event ``tag_lost``,
-  then ``reacquired``: the particles take the grid posterior of those corrections,
+* **long gap** (``long_gap``): a correction more than ``max_gap`` seconds after the
+  previous one. A tag may swim farther in that time than the receivers hear it, so the
+  cloud carried across the gap no longer says where on the detections' rings it is (and
+  the motion models describe seconds to minutes, not days); the observations across the
+  gap are not trusted either (a range derived over a long gap counts pings over days of
+  clock drift). The particles are re-placed over a box around the cloud on the grid
+  posterior of this correction alone, tempered to stay wide (event ``long_gap``, then
+  ``reacquired``). It reads only the time since the previous correction, so a run without
+  such a gap is the run without the rule, draw for draw: the library's default filter
+  carries it (:data:`hmmtrack.tracking.filter.FILTERS`).
+* **lost tag** (``loss``): the *predictive likelihood* of a correction, ``p(y_t |
+  y_1..t-1) ≈ Σ w_i p(y_t | x_i)`` with the weights before the correction, is the
+  probability the particles gave the detections before they were heard. When its log per
+  observation falls more than ``drop`` nats below its running median (of the last
+  ``reference`` normal corrections) in ``patience`` corrections in a row, the suspicion is
+  confirmed if the grid explains these suspicious corrections (those of them within the
+  acquisition window of the latest) better than the particles did by more than
+  ``margin`` nats in all (event ``tag_lost``, then ``reacquired``: the particles take the
+  grid posterior of those corrections,
   :meth:`hmmtrack.tracking.acquisition.Acquisition.reacquire`). Only the suspicious ones:
   the earlier corrections may describe the tag before it moved. Like is compared with like:
   the particles' predictive likelihood is an average over where they put the tag, so the
   grid's is an average too (:func:`grid_evidence`: over the box, a tag that may swim
   ``speed`` m/s between each correction and the latest), not the best of its cells (the
-  best of 4,096 cells beats a good filter by chance).
+  best of 4,096 cells beats a good filter by chance). Opt-in: on the shark pursuit it
+  re-acquires onto the mirror about as often as onto the tag (reports/decisions.md,
+  "Monitor: the grid's average, not its best cell").
 
 The grid covers a box of the start box's size centred on the cloud's weighted mean (the
-mirror point of an intersection lies within a ring's diameter of the true one). After a
-re-acquisition the measurement's run state is started afresh (its ``start`` hook: the
-arrival-time measurement re-acquires its clock from the next detection) and a mixture's
-components are reset. The filter calls :meth:`Monitor.corrected` after each correction
-(``ParticleFilter(monitor=...)``).
+mirror point of an intersection lies within a ring's diameter of the true one); after a
+long gap, each half-side at least :data:`HEARING_RANGE` (the tag may have swum anywhere on
+the ring it was heard on). After a re-acquisition the measurement's run state is started
+afresh (its ``start`` hook: the arrival-time measurement re-acquires its clock from the
+next detection) and a mixture's components are reset. The filter calls
+:meth:`Monitor.corrected` after each correction (``ParticleFilter(monitor=...)``), with the
+weights before it when :attr:`Monitor.loss` asks for them.
 """
 
 from __future__ import annotations
@@ -48,16 +57,29 @@ __all__ = ["Monitor", "grid_evidence"]
 
 #: corrections before the running median is trusted as the reference
 WARM_UP = 10
+#: m: how far from a receiver a tag is heard (the paper's scenarios hear half the pings at
+#: 250-450 m, a few beyond 1 km): after a long gap the re-acquisition grid reaches at least
+#: this far around the cloud, so that it holds the ring the tag was heard on
+HEARING_RANGE = 1000.0
+#: s: the long gap. A tag at the monitor's top speed (1.5 m/s) swims 2.7 km in it, more than
+#: the diameter of the ring a receiver hears it on (2 x HEARING_RANGE), so the cloud no
+#: longer picks a point of the ring
+MAX_GAP = 1800.0
 
 
 @dataclass
 class Monitor:
-    """Tests the predictive likelihood at every correction (module docstring).
+    """Tests every correction for a long gap and a lost tag (module docstring).
 
     Parameters
     ----------
+    long_gap : bool
+        Apply the long-gap rule.
+    loss : bool
+        Apply the lost-tag test (it needs the weights before each correction).
     max_gap : float
-        s: a correction after a longer silence re-acquires from its own observations.
+        s: with ``long_gap``, a correction after a longer silence re-acquires from its own
+        observations.
     drop : float
         Nats per observation below the running median of the predictive log-likelihood
         that make a correction suspicious.
@@ -78,7 +100,9 @@ class Monitor:
         Grid and proposal of the re-acquisitions.
     """
 
-    max_gap: float = 1800.0
+    long_gap: bool = True
+    loss: bool = True
+    max_gap: float = MAX_GAP
     drop: float = 4.0
     patience: int = 3
     margin: float = 10.0
@@ -88,6 +112,8 @@ class Monitor:
     acquisition: Acquisition = field(default_factory=Acquisition)
 
     def __post_init__(self) -> None:
+        if not (self.long_gap or self.loss):
+            raise ValueError("a monitor needs long_gap or loss (or both)")
         if not (self.max_gap > 0 and self.drop > 0 and self.margin >= 0 and self.speed >= 0):
             raise ValueError(
                 f"max_gap and drop must be positive, margin and speed non-negative; got "
@@ -116,18 +142,23 @@ class Monitor:
         pf : ParticleFilter
         loglik : numpy.ndarray, shape (N,)
             The correction's log-likelihood of each particle (its first scoring).
-        prior_weights : numpy.ndarray, shape (N,)
-            Normalised weights before the correction.
+        prior_weights : numpy.ndarray, shape (N,), or None
+            Normalised weights before the correction; only read with :attr:`loss`.
         rows
             The observations, in the measurement's form.
         """
         time = pf.time
         gap = None if self._last is None else time - self._last
         self._last = time
-        if gap is not None and gap > self.max_gap:
+        if self.long_gap and gap is not None and gap > self.max_gap:
             pf.alarm("long_gap", f"{gap:.0f} s since the previous correction")
-            self._reacquire(pf, [(time, rows)], self.gap_ess)
+            self._reacquire(pf, [(time, rows)], self.gap_ess, self._box(pf, HEARING_RANGE))
             return True
+        return self.loss and self._test_loss(pf, loglik, prior_weights, rows)
+
+    def _test_loss(self, pf, loglik: np.ndarray, prior_weights: np.ndarray, rows) -> bool:
+        """The lost-tag test of the correction at ``pf.time`` (module docstring)."""
+        time = pf.time
         n_rows = max(len(rows), 1)
         predictive = _log_mean_exp(loglik, prior_weights)
         self._history.append((time, rows, predictive))
@@ -157,17 +188,16 @@ class Monitor:
             return True
         return False
 
-    def _box(self, pf) -> tuple[float, float, float, float]:
-        """A box of the start box's size centred on the cloud's weighted mean (m)."""
+    def _box(self, pf, reach: float = 0.0) -> tuple[float, float, float, float]:
+        """A box of the start box's size centred on the cloud's weighted mean (m), each
+        half-side at least ``reach`` (m)."""
         _, _, (mx, my) = pf.weights()
         xmin, xmax, ymin, ymax = pf.bounds
-        hx, hy = 0.5 * (xmax - xmin), 0.5 * (ymax - ymin)
+        hx, hy = max(0.5 * (xmax - xmin), reach), max(0.5 * (ymax - ymin), reach)
         return (mx - hx, mx + hx, my - hy, my + hy)
 
-    def _reacquire(self, pf, corrections, min_ess, box=None) -> None:
-        detail = self.acquisition.reacquire(
-            pf, corrections, self._box(pf) if box is None else box, min_ess
-        )
+    def _reacquire(self, pf, corrections, min_ess, box) -> None:
+        detail = self.acquisition.reacquire(pf, corrections, box, min_ess)
         pf.restarted(detail)
         self._history.clear()
         self._strikes = 0

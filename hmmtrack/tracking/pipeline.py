@@ -401,8 +401,9 @@ def particle_filter(
         (:class:`hmmtrack.tracking.mixture.Modes`; with ``settings.modes`` too, the
         clusters of the cloud); with ``settings.acquisition``, started
         from the first corrections' likelihood
-        (:class:`hmmtrack.tracking.acquisition.Acquisition`); with ``settings.monitor``,
-        watched and re-acquired (:class:`hmmtrack.tracking.monitor.Monitor`).
+        (:class:`hmmtrack.tracking.acquisition.Acquisition`); with ``settings.long_gap``
+        and ``settings.monitor``, watched for a long gap and a lost tag and re-acquired
+        (:class:`hmmtrack.tracking.monitor.Monitor`, those two rules).
     """
     correction = (
         measurement.default_correction
@@ -427,7 +428,11 @@ def particle_filter(
         ],
         mixture=Mixture() if settings.mixture else None,
         acquisition=Acquisition() if settings.acquisition else None,
-        monitor=Monitor() if settings.monitor else None,
+        monitor=(
+            Monitor(long_gap=settings.long_gap, loss=settings.monitor)
+            if settings.long_gap or settings.monitor
+            else None
+        ),
     )
 
 
