@@ -48,3 +48,11 @@ def test_arrival_config_takes_the_case_window_over_the_settings():
     assert window == (sc.period, sc.start, sc.start + 300.0)
     assert tuple(config.bounds) == case.search_bounds and not hasattr(config.measurement, "r0")
     assert arrival_config(case).end == sc.end
+
+
+def test_arrival_config_gives_the_case_detection_curve_unless_told_not_to():
+    """The case's detection curve reaches the filter (the two-AUV study's runs "with the
+    curve" had lost it on the way and equalled the runs without)."""
+    case = moored_array(3, duration=600.0)
+    assert arrival_config(case).measurement.detection_curve == case.detection_probability
+    assert arrival_config(case, silences=False).measurement.detection_curve is None

@@ -20,13 +20,21 @@ from hmmtrack.experiments.arrival import KNOWN_CLOCK_CASES, arrival_study
 from hmmtrack.experiments.clock_bound import CASES, clock_bound_study
 from hmmtrack.experiments.closed_loop_study import MODES, closed_loop_study
 from hmmtrack.experiments.stationary import GEOMETRY_COLUMNS, settings, stationary_study
-from hmmtrack.experiments.two_auv_plan import PLANS, TUNED_FILTER_SEEDS, two_auv_plan_study
+from hmmtrack.experiments.two_auv_plan import (
+    PLANS,
+    TUNED_FILTER_SEEDS,
+    arrival_run,
+    tuned_settings,
+    two_auv_plan_study,
+)
 from hmmtrack.report.clock_aware import clock_aware_markdown, read_filter_errors
 from hmmtrack.report.clock_bound import clock_bound_markdown
 from hmmtrack.report.closed_loop import closed_loop_markdown
 from hmmtrack.report.stationary import stationary_markdown
 from hmmtrack.report.studies import READING_MARKER, kept_reading
 from hmmtrack.report.two_auv_plan import two_auv_plan_markdown
+from hmmtrack.scenarios.realistic import realistic_shark_pursuit
+from hmmtrack.tracking.config import merge_settings, nest
 
 #: a tiny run: 15 minutes (the clock studies score from 10 minutes on)
 DURATION = 900.0
@@ -113,6 +121,17 @@ def test_two_auv_plan_study_runs_every_setting_on_every_plan():
     assert (runs["bound_filter_rms_m"] > 0).all() and (runs["auv_speed_p99_m_s"] < 3).all()
     assert set(study.summary["runs"]) == {1, 2}
     assert "## Every run" in two_auv_plan_markdown(study, "Written by a test", 1)
+
+
+def test_two_auv_plan_arrival_run_scores_missed_pings_only_with_the_curve():
+    """Runs with and without the case's detection curve differ (same detections and filter
+    seed): the curve reaches the filter, whose weights then count the missed pings."""
+    case = realistic_shark_pursuit(0, steering="observable")
+    settings = merge_settings(tuned_settings(), nest({"n_particles": 150}))
+    heard = arrival_run(case, settings, None, 0, silences=True, duration=300.0)
+    deaf = arrival_run(case, settings, None, 0, silences=False, duration=300.0)
+    shift = np.hypot(*(heard.estimates[["x", "y"]] - deaf.estimates[["x", "y"]]).to_numpy().T)
+    assert shift.max() > 1.0  # metres: the silences moved the estimate
 
 
 def test_closed_loop_study_online_filter_equals_its_offline_rerun():

@@ -63,11 +63,13 @@ MODES = {"open loop (truth)": "truth", "closed loop (estimate)": "estimate"}
 
 def preset_config(case, n_particles: int | None = None, duration=DURATION) -> TrackingConfig:
     """The preset on ``case`` over the first ``duration`` seconds (with ``n_particles``
-    instead of the preset's when given), with the paper's filter: the loop steps its filter
-    online, where the default filter's acquisition (from the first corrections) is undefined,
-    and ``closed_loop.md`` was measured with it."""
+    instead of the preset's when given), without the detection curve (module docstring) and
+    with the paper's filter: the loop steps its filter online, where the default filter's
+    acquisition (from the first corrections) is undefined, and ``closed_loop.md`` was
+    measured with it."""
     particles = nest({"n_particles": n_particles, "filter": CLOSED_LOOP_FILTER})
-    return arrival_config(case, merge_settings(read_preset(PRESET), particles), duration)
+    settings = merge_settings(read_preset(PRESET), particles)
+    return arrival_config(case, settings, duration, silences=False)
 
 
 def geometry(run, truth: pd.DataFrame, duration=DURATION) -> dict:

@@ -75,7 +75,11 @@ def tracking_config(scenario: Scenario, **changes) -> TrackingConfig:
 
 
 def arrival_config(
-    case: ClockScenario, settings: Mapping | None = None, duration: float | None = None
+    case: ClockScenario,
+    settings: Mapping | None = None,
+    duration: float | None = None,
+    *,
+    silences: bool = True,
 ) -> TrackingConfig:
     """The configuration that tracks ``case`` from arrival times, with no initial range.
 
@@ -87,13 +91,20 @@ def arrival_config(
         :func:`hmmtrack.tracking.config.read_preset`); the case's own keys below win over it.
     duration : float, optional
         Track the first ``duration`` seconds (s); default: the whole scenario.
+    silences : bool
+        Give the filter the case's detection curve
+        (:attr:`~hmmtrack.scenarios.clocks.ClockScenario.detection_probability`), so that
+        the pings a receiver should have heard and did not count; False for a run without
+        it (missed pings carry no information, as ``hmmtrack track`` runs without
+        ``--detection-curve``, and as an online filter must run: the silence model reads
+        the whole detection table).
 
     Returns
     -------
     TrackingConfig
         ``measurement="arrival-time"`` unless ``settings`` say otherwise, with the case's
         mean period, :attr:`~hmmtrack.scenarios.clocks.ClockScenario.search_bounds`, time
-        window and sound speed.
+        window, sound speed and (``silences``) detection curve.
     """
     sc = case.scenario
     end = sc.end if duration is None else sc.start + duration
@@ -103,6 +114,7 @@ def arrival_config(
         "start": sc.start,
         "end": end,
         "sound_speed": sc.sound_speed,
+        "detection_curve": case.detection_probability if silences else None,
     }
     layers = (nest({"measurement": "arrival-time"}), settings or {}, nest(window))
     return TrackingConfig.from_dict(merge_settings(*layers), source="arrival_config")

@@ -43,7 +43,6 @@ from hmmtrack.experiments.clock_runs import (
     rms_error_from,
     score_run,
     track_arrival,
-    without_silences,
 )
 from hmmtrack.experiments.configs import arrival_config
 from hmmtrack.scenarios.realistic import realistic_shark_pursuit
@@ -100,14 +99,13 @@ def arrival_run(
     """The arrival-time filter with ``settings`` (configuration keys) on ``case``'s
     clock-corrected detections over the first ``duration`` s: default clock model; the
     case's detection curve, so that missed pings count, unless ``silences`` is False (as
-    ``hmmtrack track`` runs without ``--detection-curve``)."""
+    ``hmmtrack track`` runs without ``--detection-curve``;
+    :func:`hmmtrack.experiments.configs.arrival_config`)."""
     sc = case.scenario
     n_particles = settings["filter"]["n_particles"]
     detections, _, options = clock_inputs(case, seed, n_particles, "velocity", duration)
-    options |= config_options(arrival_config(case, settings, duration))
+    options |= config_options(arrival_config(case, settings, duration, silences=silences))
     options["smoothing_lag"] = smoothing_lag
-    if not silences:
-        options = without_silences(options)
     return track_arrival(detections, sc.receivers, options)
 
 
