@@ -1,8 +1,10 @@
 """A fixed-period tag's pings grouped (``ping-sequence`` with ``period``) against the
 arrival-time filter: the grouped measurement's clock and broadening, its detection curve
 the arrival-time filter's term for term when one receiver hears each ping, and better on
-three moored receivers (reports/decisions.md, "Fixed-period tags with ping grouping" and
-"Fixed-period grouping with the detection curve")."""
+three moored receivers; the default that groups a fixed-period tag's pings only where three
+receivers hear them, each kind of sequence's own arrival sd, and the matched-ping kernel the
+same on one thread and two (reports/decisions.md, "Fixed-period tags with ping grouping",
+"Fixed-period grouping with the detection curve" and "Fixed-period grouping by default")."""
 
 from __future__ import annotations
 
@@ -90,9 +92,12 @@ def test_a_period_gives_the_period_clock_and_broadening_a_sequence_does_not():
     assert built["burst_sequence"].broadening == 0.0
     assert built["period"].schedule_period == pytest.approx(sc.period, rel=1e-3)
     assert built["burst_sequence"].schedule_period is None
+    # each scores with its own arrival sd
+    assert built["period"].sigma == PERIOD_ARRIVAL_SIGMA
+    assert built["burst_sequence"].sigma == SEQUENCE_ARRIVAL_SIGMA
     assert dataclasses.replace(
-        built["period"], clock_noise=(), broadening=0.0, schedule_period=None
-    ) == dataclasses.replace(built["burst_sequence"], clock_noise=())
+        built["period"], clock_noise=(), broadening=0.0, schedule_period=None, sigma=0.0
+    ) == dataclasses.replace(built["burst_sequence"], clock_noise=(), sigma=0.0)
 
 
 #: three moorings (m), their detection curve, and a tag at TAG pinging every PERIOD s from
@@ -177,8 +182,8 @@ def _grouped(case, detections, options) -> dict:
 
 
 def test_grouping_helps_when_three_receivers_hear_the_pings(moored):
-    # measured with the detection curve (session 9): 1.45 m against 2.95 m from 10 min on;
-    # seeds 0-5: ratios 0.49, 0.41, 0.71, 0.45, 0.43, 0.54 (seed 2: a 20 m excursion)
+    # measured with the detection curve at the default 2 ms arrival sd (session 10): 2.17 m
+    # against 2.96 m from 10 min on (1 h runs, 18 fresh seeds: median ratio 0.75)
     case, detections, options = moored
     arrival = score_run(
         track_arrival(detections, case.scenario.receivers, options).estimates,
@@ -186,7 +191,7 @@ def test_grouping_helps_when_three_receivers_hear_the_pings(moored):
     )
     grouped = _grouped(case, detections, options)
     assert grouped["converged"] and arrival["converged"]
-    assert grouped["error_after_10_min_m"] < 0.7 * arrival["error_after_10_min_m"]
+    assert grouped["error_after_10_min_m"] < 0.8 * arrival["error_after_10_min_m"]
     assert grouped["error_after_10_min_m"] < 2.5
 
 

@@ -56,7 +56,10 @@ the range of every receiver that heard it (:func:`heard_loglik`) and ``log(1 −
 ping the particle's clock says a listening receiver missed
 (:func:`~hmmtrack.tracking.measurement.clocked.silence_since`, the same code). Without it, a
 ping heard by two receivers leaves the tag and its mirror across their line equally likely,
-and a cloud can follow the mirror for minutes.
+and a cloud can follow the mirror for minutes. Its arrival sd is its own
+(:data:`PERIOD_ARRIVAL_SIGMA`), and it is the default for a fixed-period tag only where three
+or more receivers hear its pings (:func:`fixed_period_measurement`): with two it was not
+better than the arrival-time measurement.
 """
 
 from __future__ import annotations
