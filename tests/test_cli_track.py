@@ -267,7 +267,8 @@ def test_missing_settings_and_bad_config_files(scenario_files, tmp_path, capsys)
     _, paths = scenario_files
     base = ["track", "--detections", str(paths["detections"]), "--receivers"]
     base += [str(paths["receivers"]), "-o", str(tmp_path / "e.csv")]
-    assert main([*base, "--period", "8.179"]) == 2
+    # (a period alone is a fixed-period tag's whose pings choose its measurement)
+    assert main([*base, "--period", "8.179", "--measurement", "range-rate"]) == 2
     assert "give --r0" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         main([*base, "--period", "8.179", "--r0", "auv:20"])

@@ -57,6 +57,11 @@ from hmmtrack.tracking.config import (
     section_default,
 )
 from hmmtrack.tracking.filter import DEFAULT_FILTER, FILTERS
+from hmmtrack.tracking.measurement.sequence import (
+    GROUPING_RECEIVERS,
+    GROUPING_SHARE,
+    fixed_period_measurement,
+)
 from hmmtrack.tracking.measurement.tdoa import per_ping_table
 from hmmtrack.tracking.settings import boolean
 
@@ -239,7 +244,10 @@ def register(subparsers) -> None:
         choices=tuple(section_classes("measurement")),
         help=(
             "range-rate (default): the paper's ranges and range-rates (needs --r0); "
-            "arrival-time: the tag's emission clock in the particle state, no initial range; "
+            "arrival-time: the tag's emission clock in the particle state, no initial range "
+            "(with --period and no --r0 the default, or ping-sequence when the tag's pings "
+            f"are heard by {GROUPING_RECEIVERS} or more receivers, {100 * GROUPING_SHARE:.0f} "
+            "%% of them or more); "
             "ping (the default with --burst-interval): each ping's arrivals at several receivers "
             "scored on their time differences, for random-interval tags; ping-sequence (the "
             "default with --burst-sequence): the same with the emission times of a known "
@@ -305,10 +313,13 @@ def _given(args: argparse.Namespace) -> dict:
     return {key: value for key, value in given.items() if value is not None}
 
 
-def build_config(args: argparse.Namespace) -> TrackingConfig:
+def build_config(args: argparse.Namespace, fixed_period: str = "arrival-time") -> TrackingConfig:
     """The run's settings: ``--preset`` (if any), overridden by the ``--config`` file (if
     any), overridden by the options.
 
+    A run that names no measurement and gives a period but no ``r0`` tracks a fixed-period
+    tag with the measurement ``fixed_period`` (:func:`run` chooses it from the tag's pings,
+    :func:`~hmmtrack.tracking.measurement.sequence.fixed_period_measurement`).
     ``--bounds`` are taken as metres here; :func:`run` converts them with
     :func:`hmmtrack.io.bounds_in_metres` when the receivers are lon/lat.
     """
@@ -320,15 +331,9 @@ def build_config(args: argparse.Namespace) -> TrackingConfig:
                 "for x/y receivers, LON_MIN LON_MAX LAT_MIN LAT_MAX degrees for lon/lat ones), "
                 f"got {' '.join(f'{b:g}' for b in args.bounds)}"
             )
-    given = _given(args)
-    layers, sources = [], []
-    if args.preset:
-        layers.append(read_preset(args.preset))
-        sources.append(f"preset {args.preset!r}")
-    if args.config:
-        layers.append(read_settings(args.config))
-        sources.append(args.config)
-    settings = merge_settings(*layers, nest(given))
+    given, settings, sources = _layered(args)
+    if _fixed_period(settings):
+        settings["measurement"] = {"name": fixed_period, **settings["measurement"]}
     for option in settings_options():
         if option.key in given:
             _check_used(option, settings)
@@ -344,6 +349,47 @@ def build_config(args: argparse.Namespace) -> TrackingConfig:
         if missing:
             raise UserInputError(f"give {' and '.join(missing)}, or a --config file with them")
     return TrackingConfig.from_dict(settings, source=", ".join([*sources, "command line"]))
+
+
+def _layered(args: argparse.Namespace) -> tuple[dict, dict, list[str]]:
+    """The options given (:func:`_given`), the settings of ``--preset``, ``--config`` and
+    the options merged, and the sources' names."""
+    given = _given(args)
+    layers, sources = [], []
+    if args.preset:
+        layers.append(read_preset(args.preset))
+        sources.append(f"preset {args.preset!r}")
+    if args.config:
+        layers.append(read_settings(args.config))
+        sources.append(args.config)
+    return given, merge_settings(*layers, nest(given)), sources
+
+
+def _fixed_period(settings: dict) -> bool:
+    """Whether merged ``settings`` are a fixed-period tag's whose measurement is not named:
+    a period, no known ranges (``r0``: the range-rate measurement's)."""
+    measurement = settings.get("measurement", {})
+    return "name" not in measurement and "period" in measurement and "r0" not in measurement
+
+
+def _chosen_for_period(args, config, detections, receivers) -> TrackingConfig:
+    """``config`` with the measurement the tag's pings choose
+    (:func:`~hmmtrack.tracking.measurement.sequence.fixed_period_measurement`) when it is a
+    fixed-period tag's whose measurement is not named (:func:`_fixed_period`); the run
+    says which and why."""
+    if not _fixed_period(_layered(args)[1]):
+        return config
+    tracked = tracking.tracked_detections(detections, config)
+    if config.clocks is not None:
+        receivers = tracking.clock_positions(receivers, config.clocks)
+    name, share = fixed_period_measurement(tracked, receivers, config.measurement.period)
+    print(
+        f"measurement: {name} ({100 * share:.0f} % of the pings heard by "
+        f"{GROUPING_RECEIVERS} or more receivers; pings are grouped from "
+        f"{100 * GROUPING_SHARE:.0f} %; --measurement names one)",
+        file=sys.stderr,
+    )
+    return config if name == config.measurement.name else build_config(args, name)
 
 
 def _check_used(option: Option, settings: dict) -> None:
@@ -440,7 +486,7 @@ def _report(result, args: argparse.Namespace, receivers: pd.DataFrame, truth):
 
 
 def run(args: argparse.Namespace) -> int:
-    config = build_config(args)
+    config = build_config(args)  # (the arrival-time measurement until the pings choose)
     inputs = {"--detections": args.detections, "--receivers": args.receivers}
     inputs |= {"--config": args.config, "--model": args.model, "--truth": args.truth}
     inputs |= {"--clocks": config.clocks}
@@ -463,6 +509,7 @@ def run(args: argparse.Namespace) -> int:
     receivers = io.read_receivers(args.receivers, tz=args.tz, time_unit=args.time_unit)
     projection = io.Projection.from_frame(receivers)
     truth = io.read_truth(args.truth, projection, args.time_unit, args.tz) if args.truth else None
+    config = _chosen_for_period(args, config, detections, receivers)
     if args.bounds is not None and projection is not None:
         config = config.override(bounds=io.bounds_in_metres(args.bounds, projection))
     snapshot_times = ()

@@ -19,8 +19,11 @@ from __future__ import annotations
 import time
 from collections.abc import Sequence
 
+import numpy as np
 import pandas as pd
+from scipy import stats
 
+from hmmtrack.analysis.mirror import mirror_share, mirror_track
 from hmmtrack.experiments.arrival import cases
 from hmmtrack.experiments.clock_runs import (
     DURATION,
@@ -40,6 +43,12 @@ GROUPING_CASES = (
     "diagnostic: same pursuit, 3 AUVs",
 )
 
+
+#: the pair of receivers whose line a pursuit's mirror track is reflected across
+#: (:func:`on_mirror`); the third AUV of the diagnostic case follows the same two
+MIRROR_PAIR = ("auv-1", "auv-2")
+#: the estimates of :func:`on_mirror` from this many seconds on, as the error after 10 min
+MIRROR_FROM = 600.0
 
 #: the methods of :func:`grouping_rows`
 METHODS = (
@@ -66,6 +75,19 @@ def grouped_config(options: dict, period: float, bounds, settings: dict | None =
         "end": config.end,
     }
     return TrackingConfig.from_keys(**(keys | dict(settings or {})))
+
+
+def on_mirror(estimates: pd.DataFrame, scenario) -> float:
+    """Share of the estimates from :data:`MIRROR_FROM` s on nearer the tag's mirror across the
+    line of :data:`MIRROR_PAIR` than the tag (:func:`hmmtrack.analysis.mirror.mirror_share`),
+    where the branches are 50 m apart or more; NaN on a case without those receivers (the
+    moorings: three fixed receivers have no mirror)."""
+    receivers = scenario.receivers_truth
+    if not set(MIRROR_PAIR) <= set(receivers["receiver"]):
+        return float("nan")
+    late = estimates[estimates["time"] >= estimates["time"].iloc[0] + MIRROR_FROM]
+    mirror = mirror_track(scenario.truth, receivers, MIRROR_PAIR)
+    return mirror_share(late, scenario.truth, mirror)
 
 
 def _run(method: str, case, seed: int, detections, options: dict, settings):
@@ -115,7 +137,8 @@ def grouping_rows(
     pandas.DataFrame
         One row per case, seed and method: ``scenario``, ``seed``, ``method``, the columns of
         :func:`~hmmtrack.experiments.clock_runs.score_run`, ``cpu_s`` (the run's CPU time, s),
-        and for the grouped run ``heard_per_ping`` (receivers per ping) and
+        ``on_mirror`` (:func:`on_mirror`), and for the grouped run ``heard_per_ping``
+        (receivers per ping), ``heard_by_3`` (share of pings heard by three or more) and
         ``echoes_dropped``.
     """
     rows = []
@@ -130,9 +153,77 @@ def grouping_rows(
                 row = {"scenario": name, "seed": seed, "method": method}
                 row |= score_run(result.estimates, case.scenario.truth)
                 row["cpu_s"] = time.process_time() - began
+                row["on_mirror"] = on_mirror(result.estimates, case.scenario)
                 if method.startswith("grouped"):
-                    obs = result.observations
-                    row["heard_per_ping"] = float(obs.groupby("ping").size().mean())
-                    row["echoes_dropped"] = int(obs.attrs.get("echoes_dropped", 0))
+                    heard = result.observations.groupby("ping").size()
+                    row["heard_per_ping"] = float(heard.mean())
+                    row["heard_by_3"] = float(np.mean(heard >= 3))
+                    row["echoes_dropped"] = int(result.observations.attrs.get("echoes_dropped", 0))
                 rows.append(row)
     return pd.DataFrame(rows)
+
+
+#: a grouped run counts as worse when its error is this much above the arrival-time run's
+WORSE_BY = 0.10
+
+
+def paired_summary(
+    rows: pd.DataFrame,
+    method: str = "grouped pings",
+    baseline: str = "arrival-time",
+    *,
+    n_boot: int = 10_000,
+    seed: int = 0,
+) -> pd.DataFrame:
+    """Per case, ``method`` against ``baseline`` on the same detections and filter seed
+    (paired rows of :func:`grouping_rows`), on the error from 10 min on.
+
+    Parameters
+    ----------
+    rows : pandas.DataFrame
+        :func:`grouping_rows` with both methods at every case and seed.
+    method, baseline : str
+        Of :data:`METHODS`.
+    n_boot : int
+        Bootstrap resamples of the seeds for the median ratio's interval.
+    seed : int
+        Seed of the bootstrap.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per case: ``runs``; ``median_ratio`` (median over seeds of the error ratio,
+        ``method`` / ``baseline``) and its percentile-bootstrap 95 % interval ``ratio_lo``,
+        ``ratio_hi``; ``wilcoxon_p`` (two-sided paired Wilcoxon signed-rank test of the
+        errors) and ``p_worse`` (one-sided, ``method`` worse); ``worse_share`` (share of
+        seeds whose ratio is above ``1 +`` :data:`WORSE_BY`); the median errors (m) and mean
+        on-mirror shares of both (``on_mirror_*``, NaN without a mirror); and the mean
+        ``heard_by_3`` share of ``method``'s runs when it has one.
+    """
+    error = "error_after_10_min_m"
+    rng = np.random.default_rng(seed)
+    out = []
+    for name, case in rows.groupby("scenario", sort=False):
+        wide = case.pivot(index="seed", columns="method")
+        a = wide[(error, method)].to_numpy(dtype=float)
+        b = wide[(error, baseline)].to_numpy(dtype=float)
+        ratio = a / b
+        boot = np.median(ratio[rng.integers(0, ratio.size, (n_boot, ratio.size))], axis=1)
+        row = {
+            "scenario": name,
+            "runs": ratio.size,
+            "median_ratio": float(np.median(ratio)),
+            "ratio_lo": float(np.percentile(boot, 2.5)),
+            "ratio_hi": float(np.percentile(boot, 97.5)),
+            "wilcoxon_p": float(stats.wilcoxon(a, b).pvalue),
+            "p_worse": float(stats.wilcoxon(a, b, alternative="greater").pvalue),
+            "worse_share": float(np.mean(ratio > 1.0 + WORSE_BY)),
+            f"median_{baseline}_m": float(np.median(b)),
+            f"median_{method}_m": float(np.median(a)),
+            f"on_mirror_{baseline}": float(wide[("on_mirror", baseline)].mean()),
+            f"on_mirror_{method}": float(wide[("on_mirror", method)].mean()),
+        }
+        if ("heard_by_3", method) in wide:
+            row["heard_by_3"] = float(wide[("heard_by_3", method)].mean())
+        out.append(row)
+    return pd.DataFrame(out)

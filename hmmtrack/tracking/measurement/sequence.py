@@ -56,7 +56,10 @@ the range of every receiver that heard it (:func:`heard_loglik`) and ``log(1 −
 ping the particle's clock says a listening receiver missed
 (:func:`~hmmtrack.tracking.measurement.clocked.silence_since`, the same code). Without it, a
 ping heard by two receivers leaves the tag and its mirror across their line equally likely,
-and a cloud can follow the mirror for minutes.
+and a cloud can follow the mirror for minutes. Its arrival sd is its own
+(:data:`PERIOD_ARRIVAL_SIGMA`), and it is the default for a fixed-period tag only where three
+or more receivers hear its pings (:func:`fixed_period_measurement`): with two it was not
+better than the arrival-time measurement.
 """
 
 from __future__ import annotations
@@ -67,11 +70,13 @@ import math
 from dataclasses import dataclass
 from typing import ClassVar
 
+import numba
 import numpy as np
 import pandas as pd
 from numba import njit
 
 from hmmtrack.io import read_burst_sequence
+from hmmtrack.tracking.compiled.chunks import in_chunks, next_chunk
 from hmmtrack.tracking.measurement.arrival_time import emission_distance
 from hmmtrack.tracking.measurement.base import Score
 from hmmtrack.tracking.measurement.clocked import (
@@ -103,7 +108,10 @@ __all__ = [
     "ANCHORS",
     "DRIFT_SD",
     "EMISSION_JITTER",
+    "GROUPING_RECEIVERS",
+    "GROUPING_SHARE",
     "OFFSET_SD",
+    "PERIOD_ARRIVAL_SIGMA",
     "PERIOD_BROADENING",
     "SEQUENCE_ARRIVAL_SIGMA",
     "SEQUENCE_FIELDS",
@@ -113,6 +121,7 @@ __all__ = [
     "SequenceState",
     "align_sequence",
     "broadened_sigma",
+    "fixed_period_measurement",
     "heard_loglik",
     "period_clock_noise",
     "sequence_observations",
@@ -160,9 +169,19 @@ _LOG_2PI = math.log(2.0 * math.pi)
 #: (reasons in reports/decisions.md, "Fixed-period tags with ping grouping"; held-out
 #: seeds in "Fixed-period grouping with the detection curve")
 PERIOD_BROADENING = 0.02
-#: arrival sd (s) of the sequence measurement: the 1 ms it was measured with (its clock puts
+#: arrival sd (s) of a known burst sequence: the 1 ms it was measured with (its clock puts
 #: each emission to a millisecond; the random-interval ping's 2 ms is for its untimed pings)
 SEQUENCE_ARRIVAL_SIGMA = 1e-3
+#: arrival sd (s) of a fixed-period tag's grouped pings: at 1 ms a cloud left behind by a
+#: sharp turn gets no pull back (held-out seeds, reports/decisions.md, "Fixed-period grouping
+#: with the detection curve")
+PERIOD_ARRIVAL_SIGMA = 2e-3
+#: a fixed-period tag whose measurement is not named has its pings grouped
+#: (:func:`fixed_period_measurement`) when at least GROUPING_SHARE of them are heard by
+#: GROUPING_RECEIVERS or more receivers: with two, grouping was not better than the
+#: arrival-time filter (reports/decisions.md, "Fixed-period grouping by default")
+GROUPING_RECEIVERS = 3
+GROUPING_SHARE = 0.25
 
 
 # ---------------------------------------------------------------------------- alignment
@@ -514,15 +533,100 @@ def sequence_ping_integral(residual, mu, var, sigma, outlier_fraction, half_widt
     return n * math.log(beta) + top + math.log(total), mu + mean, max(moment - mean * mean, 0.0)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
+def _sequence_kernel(
+    x, y, vx, vy, depth, arrival, receiver_x, receiver_y, row_offset, time, slowness,
+    scheduled, elapsed, clock, noise, sigma, outlier_fraction, half_width, emission, updated,
+    counter, loglik,
+):  # fmt: skip
+    """:func:`sequence_ping_loglik` for every particle of each chunk not yet claimed
+    (:func:`~hmmtrack.tracking.compiled.chunks.next_chunk`)."""
+    residual = np.empty(arrival.size)
+    jitter = EMISSION_JITTER * EMISSION_JITTER
+    parts = np.empty((2, 7))  # per prior: log weight, mean of T, updated clock (5)
+    chunk, lo, hi = next_chunk(counter, x.size)
+    while chunk >= 0:
+        for p in range(lo, hi):
+            u = clock[0, p] + clock[1, p] * elapsed  # predicted offset and its covariance
+            p_uu = (
+                clock[2, p] + 2.0 * elapsed * clock[3, p] + elapsed * elapsed * clock[4, p]
+                + noise[0] * elapsed
+            )  # fmt: skip
+            p_ub = clock[3, p] + elapsed * clock[4, p]
+            p_bb = clock[4, p] + noise[1] * elapsed
+            ping_residuals(
+                p, x, y, vx, vy, depth, arrival, receiver_x, receiver_y, row_offset, time,
+                slowness, residual,
+            )  # fmt: skip
+            residual -= scheduled
+            # two priors of the emission's offset: the particle's clock, and (share
+            # CLOCK_RESET) the same widened by OFFSET_SD, a clock set from a wrong position
+            for k in range(2):
+                wide = OFFSET_SD * OFFSET_SD if k == 1 else 0.0
+                share = CLOCK_RESET if k == 1 else 1.0 - CLOCK_RESET
+                prior = p_uu + wide + jitter
+                log_k, mean, var = sequence_ping_integral(
+                    residual, u, prior, sigma, outlier_fraction, half_width
+                )
+                gain_u = (p_uu + wide) / prior
+                gain_b = p_ub / prior
+                shrink = prior - var
+                parts[k, 0] = log_k + math.log(share)
+                parts[k, 1] = mean
+                parts[k, 2] = u + gain_u * (mean - u)
+                parts[k, 3] = clock[1, p] + gain_b * (mean - u)
+                parts[k, 4] = p_uu + wide - gain_u * gain_u * shrink
+                parts[k, 5] = p_ub - gain_u * gain_b * shrink
+                parts[k, 6] = p_bb - gain_b * gain_b * shrink
+            top = max(parts[0, 0], parts[1, 0])
+            w0 = math.exp(parts[0, 0] - top)
+            w1 = math.exp(parts[1, 0] - top)
+            log_mix = top + math.log(w0 + w1)
+            w0, w1 = w0 / (w0 + w1), w1 / (w0 + w1)
+            mean_mix = w0 * parts[0, 1] + w1 * parts[1, 1]
+            loglik[p] = log_mix
+            emission[p] = scheduled + mean_mix
+            # the two posteriors of (offset, drift) moment-matched into one Gaussian
+            du = parts[0, 2] - parts[1, 2]
+            db = parts[0, 3] - parts[1, 3]
+            spread = w0 * w1
+            updated[0, p] = w0 * parts[0, 2] + w1 * parts[1, 2]
+            updated[1, p] = w0 * parts[0, 3] + w1 * parts[1, 3]
+            updated[2, p] = w0 * parts[0, 4] + w1 * parts[1, 4] + spread * du * du
+            updated[3, p] = w0 * parts[0, 5] + w1 * parts[1, 5] + spread * du * db
+            updated[4, p] = w0 * parts[0, 6] + w1 * parts[1, 6] + spread * db * db
+        chunk, lo, hi = next_chunk(counter, x.size)
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def _sequence_parallel(
+    threads, x, y, vx, vy, depth, arrival, receiver_x, receiver_y, row_offset, time, slowness,
+    scheduled, elapsed, clock, noise, sigma, outlier_fraction, half_width, emission, updated,
+    counter, loglik,
+):  # fmt: skip
+    """:func:`_sequence_kernel` on ``threads`` threads."""
+    for _ in numba.prange(threads):
+        _sequence_kernel(
+            x, y, vx, vy, depth, arrival, receiver_x, receiver_y, row_offset, time, slowness,
+            scheduled, elapsed, clock, noise, sigma, outlier_fraction, half_width, emission,
+            updated, counter, loglik,
+        )  # fmt: skip
+
+
 def sequence_ping_loglik(
     x, y, vx, vy, depth, arrival, receiver_x, receiver_y, row_offset, time, sound_speed,
     scheduled, elapsed, clock, noise, sigma, outlier_fraction, half_width, loglik, emission,
-    updated,
+    updated, threads=None,
 ):  # fmt: skip
     """One matched ping for every particle: its log-likelihood into ``loglik`` (N,), the
     posterior mean emission time into ``emission`` (N,), and each particle's clock after
     the ping into ``updated`` (5, N).
+
+    The particles are scored in chunks on ``threads`` threads, as
+    :func:`~hmmtrack.tracking.measurement.tdoa.ping_loglik`'s (default: the enclosing
+    :func:`~hmmtrack.tracking.compiled.chunks.default_threads` block's, the filter's
+    correction threads, else numba's thread count); each particle's result is computed
+    alone, so it does not depend on the number of threads.
 
     Parameters
     ----------
@@ -538,60 +642,14 @@ def sequence_ping_loglik(
     noise : (2,) float array
         Random-walk densities of the offset (s²/s) and of the drift (1/s)
         (:attr:`PingSequence.clock_noise`).
+    threads : int, optional
     """
-    slowness = 1.0 / sound_speed
-    residual = np.empty(arrival.size)
-    jitter = EMISSION_JITTER * EMISSION_JITTER
-    parts = np.empty((2, 7))  # per prior: log weight, mean of T, updated clock (5)
-    for p in range(x.size):
-        u = clock[0, p] + clock[1, p] * elapsed  # predicted offset and its covariance
-        p_uu = (
-            clock[2, p] + 2.0 * elapsed * clock[3, p] + elapsed * elapsed * clock[4, p]
-            + noise[0] * elapsed
-        )  # fmt: skip
-        p_ub = clock[3, p] + elapsed * clock[4, p]
-        p_bb = clock[4, p] + noise[1] * elapsed
-        ping_residuals(
-            p, x, y, vx, vy, depth, arrival, receiver_x, receiver_y, row_offset, time,
-            slowness, residual,
-        )  # fmt: skip
-        residual -= scheduled
-        # two priors of the emission's offset: the particle's clock, and (share
-        # CLOCK_RESET) the same widened by OFFSET_SD, a clock set from a wrong position
-        for k in range(2):
-            wide = OFFSET_SD * OFFSET_SD if k == 1 else 0.0
-            share = CLOCK_RESET if k == 1 else 1.0 - CLOCK_RESET
-            prior = p_uu + wide + jitter
-            log_k, mean, var = sequence_ping_integral(
-                residual, u, prior, sigma, outlier_fraction, half_width
-            )
-            gain_u = (p_uu + wide) / prior
-            gain_b = p_ub / prior
-            shrink = prior - var
-            parts[k, 0] = log_k + math.log(share)
-            parts[k, 1] = mean
-            parts[k, 2] = u + gain_u * (mean - u)
-            parts[k, 3] = clock[1, p] + gain_b * (mean - u)
-            parts[k, 4] = p_uu + wide - gain_u * gain_u * shrink
-            parts[k, 5] = p_ub - gain_u * gain_b * shrink
-            parts[k, 6] = p_bb - gain_b * gain_b * shrink
-        top = max(parts[0, 0], parts[1, 0])
-        w0 = math.exp(parts[0, 0] - top)
-        w1 = math.exp(parts[1, 0] - top)
-        log_mix = top + math.log(w0 + w1)
-        w0, w1 = w0 / (w0 + w1), w1 / (w0 + w1)
-        mean_mix = w0 * parts[0, 1] + w1 * parts[1, 1]
-        loglik[p] = log_mix
-        emission[p] = scheduled + mean_mix
-        # the two posteriors of (offset, drift) moment-matched into one Gaussian
-        du = parts[0, 2] - parts[1, 2]
-        db = parts[0, 3] - parts[1, 3]
-        spread = w0 * w1
-        updated[0, p] = w0 * parts[0, 2] + w1 * parts[1, 2]
-        updated[1, p] = w0 * parts[0, 3] + w1 * parts[1, 3]
-        updated[2, p] = w0 * parts[0, 4] + w1 * parts[1, 4] + spread * du * du
-        updated[3, p] = w0 * parts[0, 5] + w1 * parts[1, 5] + spread * du * db
-        updated[4, p] = w0 * parts[0, 6] + w1 * parts[1, 6] + spread * db * db
+    args = (
+        x, y, vx, vy, depth, arrival, receiver_x, receiver_y, row_offset, float(time),
+        1.0 / sound_speed, float(scheduled), float(elapsed), clock, noise, float(sigma),
+        float(outlier_fraction), float(half_width), emission, updated,
+    )  # fmt: skip
+    in_chunks(_sequence_kernel, _sequence_parallel, np.shape(x)[0], threads, args, loglik)
 
 
 @njit(cache=True)
@@ -644,6 +702,9 @@ class PingSequenceSettings(PingSettings):
     burst_sequence : str or tuple of float
         CSV file of the tag's intervals (``interval`` column, s;
         :func:`hmmtrack.io.read_burst_sequence`), or the intervals themselves.
+    arrival_sigma : float, str or None
+        As :class:`~hmmtrack.tracking.measurement.tdoa.PingSettings`; ``None``: the
+        case's own (:meth:`chosen_sigma`).
     period : float or None
         A fixed-period tag's period (s), instead of ``burst_sequence``: a sequence of one
         interval, so that its pings are grouped and scored jointly against the tag's clock
@@ -660,7 +721,16 @@ class PingSequenceSettings(PingSettings):
 
     # not an option of this measurement (the command line refuses --burst-interval with it)
     burst_interval: tuple[float, float] | None = None
-    arrival_sigma: float = arrival_sigma_setting(SEQUENCE_ARRIVAL_SIGMA)
+    arrival_sigma: float | str | None = dataclasses.field(
+        default=None,
+        metadata=dict(arrival_sigma_setting(None).metadata)
+        | {
+            "default_text": (
+                f"{PERIOD_ARRIVAL_SIGMA:g} with period, {SEQUENCE_ARRIVAL_SIGMA:g} with "
+                "burst_sequence"
+            )
+        },
+    )
     burst_sequence: str | tuple[float, ...] | None = setting(
         None,
         help=(
@@ -705,6 +775,13 @@ class PingSequenceSettings(PingSettings):
     def to_dict(self) -> dict:
         """As :meth:`PingSettings.to_dict`, the detection curve as ``{"range_50", "width"}``."""
         return curve_to_dict(super().to_dict(), self.detection_curve)
+
+    def chosen_sigma(self) -> float | str:
+        """:attr:`arrival_sigma`, else :data:`PERIOD_ARRIVAL_SIGMA` for a fixed-period tag and
+        :data:`SEQUENCE_ARRIVAL_SIGMA` for a known sequence (each the sd it was chosen at)."""
+        if self.arrival_sigma is not None:
+            return self.arrival_sigma
+        return SEQUENCE_ARRIVAL_SIGMA if self.period is None else PERIOD_ARRIVAL_SIGMA
 
     def intervals(self) -> tuple[np.ndarray, str]:
         """The sequence (s) and what it is, for messages (its file, ``"the given
@@ -799,8 +876,10 @@ class PingSequence(PingTDOA):
     def from_settings(cls, settings: PingSequenceSettings, observations: pd.DataFrame, receivers):
         """:meth:`PingTDOA.from_settings`, with the clock noise of a fixed-period tag
         (:func:`period_clock_noise`), its broadening, its schedule's period and, with a
-        detection curve, its silence model when ``settings.period`` is given."""
-        built = super().from_settings(settings, observations, receivers)
+        detection curve, its silence model when ``settings.period`` is given; the arrival sd
+        is the settings' :meth:`~PingSequenceSettings.chosen_sigma`."""
+        chosen = dataclasses.replace(settings, arrival_sigma=settings.chosen_sigma())
+        built = super().from_settings(chosen, observations, receivers)
         if settings.period is None:
             return built
         silence = None
@@ -971,3 +1050,33 @@ def _prior_clock(n: int, drift_sd: float) -> np.ndarray:
     prior[2] = OFFSET_SD**2
     prior[4] = drift_sd**2
     return prior
+
+
+# ---------------------------------------------------------------------------- the default
+
+
+def fixed_period_measurement(detections: pd.DataFrame, receivers, period: float):
+    """The measurement a fixed-period tag is tracked with when none is named: its pings
+    grouped (``"ping-sequence"``) when at least :data:`GROUPING_SHARE` of them are heard by
+    :data:`GROUPING_RECEIVERS` or more receivers, else ``"arrival-time"``.
+
+    Parameters
+    ----------
+    detections : pandas.DataFrame
+        The tag's detections on the common time base (``time`` s, ``receiver``;
+        :func:`hmmtrack.tracking.pipeline.tracked_detections`).
+    receivers : pandas.DataFrame or ReceiverTracks
+    period : float
+        The tag's period (s): the longest grouping window.
+
+    Returns
+    -------
+    name : str
+        ``"ping-sequence"`` or ``"arrival-time"``.
+    share : float
+        Share of the pings heard by :data:`GROUPING_RECEIVERS` or more receivers.
+    """
+    obs = ping_observations(detections, receiver_tracks(receivers), period)
+    heard = obs.groupby("ping")["heard"].first().to_numpy()
+    share = float(np.mean(heard >= GROUPING_RECEIVERS)) if heard.size else 0.0
+    return ("ping-sequence" if share >= GROUPING_SHARE else "arrival-time"), share
