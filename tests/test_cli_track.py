@@ -281,6 +281,30 @@ def test_missing_settings_and_bad_config_files(scenario_files, tmp_path, capsys)
     assert str(bad) in err and "unknown key(s) ['particles']" in err
 
 
+def test_per_ping_follows_the_measurement_the_pings_choose(
+    scenario_files, arrival_files, tmp_path, capsys
+):
+    """``--period`` alone lets the pings choose the measurement; ``--per-ping`` is then
+    checked against the chosen one: written where the moorings' pings are grouped, refused
+    (saying the pings chose) where two receivers leave the arrival-time measurement."""
+    scenario, paths = arrival_files
+    window = io.format_times(np.array([scenario.start, scenario.start + 120.0]))
+    pings = tmp_path / "pings.csv"
+    args = ["track", "--detections", str(paths["detections"]), "--receivers"]
+    args += [str(paths["receivers"]), "--period", str(scenario.period), "--particles", "300"]
+    args += ["--seed", "1", "--start", window[0], "--end", window[1]]
+    assert main([*args, "-o", str(tmp_path / "e.csv"), "--per-ping", str(pings)]) == 0
+    assert "measurement: ping-sequence" in capsys.readouterr().err
+    assert len(pd.read_csv(pings)) > 5
+    _, two = scenario_files
+    args = ["track", "--detections", str(two["detections"]), "--receivers"]
+    args += [str(two["receivers"]), "--period", "8.179", "-o", str(tmp_path / "f.csv")]
+    assert main([*args, "--per-ping", str(tmp_path / "p2.csv")]) == 2
+    err = capsys.readouterr().err
+    assert "this run's is arrival-time, chosen by the pings" in err
+    assert not (tmp_path / "f.csv").exists() and not (tmp_path / "p2.csv").exists()
+
+
 @pytest.fixture(scope="module")
 def arrival_files(tmp_path_factory):
     """A moored array heard with clock-corrected times (no initial range), as CSV files."""

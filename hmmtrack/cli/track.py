@@ -392,6 +392,16 @@ def _chosen_for_period(args, config, detections, receivers) -> TrackingConfig:
     return config if name == config.measurement.name else build_config(args, name)
 
 
+def _require_pings(args, config: TrackingConfig, chosen: str = "") -> None:
+    """Refuse ``--per-ping`` unless the run's measurement scores pings (``chosen`` says how
+    that measurement was chosen)."""
+    if args.per_ping and config.measurement.name not in ("ping", "ping-sequence"):
+        raise UserInputError(
+            f"--per-ping is used with --measurement ping or ping-sequence only (this run's is "
+            f"{config.measurement.name}{chosen})"
+        )
+
+
 def _check_used(option: Option, settings: dict) -> None:
     """Refuse an option that the run's components do not use."""
     section = settings.get(option.section, {}) if option.section else settings
@@ -493,11 +503,9 @@ def run(args: argparse.Namespace) -> int:
     sequence = getattr(config.measurement, "burst_sequence", None)
     if isinstance(sequence, str):
         inputs["--burst-sequence"] = sequence
-    if args.per_ping and config.measurement.name not in ("ping", "ping-sequence"):
-        raise UserInputError(
-            f"--per-ping is used with --measurement ping or ping-sequence only (this run's is "
-            f"{config.measurement.name})"
-        )
+    undecided = _fixed_period(_layered(args)[1])  # (the pings choose the measurement)
+    if not undecided:
+        _require_pings(args, config)
     check_paths(
         inputs, outputs={"-o": args.output, "--plot": args.plot, "--per-ping": args.per_ping}
     )
@@ -510,6 +518,10 @@ def run(args: argparse.Namespace) -> int:
     projection = io.Projection.from_frame(receivers)
     truth = io.read_truth(args.truth, projection, args.time_unit, args.tz) if args.truth else None
     config = _chosen_for_period(args, config, detections, receivers)
+    if undecided:
+        _require_pings(
+            args, config, ", chosen by the pings: --measurement ping-sequence groups them"
+        )
     if args.bounds is not None and projection is not None:
         config = config.override(bounds=io.bounds_in_metres(args.bounds, projection))
     snapshot_times = ()
