@@ -149,7 +149,7 @@ def default_threads(threads: int) -> Iterator[None]:
         _DEFAULT.threads = outer
 
 
-def block_threads(otherwise: int) -> int:
+def block_threads(otherwise: int | None) -> int | None:
     """The thread count of the enclosing :func:`default_threads` block, else ``otherwise``."""
     return getattr(_DEFAULT, "threads", None) or otherwise
 
@@ -181,7 +181,7 @@ def in_chunks(kernel, parallel, n: int, threads: int | None, args: tuple, out) -
     global _OPENMP_STARTED
     counter = np.zeros(1, dtype=np.int64)
     if threads is None:
-        threads = getattr(_DEFAULT, "threads", None)
+        threads = block_threads(None)
     if threads == 1:  # straight to the kernel: asking numba for its threads costs more
         kernel(*args, counter, out)
         return

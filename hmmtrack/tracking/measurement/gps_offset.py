@@ -64,6 +64,7 @@ from hmmtrack.tracking.measurement.base import Score
 from hmmtrack.tracking.measurement.range_rate import (
     RangeRateMeasurement,
     RangeRateSettings,
+    predicted_row,
 )
 from hmmtrack.tracking.particles import Particles
 from hmmtrack.tracking.receivers import ReceiverTracks
@@ -356,7 +357,8 @@ def _offset_kernel(
     updated,
 ):  # fmt: skip
     """For every particle: the Kalman predictive log density of each row ``j`` of ``z``
-    ((M, 7): :data:`RANGE_RATE_COLUMNS` and the receiver index ``k``) with offset mean
+    ((M, 7): :data:`RANGE_RATE_COLUMNS` and the receiver index ``k``; the predicted range and
+    range-rate :func:`~hmmtrack.tracking.measurement.range_rate.predicted_row`) with offset mean
     ``rho[j] * m_k`` and variance ``predictive[j]``, plus the white range-rate's (variance
     ``rate_var``), summed into ``out`` (N,); the offset means after each row's update
     (``m_k + gain[j] * innovation``) into ``updated`` (N, R), starting from ``means``."""
@@ -369,10 +371,7 @@ def _offset_kernel(
         total = 0.0
         for j in range(z.shape[0]):
             k = int(z[j, 6])
-            dx = z[j, 2] - x[i]
-            dy = z[j, 3] - y[i]
-            r_hat = math.sqrt(dx * dx + dy * dy)
-            r_dot_hat = (dx * (z[j, 4] - vx) + dy * (z[j, 5] - vy)) / r_hat if r_hat > 0 else 0.0
+            r_hat, r_dot_hat = predicted_row(z, j, x[i], y[i], vx, vy)
             mean = rho[j] * updated[i, k]
             innovation = z[j, 0] - r_hat - mean
             total += -0.5 * (

@@ -69,6 +69,7 @@ __all__ = [
     "RangeRateSettings",
     "check_bounds",
     "predicted_range_and_rate",
+    "predicted_row",
     "search_bounds",
 ]
 
@@ -129,6 +130,19 @@ def predicted_range_and_rate(
     r_hat = np.hypot(dx, dy)
     safe = np.where(r_hat > 0, r_hat, 1.0)
     r_dot_hat = np.where(r_hat > 0, (dx * dvx + dy * dvy) / safe, 0.0)
+    return r_hat, r_dot_hat
+
+
+@njit(cache=True, inline="always")
+def predicted_row(z, j, x, y, vx, vy):
+    """Predicted range (m) and range-rate (m/s) of observation row ``j`` of ``z`` (columns
+    in the order of :data:`RANGE_RATE_COLUMNS`) for one particle at ``(x, y)`` m moving at
+    ``(vx, vy)`` m/s: :func:`predicted_range_and_rate`'s equations in compiled kernels (the
+    range-rate 0 for a particle exactly at the receiver)."""
+    dx = z[j, 2] - x
+    dy = z[j, 3] - y
+    r_hat = math.sqrt(dx * dx + dy * dy)
+    r_dot_hat = (dx * (z[j, 4] - vx) + dy * (z[j, 5] - vy)) / r_hat if r_hat > 0 else 0.0
     return r_hat, r_dot_hat
 
 
@@ -648,8 +662,8 @@ def check_bounds(
 def _range_rate_kernel(x, y, cos_heading, sin_heading, speed, z, precision, log_norm, counter, out):
     """:meth:`RangeRateMeasurement.loglik` of every chunk of particles not yet claimed
     (:func:`~hmmtrack.tracking.compiled.chunks.next_chunk`) into ``out`` (N,); ``z`` is
-    (M, 6) in the order of :data:`RANGE_RATE_COLUMNS`. Same equations as
-    :func:`predicted_range_and_rate`; each particle's value is computed alone."""
+    (M, 6) in the order of :data:`RANGE_RATE_COLUMNS` (:func:`predicted_row`); each
+    particle's value is computed alone."""
     p00, p01, p11 = precision[0, 0], precision[0, 1], precision[1, 1]
     chunk, lo, hi = next_chunk(counter, x.size)
     while chunk >= 0:
@@ -662,12 +676,7 @@ def _range_rate_kernel(x, y, cos_heading, sin_heading, speed, z, precision, log_
             vy = vs[i] * ss[i]
             total = 0.0
             for j in range(z.shape[0]):
-                dx = z[j, 2] - xs[i]
-                dy = z[j, 3] - ys[i]
-                r_hat = math.sqrt(dx * dx + dy * dy)
-                r_dot_hat = (
-                    (dx * (z[j, 4] - vx) + dy * (z[j, 5] - vy)) / r_hat if r_hat > 0 else 0.0
-                )
+                r_hat, r_dot_hat = predicted_row(z, j, xs[i], ys[i], vx, vy)
                 e_r = r_hat - z[j, 0]
                 e_v = r_dot_hat - z[j, 1]
                 total += log_norm - 0.5 * (
