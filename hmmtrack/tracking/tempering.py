@@ -13,7 +13,9 @@ log-likelihood to the log weights through a policy object with two methods,
   likelihood is applied in powers ``β₁ + β₂ + … = 1`` (:func:`temper`), each followed by
   resampling and a small Gaussian move of the positions shaped by the particles' own
   covariance (:func:`regularisation_move`), and the measurement rescores the moved particles
-  (``score.rescore``). Usable with any measurement.
+  (``score.rescore``). With a ``trigger`` below ``ess``, only a correction that would leave
+  fewer than ``trigger · N`` in one pass is tempered (the cloud far wider than the
+  likelihood); the others are plain. Usable with any measurement.
 
 This module does not score observations (:mod:`hmmtrack.tracking.measurement`) nor hold the
 filter's weights (the filter keeps them: :meth:`ParticleFilter.keep_weights`).
@@ -48,7 +50,12 @@ class Tempered:
     ----------
     ess : float
         Fraction of ``N`` in (0, 1): a correction that would leave fewer effective
-        particles is tempered.
+        particles is tempered, in steps that each keep this many.
+    trigger : float or None
+        Fraction of ``N`` in (0, ``ess``]: temper only a correction that would leave fewer
+        effective particles than this in one pass (the cloud much wider than the
+        likelihood: before convergence, after a gap), and then in steps that keep ``ess``;
+        a correction between the two is applied in one pass. ``None``: ``ess``.
 
     Notes
     -----
@@ -59,11 +66,16 @@ class Tempered:
     """
 
     ess: float = 0.3
+    trigger: float | None = None
 
     def __post_init__(self) -> None:
         if not 0.0 < self.ess < 1.0:
             raise ValueError(f"tempering_ess must be in (0, 1), got {self.ess}")
         object.__setattr__(self, "ess", float(self.ess))
+        if self.trigger is not None:
+            if not 0.0 < self.trigger <= self.ess:
+                raise ValueError(f"trigger must be in (0, ess = {self.ess}], got {self.trigger}")
+            object.__setattr__(self, "trigger", float(self.trigger))
 
     def initialised(self, pf) -> None:
         """Keep the equal weights of fresh particles in the filter's cache."""
@@ -72,11 +84,19 @@ class Tempered:
     def correct(self, pf, score, table):
         """Apply ``score.loglik`` in tempered steps; the weighted estimate after them.
 
+        With a ``trigger``, first in one pass (:meth:`ParticleFilter.weigh`), kept when its
+        ESS reaches ``trigger · N``, else undone (the log weights restored) and tempered.
         Between steps the particles are resampled (:meth:`ParticleFilter.resample`), moved
         (:func:`regularisation_move`, one ``(2, N)`` draw of standard normals from the
         filter's generator) and rescored (``score.rescore(particles, weights)``).
         """
         loglik = score.loglik
+        if self.trigger is not None:
+            before = pf.particles.log_weight  # ParticleFilter.weigh leaves this array intact
+            estimate = pf.weigh(loglik, table)
+            if estimate.n_eff >= self.trigger * pf.n_particles:
+                return estimate
+            pf.particles.log_weight = before
         bandwidth = (4.0 / (pf.n_particles * 4.0)) ** (1.0 / 6.0)
         remaining = 1.0
         while True:

@@ -80,10 +80,15 @@ GPS_SD = 1.5
 #: e-folding time (s) of the GPS error: multipath and atmospheric errors of a GPS fix wander
 #: over about a minute
 GPS_CORRELATION_TIME = 60.0
-#: the ESS fraction below which a correction is tempered by default: a range known to a metre
-#: against a start region hundreds of metres wide leaves a handful of particles in one pass
-#: (reports/decisions.md, "Correlated GPS error in the measurement")
-GPS_TEMPERING_ESS = 0.5
+#: the ESS fraction each tempered step keeps by default: a range known to a metre against a
+#: start region hundreds of metres wide leaves a handful of particles in one pass
+#: (reports/decisions.md, "Correlated GPS error in the measurement", "The gps measurement's
+#: cost and calibration")
+GPS_TEMPERING_ESS = 0.3
+#: the one-pass ESS fraction below which a correction is tempered by default: above it the
+#: correction is applied in one pass, as the paper's, which keeps the converged filter's cost
+#: at today's (reports/decisions.md, "The gps measurement's cost and calibration")
+GPS_TEMPERING_TRIGGER = 0.05
 #: sd (m) of the range error that is independent from ping to ping: the emission jitter
 #: (0.15-0.2 m) and what the model leaves out (the turning line of sight, detections taken at
 #: the filter's 1 s steps); 0.5 m made the still tag's regions overconfident
@@ -184,17 +189,28 @@ def offset_steps(state: OffsetState, receiver: np.ndarray, time: float, gps_sd, 
     after : OffsetState
         The state after the rows.
     """
-    variance, last = state.variance.copy(), state.time.copy()
+    rho, predictive, gain, variance, last = _offset_steps(
+        state.variance, state.time, receiver, float(time), float(gps_sd), tau, float(white)
+    )
+    return rho, predictive, gain, OffsetState(variance, last)
+
+
+@njit(cache=True)
+def _offset_steps(variance, last, receiver, time, gps_sd, tau, white):
+    """:func:`offset_steps` on the state's arrays (copied, not changed): ``rho``,
+    ``predictive``, ``gain`` (M,) and the variances and times (R,) after the rows."""
+    variance, last = variance.copy(), last.copy()
     m = receiver.size
     rho, predictive, gain = np.empty(m), np.empty(m), np.empty(m)
-    for j, k in enumerate(receiver.tolist()):
+    for j in range(m):
+        k = receiver[j]
         rho[j] = 0.0 if np.isnan(last[k]) else math.exp(-(time - last[k]) / tau[k])
         prior = rho[j] ** 2 * variance[k] + (1.0 - rho[j] ** 2) * gps_sd**2
         predictive[j] = prior + white**2
         gain[j] = prior / predictive[j]
         variance[k] = prior * white**2 / predictive[j]
         last[k] = time
-    return rho, predictive, gain, OffsetState(variance, last)
+    return rho, predictive, gain, variance, last
 
 
 @dataclass(frozen=True, eq=False)
@@ -224,7 +240,7 @@ class GpsOffsetMeasurement(RangeRateMeasurement):
     sigma_white: float = SIGMA_WHITE
     name: ClassVar[str] = "range-rate-gps"
     settings: ClassVar[type] = GpsOffsetSettings
-    default_correction: ClassVar[Tempered] = Tempered(GPS_TEMPERING_ESS)
+    default_correction: ClassVar[Tempered] = Tempered(GPS_TEMPERING_ESS, GPS_TEMPERING_TRIGGER)
     _index: dict = field(init=False, repr=False, compare=False)
     _tau: np.ndarray = field(init=False, repr=False, compare=False)
 
@@ -321,7 +337,7 @@ class GpsOffsetMeasurement(RangeRateMeasurement):
 
         def scored(particles, weights=None):
             p = particles
-            means = np.column_stack([p.extra[name] for name in self.fields])
+            means = np.stack([p.extra[name] for name in self.fields])
             loglik, updated = offset_loglik(
                 p.x, p.y, p.cos_heading, p.sin_heading, p.speed, np.ascontiguousarray(rows),
                 means, *steps[:3], float(self.covariance[1, 1]),
@@ -331,7 +347,7 @@ class GpsOffsetMeasurement(RangeRateMeasurement):
 
         def commit(particles):
             for k, name in enumerate(self.fields):
-                particles.extra[name] = np.ascontiguousarray(latest[0][:, k])
+                particles.extra[name] = latest[0][k]
             state.variance, state.time = steps[3].variance, steps[3].time
 
         return Score(scored(particles), rescore=scored, commit=commit)
@@ -340,8 +356,8 @@ class GpsOffsetMeasurement(RangeRateMeasurement):
 def offset_loglik(
     x, y, cos_heading, sin_heading, speed, rows, means, rho, predictive, gain, rate_var
 ):
-    """Per-particle log-likelihood (N,) and updated offset means (N, R) of one correction
-    (:func:`_offset_kernel`)."""
+    """Per-particle log-likelihood (N,) and updated offset means (R, N) of one correction
+    from the means ``means`` (R, N) (:func:`_offset_kernel`)."""
     loglik = np.empty(x.size)
     updated = np.empty_like(means)
     _offset_kernel(
@@ -361,23 +377,24 @@ def _offset_kernel(
     range-rate :func:`~hmmtrack.tracking.measurement.range_rate.predicted_row`) with offset mean
     ``rho[j] * m_k`` and variance ``predictive[j]``, plus the white range-rate's (variance
     ``rate_var``), summed into ``out`` (N,); the offset means after each row's update
-    (``m_k + gain[j] * innovation``) into ``updated`` (N, R), starting from ``means``."""
+    (``m_k + gain[j] * innovation``) into ``updated`` (R, N), starting from ``means`` (R, N)."""
     rate_norm = -0.5 * math.log(2.0 * math.pi * rate_var)
+    range_norm = np.empty(z.shape[0])
+    for j in range(z.shape[0]):
+        range_norm[j] = math.log(2.0 * math.pi * predictive[j])
     for i in range(x.size):
-        for k in range(means.shape[1]):
-            updated[i, k] = means[i, k]
+        for k in range(means.shape[0]):
+            updated[k, i] = means[k, i]
         vx = speed[i] * cos_heading[i]
         vy = speed[i] * sin_heading[i]
         total = 0.0
         for j in range(z.shape[0]):
             k = int(z[j, 6])
             r_hat, r_dot_hat = predicted_row(z, j, x[i], y[i], vx, vy)
-            mean = rho[j] * updated[i, k]
+            mean = rho[j] * updated[k, i]
             innovation = z[j, 0] - r_hat - mean
-            total += -0.5 * (
-                math.log(2.0 * math.pi * predictive[j]) + innovation * innovation / predictive[j]
-            )
-            updated[i, k] = mean + gain[j] * innovation
+            total += -0.5 * (range_norm[j] + innovation * innovation / predictive[j])
+            updated[k, i] = mean + gain[j] * innovation
             e_v = r_dot_hat - z[j, 1]
             total += rate_norm - 0.5 * e_v * e_v / rate_var
         out[i] = total

@@ -1,0 +1,78 @@
+"""The tempered correction's trigger (:class:`hmmtrack.tracking.tempering.Tempered`): a
+correction that keeps enough particles in one pass is the plain one, a sharper one is
+tempered exactly as without a trigger."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from hmmtrack.tracking.filter import ParticleFilter
+from hmmtrack.tracking.motion.baseline import BaselineMotion
+from hmmtrack.tracking.resampling import effective_sample_size
+from hmmtrack.tracking.tempering import Plain, Tempered
+
+N = 500
+BOX = (-100.0, 100.0, -100.0, 100.0)
+
+
+class PointToy:
+    """``z = x + N(0, sd²)``: the likelihood's sd against the 200-m box sets the one-pass ESS."""
+
+    def __init__(self, sd: float):
+        self.sd = sd
+
+    def loglik(self, particles, obs, time=None):
+        z = np.asarray(obs["z"], dtype=float)
+        return -0.5 * (((particles.x[:, None] - z) / self.sd) ** 2).sum(axis=1)
+
+
+def corrected(correction, sd: float, seed: int = 3):
+    """The particles and the estimate after one correction of fresh particles."""
+    pf = ParticleFilter(BaselineMotion(1.0), PointToy(sd), N, BOX, rng=seed, correction=correction)
+    pf.initialise(0.0)
+    estimate = pf.correct(pd.DataFrame({"time": [0.0], "z": [20.0]}))
+    return pf.particles, estimate
+
+
+def one_pass_ess(sd: float, seed: int = 3) -> float:
+    particles, _ = corrected(Plain(), sd, seed)
+    return effective_sample_size(particles.log_weight) / N
+
+
+def test_trigger_must_lie_in_zero_to_ess():
+    with pytest.raises(ValueError, match="trigger"):
+        Tempered(0.5, 0.6)
+    with pytest.raises(ValueError, match="trigger"):
+        Tempered(0.5, 0.0)
+    assert Tempered(0.5, 0.5).trigger == 0.5
+
+
+def test_between_trigger_and_ess_the_correction_is_plain():
+    """One-pass ESS between the trigger (5 %) and ``ess`` (50 %): no resampling, no move;
+    log weights and estimate equal the plain correction's; without the trigger the same
+    correction is tempered (the positions move)."""
+    sd = 15.0
+    assert 0.05 < one_pass_ess(sd) < 0.5
+    plain, plain_estimate = corrected(Plain(), sd)
+    triggered, estimate = corrected(Tempered(0.5, 0.05), sd)
+    np.testing.assert_array_equal(triggered.x, plain.x)
+    np.testing.assert_array_equal(triggered.log_weight, plain.log_weight)
+    assert estimate == plain_estimate
+    tempered, _ = corrected(Tempered(0.5), sd)
+    assert not np.array_equal(tempered.x, plain.x)
+
+
+def test_below_the_trigger_the_correction_is_tempered_as_without_one():
+    """One-pass ESS under the trigger: the same steps, draws and result as ``Tempered(ess)``,
+    which keeps at least ``ess`` of the particles (the final weights' ESS)."""
+    sd = 1.0
+    assert one_pass_ess(sd) < 0.05
+    triggered, estimate = corrected(Tempered(0.5, 0.05), sd)
+    tempered, want = corrected(Tempered(0.5), sd)
+    for name in ("x", "y", "log_weight"):
+        np.testing.assert_array_equal(getattr(triggered, name), getattr(tempered, name))
+    assert estimate == want
+    assert effective_sample_size(triggered.log_weight) >= 0.5 * N * (1 - 1e-3)
+    assert estimate.x == pytest.approx(20.0, abs=1.0)
