@@ -4,6 +4,8 @@ tempered exactly as without a trigger."""
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -28,11 +30,25 @@ class PointToy:
         return -0.5 * (((particles.x[:, None] - z) / self.sd) ** 2).sum(axis=1)
 
 
-def corrected(correction, sd: float, seed: int = 3):
+class Impossible(PointToy):
+    """Every particle impossible (degenerate weights); the recovery weighs the particles by
+    the point itself, keeping fewer than 5 % of them."""
+
+    def loglik(self, particles, obs, time=None):
+        return np.full(particles.n, -np.inf)
+
+    def recover(self, particles, obs, time, rng):
+        particles.log_weight = super().loglik(particles, obs)
+        return "weighed by the point"
+
+
+def corrected(correction, sd: float, seed: int = 3, toy=PointToy):
     """The particles and the estimate after one correction of fresh particles."""
-    pf = ParticleFilter(BaselineMotion(1.0), PointToy(sd), N, BOX, rng=seed, correction=correction)
+    pf = ParticleFilter(BaselineMotion(1.0), toy(sd), N, BOX, rng=seed, correction=correction)
     pf.initialise(0.0)
-    estimate = pf.correct(pd.DataFrame({"time": [0.0], "z": [20.0]}))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        estimate = pf.correct(pd.DataFrame({"time": [0.0], "z": [20.0]}))
     return pf.particles, estimate
 
 
@@ -76,3 +92,13 @@ def test_below_the_trigger_the_correction_is_tempered_as_without_one():
     assert estimate == want
     assert effective_sample_size(triggered.log_weight) >= 0.5 * N * (1 - 1e-3)
     assert estimate.x == pytest.approx(20.0, abs=1.0)
+
+
+def test_degenerate_weights_are_recovered_as_by_the_plain_correction():
+    """The recovery's weights are kept even when they hold fewer than the trigger's share."""
+    plain, want = corrected(Plain(), 1.0, toy=Impossible)
+    triggered, estimate = corrected(Tempered(0.5, 0.05), 1.0, toy=Impossible)
+    for name in ("x", "y", "log_weight"):
+        np.testing.assert_array_equal(getattr(triggered, name), getattr(plain, name))
+    assert estimate == want
+    assert estimate.n_eff < 0.05 * N

@@ -85,7 +85,8 @@ class Tempered:
         """Apply ``score.loglik`` in tempered steps; the weighted estimate after them.
 
         With a ``trigger``, first in one pass (:meth:`ParticleFilter.weigh`), kept when its
-        ESS reaches ``trigger · N``, else undone (the log weights restored) and tempered.
+        ESS reaches ``trigger · N`` or the weights were degenerate (recovered as by
+        :class:`Plain`), else undone (the log weights restored) and tempered.
         Between steps the particles are resampled (:meth:`ParticleFilter.resample`), moved
         (:func:`regularisation_move`, one ``(2, N)`` draw of standard normals from the
         filter's generator) and rescored (``score.rescore(particles, weights)``).
@@ -93,8 +94,10 @@ class Tempered:
         loglik = score.loglik
         if self.trigger is not None:
             before = pf.particles.log_weight  # ParticleFilter.weigh leaves this array intact
+            events = len(pf.events)
             estimate = pf.weigh(loglik, table)
-            if estimate.n_eff >= self.trigger * pf.n_particles:
+            recovered = len(pf.events) > events  # degenerate weights: re-placed, as Plain
+            if recovered or estimate.n_eff >= self.trigger * pf.n_particles:
                 return estimate
             pf.particles.log_weight = before
         bandwidth = (4.0 / (pf.n_particles * 4.0)) ** (1.0 / 6.0)
