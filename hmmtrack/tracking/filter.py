@@ -590,7 +590,7 @@ class ParticleFilter:
             score = self._score(p, rows, time, self.measurement_state, self.weights()[0])
         for kind, detail in score.events:
             self._record(kind, detail)
-        prior = None if self.monitor is None or not self.monitor.loss else self.weights()[0]
+        prior = None if self.monitor is None else self.monitor.before(self)
         estimate = self.correction.correct(self, score, table)
         if score.commit is not None:
             score.commit(self.particles)

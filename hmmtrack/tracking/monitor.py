@@ -11,9 +11,22 @@ rings, or a tag that swam off while unheard) goes on reporting it with confidenc
   gap are not trusted either (a range derived over a long gap counts pings over days of
   clock drift). The particles are re-placed over a box around the cloud on the grid
   posterior of this correction alone, tempered to stay wide (event ``long_gap``, then
-  ``reacquired``). It reads only the time since the previous correction, so a run without
-  such a gap is the run without the rule, draw for draw: the library's default filter
-  carries it (:data:`hmmtrack.tracking.filter.FILTERS`).
+  ``reacquired``). A shorter silence, but one longer than :meth:`Monitor.outswim_gap`
+  (the time the tag needs at ``speed`` to swim :data:`HEARING_RANGE`, 667 s at 1.5 m/s), may
+  also have been outswum: the cloud, carried by a motion model that lets it spread about as
+  a random walk (with √time) while the tag may travel in a line (with time), can then
+  sit hundreds of metres from the ring the tag is heard on, and the correction collapses it
+  onto the one particle nearest that ring, a confident wrong point. So the correction's
+  predictive likelihood (below) is compared with the grid's evidence for a tag anywhere
+  within :data:`HEARING_RANGE` of the cloud's mean before the correction (the box a long
+  gap re-acquires over); when the grid explains the detection better by more than
+  ``margin`` nats, the cloud was outswum (event ``outswum``, then ``reacquired`` from this
+  correction over that box, untempered: a range within the measurement's own gap limit is
+  trusted). Below that silence the tag cannot have left the hearing of the receivers near
+  it, and no run of the reproduction has a silence that long (the longest is 480 s), so the
+  rule reads only the time since the previous correction there: a run without such a
+  silence is the run without the rule, draw for draw. The library's default filter carries
+  it (:data:`hmmtrack.tracking.filter.FILTERS`).
 * **lost tag** (``loss``): the *predictive likelihood* of a correction, ``p(y_t |
   y_1..t-1) ≈ Σ w_i p(y_t | x_i)`` with the weights before the correction, is the
   probability the particles gave the detections before they were heard. When its log per
@@ -37,9 +50,10 @@ mirror point of an intersection lies within a ring's diameter of the true one); 
 long gap, each half-side at least :data:`HEARING_RANGE` (the tag may have swum anywhere on
 the ring it was heard on). After a re-acquisition the measurement's run state is started
 afresh (its ``start`` hook: the arrival-time measurement re-acquires its clock from the
-next detection) and a mixture's components are reset. The filter calls
-:meth:`Monitor.corrected` after each correction (``ParticleFilter(monitor=...)``), with the
-weights before it when :attr:`Monitor.loss` asks for them.
+next detection) and a mixture's components are reset. The filter calls :meth:`Monitor.before`
+before each correction (``ParticleFilter(monitor=...)``) and :meth:`Monitor.corrected`
+after it, with the weights before it when the monitor asked for them (the lost-tag test,
+or a silence the tag may have outswum).
 """
 
 from __future__ import annotations
@@ -79,18 +93,21 @@ class Monitor:
         Apply the lost-tag test (it needs the weights before each correction).
     max_gap : float
         s: with ``long_gap``, a correction after a longer silence re-acquires from its own
-        observations.
+        observations (after a shorter one, longer than :meth:`outswim_gap`, when the grid
+        explains them better than the particles by ``margin`` nats).
     drop : float
         Nats per observation below the running median of the predictive log-likelihood
         that make a correction suspicious.
     patience : int
         Suspicious corrections in a row before the grid is asked.
     margin : float
-        Nats by which the grid must explain the suspicious corrections better than the
-        particles did to declare the tag lost (:func:`grid_evidence`).
+        Nats by which the grid must explain the suspicious corrections (or the correction
+        after a silence the tag may have outswum) better than the particles did to declare
+        the tag lost (:func:`grid_evidence`).
     speed : float
-        m/s: how fast the tag may swim in the grid's explanation (the synthetic shark
-        pursuit's shark swims at 1.0 m/s in the median, 1.7 m/s at the 99th percentile).
+        m/s: how fast the tag may swim in the grid's explanation and over a silence (the
+        synthetic shark pursuit's shark swims at 1.0 m/s in the median, 1.7 m/s at the 99th
+        percentile).
     reference : int
         Normal corrections in the running median.
     gap_ess : float
@@ -132,6 +149,32 @@ class Monitor:
         self._history: deque = deque(maxlen=self.patience)
         self._normal: deque = deque(maxlen=self.reference)
         self._strikes = 0
+        self._prior_mean: tuple[float, float] | None = None
+
+    def outswim_gap(self) -> float:
+        """s: the silence in which a tag at :attr:`speed` swims :data:`HEARING_RANGE`
+        (667 s at 1.5 m/s; never with a still tag); after a longer one (and up to
+        :attr:`max_gap`) the long-gap rule asks whether the cloud was outswum."""
+        return HEARING_RANGE / self.speed if self.speed > 0 else math.inf
+
+    def before(self, pf) -> np.ndarray | None:
+        """Before the correction at ``pf.time``: the normalised weights (N,) when the
+        monitor will need them (the lost-tag test, or a silence the tag may have outswum),
+        else ``None`` (nothing computed)."""
+        self._prior_mean = None
+        if not (self.loss or self._may_be_outswum(pf.time)):
+            return None
+        weights, _, mean = pf.weights()
+        self._prior_mean = mean
+        return weights
+
+    def _may_be_outswum(self, time: float) -> bool:
+        """Whether the long-gap rule asks the correction at ``time`` if the tag outswam
+        the cloud (a silence longer than :meth:`outswim_gap`, not longer than
+        :attr:`max_gap`)."""
+        if not self.long_gap or self._last is None:
+            return False
+        return self.outswim_gap() < time - self._last <= self.max_gap
 
     def corrected(self, pf, loglik: np.ndarray, prior_weights: np.ndarray, rows) -> bool:
         """Test the correction just made at ``pf.time``; whether the particles were
@@ -143,18 +186,42 @@ class Monitor:
         loglik : numpy.ndarray, shape (N,)
             The correction's log-likelihood of each particle (its first scoring).
         prior_weights : numpy.ndarray, shape (N,), or None
-            Normalised weights before the correction; only read with :attr:`loss`.
+            Normalised weights before the correction, as :meth:`before` returned them.
         rows
             The observations, in the measurement's form.
         """
         time = pf.time
+        outswum = self._may_be_outswum(time)
         gap = None if self._last is None else time - self._last
         self._last = time
         if self.long_gap and gap is not None and gap > self.max_gap:
             pf.alarm("long_gap", f"{gap:.0f} s since the previous correction")
             self._reacquire(pf, [(time, rows)], self.gap_ess, self._box(pf, HEARING_RANGE))
             return True
+        if outswum and self._test_outswum(pf, loglik, prior_weights, rows, gap):
+            return True
         return self.loss and self._test_loss(pf, loglik, prior_weights, rows)
+
+    def _test_outswum(self, pf, loglik: np.ndarray, prior_weights: np.ndarray, rows, gap) -> bool:
+        """The long-gap rule's question after a silence of ``gap`` s the tag may have
+        outswum: does a tag anywhere within :data:`HEARING_RANGE` of the cloud's mean before
+        the correction explain its observations better than the particles did, by more than
+        :attr:`margin` nats? If so, re-acquire from them over that box (module
+        docstring)."""
+        predictive = _log_mean_exp(loglik, prior_weights)
+        box = self._box(pf, HEARING_RANGE, self._prior_mean)
+        corrections = [(pf.time, rows)]
+        cells = self.acquisition.cells
+        evidence = grid_evidence(pf.measurement, box, cells, corrections, 0.0, pf.dt)
+        if evidence - predictive <= self.margin:
+            return False
+        pf.alarm(
+            "outswum",
+            f"after {gap:.0f} s of silence a tag within {HEARING_RANGE:.0f} m explains the "
+            f"detection better than the particles by {evidence - predictive:.1f} nats",
+        )
+        self._reacquire(pf, corrections, None, box)
+        return True
 
     def _test_loss(self, pf, loglik: np.ndarray, prior_weights: np.ndarray, rows) -> bool:
         """The lost-tag test of the correction at ``pf.time`` (module docstring)."""
@@ -188,10 +255,10 @@ class Monitor:
             return True
         return False
 
-    def _box(self, pf, reach: float = 0.0) -> tuple[float, float, float, float]:
-        """A box of the start box's size centred on the cloud's weighted mean (m), each
-        half-side at least ``reach`` (m)."""
-        _, _, (mx, my) = pf.weights()
+    def _box(self, pf, reach: float = 0.0, centre=None) -> tuple[float, float, float, float]:
+        """A box of the start box's size centred on ``centre`` (m; default the cloud's
+        weighted mean), each half-side at least ``reach`` (m)."""
+        mx, my = pf.weights()[2] if centre is None else centre
         xmin, xmax, ymin, ymax = pf.bounds
         hx, hy = max(0.5 * (xmax - xmin), reach), max(0.5 * (ymax - ymin), reach)
         return (mx - hx, mx + hx, my - hy, my + hy)
