@@ -1,6 +1,7 @@
-"""The monitor (:mod:`hmmtrack.tracking.monitor`): a long gap and a lost tag are noticed,
-recorded and re-acquired; on clean runs it stays quiet. The library's default filter
-carries the long-gap rule, not the lost-tag test."""
+"""The monitor (:mod:`hmmtrack.tracking.monitor`): a long gap, a silence the tag outswam and
+a lost tag are noticed, recorded and re-acquired; on clean runs it stays quiet. The library's
+default filter carries the long-gap rule (with its question after a silence the tag may have
+outswum), not the lost-tag test."""
 
 from __future__ import annotations
 
@@ -148,6 +149,60 @@ def test_the_default_filter_raises_no_event_on_a_clean_run():
         assert list(result.events["kind"]) == ["acquired"]
         last = result.estimates.iloc[-1]
         assert np.hypot(last["x"], last["y"]) < 10.0
+
+
+def silence_observations(tag, silence: float, count: int) -> pd.DataFrame:
+    """The still tag heard every 8 s for 600 s, then ``count`` detections 8 s apart from
+    ``tag`` (m), the first ``silence`` s after the last one."""
+    rng = np.random.default_rng(1)
+    before = boat_observations(rng)
+    first = before["time"].iloc[-1] + silence
+    after = boat_observations(rng, tag=tag, times=first + 8.0 * np.arange(count))
+    return pd.concat([before, after], ignore_index=True)
+
+
+#: the tag 830 m from where it was heard, as in the 25-min case of issue 13
+OUTSWUM_TAG = (830.0 * np.cos(-np.pi / 4), 830.0 * np.sin(-np.pi / 4))
+
+
+def test_a_silence_the_tag_outswam_gives_an_event_and_an_honest_cloud():
+    """The 25-min case: 1,505 s of silence (under ``MAX_GAP``) while the tag swam 830 m,
+    then one detection, or three. The default filter records ``outswum`` and
+    ``reacquired`` and ends with the tag within 3 √λ₁ of its mean (3 seeds); without the
+    long-gap rule it ends on a confident wrong point (√λ₁ under 10 m, over 200 m off) in
+    most of them."""
+    confident_and_wrong = 0
+    for count in (1, 3):
+        observations = silence_observations(OUTSWUM_TAG, 1505.0, count)
+        for seed in range(3):
+            result = quietly_run(default_filter(1.0, seed), observations)
+            assert list(result.events["kind"]) == ["acquired", "outswum", "reacquired"]
+            last = result.estimates.iloc[-1]
+            error = np.hypot(last["x"] - OUTSWUM_TAG[0], last["y"] - OUTSWUM_TAG[1])
+            assert last["sqrt_lambda1"] > 100.0 and error < 3.0 * last["sqrt_lambda1"]
+            without = quietly_run(default_filter(1.0, seed, long_gap=False), observations)
+            last = without.estimates.iloc[-1]
+            error = np.hypot(last["x"] - OUTSWUM_TAG[0], last["y"] - OUTSWUM_TAG[1])
+            confident_and_wrong += last["sqrt_lambda1"] < 10.0 and error > 200.0
+    assert confident_and_wrong >= 4
+
+
+def test_a_silence_the_tag_did_not_outswim_changes_nothing():
+    """The still tag heard again after 1,505 s (the rule asks, the cloud explains the
+    detection), and the moved tag heard after 600 s (shorter than
+    ``Monitor.outswim_gap``, 667 s: the rule does not ask): no event, and the estimates
+    equal those of the filter without the rule, draw for draw."""
+    assert Monitor().outswim_gap() == pytest.approx(1000.0 / 1.5)
+    for tag, silence in (((0.0, 0.0), 1505.0), (OUTSWUM_TAG, 600.0)):
+        observations = silence_observations(tag, silence, 3)
+        for seed in range(2):
+            result = quietly_run(default_filter(1.0, seed), observations)
+            assert list(result.events["kind"]) == ["acquired"]
+            without = quietly_run(default_filter(1.0, seed, long_gap=False), observations)
+            assert result.estimates.equals(without.estimates)
+        last = result.estimates.iloc[-1]
+        if silence > 1000.0:
+            assert np.hypot(last["x"], last["y"]) < 10.0
 
 
 def test_the_switches_build_the_two_rules():
