@@ -1014,8 +1014,11 @@ class FilterSettings(Settings):
     long_gap : bool
         After a correction more than :data:`hmmtrack.tracking.monitor.MAX_GAP` seconds
         after the previous one, record a ``long_gap`` event and re-acquire the tag from
-        that correction alone (:class:`hmmtrack.tracking.monitor.Monitor`'s long-gap rule);
-        ``False`` (the paper's): the cloud carried across the gap is corrected as usual.
+        that correction alone; after a shorter silence that the tag may have outswum
+        (``Monitor.outswim_gap``, 667 s), do so (event ``outswum``) when a grid explains
+        the correction better than the particles
+        (:class:`hmmtrack.tracking.monitor.Monitor`'s long-gap rule); ``False`` (the
+        paper's): the cloud carried across the gap is corrected as usual.
     monitor : bool
         Test each correction's predictive likelihood; when the tag is lost, record an event
         and re-acquire (:class:`hmmtrack.tracking.monitor.Monitor`'s lost-tag test);
@@ -1083,7 +1086,8 @@ class FilterSettings(Settings):
         "acquisition",
     )
     long_gap: bool = _switch(
-        "after a long silence (30 min) record an event and re-acquire from the detections",
+        "after a long silence (30 min), or one over 11 min that the tag outswam, record an "
+        "event and re-acquire from the detections",
         "long_gap",
     )
     monitor: bool = _switch(

@@ -11,22 +11,25 @@ rings, or a tag that swam off while unheard) goes on reporting it with confidenc
   gap are not trusted either (a range derived over a long gap counts pings over days of
   clock drift). The particles are re-placed over a box around the cloud on the grid
   posterior of this correction alone, tempered to stay wide (event ``long_gap``, then
-  ``reacquired``). A shorter silence, but one longer than :meth:`Monitor.outswim_gap`
-  (the time the tag needs at ``speed`` to swim :data:`HEARING_RANGE`, 667 s at 1.5 m/s), may
-  also have been outswum: the cloud, carried by a motion model that lets it spread about as
-  a random walk (with √time) while the tag may travel in a line (with time), can then
-  sit hundreds of metres from the ring the tag is heard on, and the correction collapses it
-  onto the one particle nearest that ring, a confident wrong point. So the correction's
-  predictive likelihood (below) is compared with the grid's evidence for a tag anywhere
-  within :data:`HEARING_RANGE` of the cloud's mean before the correction (the box a long
-  gap re-acquires over); when the grid explains the detection better by more than
-  ``margin`` nats, the cloud was outswum (event ``outswum``, then ``reacquired`` from this
-  correction over that box, untempered: a range within the measurement's own gap limit is
-  trusted). Below that silence the tag cannot have left the hearing of the receivers near
-  it, and no run of the reproduction has a silence that long (the longest is 480 s), so the
-  rule reads only the time since the previous correction there: a run without such a
-  silence is the run without the rule, draw for draw. The library's default filter carries
-  it (:data:`hmmtrack.tracking.filter.FILTERS`).
+  ``reacquired``). A shorter silence may have been **outswum**: once it is longer than
+  :meth:`Monitor.outswim_gap` (the time a tag at ``speed`` needs to swim
+  :data:`HEARING_RANGE`, 667 s at 1.5 m/s), the tag may be anywhere within a hearing range
+  of where the cloud put it, while a motion model spreads the cloud roughly as a random
+  walk (with √time, not time): the ring it is heard on can then lie hundreds of metres
+  beyond the cloud, and the correction collapses the cloud onto its particle nearest the
+  ring, a confident wrong point. So the correction's predictive likelihood (below) is
+  compared with the grid's evidence (:func:`grid_evidence`) for a tag anywhere within
+  :data:`HEARING_RANGE` of the cloud's mean before the correction; when the grid explains
+  the detection better by more than ``margin`` nats the cloud was outswum (event
+  ``outswum``, then ``reacquired`` from this correction over that box, untempered: a
+  range within the measurement's own gap limit is trusted). Shorter silences are not
+  asked: within a hearing range, a detection far from the cloud is the lost-tag test's
+  question (below), which needs more than one correction to tell a lost tag from a
+  mirror. The rule reads only the time since the previous correction until a silence
+  passes :meth:`Monitor.outswim_gap` or ``max_gap``, and no run of the reproduction has
+  one (its longest is 480 s), so a run without one is the run without the rule, draw for
+  draw: the library's default filter carries it
+  (:data:`hmmtrack.tracking.filter.FILTERS`).
 * **lost tag** (``loss``): the *predictive likelihood* of a correction, ``p(y_t |
   y_1..t-1) ≈ Σ w_i p(y_t | x_i)`` with the weights before the correction, is the
   probability the particles gave the detections before they were heard. When its log per
@@ -48,10 +51,12 @@ rings, or a tag that swam off while unheard) goes on reporting it with confidenc
 The grid covers a box of the start box's size centred on the cloud's weighted mean (the
 mirror point of an intersection lies within a ring's diameter of the true one); after a
 long gap, each half-side at least :data:`HEARING_RANGE` (the tag may have swum anywhere on
-the ring it was heard on). After a re-acquisition the measurement's run state is started
-afresh (its ``start`` hook: the arrival-time measurement re-acquires its clock from the
-next detection) and a mixture's components are reset. The filter calls :meth:`Monitor.before`
-before each correction (``ParticleFilter(monitor=...)``) and :meth:`Monitor.corrected`
+the ring it was heard on), and after an outswum silence the same, centred on the cloud's
+mean before the correction (after it the cloud sits on its particle nearest the ring).
+After a re-acquisition the measurement's run state is started afresh (its ``start`` hook:
+the arrival-time measurement re-acquires its clock from the next detection) and a
+mixture's components are reset. The filter calls :meth:`Monitor.before` before each
+correction (``ParticleFilter(monitor=...)``) and :meth:`Monitor.corrected`
 after it, with the weights before it when the monitor asked for them (the lost-tag test,
 or a silence the tag may have outswum).
 """
@@ -73,7 +78,8 @@ __all__ = ["Monitor", "grid_evidence"]
 WARM_UP = 10
 #: m: how far from a receiver a tag is heard (the paper's scenarios hear half the pings at
 #: 250-450 m, a few beyond 1 km): after a long gap the re-acquisition grid reaches at least
-#: this far around the cloud, so that it holds the ring the tag was heard on
+#: this far around the cloud, so that it holds the ring the tag was heard on; after a silence
+#: in which the tag could swim this far the long-gap rule asks whether it outswam the cloud
 HEARING_RANGE = 1000.0
 #: s: the long gap. A tag at the monitor's top speed (1.5 m/s) swims 2.7 km in it, more than
 #: the diameter of the ring a receiver hears it on (2 x HEARING_RANGE), so the cloud no
