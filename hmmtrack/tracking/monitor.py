@@ -19,17 +19,17 @@ rings, or a tag that swam off while unheard) goes on reporting it with confidenc
   beyond the cloud, and the correction collapses the cloud onto its particle nearest the
   ring, a confident wrong point. So the correction's predictive likelihood (below) is
   compared with the grid's evidence (:func:`grid_evidence`) for a tag anywhere within
-  :data:`HEARING_RANGE` of the cloud's mean before the correction; when the grid explains
-  the detection better by more than ``margin`` nats the cloud was outswum (event
-  ``outswum``, then ``reacquired`` from this correction over that box, untempered: a
-  range within the measurement's own gap limit is trusted). Shorter silences are not
-  asked: within a hearing range, a detection far from the cloud is the lost-tag test's
-  question (below), which needs more than one correction to tell a lost tag from a
-  mirror. The rule reads only the time since the previous correction until a silence
-  passes :meth:`Monitor.outswim_gap` or ``max_gap``, and no run of the reproduction has
-  one (its longest is 480 s), so a run without one is the run without the rule, draw for
-  draw: the library's default filter carries it
-  (:data:`hmmtrack.tracking.filter.FILTERS`).
+  :data:`HEARING_RANGE` of where it was heard (the cloud's mean after the previous
+  correction); when the grid explains the detection better by more than ``margin`` nats
+  the cloud was outswum (event ``outswum``, then ``reacquired`` from this correction over
+  that box, untempered: a range within the measurement's own gap limit is trusted).
+  Shorter silences are not asked: within a hearing range, a detection far from the cloud
+  is the lost-tag test's question (below), which needs more than one correction to tell a
+  lost tag from a mirror. Until a silence passes :meth:`Monitor.outswim_gap` the rule
+  only notes the time and the cloud's mean after each correction (the filter's own, kept
+  from the correction), and no run of the reproduction has such a silence (its longest is
+  488 s, at 95 % loss), so a run without one is the run without the rule, draw for draw:
+  the library's default filter carries it (:data:`hmmtrack.tracking.filter.FILTERS`).
 * **lost tag** (``loss``): the *predictive likelihood* of a correction, ``p(y_t |
   y_1..t-1) ≈ Σ w_i p(y_t | x_i)`` with the weights before the correction, is the
   probability the particles gave the detections before they were heard. When its log per
@@ -52,7 +52,8 @@ The grid covers a box of the start box's size centred on the cloud's weighted me
 mirror point of an intersection lies within a ring's diameter of the true one); after a
 long gap, each half-side at least :data:`HEARING_RANGE` (the tag may have swum anywhere on
 the ring it was heard on), and after an outswum silence the same, centred on the cloud's
-mean before the correction (after it the cloud sits on its particle nearest the ring).
+mean after the previous correction (after this one the cloud sits on its particle nearest
+the ring).
 After a re-acquisition the measurement's run state is started afresh (its ``start`` hook:
 the arrival-time measurement re-acquires its clock from the next detection) and a
 mixture's components are reset. The filter calls :meth:`Monitor.before` before each
@@ -155,7 +156,7 @@ class Monitor:
         self._history: deque = deque(maxlen=self.patience)
         self._normal: deque = deque(maxlen=self.reference)
         self._strikes = 0
-        self._prior_mean: tuple[float, float] | None = None
+        self._heard_at: tuple[float, float] | None = None
 
     def outswim_gap(self) -> float:
         """s: the silence in which a tag at :attr:`speed` swims :data:`HEARING_RANGE`
@@ -167,12 +168,9 @@ class Monitor:
         """Before the correction at ``pf.time``: the normalised weights (N,) when the
         monitor will need them (the lost-tag test, or a silence the tag may have outswum),
         else ``None`` (nothing computed)."""
-        self._prior_mean = None
         if not (self.loss or self._may_be_outswum(pf.time)):
             return None
-        weights, _, mean = pf.weights()
-        self._prior_mean = mean
-        return weights
+        return pf.weights()[0]
 
     def _may_be_outswum(self, time: float) -> bool:
         """Whether the long-gap rule asks the correction at ``time`` if the tag outswam
@@ -203,19 +201,23 @@ class Monitor:
         if self.long_gap and gap is not None and gap > self.max_gap:
             pf.alarm("long_gap", f"{gap:.0f} s since the previous correction")
             self._reacquire(pf, [(time, rows)], self.gap_ess, self._box(pf, HEARING_RANGE))
-            return True
-        if outswum and self._test_outswum(pf, loglik, prior_weights, rows, gap):
-            return True
-        return self.loss and self._test_loss(pf, loglik, prior_weights, rows)
+            replaced = True
+        elif outswum and self._test_outswum(pf, loglik, prior_weights, rows, gap):
+            replaced = True
+        else:
+            replaced = self.loss and self._test_loss(pf, loglik, prior_weights, rows)
+        if self.long_gap:  # where the tag was heard: the centre of its reach after a silence
+            self._heard_at = pf.weights()[2]
+        return replaced
 
     def _test_outswum(self, pf, loglik: np.ndarray, prior_weights: np.ndarray, rows, gap) -> bool:
         """The long-gap rule's question after a silence of ``gap`` s the tag may have
-        outswum: does a tag anywhere within :data:`HEARING_RANGE` of the cloud's mean before
-        the correction explain its observations better than the particles did, by more than
-        :attr:`margin` nats? If so, re-acquire from them over that box (module
-        docstring)."""
+        outswum: does a tag anywhere within :data:`HEARING_RANGE` of the cloud's mean after
+        the previous correction explain this correction's observations better than the
+        particles did, by more than :attr:`margin` nats? If so, re-acquire from them over
+        that box (module docstring)."""
         predictive = _log_mean_exp(loglik, prior_weights)
-        box = self._box(pf, HEARING_RANGE, self._prior_mean)
+        box = self._box(pf, HEARING_RANGE, self._heard_at)
         corrections = [(pf.time, rows)]
         cells = self.acquisition.cells
         evidence = grid_evidence(pf.measurement, box, cells, corrections, 0.0, pf.dt)
