@@ -115,6 +115,12 @@ def quietly_run(pf, observations):
         return pf.run(observations)
 
 
+def end_of(result, tag) -> tuple[float, float]:
+    """The last estimate's distance from ``tag`` (m) and its √λ₁ (m)."""
+    last = result.estimates.iloc[-1]
+    return float(np.hypot(last["x"] - tag[0], last["y"] - tag[1])), float(last["sqrt_lambda1"])
+
+
 def test_the_default_filter_reacquires_after_30_days_and_is_not_confidently_wrong():
     """The 30-day case through the library's default (no monitor switch): ``long_gap`` and
     ``reacquired`` events after the acquisition's, and the end either near the tag or
@@ -129,13 +135,11 @@ def test_the_default_filter_reacquires_after_30_days_and_is_not_confidently_wron
         result = quietly_run(default_filter(600.0, seed), observations)
         assert list(result.events["kind"]) == ["acquired", "long_gap", "reacquired"]
         assert result.events["time"].iloc[-1] == pytest.approx(30 * DAY + 16.0, abs=600.0)
-        last = result.estimates.iloc[-1]
-        error = np.hypot(last["x"] - tag[0], last["y"] - tag[1])
-        assert last["sqrt_lambda1"] > 100.0 or error < 50.0
+        error, spread = end_of(result, tag)
+        assert spread > 100.0 or error < 50.0
         without = quietly_run(default_filter(600.0, seed, long_gap=False), observations)
-        last = without.estimates.iloc[-1]
-        error = np.hypot(last["x"] - tag[0], last["y"] - tag[1])
-        confident_and_wrong += last["sqrt_lambda1"] < 10.0 and error > 100.0
+        error, spread = end_of(without, tag)
+        confident_and_wrong += spread < 10.0 and error > 100.0
     assert confident_and_wrong >= 2
 
 
@@ -177,13 +181,11 @@ def test_a_silence_the_tag_outswam_gives_an_event_and_an_honest_cloud():
         for seed in range(3):
             result = quietly_run(default_filter(1.0, seed), observations)
             assert list(result.events["kind"]) == ["acquired", "outswum", "reacquired"]
-            last = result.estimates.iloc[-1]
-            error = np.hypot(last["x"] - OUTSWUM_TAG[0], last["y"] - OUTSWUM_TAG[1])
-            assert last["sqrt_lambda1"] > 100.0 and error < 3.0 * last["sqrt_lambda1"]
+            error, spread = end_of(result, OUTSWUM_TAG)
+            assert spread > 100.0 and error < 3.0 * spread
             without = quietly_run(default_filter(1.0, seed, long_gap=False), observations)
-            last = without.estimates.iloc[-1]
-            error = np.hypot(last["x"] - OUTSWUM_TAG[0], last["y"] - OUTSWUM_TAG[1])
-            confident_and_wrong += last["sqrt_lambda1"] < 10.0 and error > 200.0
+            error, spread = end_of(without, OUTSWUM_TAG)
+            confident_and_wrong += spread < 10.0 and error > 200.0
     assert confident_and_wrong >= 4
 
 

@@ -20,9 +20,11 @@ rings, or a tag that swam off while unheard) goes on reporting it with confidenc
   ring, a confident wrong point. So the correction's predictive likelihood (below) is
   compared with the grid's evidence (:func:`grid_evidence`) for a tag anywhere within
   :data:`HEARING_RANGE` of where it was heard (the cloud's mean after the previous
-  correction); when the grid explains the detection better by more than ``margin`` nats
-  the cloud was outswum (event ``outswum``, then ``reacquired`` from this correction over
-  that box, untempered: a range within the measurement's own gap limit is trusted).
+  correction); when the grid explains the detection better by more than ``margin`` nats,
+  or when the ring crossed only the cloud's sparse tail (the correction left fewer than
+  :data:`SPREAD_ESS` effective particles, a cloud that states no spread), the cloud was
+  outswum (event ``outswum``, then ``reacquired`` from this correction over that box,
+  untempered: a range within the measurement's own gap limit is trusted).
   Shorter silences are not asked: within a hearing range, a detection far from the cloud
   is the lost-tag test's question (below), which needs more than one correction to tell a
   lost tag from a mirror. Until a silence passes :meth:`Monitor.outswim_gap` the rule
@@ -86,6 +88,10 @@ HEARING_RANGE = 1000.0
 #: the diameter of the ring a receiver hears it on (2 x HEARING_RANGE), so the cloud no
 #: longer picks a point of the ring
 MAX_GAP = 1800.0
+#: effective particles below which a weighted cloud states no spread (its √λ₁ is one
+#: particle's): after a silence the tag may have outswum, a correction that leaves fewer met
+#: the detection's ring only in the cloud's sparse tail
+SPREAD_ESS = 2.0
 
 
 @dataclass
@@ -212,24 +218,33 @@ class Monitor:
 
     def _test_outswum(self, pf, loglik: np.ndarray, prior_weights: np.ndarray, rows, gap) -> bool:
         """The long-gap rule's question after a silence of ``gap`` s the tag may have
-        outswum: does a tag anywhere within :data:`HEARING_RANGE` of the cloud's mean after
-        the previous correction explain this correction's observations better than the
-        particles did, by more than :attr:`margin` nats? If so, re-acquire from them over
-        that box (module docstring)."""
-        predictive = _log_mean_exp(loglik, prior_weights)
+        outswum: did the correction leave fewer than :data:`SPREAD_ESS` effective
+        particles, or does a tag anywhere within :data:`HEARING_RANGE` of the cloud's mean
+        after the previous correction explain this correction's observations better than
+        the particles did, by more than :attr:`margin` nats? If so, re-acquire from them
+        over that box (module docstring)."""
         box = self._box(pf, HEARING_RANGE, self._heard_at)
         corrections = [(pf.time, rows)]
-        cells = self.acquisition.cells
-        evidence = grid_evidence(pf.measurement, box, cells, corrections, 0.0, pf.dt)
-        if evidence - predictive <= self.margin:
-            return False
-        pf.alarm(
+        n_eff = pf.weights()[1]
+        if n_eff < SPREAD_ESS:
+            pf.alarm(
+                "outswum",
+                f"after {gap:.0f} s of silence the correction left {n_eff:.2f} effective "
+                "particles: the cloud met the detection only in its tail",
+            )
+            self._reacquire(pf, corrections, None, box)
+            return True
+        predictive = _log_mean_exp(loglik, prior_weights)
+        return self._grid_wins(
+            pf,
+            corrections,
+            predictive,
+            box,
+            0.0,
             "outswum",
             f"after {gap:.0f} s of silence a tag within {HEARING_RANGE:.0f} m explains the "
-            f"detection better than the particles by {evidence - predictive:.1f} nats",
+            "detection better than the particles by {:.1f} nats",
         )
-        self._reacquire(pf, corrections, None, box)
-        return True
 
     def _test_loss(self, pf, loglik: np.ndarray, prior_weights: np.ndarray, rows) -> bool:
         """The lost-tag test of the correction at ``pf.time`` (module docstring)."""
@@ -249,19 +264,30 @@ class Monitor:
         window = self.acquisition.window
         recent = [(t, r) for t, r, _ in self._history if time - t <= window]
         particles = sum(lp for t, _, lp in self._history if time - t <= window)
-        box = self._box(pf)
-        evidence = grid_evidence(
-            pf.measurement, box, self.acquisition.cells, recent, self.speed, pf.dt
+        return self._grid_wins(
+            pf,
+            recent,
+            particles,
+            self._box(pf),
+            self.speed,
+            "tag_lost",
+            f"the grid explains the last {len(recent)} correction(s) better than the "
+            "particles by {:.1f} nats",
         )
-        if evidence - particles > self.margin:
-            pf.alarm(
-                "tag_lost",
-                f"the grid explains the last {len(recent)} correction(s) better than the "
-                f"particles by {evidence - particles:.1f} nats",
-            )
-            self._reacquire(pf, recent, None, box)
-            return True
-        return False
+
+    def _grid_wins(self, pf, corrections, predictive, box, speed, kind, detail) -> bool:
+        """Whether the grid's evidence for ``corrections`` over ``box`` (a tag swimming
+        ``speed`` m/s, :func:`grid_evidence`) beats the particles' ``predictive``
+        log-likelihood of them (nats) by more than :attr:`margin`; if so, record ``kind``
+        (``detail`` formatted with the difference) and re-acquire from them over ``box``."""
+        evidence = grid_evidence(
+            pf.measurement, box, self.acquisition.cells, corrections, speed, pf.dt
+        )
+        if evidence - predictive <= self.margin:
+            return False
+        pf.alarm(kind, detail.format(evidence - predictive))
+        self._reacquire(pf, corrections, None, box)
+        return True
 
     def _box(self, pf, reach: float = 0.0, centre=None) -> tuple[float, float, float, float]:
         """A box of the start box's size centred on ``centre`` (m; default the cloud's
