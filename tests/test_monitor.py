@@ -189,6 +189,19 @@ def test_a_silence_the_tag_outswam_gives_an_event_and_an_honest_cloud():
     assert confident_and_wrong >= 4
 
 
+def test_a_correction_that_leaves_the_cloud_no_spread_after_such_a_silence_is_outswum():
+    """The 25-min case with the grid's comparison out of reach (a margin of 1e9 nats) is
+    still caught: its correction leaves the cloud fewer than ``SPREAD_ESS`` effective
+    particles, so ``outswum`` and ``reacquired``, and the tag within 3 √λ₁."""
+    observations = silence_observations(OUTSWUM_TAG, 1505.0, 1)
+    monitor = Monitor(loss=False, margin=1e9)
+    result = quietly_run(velocity_filter(monitor, dt=1.0), observations)
+    assert list(result.events["kind"]) == ["outswum", "reacquired"]
+    assert "effective particles" in result.events["detail"].iloc[0]
+    error, spread = end_of(result, OUTSWUM_TAG)
+    assert spread > 100.0 and error < 3.0 * spread
+
+
 def test_a_silence_the_tag_did_not_outswim_changes_nothing():
     """The still tag heard again after 1,505 s (the rule asks, the cloud explains the
     detection), and the moved tag heard after 600 s (shorter than
