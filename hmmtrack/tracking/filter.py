@@ -1016,8 +1016,8 @@ class FilterSettings(Settings):
         after the previous one, record a ``long_gap`` event and re-acquire the tag from
         that correction alone; after a shorter silence that the tag may have outswum
         (``Monitor.outswim_gap``, 667 s), do so (event ``outswum``) when a grid explains
-        the correction better than the particles
-        (:class:`hmmtrack.tracking.monitor.Monitor`'s long-gap rule); ``False`` (the
+        the correction better than the particles or the correction leaves the cloud no
+        spread (:class:`hmmtrack.tracking.monitor.Monitor`'s long-gap rule); ``False`` (the
         paper's): the cloud carried across the gap is corrected as usual.
     monitor : bool
         Test each correction's predictive likelihood; when the tag is lost, record an event

@@ -55,11 +55,10 @@ mirror point of an intersection lies within a ring's diameter of the true one); 
 long gap, each half-side at least :data:`HEARING_RANGE` (the tag may have swum anywhere on
 the ring it was heard on), and after an outswum silence the same, centred on the cloud's
 mean after the previous correction (after this one the cloud sits on its particle nearest
-the ring).
-After a re-acquisition the measurement's run state is started afresh (its ``start`` hook:
-the arrival-time measurement re-acquires its clock from the next detection) and a
-mixture's components are reset. The filter calls :meth:`Monitor.before` before each
-correction (``ParticleFilter(monitor=...)``) and :meth:`Monitor.corrected`
+the ring). After a re-acquisition the measurement's run state is started afresh (its
+``start`` hook: the arrival-time measurement re-acquires its clock from the next
+detection) and a mixture's components are reset. The filter calls :meth:`Monitor.before`
+before each correction (``ParticleFilter(monitor=...)``) and :meth:`Monitor.corrected`
 after it, with the weights before it when the monitor asked for them (the lost-tag test,
 or a silence the tag may have outswum).
 """
@@ -107,7 +106,8 @@ class Monitor:
     max_gap : float
         s: with ``long_gap``, a correction after a longer silence re-acquires from its own
         observations (after a shorter one, longer than :meth:`outswim_gap`, when the grid
-        explains them better than the particles by ``margin`` nats).
+        explains them better than the particles by ``margin`` nats or the correction left
+        fewer than :data:`SPREAD_ESS` effective particles).
     drop : float
         Nats per observation below the running median of the predictive log-likelihood
         that make a correction suspicious.
