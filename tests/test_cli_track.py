@@ -662,8 +662,9 @@ def test_preset_then_config_file_then_options(tmp_path, capsys):
     assert summary(flagged)[:2] == (1000, 0.5)
     assert flagged.motion.build() == VelocityMotion(0.1, 0.003)
     assert main([*base, "--preset", "two-auvs", "--period", "8"]) == 2
-    assert "unknown preset 'two-auvs'; available presets: two-moving-receivers" in (
-        capsys.readouterr().err
+    assert (
+        "unknown preset 'two-auvs'; available presets: constant-velocity-tag, two-moving-receivers"
+        in (capsys.readouterr().err)
     )
     paper = ["--period", "8", "--r0", "auv-1=10", "--measurement", "range-rate"]
     assert main([*base, *preset, *paper]) == 2

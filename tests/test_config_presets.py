@@ -83,13 +83,29 @@ def test_every_bundled_preset_is_settings_only_and_valid():
     for name in names:
         settings = read_preset(name)
         assert settings and not {"transmitter", "bounds", "start", "end"} & set(settings)
-        assert "period" not in settings.get("measurement", {})
+        measurement = settings.get("measurement", {})
+        assert not {"period", "burst_interval", "burst_sequence"} & set(measurement)
         assert "description" not in settings  # descriptive text is dropped
-        TrackingConfig.from_dict(with_period(settings, 2.0), source=name)
+        data = {"burst_interval": [20, 40]} if measurement.get("name") == "ping" else {"period": 2}
+        TrackingConfig.from_dict(merge_settings(settings, {"measurement": data}), source=name)
+
+
+def test_constant_velocity_preset_is_the_matched_model_of_the_simulated_array():
+    """The preset a constant-velocity tag in a moored array wants (reports/decisions.md,
+    "The matched model against the bound"): the ping measurement with its arrival sd from the
+    pings, the velocity motion model at its defaults, the ping measurement's filter and
+    smoother (5,000 particles, 60 s)."""
+    settings = merge_settings(
+        read_preset("constant-velocity-tag"), {"measurement": {"burst_interval": [20, 40]}}
+    )
+    config = TrackingConfig.from_dict(settings)
+    assert (config.measurement.name, config.measurement.arrival_sigma) == ("ping", "pings")
+    assert config.motion == VelocitySettings()
+    assert (config.filter.n_particles, config.smoothing) == (5000, 60)
 
 
 def test_unknown_preset_names_the_available_ones():
-    with pytest.raises(ValueError, match=f"unknown preset 'nope'; available presets: {PRESET}"):
+    with pytest.raises(ValueError, match=f"unknown preset 'nope'; available presets: .*{PRESET}"):
         read_preset("nope")
 
 

@@ -200,3 +200,41 @@ def test_backward_simulation_matches_the_kalman_smoother_of_a_random_walk():
     assert tables["backward"]["time"].tolist() == list(range(200))
     assert errors["backward"] < 0.1 and errors["backward"] < 0.5 * errors["traced"]
     assert errors["filter"] > 3 * errors["backward"]
+
+
+def test_pinned_fixes_are_the_filters_rows_and_every_gap_between_them_is_bridged():
+    """With ``pin_fixes`` (ancestor tracing behind tempered pings) the row at each fix is the
+    filter's own weighted cloud there, not the traced one; the rows strictly between two
+    fixes, however close, lie on the line between those rows; rows before the first fix and
+    after the last stay traced."""
+    x, y, log_weight, parents, resampled = random_run(2, n_steps=60)
+    knots = np.array([10.2, 14.0, 40.4])  # the steps nearest: 10, 14, 40
+
+    def run(**options):
+        smoothed = Smoothed(5, bridge=(knots, 45.0), **options)
+        pf = SimpleNamespace(dt=1.0, time=0.0, particles=None)
+        smoothed.start(pf)
+        for t in range(len(x)):
+            if resampled[t]:
+                smoothed.resampled(pf, parents[t])
+            pf.time = float(t)
+            pf.particles = SimpleNamespace(x=x[t], y=y[t], log_weight=log_weight[t])
+            smoothed.settled(pf)
+        return smoothed.result()["smoothed"]
+
+    traced, pinned = run(), run(pin_fixes=True)
+    assert pinned["time"].tolist() == list(range(60))
+    for t in (10, 14, 40):
+        filtered = weighted_moments(x[t], y[t], log_weight[t])
+        np.testing.assert_allclose(pinned.loc[t, ["x", "y", "var_x", "var_y", "cov_xy"]], filtered)
+        assert abs(traced.loc[t, "x"] - filtered[0]) > 1e-6  # (tracing differs there)
+    for a, b in ((10, 14), (14, 40)):
+        steps = np.arange(a + 1, b)
+        for axis in ("x", "y"):
+            line = np.interp(steps, [a, b], pinned.loc[[a, b], axis])
+            np.testing.assert_allclose(pinned.loc[steps, axis], line, rtol=0, atol=1e-12)
+    outside = np.r_[0:10, 41:60]
+    np.testing.assert_array_equal(pinned.loc[outside, "x"], traced.loc[outside, "x"])
+    # without pinning the 4 s and 26 s gaps, shorter than the bridge's 45 s, stay traced
+    line = np.interp([11, 12, 13], [10, 14], traced.loc[[10, 14], "x"])
+    assert np.abs(traced.loc[11:13, "x"].to_numpy() - line).max() > 1e-3

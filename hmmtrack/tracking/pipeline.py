@@ -527,8 +527,15 @@ def track(
             if isinstance(motion, BaselineMotion) and getattr(measurement, "backward", False)
             else None
         )  # (backward simulation: a random walk's smoother, where the measurement asks)
+        pin_fixes = backward is None  # (traced ancestry is broken at tempered pings: Smoothed)
         collectors.append(
-            Smoothed(config.smoothing, sink=estimates_to, bridge=bridge, backward=backward)
+            Smoothed(
+                config.smoothing,
+                sink=estimates_to,
+                bridge=bridge,
+                backward=backward,
+                pin_fixes=pin_fixes,
+            )
         )
         if estimates_to is not None:
             estimates_to = _discard  # the sink takes the smoothed estimates instead
