@@ -401,15 +401,26 @@ def alias_table(weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def _vonmises_from(tables_row, k, z, u, v):
     """First try of :func:`vonmises` for state ``k`` from 64 random bits ``z`` (bin, alias
     choice and sign) and uniforms ``u`` (position in the bin) and ``v`` (height):
-    ``(angle, accepted)``, accepted when the squeeze accepts (most draws). Branch-free."""
+    ``(angle, accepted)``, accepted when the squeeze accepts (most draws). Branch-free.
+
+    The drawn bin and its alias are both carried through (their positions and squeezes)
+    and the alias choice selects between the results: a choice of the bin itself, whose
+    only other operand is a loaded alias, is turned by LLVM's x86 back end into a
+    branch, and that coin flip is mispredicted about half the time (3.5 ns a particle,
+    ``reports/decisions.md``, "The HMM draw pass's alias branch")."""
     mean, kappa, width, f_left, f_right, cut, alias = tables_row
-    b = np.int64(z & _BIN)
     row = k * VONMISES_BINS
-    other = alias[row + b]  # loaded unconditionally: the selection below stays branch-free
-    b = b if (z >> _S11) * _TWO_M53 < cut[row + b] else other
-    x = (b + 1.0 - u) * width[k]  # 1 - u is in [0, 1)
-    accepted = v * f_left[row + b] <= f_right[row + b]
-    angle = mean[k] - x if (z >> _S9) & _ONE else mean[k] + x
+    b = np.int64(z & _BIN)
+    other = alias[row + b]
+    own = (z >> _S11) * _TWO_M53 < cut[row + b]
+    x_own = (b + 1.0 - u) * width[k]  # 1 - u is in [0, 1)
+    x_other = (other + 1.0 - u) * width[k]
+    x = x_own if own else x_other
+    own_accepted = v * f_left[row + b] <= f_right[row + b]
+    other_accepted = v * f_left[row + other] <= f_right[row + other]
+    accepted = own_accepted if own else other_accepted
+    sign = 1.0 - 2.0 * np.float64((z >> _S9) & _ONE)  # -1 or 1: a product, not a branch
+    angle = mean[k] + sign * x
     angle = angle - 2.0 * np.pi if angle > np.pi else angle
     angle = angle + 2.0 * np.pi if angle <= -np.pi else angle
     return angle, accepted
