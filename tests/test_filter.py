@@ -7,6 +7,7 @@ import pytest
 from scipy import special
 
 from hmmtrack.hmm import Gamma, MovementHMM, VonMises
+from hmmtrack.tracking import filter as filter_module
 from hmmtrack.tracking.acquisition import Acquisition
 from hmmtrack.tracking.filter import (
     ESTIMATE_COLUMNS,
@@ -106,13 +107,19 @@ def test_stationary_tag_with_a_circling_receiver_converges(motion, backend):
     assert result.events.empty
 
 
-def test_same_seed_same_answer_whatever_the_threads():
+def test_same_seed_same_answer_whatever_the_threads(monkeypatch):
     obs = circling_observations(duration=300.0)
     a = make_filter("hmm", seed=3, threads=1).run(obs).estimates
     b = make_filter("hmm", seed=3, threads=2).run(obs).estimates
     c = make_filter("hmm", seed=4).run(obs).estimates
     pd.testing.assert_frame_equal(a, b)
     assert not np.allclose(a["x"], c["x"])
+    # the corrections and resamplings on two threads too (2,000 particles: two chunks)
+    monkeypatch.setattr(filter_module, "PARALLEL_MIN_CORRECTION", 1)
+    two = make_filter("hmm", seed=3, threads=2)
+    d = two.run(obs).estimates
+    assert two.correction_threads() == 2
+    pd.testing.assert_frame_equal(a, d)
 
 
 def test_online_steps_reproduce_the_offline_run():

@@ -108,10 +108,12 @@ ESTIMATE_ROWS = 10_000
 #: for more threads to pay); above it the filter times one and all threads and keeps the
 #: faster (pass ``threads=`` to fix the number)
 PARALLEL_MIN_WORK = 20_000
-#: below this many particles corrections and resamplings run on one thread: their chunked
-#: passes are too short for thread hand-overs to pay (at N = 10,000 on a loaded 2-core
-#: machine, running them on the prediction's two threads made runs 3-4x slower)
-PARALLEL_MIN_CORRECTION = 50_000
+#: from this many particles corrections and resamplings run on the threads of the prediction
+#: before them, so the timed choice of one thread or all (:class:`ThreadChoice`, which times
+#: each prediction with the correction after it) decides them too; below it their chunked
+#: passes are too short for thread hand-overs to pay, and they run on one thread
+#: (reports/decisions.md, "Corrections on the timed threads from 10,000 particles")
+PARALLEL_MIN_CORRECTION = 10_000
 #: from this many particles a prediction on more than one thread has the next resampling's
 #: exponentials drawn meanwhile on a worker thread (:meth:`Scratch.draw_ahead`), off the
 #: one-thread part of the cycle (reports/decisions.md, "Draws ahead")
