@@ -406,8 +406,8 @@ def _vonmises_from(tables_row, k, z, u, v):
     The drawn bin and its alias are both carried through (their positions and squeezes)
     and the alias choice selects between the results: a choice of the bin itself, whose
     only other operand is a loaded alias, is turned by LLVM's x86 back end into a
-    branch, and that coin flip is mispredicted about half the time (3.5 ns a particle,
-    ``reports/decisions.md``, "The HMM draw pass's alias branch")."""
+    branch, and that coin flip is mispredicted about half the time
+    (``reports/decisions.md``, "The HMM draw pass's alias branch")."""
     mean, kappa, width, f_left, f_right, cut, alias = tables_row
     row = k * VONMISES_BINS
     b = np.int64(z & _BIN)
