@@ -369,35 +369,52 @@ def recent_pings_kernel(
     particle's ``softplus((range_50 − range) / width) = −log(1 − p(range))`` once per ping
     due in the window and unheard, over the K receivers at ``receiver_xy`` (K, 2) whose
     sorted detection times are ``heard_times[first[k]:stop[k]]`` (a :class:`HeardTimes`'
-    arrays); the clock-aware correction kernel calls it on its own particles' clocks."""
+    arrays); the clock-aware correction kernel calls it on its own particles' clocks.
+
+    Receiver by receiver and ping by ping, each step is a pass over the particles without
+    branches but the last (vector code; a particle's branches on whether its ping is due
+    and heard cost more than the passes), in the order of the terms per particle.
+    """
     slowness = 1.0 / sound_speed
+    n = emission_time.size
+    range_m = np.empty(n)
+    travel = np.empty(n)
+    last = np.empty(n)
+    expected = np.empty(n)
+    unheard = np.empty(n)  # 1.0: the ping is due in the window and not heard (so far)
     for k in range(receiver_xy.shape[0]):
         heard_k = heard_times[first[k] : stop[k]]
         # only detections within tolerance of the window can match a ping due in it
         lo = np.searchsorted(heard_k, window_start - tolerance)
         heard_k = heard_k[lo : np.searchsorted(heard_k, window_end + tolerance, side="right")]
         m = heard_k.size
-        for i in range(emission_time.size):
-            dx = x[i] - receiver_xy[k, 0]
-            dy = y[i] - receiver_xy[k, 1]
-            range_m = math.sqrt(dx * dx + dy * dy)
-            travel = range_m * slowness
-            last = math.floor((window_end - travel - emission_time[i]) / period[i])
-            for back in range(n_back):
-                expected = emission_time[i] + (last - back) * period[i] + travel
-                if not expected > window_start:
-                    break  # (earlier pings arrive earlier still)
-                if not expected <= window_end:
-                    continue
-                heard = False
-                if m > 8:
-                    j = min(np.searchsorted(heard_k, expected - tolerance), m - 1)
-                    heard = abs(heard_k[j] - expected) <= tolerance
-                else:  # (a window holds a few detections: a scan is cheaper)
-                    for j in range(m):
-                        heard |= abs(heard_k[j] - expected) <= tolerance
-                if not heard:  # log(1 − p) = log expit(x) = −softplus(−x)
-                    out[i] -= softplus((range_50 - range_m) / width)
+        receiver_x, receiver_y = receiver_xy[k, 0], receiver_xy[k, 1]
+        for i in range(n):
+            dx = x[i] - receiver_x
+            dy = y[i] - receiver_y
+            range_m[i] = math.sqrt(dx * dx + dy * dy)
+        for i in range(n):  # the last ping whose arrival is at or before the window's end
+            travel[i] = range_m[i] * slowness
+            last[i] = math.floor((window_end - travel[i] - emission_time[i]) / period[i])
+        for back in range(n_back):
+            for i in range(n):
+                arrival = emission_time[i] + (last[i] - back) * period[i] + travel[i]
+                expected[i] = arrival
+                due = (window_start < arrival) & (arrival <= window_end)  # False for NaN
+                unheard[i] = 1.0 if due else 0.0
+            if m > 8:
+                for i in range(n):
+                    if unheard[i] > 0.0:
+                        j = min(np.searchsorted(heard_k, expected[i] - tolerance), m - 1)
+                        unheard[i] = 0.0 if abs(heard_k[j] - expected[i]) <= tolerance else 1.0
+            else:  # (a window holds a few detections: a scan is cheaper)
+                for j in range(m):
+                    for i in range(n):
+                        heard = abs(heard_k[j] - expected[i]) <= tolerance
+                        unheard[i] = 0.0 if heard else unheard[i]
+            for i in range(n):
+                if unheard[i] > 0.0:  # log(1 − p) = log expit(x) = −softplus(−x)
+                    out[i] -= softplus((range_50 - range_m[i]) / width)
 
 
 #: grid of :func:`softplus`'s table: ``x`` from ``-SOFTPLUS_END`` to ``SOFTPLUS_END`` in
