@@ -14,6 +14,7 @@ from hmmtrack.tracking.measurement.detection import (
     SOFTPLUS_STEP,
     HeardTimes,
     LogisticDetection,
+    SilenceModel,
     expected_pings,
     fit_detection_probability,
     silence_loglik,
@@ -197,6 +198,32 @@ def test_recent_pings_of_several_receivers_are_the_sum_of_each():
     )
     with pytest.raises(ValueError, match="3 receiver"):
         silence_loglik_recent_pings(emission, period, x, y, receivers[:2], 5, heard, *args)
+
+
+def test_a_silence_window_ends_at_the_correction_cut_and_lists_the_listening_receivers():
+    # r1 listens (has positions) from t = 100 s only; ping period 8 s, tolerance 1 s
+    receivers = ReceiverTracks.from_frame(
+        pd.DataFrame(
+            {
+                "receiver": ["r0", "r1", "r1"],
+                "time": [np.nan, 100.0, 200.0],
+                "x": [0.0, 50.0, 150.0],
+                "y": [0.0, 10.0, 10.0],
+            }
+        )
+    )
+    heard = {"r0": np.array([5.0, 60.0, 150.0]), "r1": np.array([120.0, 130.0])}
+    silence = SilenceModel(receivers, LogisticDetection(300.0, 50.0), heard, tolerance=1.0)
+    # empty: the cut (time + dt/2 - tolerance) is not after the last one
+    assert silence.window(50.0, 1.0, 49.5, 8.0)[:2] == (49.5, 0)
+    cut, n_back, xy, times = silence.window(50.0, 1.0, 20.0, 8.0)
+    assert (cut, n_back) == (49.5, 5)  # ceil(29.5 / 8) + 1 pings per particle
+    np.testing.assert_array_equal(xy, [[0.0, 0.0]])  # r1 does not listen yet
+    np.testing.assert_array_equal(times.times[times.first[0] : times.stop[0]], heard["r0"])
+    cut, n_back, xy, times = silence.window(150.0, 1.0, 0.0, 8.0)
+    assert (cut, n_back) == (149.5, 8)  # at most 8
+    np.testing.assert_allclose(xy, [[0.0, 0.0], [100.0, 10.0]])
+    np.testing.assert_array_equal(times.times[times.first[1] : times.stop[1]], heard["r1"])
 
 
 def test_curve_fitted_from_a_tracking_run_is_close_to_the_truth():

@@ -28,7 +28,7 @@ from hmmtrack.scenarios.realistic import moored_array
 from hmmtrack.tracking.config import TrackingConfig
 from hmmtrack.tracking.filter import ParticleFilter
 from hmmtrack.tracking.measurement import MEASUREMENTS
-from hmmtrack.tracking.measurement.clocked import ClockState, default_clock_model
+from hmmtrack.tracking.measurement.clocked import ClockState, default_clock_model, silence_since
 from hmmtrack.tracking.measurement.detection import LogisticDetection
 from hmmtrack.tracking.measurement.sequence import (
     DRIFT_DENSITY,
@@ -145,10 +145,23 @@ def test_one_receiver_per_ping_scores_heard_and_unheard_pings_as_the_arrival_tim
     p.extra.update(emission_time=emission, period=np.full(p.n, period), period_rate=np.zeros(p.n))
     p.extra.update(sequence_offset=emission, sequence_drift=np.zeros(p.n))
     time = FIRST + 11 * PERIOD  # silences of pings 0-10 (r0 and r2 hear none of ping 1)
-    silence_at, _ = arrival._silence_loglik(p, time, ClockState(1.0, silence_from=FIRST))
+    silence_at, cut = silence_since(
+        arrival.silence, p.emission_time, p.period, p.x, p.y, time, 1.0, FIRST, PERIOD, SOUND
+    )
     silence_gp, _ = grouped._silence(p, time, SequenceState(1.0, scheduled=0.0, silence_from=FIRST))
     np.testing.assert_array_equal(silence_gp, silence_at)
     assert np.ptp(silence_at) > 5.0  # informative: unheard close to a receiver costs
+    # the arrival-time correction scores them in its compiled call, added after the
+    # detections' terms: to the last bit, the detections' score (no window) plus these
+    rows_last = arrival.as_matrix(obs["arrival-time"].iloc[[-1]])
+
+    def corrected(silence_from):
+        state = ClockState(1.0, arrival.clock.initial_covariance(1e-3), silence_from=silence_from)
+        return arrival._loglik(p, rows_last, time, state, p.normalised_weights())
+
+    fused, (_, _, fused_cut), _ = corrected(FIRST)
+    np.testing.assert_array_equal(fused, corrected(np.inf)[0] + silence_at)
+    assert fused_cut == cut == time + 0.5 - arrival.silence.tolerance
     # heard: log p(range) of the one receiver of the last ping, the curve's share of each score
     state = ClockState(1.0, covariance=arrival.clock.initial_covariance(1e-3), silence_from=np.inf)
     weights = p.normalised_weights()

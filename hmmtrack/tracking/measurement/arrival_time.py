@@ -556,16 +556,20 @@ def vertical_parts(particles, obs: pd.DataFrame) -> tuple[np.ndarray, np.ndarray
     row_offset : numpy.ndarray, shape (M,)
         Per detection: sensor depth (without particle depth) minus receiver depth (m).
     """
-    n = np.shape(particles.x)[0]
-    tag_depth = getattr(particles, "depth", None)
     offset = np.zeros(len(obs))
     if "receiver_depth" in obs:
         offset -= obs["receiver_depth"].to_numpy(dtype=float)
+    if getattr(particles, "depth", None) is None and "depth" in obs:
+        offset += obs["depth"].to_numpy(dtype=float)
+    return particle_depths(particles), offset
+
+
+def particle_depths(particles) -> np.ndarray:
+    """The particles' depths (m), shape (N,): their ``depth`` field, zeros without one."""
+    tag_depth = getattr(particles, "depth", None)
     if tag_depth is None:
-        if "depth" in obs:
-            offset += obs["depth"].to_numpy(dtype=float)
-        return np.zeros(n), offset
-    return np.ascontiguousarray(tag_depth, dtype=float), offset
+        return np.zeros(np.shape(particles.x)[0])
+    return np.ascontiguousarray(tag_depth, dtype=float)
 
 
 def _period_rate(particles, n: int) -> np.ndarray:

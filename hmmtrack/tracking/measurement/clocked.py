@@ -53,7 +53,7 @@ from hmmtrack.tracking.measurement.arrival_time import (
     emission_range,
     mixture_constants,
     mixture_log_densities,
-    vertical_parts,
+    particle_depths,
     wrap_arrival,
 )
 from hmmtrack.tracking.measurement.base import (
@@ -65,8 +65,11 @@ from hmmtrack.tracking.measurement.base import (
 )
 from hmmtrack.tracking.measurement.clock import EmissionClockModel, predict_clock_covariance
 from hmmtrack.tracking.measurement.detection import (
+    NOTHING_HEARD,
+    NOWHERE,
     LogisticDetection,
     SilenceModel,
+    recent_pings_kernel,
     silence_loglik_recent_pings,
     softplus,
 )
@@ -99,7 +102,6 @@ SEARCH_RADIUS = 1000.0
 #: tempered corrections below this fraction of effective particles; two receivers on a
 #: fast-turning plan need 0.6 (benchmarks/bench_two_auv_plan.py)
 TEMPERING_ESS = 0.3
-_NO_ROWS = pd.DataFrame()
 
 
 def search_radius_setting():
@@ -251,14 +253,20 @@ def _correction_kernel(
     x, y, speed, cos_heading, sin_heading, tag_depth, weights, emission_time, period, rate,
     arrival, receiver_x, receiver_y, row_offset, time, sound_speed, covariance, noise,
     measurement_sd, late_fraction, late_mean, uniform_fraction, range_50, width, lock_sigmas,
-    loglik,
+    silences, silence_xy, n_back, heard_times, heard_first, heard_stop, window_start,
+    window_end, tolerance, loglik,
 ):  # fmt: skip
     """Score detections one after the other and update every particle's clock in place.
 
-    For each row: match every particle's clock to the ping that fits
-    (:func:`hmmtrack.tracking.measurement.arrival_time.match_particle`), move the shared covariance
-    to the median
-    matched ping, score and update (:func:`_clock_row_kernel`).
+    With ``silences`` (a detection curve), first score the unheard pings of the window
+    ``(window_start, window_end]`` on the clocks as they come in
+    (:func:`hmmtrack.tracking.measurement.detection.recent_pings_kernel`: ``n_back`` pings
+    per particle at the K receivers ``silence_xy`` (K, 2), their detection times
+    ``heard_times[heard_first[k]:heard_stop[k]]``, ``tolerance`` s), added to ``loglik``
+    after the detections' terms. Then for each row: match every particle's clock to the
+    ping that fits (:func:`hmmtrack.tracking.measurement.arrival_time.match_particle`),
+    move the shared covariance to the median matched ping, score and update
+    (:func:`_clock_row_kernel`).
 
     Returns
     -------
@@ -268,6 +276,13 @@ def _correction_kernel(
         Whether some row fitted no particle within ``lock_sigmas`` innovation sds.
     """
     n = x.size
+    silence = np.zeros(n if silences else 0)
+    if silences:
+        recent_pings_kernel(
+            emission_time, period, x, y, silence_xy, n_back, heard_times, heard_first,
+            heard_stop, window_start, window_end, range_50, width, tolerance, sound_speed,
+            silence,
+        )  # fmt: skip
     vx = speed * cos_heading
     vy = speed * sin_heading
     residual = np.empty(n)
@@ -304,6 +319,8 @@ def _correction_kernel(
         )  # fmt: skip
         lost = lost or closest > lock_sigmas * sigma
         covariance = predicted - accepted * innovation_var * np.outer(gain, gain)
+    for i in range(silence.size):
+        loglik[i] += silence[i]
     return covariance, lost
 
 
@@ -643,7 +660,7 @@ class ClockedArrivalTime:
             time - arrival,
             receiver_x,
             receiver_y,
-            vertical_parts(p, _NO_ROWS)[0] + offset,
+            particle_depths(p) + offset,
             sound_speed,
         )
         p.extra["emission_time"] = arrival - r / sound_speed
@@ -669,58 +686,38 @@ class ClockedArrivalTime:
         clock is updated with it (Kalman gain scaled by the posterior probability that the
         detection is a direct arrival), so simultaneous detections of one ping are scored
         jointly. With a silence model, it includes ``log p(range)`` of each detection and
-        the unheard pings since the last correction.
+        the unheard pings since the last correction (:func:`silence_since`'s terms, scored
+        in the same compiled call).
         """
         likelihood = self.arrival.likelihood
         clocks = tuple(np.array(p.extra[name], dtype=float) for name in CLOCK_FIELDS)
         loglik = np.zeros(p.n)
-        detection = None if self.silence is None else self.silence.detection
+        silence = self.silence
+        silence_from, n_back, xy, heard = state.silence_from, 0, NOWHERE, NOTHING_HEARD
+        if silence is not None:
+            silence_from, n_back, xy, heard = silence.window(
+                time, state.dt, state.silence_from, self.clock.nominal_period
+            )
         arrival, receiver_x, receiver_y, row_offset = _parts(p, rows)
         covariance, lost = _correction_kernel(
-            p.x,
-            p.y,
-            p.speed,
-            p.cos_heading,
-            p.sin_heading,
-            vertical_parts(p, _NO_ROWS)[0],  # the particles' depths
-            weights,
-            *clocks,
-            arrival,
-            receiver_x,
-            receiver_y,
-            row_offset,
-            float(time),
-            self.arrival.sound_speed,
-            state.covariance,
-            self._noise,
-            likelihood.sigma,
-            likelihood.late_fraction,
-            likelihood.late_mean,
-            likelihood.uniform_fraction,
-            np.nan if detection is None else detection.range_50,
-            np.nan if detection is None else detection.width,
-            self.lock_sigmas,
+            p.x, p.y, p.speed, p.cos_heading, p.sin_heading, particle_depths(p), weights,
+            *clocks, arrival, receiver_x, receiver_y, row_offset, float(time),
+            self.arrival.sound_speed, state.covariance, self._noise, likelihood.sigma,
+            likelihood.late_fraction, likelihood.late_mean, likelihood.uniform_fraction,
+            np.nan if silence is None else silence.detection.range_50,
+            np.nan if silence is None else silence.detection.width, self.lock_sigmas,
+            silence is not None, xy, n_back, heard.times, heard.first, heard.stop,
+            state.silence_from, silence_from, np.nan if silence is None else silence.tolerance,
             loglik,
-        )
-        silence_from = state.silence_from
-        if self.silence is not None:
-            silence, silence_from = self._silence_loglik(p, time, state)
-            loglik = loglik + silence
+        )  # fmt: skip
         # (the sum of finite log-likelihoods of this size is finite)
-        if loglik.shape != (p.n,) or not math.isfinite(loglik.sum()):
+        if not math.isfinite(loglik.sum()):
             raise ValueError(
                 f"arrival-time log-likelihood not finite at time {time} for detections at "
                 f"{arrival.tolist()} (receivers at x {receiver_x.tolist()}, "
                 f"y {receiver_y.tolist()})"
             )
         return loglik, (clocks, covariance, silence_from), lost
-
-    def _silence_loglik(self, p, time: float, state: ClockState) -> tuple[np.ndarray, float]:
-        """:func:`silence_since` the last correction of the particles' clocks."""
-        return silence_since(
-            self.silence, p.emission_time, p.period, p.x, p.y, time, state.dt,
-            state.silence_from, self.clock.nominal_period, self.arrival.sound_speed,
-        )  # fmt: skip
 
 
 def silence_since(
@@ -730,11 +727,9 @@ def silence_since(
     """Log-likelihood (N,) of the pings unheard since the last correction, and the start of
     the next window (s).
 
-    The window runs from ``window_start`` (the last correction's cut) to this correction's
-    cut, ``time + dt/2`` less the silence model's tolerance (detections up to
-    ``time + dt/2`` are in the correction at ``time``). Each particle's pings
-    ``emission_time + k·period`` due at a listening receiver in the window and not heard
-    there score ``log(1 − p(range))``
+    The window and the pings looked at are :meth:`SilenceModel.window`'s. Each particle's
+    pings ``emission_time + k·period`` due at a listening receiver in the window and not
+    heard there score ``log(1 − p(range))``
     (:func:`~hmmtrack.tracking.measurement.detection.silence_loglik_recent_pings`); a
     period rate is left out (over the at most 8 pings looked at it moves an arrival by well
     under the tolerance).
@@ -755,17 +750,12 @@ def silence_since(
     sound_speed : float
         m/s.
     """
-    cut = time + 0.5 * dt - silence.tolerance
-    if cut <= window_start:
-        return np.zeros(np.shape(x)[0]), window_start
-    # pings of a particle whose arrival can fall in the window, with one to spare
-    n_back = min(int(np.ceil((cut - window_start) / nominal_period)) + 1, 8)
-    listening, at = silence.listening(time, dt)
-    if not listening:
+    cut, n_back, xy, heard = silence.window(time, dt, window_start, nominal_period)
+    if not n_back:
         return np.zeros(np.shape(x)[0]), cut
     loglik = silence_loglik_recent_pings(
-        emission_time, period, x, y, at, n_back, silence.heard_times(listening), window_start,
-        cut, silence.detection, silence.tolerance, sound_speed,
+        emission_time, period, x, y, xy, n_back, heard, window_start, cut, silence.detection,
+        silence.tolerance, sound_speed,
     )  # fmt: skip
     return loglik, cut
 

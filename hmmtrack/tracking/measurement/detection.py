@@ -281,6 +281,11 @@ class HeardTimes:
         return HeardTimes(self.times, self.first[receivers], self.stop[receivers])
 
 
+#: no receiver (positions (0, 2), m) and their detection times: a window with nothing to score
+NOWHERE = np.empty((0, 2))
+NOTHING_HEARD = HeardTimes.of([])
+
+
 def silence_loglik_recent_pings(
     emission_time: np.ndarray,
     period: np.ndarray,
@@ -334,14 +339,12 @@ def silence_loglik_recent_pings(
             f"(expected (K, 2)) but detection times of {heard_times.first.size} receiver(s)"
         )
     out = np.zeros(np.shape(emission_time))
-    _recent_pings_kernel(
+    recent_pings_kernel(
         np.ascontiguousarray(emission_time, dtype=float),
         np.ascontiguousarray(period, dtype=float),
-        _receiver_ranges(
-            np.ascontiguousarray(x, dtype=float),
-            np.ascontiguousarray(y, dtype=float),
-            np.ascontiguousarray(receiver_xy),
-        ),
+        np.ascontiguousarray(x, dtype=float),
+        np.ascontiguousarray(y, dtype=float),
+        np.ascontiguousarray(receiver_xy),
         int(n_back),
         heard_times.times,
         heard_times.first,
@@ -358,45 +361,60 @@ def silence_loglik_recent_pings(
 
 
 @njit(cache=True)
-def _receiver_ranges(x, y, receiver_xy):
-    """Ranges (m), shape (K, N), from K receivers ``receiver_xy`` (K, 2) to (x, y) (N,)."""
-    out = np.empty((receiver_xy.shape[0], x.size))
-    for k in range(receiver_xy.shape[0]):
-        for i in range(x.size):
-            dx = x[i] - receiver_xy[k, 0]
-            dy = y[i] - receiver_xy[k, 1]
-            out[k, i] = math.sqrt(dx * dx + dy * dy)
-    return out
-
-
-@njit(cache=True)
-def _recent_pings_kernel(
-    emission_time, period, range_m, n_back, heard_times, first, stop, window_start, window_end,
-    range_50, width, tolerance, sound_speed, out,
+def recent_pings_kernel(
+    emission_time, period, x, y, receiver_xy, n_back, heard_times, first, stop, window_start,
+    window_end, range_50, width, tolerance, sound_speed, out,
 ):  # fmt: skip
-    for k in range(range_m.shape[0]):
+    """Compiled :func:`silence_loglik_recent_pings`: subtracts from ``out`` (N,) each
+    particle's ``softplus((range_50 − range) / width) = −log(1 − p(range))`` once per ping
+    due in the window and unheard, over the K receivers at ``receiver_xy`` (K, 2) whose
+    sorted detection times are ``heard_times[first[k]:stop[k]]`` (a :class:`HeardTimes`'
+    arrays); the clock-aware correction kernel calls it on its own particles' clocks.
+
+    Receiver by receiver and ping by ping, each step is a pass over the particles without
+    branches but the last (vector code; a particle's branches on whether its ping is due
+    and heard cost more than the passes), in the order of the terms per particle.
+    """
+    slowness = 1.0 / sound_speed
+    n = emission_time.size
+    range_m = np.empty(n)
+    travel = np.empty(n)
+    last = np.empty(n)
+    expected = np.empty(n)
+    unheard = np.empty(n)  # 1.0: the ping is due in the window and not heard (so far)
+    for k in range(receiver_xy.shape[0]):
         heard_k = heard_times[first[k] : stop[k]]
         # only detections within tolerance of the window can match a ping due in it
         lo = np.searchsorted(heard_k, window_start - tolerance)
         heard_k = heard_k[lo : np.searchsorted(heard_k, window_end + tolerance, side="right")]
         m = heard_k.size
-        slowness = 1.0 / sound_speed
-        for i in range(emission_time.size):
-            travel = range_m[k, i] * slowness
-            last = math.floor((window_end - travel - emission_time[i]) / period[i])
-            for back in range(n_back):
-                expected = emission_time[i] + (last - back) * period[i] + travel
-                if not (window_start < expected <= window_end):
-                    continue
-                heard = False
-                if m > 8:
-                    j = min(np.searchsorted(heard_k, expected - tolerance), m - 1)
-                    heard = abs(heard_k[j] - expected) <= tolerance
-                else:  # (a window holds a few detections: a scan is cheaper)
-                    for j in range(m):
-                        heard |= abs(heard_k[j] - expected) <= tolerance
-                if not heard:  # log(1 − p) = log expit(x) = −softplus(−x)
-                    out[i] -= softplus((range_50 - range_m[k, i]) / width)
+        receiver_x, receiver_y = receiver_xy[k, 0], receiver_xy[k, 1]
+        for i in range(n):
+            dx = x[i] - receiver_x
+            dy = y[i] - receiver_y
+            range_m[i] = math.sqrt(dx * dx + dy * dy)
+        for i in range(n):  # the last ping whose arrival is at or before the window's end
+            travel[i] = range_m[i] * slowness
+            last[i] = math.floor((window_end - travel[i] - emission_time[i]) / period[i])
+        for back in range(n_back):
+            for i in range(n):
+                arrival = emission_time[i] + (last[i] - back) * period[i] + travel[i]
+                expected[i] = arrival
+                due = (window_start < arrival) & (arrival <= window_end)  # False for NaN
+                unheard[i] = 1.0 if due else 0.0
+            if m > 8:
+                for i in range(n):
+                    if unheard[i] > 0.0:
+                        j = min(np.searchsorted(heard_k, expected[i] - tolerance), m - 1)
+                        unheard[i] = 0.0 if abs(heard_k[j] - expected[i]) <= tolerance else 1.0
+            else:  # (a window holds a few detections: a scan is cheaper)
+                for j in range(m):
+                    for i in range(n):
+                        heard = abs(heard_k[j] - expected[i]) <= tolerance
+                        unheard[i] = 0.0 if heard else unheard[i]
+            for i in range(n):
+                if unheard[i] > 0.0:  # log(1 − p) = log expit(x) = −softplus(−x)
+                    out[i] -= softplus((range_50 - range_m[i]) / width)
 
 
 #: grid of :func:`softplus`'s table: ``x`` from ``-SOFTPLUS_END`` to ``SOFTPLUS_END`` in
@@ -532,6 +550,48 @@ class SilenceModel:
             self._heard_all.append({name: k for k, name in enumerate(self.heard)})
         everyone, position = self._heard_all
         return everyone.select(np.array([position[n] for n in names], dtype=np.int64))
+
+    def window(
+        self, time: float, dt: float, window_start: float, nominal_period: float
+    ) -> tuple[float, int, np.ndarray, HeardTimes]:
+        """The unheard pings a correction at ``time`` scores: its window's end, the pings
+        per particle to look at and the listening receivers, in the compiled kernel's form.
+
+        The window runs from ``window_start`` (the last correction's cut) to this
+        correction's cut, ``time + dt/2`` less :attr:`tolerance` (detections up to
+        ``time + dt/2`` are in the correction at ``time``); a particle's pings whose arrival
+        can fall in it number at most ``(cut − window_start) / nominal_period`` rounded up,
+        and one to spare (at most 8).
+
+        Parameters
+        ----------
+        time, dt : float
+            The correction's time and the filter's step (s).
+        window_start : float
+            The last correction's cut (s).
+        nominal_period : float
+            The tag's nominal period (s).
+
+        Returns
+        -------
+        cut : float
+            The window's end and the next window's start (s); ``window_start`` when the
+            window is empty.
+        n_back : int
+            Pings per particle to look at; 0 when there is nothing to score.
+        xy : numpy.ndarray, shape (K, 2)
+            Positions (m) of the receivers listening at ``time``.
+        heard : HeardTimes
+            Their detection times.
+        """
+        cut = time + 0.5 * dt - self.tolerance
+        if cut <= window_start:
+            return window_start, 0, NOWHERE, NOTHING_HEARD
+        listening, xy = self.listening(time, dt)
+        if not listening:
+            return cut, 0, NOWHERE, NOTHING_HEARD
+        n_back = min(int(np.ceil((cut - window_start) / nominal_period)) + 1, 8)
+        return cut, n_back, xy, self.heard_times(listening)
 
     def listening(self, time: float, step: float = 1.0, chunk: int = 1024):
         """Receivers listening at ``time`` (within their GPS span) and their positions.
