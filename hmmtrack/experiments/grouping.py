@@ -11,6 +11,10 @@ against the particle's clock. :func:`grouping_rows` runs both on the same detect
 clock-aware cases (:func:`hmmtrack.experiments.arrival.cases`), each with and without the
 case's detection curve (unheard pings as information), and scores them as the study does
 (:func:`~hmmtrack.experiments.clock_runs.score_run`), with each run's CPU time.
+:func:`share_sweep` runs the same pair on the moored array at shorter detection ranges, where
+fewer pings reach all three receivers: it sets the share of pings heard by three from which
+the command line groups a fixed-period tag's pings
+(:data:`~hmmtrack.tracking.measurement.sequence.GROUPING_SHARE`).
 This module runs and scores; it writes nothing.
 """
 
