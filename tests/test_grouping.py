@@ -20,10 +20,10 @@ from hmmtrack.cli import build_parser
 from hmmtrack.cli.track import _chosen_for_period, build_config
 from hmmtrack.experiments.clock_runs import (
     clock_inputs,
+    grouped_config,
     score_run,
     track_arrival,
 )
-from hmmtrack.experiments.grouping import grouped_config
 from hmmtrack.scenarios.realistic import moored_array
 from hmmtrack.tracking.config import TrackingConfig
 from hmmtrack.tracking.filter import ParticleFilter
@@ -248,6 +248,23 @@ def test_a_fixed_period_tag_is_grouped_by_default_only_where_three_receivers_hea
     assert chosen("--period", "8", "--r0", "r0=100").name == "range-rate"
     curve = chosen("--period", "8", "--detection-curve", "250", "50")
     assert curve.name == "ping-sequence" and curve.detection_curve == CURVE
+
+
+def test_the_moored_arrays_detection_range_moves_the_share_heard_by_three_across_the_rule():
+    # the threshold sweep's family: a shorter range, fewer pings reach the far mooring
+    shares = {}
+    for detection_range in (0.8, 1.75):
+        case = moored_array(0, duration=1800, detection_range=detection_range)
+        sc = case.scenario
+        assert case.detection_probability.range_50 == pytest.approx(
+            detection_range / 1.75 * moored_array(0, duration=1800).detection_probability.range_50
+        )
+        name, shares[detection_range] = fixed_period_measurement(
+            case.corrected_detections(), sc.receivers, sc.period
+        )
+        assert name == ("ping-sequence" if detection_range == 1.75 else "arrival-time")
+    assert shares[0.8] < GROUPING_SHARE < shares[1.75]
+    assert 0.03 < shares[0.8] < 0.08 and shares[1.75] > 0.7
 
 
 def test_each_kind_of_sequence_has_its_own_arrival_sd_unless_told():

@@ -16,7 +16,7 @@ import pytest
 
 from hmmtrack.cli import build_parser
 from hmmtrack.cli.study import _keywords
-from hmmtrack.experiments.arrival import KNOWN_CLOCK_CASES, arrival_study
+from hmmtrack.experiments.arrival import ARRIVAL, GROUPED, KNOWN_CLOCK_CASES, arrival_study
 from hmmtrack.experiments.clock_bound import CASES, clock_bound_study
 from hmmtrack.experiments.closed_loop_study import MODES, closed_loop_study
 from hmmtrack.experiments.stationary import GEOMETRY_COLUMNS, settings, stationary_study
@@ -69,10 +69,26 @@ def test_stationary_study_scores_every_setting_and_bounds_each_geometry():
     assert text.startswith("# Stationary tag") and "## Per-trial table" in text
 
 
-def test_arrival_study_tracks_every_case_both_ways(arrival, tmp_path):
+def test_arrival_study_tracks_every_case_three_ways(arrival, tmp_path):
     runs = arrival.runs
-    assert len(runs) == 2 * 5 + len(KNOWN_CLOCK_CASES)
-    assert runs.groupby("scenario")["method"].nunique().max() == 2
+    assert len(runs) == 3 * 5 + len(KNOWN_CLOCK_CASES)
+    assert runs.groupby("scenario")["method"].nunique().max() == 3
+    # a grouped row beside each arrival-time row, with the share heard by three and the
+    # measurement the command line would choose from it: the moorings group, two AUVs not
+    grouped = runs[runs["method"].str.startswith(GROUPED)].set_index("scenario")
+    assert len(grouped) == 5 and np.isfinite(grouped["smoothed_after_10_min_m"]).all()
+    assert grouped.loc["moored array, 3 receivers", "heard_by_3"] > 0.5
+    assert grouped.loc["moored array, 3 receivers", "pings_choose"] == "ping-sequence"
+    assert grouped.loc["shark pursuit, 2 AUVs (circling)", "heard_by_3"] == 0
+    assert grouped.loc["shark pursuit, 2 AUVs (circling)", "pings_choose"] == "arrival-time"
+    table = arrival.grouping.set_index("scenario")
+    assert list(table.index) == list(grouped.index)
+    ratio = (
+        grouped["error_after_10_min_m"]
+        / runs[runs["method"].str.startswith(ARRIVAL)].set_index("scenario")["error_after_10_min_m"]
+    )
+    assert np.allclose(table["median_ratio"], ratio[table.index])
+    assert table.loc["moored array, 3 receivers", "pings_choose"] == "ping-sequence (1 of 1)"
     scored = runs[["error_after_10_min_m", "time_to_convergence_s"]]
     assert np.isfinite(scored).all().all()
     moored = runs[(runs["scenario"] == "moored array, 3 receivers")]
@@ -81,7 +97,9 @@ def test_arrival_study_tracks_every_case_both_ways(arrival, tmp_path):
     assert len(arrival.robustness) == 4 * 2 and len(arrival.facts) == 5
     # the report's per-run table reads back as the bound study's filter errors
     path = tmp_path / "clock_aware.md"
-    path.write_text(clock_aware_markdown(arrival, "Written by a test"))
+    text = clock_aware_markdown(arrival, "Written by a test")
+    assert "## Grouped pings (fixed period) against arrival-time" in text
+    path.write_text(text)
     errors = read_filter_errors(path)
     assert set(errors["scenario"]) >= set(KNOWN_CLOCK_CASES)
     assert errors["pf_mean_after_10_min_m"].notna().all()

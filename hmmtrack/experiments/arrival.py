@@ -9,7 +9,13 @@ detections (:mod:`hmmtrack.experiments.clock_runs`):
 * range-rate (the paper): ΔTOF ranges with the scenario's mean period — the best constant
   period there is — and the true range at each receiver's first detection (``r0``);
 * arrival-time: no initial range, the clock in the state, detection probability as
-  information, fixed-lag smoothing.
+  information, fixed-lag smoothing;
+* grouped pings (fixed period): the same detections grouped into pings, each scored jointly
+  against the particle's clock (the ``"ping-sequence"`` measurement given the mean period,
+  :func:`~hmmtrack.experiments.clock_runs.grouped_config`), with the same detection curve
+  and smoother; beside it the share of pings heard by three or more receivers and the
+  measurement ``hmmtrack track --period`` would choose from them
+  (:func:`~hmmtrack.tracking.measurement.sequence.fixed_period_measurement`).
 
 Diagnostics beside them: the same pursuit with a third AUV, and the circling and
 right-angle pursuits with the true emission schedule given (the clock known: what the
@@ -33,6 +39,7 @@ import pandas as pd
 from hmmtrack.experiments.clock_runs import (
     DURATION,
     clock_inputs,
+    grouped_config,
     known_clock_run,
     score_run,
     track_arrival,
@@ -43,8 +50,13 @@ from hmmtrack.tracking.measurement.clock import (
     local_period_ppm,
     schedule_wander,
 )
+from hmmtrack.tracking.measurement.sequence import fixed_period_measurement
 from hmmtrack.tracking.pipeline import track
 
+#: the method name's start of the grouped-pings rows (:func:`run_case`)
+GROUPED = "grouped pings"
+#: the method name's start of the arrival-time rows the grouped rows are set beside
+ARRIVAL = "arrival-time (no r0)"
 #: the cases also tracked with their clock known (:func:`known_clock_run`)
 KNOWN_CLOCK_CASES = (
     "shark pursuit, 2 AUVs (circling)",
@@ -72,9 +84,12 @@ class ArrivalStudy:
     ----------
     runs : pandas.DataFrame
         One row per case, seed and method (``scenario``, ``seed``, ``method``, the columns
-        of :func:`hmmtrack.experiments.clock_runs.score_run`, ``ambiguous_share``).
+        of :func:`hmmtrack.experiments.clock_runs.score_run`, ``ambiguous_share``; the
+        grouped rows also ``heard_by_3`` and ``pings_choose``, see :func:`run_case`).
     summary : pandas.DataFrame
         :func:`summary_table` of ``runs``.
+    grouping : pandas.DataFrame
+        :func:`grouping_table` of ``runs``.
     robustness : pandas.DataFrame
         One row per tag clock, filter clock model and seed.
     robustness_summary : pandas.DataFrame
@@ -85,6 +100,7 @@ class ArrivalStudy:
 
     runs: pd.DataFrame
     summary: pd.DataFrame
+    grouping: pd.DataFrame
     robustness: pd.DataFrame
     robustness_summary: pd.DataFrame
     facts: list[str]
@@ -104,13 +120,24 @@ def cases(seed: int, duration: float) -> dict:
 
 
 def run_case(name, case, seed, n_particles, motion, lag, duration) -> list[dict]:
-    """Both methods on one case: the range-rate row and the smoothed arrival-time row (with
-    the unsmoothed filter's error after convergence from a run without the smoother)."""
+    """The three methods on one case: the range-rate row, the smoothed arrival-time row (with
+    the unsmoothed filter's error after convergence from a run without the smoother) and the
+    smoothed grouped-pings row, whose ``heard_by_3`` is the share of the pings heard by three
+    or more receivers and ``pings_choose`` the measurement the command line would choose from
+    them (:func:`~hmmtrack.tracking.measurement.sequence.fixed_period_measurement`)."""
     sc = case.scenario
     detections, config, options = clock_inputs(case, seed, n_particles, motion, duration)
     paper = track(detections, sc.receivers, config, options["motion"], seed=seed)
     plain = track_arrival(detections, sc.receivers, options)
     smoothed = track_arrival(detections, sc.receivers, options | {"smoothing_lag": lag})
+    grouped = track(
+        detections,
+        sc.receivers,
+        grouped_config(options, sc.period, case.search_bounds, {"smoothing_lag": lag}),
+        options["motion"],
+        seed=seed,
+    )
+    choice, share = fixed_period_measurement(detections, sc.receivers, sc.period)
     return [
         {
             "scenario": name,
@@ -122,12 +149,21 @@ def run_case(name, case, seed, n_particles, motion, lag, duration) -> list[dict]
         {
             "scenario": name,
             "seed": seed,
-            "method": f"arrival-time (no r0), smoothed lag {lag} s",
+            "method": f"{ARRIVAL}, smoothed lag {lag} s",
             **score_run(smoothed.estimates, sc.truth, smoothed.smoothed),
             "ambiguous_share": float(smoothed.ambiguity["ambiguous"].mean()),
             "unsmoothed_error_after_convergence_m": score_run(plain.estimates, sc.truth)[
                 "error_after_convergence_m"
             ],
+        },
+        {
+            "scenario": name,
+            "seed": seed,
+            "method": f"{GROUPED} (fixed period), smoothed lag {lag} s",
+            **score_run(grouped.estimates, sc.truth, grouped.smoothed),
+            "ambiguous_share": np.nan,
+            "heard_by_3": share,
+            "pings_choose": choice,
         },
     ]
 
@@ -194,6 +230,52 @@ def summary_table(table: pd.DataFrame) -> pd.DataFrame:
     return summary
 
 
+def grouping_table(runs: pd.DataFrame) -> pd.DataFrame:
+    """Per case, the grouped pings against the arrival-time filter on the same detections and
+    seeds (the rows of :func:`run_case`).
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``scenario``, ``seeds``, the mean error from 10 min on (m) of each
+        (``arrival_time_m``, ``grouped_m``) and of their smoothers
+        (``arrival_time_smoothed_m``, ``grouped_smoothed_m``), the median and range over seeds
+        of the ratio grouped / arrival-time of that error (``median_ratio``,
+        ``ratio_min``, ``ratio_max``), the mean and range of the share of pings heard by three
+        or more receivers (``heard_by_3``, ``heard_by_3_min``, ``heard_by_3_max``), and
+        ``pings_choose``: the measurement the command line chose from the pings, with how
+        many seeds chose it.
+    """
+    out = []
+    for name, case in runs.groupby("scenario", sort=False):
+        arrival = case[case["method"].str.startswith(ARRIVAL)].set_index("seed")
+        grouped = case[case["method"].str.startswith(GROUPED)].set_index("seed")
+        if grouped.empty:
+            continue
+        ratio = grouped["error_after_10_min_m"] / arrival["error_after_10_min_m"]
+        choices = grouped["pings_choose"].value_counts()
+        out.append(
+            {
+                "scenario": name,
+                "seeds": len(grouped),
+                "arrival_time_m": arrival["error_after_10_min_m"].mean(),
+                "grouped_m": grouped["error_after_10_min_m"].mean(),
+                "arrival_time_smoothed_m": arrival["smoothed_after_10_min_m"].mean(),
+                "grouped_smoothed_m": grouped["smoothed_after_10_min_m"].mean(),
+                "median_ratio": ratio.median(),
+                "ratio_min": ratio.min(),
+                "ratio_max": ratio.max(),
+                "heard_by_3": grouped["heard_by_3"].mean(),
+                "heard_by_3_min": grouped["heard_by_3"].min(),
+                "heard_by_3_max": grouped["heard_by_3"].max(),
+                "pings_choose": ", ".join(
+                    f"{choice} ({count} of {len(grouped)})" for choice, count in choices.items()
+                ),
+            }
+        )
+    return pd.DataFrame(out)
+
+
 def robustness_summary(robustness: pd.DataFrame) -> pd.DataFrame:
     """Mean errors and the worst seed's error after convergence per tag clock and model."""
     return (
@@ -229,8 +311,8 @@ def arrival_study(
     lag: int = 60,
     duration: float = DURATION,
 ) -> ArrivalStudy:
-    """Every case of :func:`cases` for each seed, the known-clock diagnostics and the
-    robustness runs.
+    """Every case of :func:`cases` for each seed (range-rate, arrival-time and grouped pings),
+    the known-clock diagnostics and the robustness runs.
 
     Parameters
     ----------
@@ -261,6 +343,7 @@ def arrival_study(
     return ArrivalStudy(
         runs=runs,
         summary=summary_table(runs),
+        grouping=grouping_table(runs),
         robustness=robustness,
         robustness_summary=robustness_summary(robustness),
         facts=facts,

@@ -12,7 +12,9 @@ to the common time base with the calibration the case provides:
   it, with keyword options built by :func:`clock_inputs` or, from a
   :class:`~hmmtrack.tracking.config.TrackingConfig`, by :func:`config_options`;
   :func:`known_clock_run` is its diagnostic twin told the tag's emission schedule
-  (:class:`KnownClock`).
+  (:class:`KnownClock`);
+* the same detections grouped into pings (``"ping-sequence"`` given the period,
+  :func:`grouped_config`).
 
 :func:`score_run` scores a run the way every clock study reports it. This module runs and
 scores; it writes nothing (:mod:`hmmtrack.report`).
@@ -172,6 +174,25 @@ def without_silences(options: dict) -> dict:
     config = options["config"]
     measurement = dataclasses.replace(config.measurement, detection_curve=None)
     return options | {"config": dataclasses.replace(config, measurement=measurement)}
+
+
+def grouped_config(options: dict, period: float, bounds, settings: dict | None = None):
+    """The grouped run's configuration: the ``"ping-sequence"`` measurement of a tag of
+    ``period`` (s), the arrival-time run's particles, window and detection curve
+    (``options`` of :func:`clock_inputs`), the case's search ``bounds``, and more
+    ``settings`` by key: the tag's pings grouped and scored jointly
+    (:mod:`hmmtrack.tracking.measurement.sequence`)."""
+    config = options["config"]
+    keys = {
+        "measurement": "ping-sequence",
+        "period": float(period),
+        "bounds": bounds,
+        "n_particles": config.filter.n_particles,
+        "detection_curve": config.measurement.detection_curve,
+        "start": config.start,
+        "end": config.end,
+    }
+    return TrackingConfig.from_keys(**(keys | dict(settings or {})))
 
 
 def track_arrival(

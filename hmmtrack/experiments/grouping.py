@@ -11,6 +11,10 @@ against the particle's clock. :func:`grouping_rows` runs both on the same detect
 clock-aware cases (:func:`hmmtrack.experiments.arrival.cases`), each with and without the
 case's detection curve (unheard pings as information), and scores them as the study does
 (:func:`~hmmtrack.experiments.clock_runs.score_run`), with each run's CPU time.
+:func:`share_sweep` runs the same pair on the moored array at shorter detection ranges, where
+fewer pings reach all three receivers: it sets the share of pings heard by three from which
+the command line groups a fixed-period tag's pings
+(:data:`~hmmtrack.tracking.measurement.sequence.GROUPING_SHARE`).
 This module runs and scores; it writes nothing.
 """
 
@@ -28,11 +32,13 @@ from hmmtrack.experiments.arrival import cases
 from hmmtrack.experiments.clock_runs import (
     DURATION,
     clock_inputs,
+    grouped_config,
     score_run,
     track_arrival,
     without_silences,
 )
-from hmmtrack.tracking.config import TrackingConfig
+from hmmtrack.scenarios.realistic import moored_array
+from hmmtrack.tracking.measurement.sequence import fixed_period_measurement
 from hmmtrack.tracking.pipeline import track
 
 #: the clock-aware cases of :func:`grouping_rows` unless told: three moored receivers (most
@@ -57,24 +63,6 @@ METHODS = (
     "grouped pings",
     "grouped pings, no detection curve",
 )
-
-
-def grouped_config(options: dict, period: float, bounds, settings: dict | None = None):
-    """The grouped run's configuration: the ``"ping-sequence"`` measurement of a tag of
-    ``period`` (s), the arrival-time run's particles, window and detection curve
-    (``options`` of :func:`~hmmtrack.experiments.clock_runs.clock_inputs`), the case's
-    search ``bounds``, and more ``settings`` by key."""
-    config = options["config"]
-    keys = {
-        "measurement": "ping-sequence",
-        "period": float(period),
-        "bounds": bounds,
-        "n_particles": config.filter.n_particles,
-        "detection_curve": config.measurement.detection_curve,
-        "start": config.start,
-        "end": config.end,
-    }
-    return TrackingConfig.from_keys(**(keys | dict(settings or {})))
 
 
 def on_mirror(estimates: pd.DataFrame, scenario) -> float:
@@ -145,21 +133,90 @@ def grouping_rows(
     for seed in seeds:
         by_name = cases(seed, duration)
         for name in names:
-            case = by_name[name]
-            detections, _, options = clock_inputs(case, seed, n_particles, motion, duration)
-            for method in methods:
-                began = time.process_time()
-                result = _run(method, case, seed, detections, options, settings)
-                row = {"scenario": name, "seed": seed, "method": method}
-                row |= score_run(result.estimates, case.scenario.truth)
-                row["cpu_s"] = time.process_time() - began
-                row["on_mirror"] = on_mirror(result.estimates, case.scenario)
-                if method.startswith("grouped"):
-                    heard = result.observations.groupby("ping").size()
-                    row["heard_per_ping"] = float(heard.mean())
-                    row["heard_by_3"] = float(np.mean(heard >= 3))
-                    row["echoes_dropped"] = int(result.observations.attrs.get("echoes_dropped", 0))
-                rows.append(row)
+            rows += case_rows(
+                name, by_name[name], seed, methods, n_particles, motion, duration, settings
+            )
+    return pd.DataFrame(rows)
+
+
+def case_rows(name, case, seed, methods, n_particles, motion, duration, settings) -> list[dict]:
+    """The rows of :func:`grouping_rows` for one case and seed (its arguments)."""
+    detections, _, options = clock_inputs(case, seed, n_particles, motion, duration)
+    rows = []
+    for method in methods:
+        began = time.process_time()
+        result = _run(method, case, seed, detections, options, settings)
+        row = {"scenario": name, "seed": seed, "method": method}
+        row |= score_run(result.estimates, case.scenario.truth)
+        row["cpu_s"] = time.process_time() - began
+        row["on_mirror"] = on_mirror(result.estimates, case.scenario)
+        if method.startswith("grouped"):
+            heard = result.observations.groupby("ping").size()
+            row["heard_per_ping"] = float(heard.mean())
+            row["heard_by_3"] = float(np.mean(heard >= 3))
+            row["echoes_dropped"] = int(result.observations.attrs.get("echoes_dropped", 0))
+        rows.append(row)
+    return rows
+
+
+#: 50 % detection ranges (array radii) of :func:`share_sweep`: from pings mostly heard by
+#: one or two moorings (0.8: 2-4 % heard by three) to most heard by all three (1.45: ~50 %;
+#: the clock-aware study's 1.75: ~80 %)
+SWEEP_RANGES = (0.8, 0.9, 1.0, 1.1, 1.2, 1.3, 1.45)
+
+
+def share_sweep(
+    seeds: Sequence[int],
+    detection_ranges: Sequence[float] = SWEEP_RANGES,
+    *,
+    methods: Sequence[str] = ("arrival-time", "grouped pings"),
+    n_particles: int = 2000,
+    motion: str = "velocity",
+    duration: float = 3600.0,
+    settings: dict | None = None,
+) -> pd.DataFrame:
+    """The rows of :func:`grouping_rows` on the moored array
+    (:func:`hmmtrack.scenarios.realistic.moored_array`) at each 50 % detection range: a
+    family whose share of pings heard by three receivers runs from near 0 to about one half,
+    to find where grouping starts to pay.
+
+    Parameters
+    ----------
+    seeds : sequence of int
+        Scenario seeds (one dataset per seed and range); the filters run with the same seed.
+    detection_ranges : sequence of float
+        ``moored_array``'s ``detection_range`` (array radii).
+    methods, n_particles, motion, duration, settings
+        As :func:`grouping_rows`.
+
+    Returns
+    -------
+    pandas.DataFrame
+        :func:`grouping_rows`' columns (``scenario`` names the range), with
+        ``detection_range``, ``share_by_3`` (the share of pings heard by three or more
+        receivers that the command line's choice reads,
+        :func:`~hmmtrack.tracking.measurement.sequence.fixed_period_measurement`) and
+        ``pings_choose`` (its choice) on every row.
+    """
+    rows = []
+    for seed in seeds:
+        for detection_range in detection_ranges:
+            case = moored_array(seed, duration=duration, detection_range=detection_range)
+            name = f"moored array, 50 % range {detection_range:g} radii"
+            detections, _, _ = clock_inputs(case, seed, n_particles, motion, duration)
+            sc = case.scenario
+            choice, share = fixed_period_measurement(detections, sc.receivers, sc.period)
+            for row in case_rows(
+                name, case, seed, methods, n_particles, motion, duration, settings
+            ):
+                rows.append(
+                    row
+                    | {
+                        "detection_range": detection_range,
+                        "share_by_3": share,
+                        "pings_choose": choice,
+                    }
+                )
     return pd.DataFrame(rows)
 
 

@@ -58,6 +58,7 @@ def moored_array(
     period: float = 8.0,
     array_radius: float = 400.0,
     schedule_wander: float = 0.8,
+    detection_range: float = 1.75,
     start: float = 1_600_000_000.0,
 ) -> ClockScenario:
     """A resident shark inside a triangle of three moored receivers, with realistic clocks.
@@ -66,8 +67,8 @@ def moored_array(
     at the corners of an equilateral triangle around the shark's home range (the centre
     of its path), each ``array_radius`` from the centre or, if the shark roams further,
     1.2 times its largest distance from the centre, so that it stays inside the array;
-    the detection range is logistic with a 50 % range of 1.75 radii (fall-off a quarter
-    radius); receiver positions are surveyed to 0.5 m; receiver clocks have offsets of
+    the detection range is logistic with a 50 % range of ``detection_range`` radii (fall-off a
+    quarter radius); receiver positions are surveyed to 0.5 m; receiver clocks have offsets of
     ~0.5 s and drifts of ~20 ppm, calibrated to 0.1 ms and 0.02 ppm; 3 % of detections
     are multipath arrivals.
 
@@ -82,6 +83,9 @@ def moored_array(
         Smallest distance of each receiver from the array centre (m).
     schedule_wander : float
         See :class:`WanderingPeriodClock` (s).
+    detection_range : float
+        50 % detection range in array radii: at 1.75 most pings reach all three receivers,
+        nearer 1 the far receiver hears fewer of them (fewer pings heard by three).
     start : float
         UTC s of the start.
     """
@@ -106,7 +110,7 @@ def moored_array(
         tag=tag,
         receivers=receivers,
         clock=WanderingPeriodClock(period, schedule_wander, phase=float(rng.uniform(0, period))),
-        detection=LogisticDetection(range_50=1.75 * radius, width=0.25 * radius),
+        detection=LogisticDetection(range_50=detection_range * radius, width=0.25 * radius),
         multipath=Multipath(),
         gps=GpsNoise(sd=0.5),
         start=start,
