@@ -179,10 +179,10 @@ PERIOD_ARRIVAL_SIGMA = 2e-3
 #: a fixed-period tag whose measurement is not named has its pings grouped
 #: (:func:`fixed_period_measurement`) when at least GROUPING_SHARE of them are heard by
 #: GROUPING_RECEIVERS or more receivers: with two, grouping was not better than the
-#: arrival-time filter (reports/decisions.md, "Fixed-period grouping by default"); on moored
-#: arrays it pays in median from about a tenth heard by three ("The grouping threshold")
+#: arrival-time filter (reports/decisions.md, "Fixed-period grouping by default"); below a
+#: quarter it pays in median but not in mean, at 8-13x the CPU ("The grouping threshold")
 GROUPING_RECEIVERS = 3
-GROUPING_SHARE = 0.10
+GROUPING_SHARE = 0.25
 
 
 # ---------------------------------------------------------------------------- alignment
