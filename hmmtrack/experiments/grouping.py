@@ -133,15 +133,16 @@ def grouping_rows(
     for seed in seeds:
         by_name = cases(seed, duration)
         for name in names:
-            rows += case_rows(
-                name, by_name[name], seed, methods, n_particles, motion, duration, settings
-            )
+            case = by_name[name]
+            detections, _, options = clock_inputs(case, seed, n_particles, motion, duration)
+            rows += case_rows(name, case, seed, detections, options, methods, settings)
     return pd.DataFrame(rows)
 
 
-def case_rows(name, case, seed, methods, n_particles, motion, duration, settings) -> list[dict]:
-    """The rows of :func:`grouping_rows` for one case and seed (its arguments)."""
-    detections, _, options = clock_inputs(case, seed, n_particles, motion, duration)
+def case_rows(name, case, seed, detections, options, methods, settings) -> list[dict]:
+    """The rows of :func:`grouping_rows` for one case and seed, on its clock-corrected
+    ``detections`` and arrival-time ``options``
+    (:func:`~hmmtrack.experiments.clock_runs.clock_inputs`)."""
     rows = []
     for method in methods:
         began = time.process_time()
@@ -203,12 +204,10 @@ def share_sweep(
         for detection_range in detection_ranges:
             case = moored_array(seed, duration=duration, detection_range=detection_range)
             name = f"moored array, 50 % range {detection_range:g} radii"
-            detections, _, _ = clock_inputs(case, seed, n_particles, motion, duration)
+            detections, _, options = clock_inputs(case, seed, n_particles, motion, duration)
             sc = case.scenario
             choice, share = fixed_period_measurement(detections, sc.receivers, sc.period)
-            for row in case_rows(
-                name, case, seed, methods, n_particles, motion, duration, settings
-            ):
+            for row in case_rows(name, case, seed, detections, options, methods, settings):
                 rows.append(
                     row
                     | {
