@@ -39,6 +39,9 @@ logger = logging.getLogger(__name__)
 #: the HMM kernel draws with its vectorised passes for all particles of a chunk when more
 #: than 1/SPARSE_DRAWS of them are due, else with the scalar samplers for the due ones only
 SPARSE_DRAWS = 4
+#: the transition pass picks a particle's threshold by selects for up to this many states,
+#: by a lookup (gather) for more (reports/decisions.md, "The HMM kernels' passes")
+SELECT_STATES = 4
 
 
 def transition_for_step(transition: np.ndarray, fraction: float) -> np.ndarray:
@@ -192,13 +195,26 @@ def _transition_pass(behaviour, streams, cumulative, u, next_state):
     """One step of the behavioural chain for particles ``(n,)``: the next state is the
     first ``j`` with ``u <= cumulative[state, j]`` (:func:`streams.categorical`), counted as
     the number of ``j < K - 1`` with ``cumulative[state, j] < u`` in branch-free passes.
+    For up to :data:`SELECT_STATES` states each pass picks the particle's threshold by
+    selects among the column's values (vector blends) rather than by a lookup in the
+    table (a gather): the same threshold.
     ``u`` (float) and ``next_state`` (int) are scratch."""
     for i in range(behaviour.size):
         u[i], streams[i] = rs.uniform(streams[i])
         next_state[i] = 0
-    for j in range(cumulative.shape[1] - 1):
-        for i in range(behaviour.size):
-            next_state[i] += cumulative[behaviour[i], j] < u[i]
+    n_states = cumulative.shape[0]
+    for j in range(n_states - 1):
+        if n_states <= SELECT_STATES:
+            last = n_states - 1
+            c0, c1 = cumulative[0, j], cumulative[min(1, last), j]
+            c2, c3 = cumulative[min(2, last), j], cumulative[min(3, last), j]
+            for i in range(behaviour.size):
+                k = behaviour[i]
+                cut = c0 if k == 0 else (c1 if k == 1 else (c2 if k == 2 else c3))
+                next_state[i] += cut < u[i]
+        else:
+            for i in range(behaviour.size):
+                next_state[i] += cumulative[behaviour[i], j] < u[i]
     for i in range(behaviour.size):
         behaviour[i] = next_state[i]
 
