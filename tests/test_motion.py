@@ -12,7 +12,12 @@ from hmmtrack.hmm import Gamma, MovementHMM, VonMises
 from hmmtrack.tracking.compiled import streams as rs
 from hmmtrack.tracking.motion import BaselineMotion, HMMMotion, VelocityMotion
 from hmmtrack.tracking.motion.arcs import arc_displacement
-from hmmtrack.tracking.motion.hmm import _draw_pass, _transition_pass, transition_for_step
+from hmmtrack.tracking.motion.hmm import (
+    _draw_pass,
+    _jitter_and_chain_draws,
+    _transition_pass,
+    transition_for_step,
+)
 from hmmtrack.tracking.particles import Particles
 
 TRANSITION = np.array([[0.9, 0.1], [0.2, 0.8]])
@@ -355,6 +360,32 @@ def test_vectorised_hmm_passes_make_the_scalar_samplers_draws(latest_clock, n_st
     _transition_pass(state, streams, cumulative, np.empty(n), np.empty(n, dtype=np.int64))
     np.testing.assert_array_equal(state, expected_state)
     np.testing.assert_array_equal(streams, expected_streams)
+
+
+@njit
+def _scalar_jitter_and_uniforms(streams, w, jitter_scale, turn, u):
+    for i in range(streams.size):
+        z, s = rs.normal(streams[i])
+        u[i], streams[i] = rs.uniform(s)
+        turn[i] = w[i] + jitter_scale * z
+
+
+def test_jitter_and_chain_draws_are_a_normal_then_a_uniform():
+    """The heading diffusion's normal and the chain's uniform drawn in one pass over the
+    streams are exactly :func:`streams.normal` then :func:`streams.uniform` from each
+    stream, for the particles whose ziggurat try is rejected too."""
+    n = 20_000
+    rng = np.random.default_rng(4)
+    streams = rs.new_streams(rng, n)
+    w = rng.normal(0.0, 0.1, n)
+    turn, u, retry = np.empty(n), np.empty(n), np.zeros(n, dtype=bool)
+    expected_streams, expected_turn, expected_u = streams.copy(), np.empty(n), np.empty(n)
+    _scalar_jitter_and_uniforms(expected_streams, w, 0.3, expected_turn, expected_u)
+    _jitter_and_chain_draws(streams, w, 0.3, turn, u, retry)
+    assert 0 < retry.sum() < n // 20  # some rejected tries took the scalar path
+    np.testing.assert_array_equal(streams, expected_streams)
+    np.testing.assert_array_equal(turn, expected_turn)
+    np.testing.assert_array_equal(u, expected_u)
 
 
 # ----------------------------------------------------------------------------- baseline

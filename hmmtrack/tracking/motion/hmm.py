@@ -192,15 +192,24 @@ def _redraw(
 
 @njit(cache=True, inline="always")
 def _transition_pass(behaviour, streams, cumulative, u, next_state):
-    """One step of the behavioural chain for particles ``(n,)``: the next state is the
-    first ``j`` with ``u <= cumulative[state, j]`` (:func:`streams.categorical`), counted as
-    the number of ``j < K - 1`` with ``cumulative[state, j] < u`` in branch-free passes.
-    For up to :data:`SELECT_STATES` states each pass picks the particle's threshold by
-    selects among the column's values (vector blends) rather than by a lookup in the
-    table (a gather): the same threshold.
-    ``u`` (float) and ``next_state`` (int) are scratch."""
+    """One step of the behavioural chain for particles ``(n,)``: a uniform ``u`` from each
+    stream, then :func:`_next_states`. ``u`` (float) and ``next_state`` (int) are
+    scratch."""
     for i in range(behaviour.size):
         u[i], streams[i] = rs.uniform(streams[i])
+    _next_states(behaviour, cumulative, u, next_state)
+
+
+@njit(cache=True, inline="always")
+def _next_states(behaviour, cumulative, u, next_state):
+    """Move the states ``behaviour`` (n,) one step of the chain given their uniforms ``u``:
+    the next state is the first ``j`` with ``u <= cumulative[state, j]``
+    (:func:`streams.categorical`), counted as the number of ``j < K - 1`` with
+    ``cumulative[state, j] < u`` in branch-free passes. For up to :data:`SELECT_STATES`
+    states each pass picks the particle's threshold by selects among the column's values
+    (vector blends) rather than by a lookup in the table (a gather): the same threshold.
+    ``next_state`` (int) is scratch."""
+    for i in range(behaviour.size):
         next_state[i] = 0
     n_states = cumulative.shape[0]
     for j in range(n_states - 1):
@@ -219,6 +228,31 @@ def _transition_pass(behaviour, streams, cumulative, u, next_state):
         behaviour[i] = next_state[i]
 
 
+@njit(cache=True, inline="always")
+def _jitter_and_chain_draws(streams, w, jitter_scale, turn, u, retry):
+    """The heading random walk's normal and the chain's uniform of a sub-step, in one pass
+    over the streams (n,): ``turn = w + jitter_scale Z`` (rad/s) with ``Z`` drawn as
+    :func:`streams.normal` draws it, then ``u`` as :func:`streams.uniform` draws it, the
+    draws of :func:`streams.normals_into` followed by those of :func:`_transition_pass`.
+
+    A branch-free pass of the normal's first try and the uniform after it, then a scalar
+    pass for the few whose try was rejected (``retry``, boolean scratch): the whole
+    ziggurat, then the uniform, from the unchanged stream.
+    """
+    for i in range(streams.size):
+        old = streams[i]
+        z, accepted, middle = rs._normal_try(old)
+        u[i], new = rs.uniform(middle)
+        turn[i] = w[i] + jitter_scale * z
+        retry[i] = not accepted
+        streams[i] = new if accepted else old
+    for i in range(streams.size):
+        if retry[i]:
+            z, state = rs._normal_loop(streams[i])
+            u[i], streams[i] = rs.uniform(state)
+            turn[i] = w[i] + jitter_scale * z
+
+
 @njit(cache=True, nogil=True)
 def _hmm_kernel(
     x, y, heading, c, s, v, w, behaviour, clock, streams, n_steps, n_sub, sub_step,
@@ -233,6 +267,7 @@ def _hmm_kernel(
         xs, ys, hs, cs, ss, vs, ws = motion_views(lo, hi, x, y, heading, c, s, v, w)
         ks, clocks, chunk_streams = behaviour[lo:hi], clock[lo:hi], streams[lo:hi]
         scratch = np.empty(hi - lo)
+        chain_u = np.empty(hi - lo)
         next_state = np.empty(hi - lo, dtype=np.int64)
         retry = np.empty(hi - lo, dtype=np.bool_)
         draws = (
@@ -248,15 +283,16 @@ def _hmm_kernel(
                     vonmises_tables, draws, retry,
                 )  # fmt: skip
                 if heading_diffusion > 0.0:
-                    rs.normals_into(chunk_streams, scratch, retry)
-                    for i in range(ws.size):
-                        scratch[i] = ws[i] + jitter_scale * scratch[i]
+                    _jitter_and_chain_draws(
+                        chunk_streams, ws, jitter_scale, scratch, chain_u, retry
+                    )
                     arc_pass(xs, ys, cs, ss, hs, vs, scratch, sub_step)
+                    _next_states(ks, cumulative, chain_u, next_state)
                 else:
                     arc_pass(xs, ys, cs, ss, hs, vs, ws, sub_step)
+                    _transition_pass(ks, chunk_streams, cumulative, chain_u, next_state)
                 for i in range(clocks.size):
                     clocks[i] += sub_step
-                _transition_pass(ks, chunk_streams, cumulative, scratch, next_state)
             moments_pass(xs, ys, weights[lo:hi], ox, oy, sums[chunk, t])
         finish_headings(hs, cs, ss)
         chunk, lo, hi = next_chunk(counter, x.size)
