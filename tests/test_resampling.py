@@ -171,27 +171,3 @@ def test_scratch_and_threads_leave_the_ancestors_unchanged(name):
             for _ in range(2):
                 got = resample(np.random.default_rng(n + power), w, n, scratch)
                 np.testing.assert_array_equal(got, expected)
-
-
-def test_exponentials_drawn_ahead_are_the_generators_own():
-    """:meth:`Scratch.exponentials` gives the numbers ``rng.standard_exponential`` would, and
-    leaves ``rng`` where it would, whether they were drawn ahead (then handed over only if
-    ``rng`` has not drawn since), drawn ahead in part (more asked for: the mixture's
-    ``N + live``), or drawn ahead from a state ``rng`` has left; multinomial ancestors with
-    draws ahead are those without."""
-    scratch = Scratch(2)
-    for size, draw_between in ((3001, False), (3005, False), (3001, True), (2999, False)):
-        rng, twin = np.random.default_rng(5), np.random.default_rng(5)
-        scratch.draw_ahead(rng, 3001)
-        if draw_between:
-            rng.random(), twin.random()
-        got = scratch.exponentials(rng, size).copy()
-        np.testing.assert_array_equal(got, twin.standard_exponential(size))
-        assert rng.random() == twin.random()
-    weights = np.random.default_rng(6).random(4000) ** 5
-    rng = np.random.default_rng(7)
-    expected = [multinomial(rng, weights, 4000) for _ in range(3)]
-    rng = np.random.default_rng(7)
-    for ancestors in expected:
-        scratch.draw_ahead(rng, 4001)
-        np.testing.assert_array_equal(multinomial(rng, weights, 4000, scratch), ancestors)

@@ -41,9 +41,7 @@ and resampling after it), because on a shared machine more threads are often slo
 correction is a handful of compiled passes (log-likelihood; the normalisation with the
 moments and ESS in one compiled call, :func:`hmmtrack.tracking.compiled.weighing.weigh`;
 the resampling's inverse CDF and gather into the spare particle arrays), on the threads of
-the latest prediction from :data:`PARALLEL_MIN_CORRECTION` particles (a prediction on several
-threads has the next multinomial resampling's exponentials drawn meanwhile on a worker
-thread, from :data:`DRAW_AHEAD_MIN` particles: the same numbers);
+the latest prediction from :data:`PARALLEL_MIN_CORRECTION` particles;
 :meth:`ParticleFilter.iterate` converts all observations once to the measurement model's
 matrix form when the model offers one (``as_matrix``) instead of slicing a table at every
 correction. After each resampling :attr:`ParticleFilter.last_ancestors` holds the ancestor
@@ -114,10 +112,6 @@ PARALLEL_MIN_WORK = 20_000
 #: passes are too short for thread hand-overs to pay, and they run on one thread
 #: (reports/decisions.md, "Corrections on the timed threads from 10,000 particles")
 PARALLEL_MIN_CORRECTION = 10_000
-#: from this many particles a prediction on more than one thread has the next resampling's
-#: exponentials drawn meanwhile on a worker thread (:meth:`Scratch.draw_ahead`), off the
-#: one-thread part of the cycle (reports/decisions.md, "Draws ahead")
-DRAW_AHEAD_MIN = 50_000
 #: the named filters (the ``filter`` section's ``name``): the switches of
 #: :class:`FilterSettings` each sets. ``paper``: the paper's filter (particles uniform in
 #: the search box, the whole cloud resampled, no monitor); ``mode-keeping``: issue 13's
@@ -532,18 +526,9 @@ class ParticleFilter:
         self._threads_in_use = threads
         timed = self.threads is None and work >= PARALLEL_MIN_WORK
         self._cycle = (threads, started, work) if timed else None
-        if threads > 1 and p.n >= DRAW_AHEAD_MIN and self._draws_exponentials():
-            self.scratch.draw_ahead(self.rng, p.n + 1)
         return self.motion.advance(
             p, self._streams, n_steps, self.dt, weights, origin, threads=threads
         )
-
-    def _draws_exponentials(self) -> bool:
-        """Whether the next resampling draws at least ``N + 1`` standard exponentials from
-        :attr:`rng` first: multinomial resampling after every correction (with a mixture,
-        residual's too: :func:`hmmtrack.tracking.mixture.scheme_draws`)."""
-        schemes = ("multinomial",) if self.mixture is None else ("multinomial", "residual")
-        return self.resample_when == "always" and self.resampling in schemes
 
     def correction_threads(self) -> int:
         """Threads of corrections and resamplings: the latest prediction's from

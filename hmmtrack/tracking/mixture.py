@@ -259,9 +259,8 @@ def scheme_draws(
     each component's sorted uniforms, ``N_k + 1`` each), one uniform per particle
     (stratified) or per component (systematic). The same stream as the whole-cloud scheme
     run on each component in turn (:mod:`hmmtrack.tracking.resampling`; residual aside).
-    With ``scratch`` (the filter's), the exponentials come from its work array, those drawn
-    ahead included (:meth:`~hmmtrack.tracking.resampling.Scratch.exponentials`: the same
-    numbers)."""
+    With ``scratch`` (the filter's), the exponentials go into its work array
+    (:meth:`~hmmtrack.tracking.resampling.Scratch.exponentials`)."""
     if code <= SCHEME_CODES["residual"]:
         if scratch is None:
             return rng.standard_exponential(n + live)

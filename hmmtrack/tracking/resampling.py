@@ -22,9 +22,7 @@ This module does not weigh particles or move them; it only chooses ancestors.
 
 from __future__ import annotations
 
-import os
 from collections.abc import Callable
-from concurrent.futures import Future, ThreadPoolExecutor
 
 import numba
 import numpy as np
@@ -240,30 +238,9 @@ def merge_segments(cumulative, points, start, at, last, threads: int, out) -> No
     in_chunks(_merge_kernel, _merge_parallel, out.size, threads, args, out)
 
 
-#: the thread that draws random numbers ahead for every :class:`Scratch` of the process
-#: (:meth:`Scratch.draw_ahead`), started on first use and forgotten in a forked child (where
-#: it does not run)
-_AHEAD: ThreadPoolExecutor | None = None
-
-
-def _forget_ahead() -> None:
-    global _AHEAD
-    _AHEAD = None
-
-
-os.register_at_fork(after_in_child=_forget_ahead)
-
-
-def _draw_into(shadow: np.random.Generator, out: np.ndarray) -> dict:
-    """Fill ``out`` with standard exponentials from ``shadow``; its state afterwards."""
-    shadow.standard_exponential(out.size, out=out)
-    return shadow.bit_generator.state
-
-
 class Scratch:
     """Work arrays of the inverse-CDF schemes (multinomial, stratified, systematic), reused
-    from one resampling to the next, the threads they run on, and standard exponentials
-    drawn ahead.
+    from one resampling to the next, and the threads they run on.
 
     A filter resamples its N particles hundreds of times with the same scheme; fresh work
     arrays each time (the points, the cumulative weights, the random numbers) are paged in
@@ -271,21 +248,11 @@ class Scratch:
     VM). With a ``Scratch`` only the ancestors are a new array. The inversion runs in the
     chunks of :mod:`hmmtrack.tracking.compiled.chunks` on ``threads`` threads; the
     ancestors do not depend on it.
-
-    The multinomial scheme's exponentials (about 5 ns each, on one thread) can be drawn
-    while the filter's compiled prediction runs on its threads (:meth:`draw_ahead`): a
-    worker thread draws them from a copy of the filter's generator, and :meth:`exponentials`
-    hands them over, and moves the generator on past them, only if the generator has not
-    drawn since the copy. So the numbers, and the generator's later draws, are those of
-    ``rng.standard_exponential``.
     """
 
     def __init__(self, threads: int = 1) -> None:
         self.threads = threads
         self._arrays: dict[str, np.ndarray] = {}
-        self._shadow: np.random.Generator | None = None
-        # (generator state the draws started from, the worker's future of its state after)
-        self._ahead: tuple[dict, Future] | None = None
 
     def array(self, name: str, size: int) -> np.ndarray:
         """The float work array ``name`` with ``size`` entries (its contents undefined)."""
@@ -303,45 +270,9 @@ class Scratch:
             array.flags.writeable = False
         return array
 
-    def draw_ahead(self, rng: np.random.Generator, size: int) -> None:
-        """Start drawing the ``size`` standard exponentials that ``rng`` would draw next, on
-        the worker thread, from a copy of ``rng`` (``rng`` itself is not touched). NumPy
-        releases the GIL while it fills the array, so the draws overlap compiled kernels
-        that release it too (the filter's prediction)."""
-        global _AHEAD
-        self._settled_ahead()
-        bit_generator = rng.bit_generator
-        if self._shadow is None or type(self._shadow.bit_generator) is not type(bit_generator):
-            self._shadow = np.random.Generator(type(bit_generator)())
-        state = bit_generator.state
-        self._shadow.bit_generator.state = state
-        if _AHEAD is None:
-            _AHEAD = ThreadPoolExecutor(1, thread_name_prefix="hmmtrack-draws")
-        future = _AHEAD.submit(_draw_into, self._shadow, self.array("ahead", size))
-        self._ahead = (state, future)
-
-    def _settled_ahead(self) -> tuple[dict, dict] | None:
-        """The draws ahead under way, once finished: (state they started from, state
-        after); None if there are none. Afterwards there are none."""
-        ahead, self._ahead = self._ahead, None
-        return None if ahead is None else (ahead[0], ahead[1].result())
-
     def exponentials(self, rng: np.random.Generator, size: int) -> np.ndarray:
-        """``rng.standard_exponential(size)`` into a work array: the numbers drawn ahead
-        (:meth:`draw_ahead`) when ``rng`` has not drawn since they were started, followed
-        by any more drawn now (the same numbers: NumPy fills arrays one number after the
-        other), else all drawn now. ``rng`` ends in the same state either way."""
-        ahead = self._settled_ahead()
-        drawn = self._arrays.get("ahead")
-        if ahead is None or ahead[0] != rng.bit_generator.state or drawn.size > size:
-            return rng.standard_exponential(size, out=self.array("values", size))
-        rng.bit_generator.state = ahead[1]
-        if drawn.size == size:
-            return drawn
-        out = self.array("values", size)
-        out[: drawn.size] = drawn
-        rng.standard_exponential(size - drawn.size, out=out[drawn.size :])
-        return out
+        """``rng.standard_exponential(size)`` into a work array."""
+        return rng.standard_exponential(size, out=self.array("values", size))
 
 
 def _invert_with(scratch, weights, weight_scale, values, n, value_scale, running):
@@ -414,7 +345,7 @@ def multinomial(
     n : int
         Number of ancestors to draw.
     scratch : Scratch, optional
-        Work arrays, threads and exponentials drawn ahead to use (a filter's); the
+        Work arrays and threads to use (a filter's); the
         ancestors do not depend on it.
 
     Returns
