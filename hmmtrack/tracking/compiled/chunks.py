@@ -27,6 +27,7 @@ from numba.core import cgutils
 from numba.extending import intrinsic
 
 __all__ = [
+    "GOMP_SPINCOUNT",
     "MIN_CHUNK",
     "N_CHUNKS",
     "N_MOMENTS",
@@ -110,6 +111,16 @@ def next_chunk(counter, n):
         return -1, 0, 0
     return chunk, chunk * size, min(n, (chunk + 1) * size)
 
+
+#: how many times an idle OpenMP thread of GNU libgomp (numba's "omp" layer here) polls for
+#: work before it sleeps, unless the environment sets it: libgomp's default (300,000, about
+#: 3 ms) keeps a thread spinning through every serial stretch of a filter cycle, which on a
+#: busy machine takes the core from the thread doing the serial work and made two threads
+#: 4-10x slower than one; a short spin keeps the thread awake between the closely spaced
+#: regions of a correction (reports/decisions.md, "Two threads at 10,000 ... session 12").
+#: Set here, at import, because libgomp reads it once, when numba first loads it
+GOMP_SPINCOUNT = "3000"
+os.environ.setdefault("GOMP_SPINCOUNT", GOMP_SPINCOUNT)
 
 #: numba's "workqueue" threading layer (its fallback where neither OpenMP nor TBB can be
 #: loaded) aborts the process when two threads start parallel work at once: parallel kernel
