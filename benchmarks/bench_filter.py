@@ -16,7 +16,9 @@ one-thread run's particle-steps per second of process CPU time (``M/CPU-s``: wha
 costs however busy the machine is), and the share of the last default-thread run's timed
 cycles that ran on more than one thread (``auto >1 thr``: what the timing chose). Wall-clock
 numbers depend on the machine and its load,
-printed at the start and the end (CPU model, cores, 1-, 5- and 15-minute load averages);
+printed at the start and the end (CPU model, cores, 1-, 5- and 15-minute load averages;
+the table's header gives ``GOMP_SPINCOUNT``, how long OpenMP's idle threads poll before they
+sleep: :data:`hmmtrack.tracking.compiled.chunks.GOMP_SPINCOUNT` unless the environment sets it);
 the headline figures are ratios to the NumPy filter measured in the same run. The last
 lines compare them at N = 10,000 with issue 16's targets: velocity at least 8x the NumPy
 filter on the default threads (the ``threads=None`` run) and 5x on one thread, the HMM
@@ -46,6 +48,7 @@ correction`` the third only; ``all`` runs the first two).
 from __future__ import annotations
 
 import argparse
+import os
 import time
 
 import numba
@@ -265,7 +268,8 @@ def main() -> None:
             return
     print(
         f"{duration:.0f} s trial, {len(obs)} observations from 2 receivers, "
-        f"{numba.config.NUMBA_NUM_THREADS} numba threads; best of {args.repeat}"
+        f"{numba.config.NUMBA_NUM_THREADS} numba threads (GOMP_SPINCOUNT "
+        f"{os.environ.get('GOMP_SPINCOUNT')}); best of {args.repeat}"
     )
     threads = [*threads, None]  # None: the filter's default, chosen by timing
     compiled_columns = "".join(f"{f'{t} thr s' if t else 'auto s':>9}{'M/s':>7}" for t in threads)
