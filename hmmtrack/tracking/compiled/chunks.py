@@ -115,10 +115,10 @@ def next_chunk(counter, n):
 #: how many times an idle OpenMP thread of GNU libgomp (numba's "omp" layer here) polls for
 #: work before it sleeps, unless the environment sets it: libgomp's default (300,000, about
 #: 3 ms) keeps a thread spinning through every serial stretch of a filter cycle, which on a
-#: busy machine takes the core from the thread doing the serial work and made two threads
-#: 4-10x slower than one; a short spin keeps the thread awake between the closely spaced
-#: regions of a correction (reports/decisions.md, "Two threads at 10,000 ... session 12").
-#: Set here, at import, because libgomp reads it once, when numba first loads it
+#: busy machine takes the core from the thread doing the serial work (two threads ran 4-10x
+#: slower than one); a short spin keeps the thread awake between the closely spaced regions
+#: of a correction (reports/decisions.md, "Velocity at 10,000: the cycle's budget"). Set
+#: here, at import, because libgomp reads it once, when numba first loads it
 GOMP_SPINCOUNT = "3000"
 os.environ.setdefault("GOMP_SPINCOUNT", GOMP_SPINCOUNT)
 
