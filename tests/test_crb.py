@@ -581,3 +581,34 @@ def test_tdoa_bound_refuses_an_unknown_emission_model():
     truth, emissions = straight_truth(5)
     with pytest.raises(ValueError, match=r"emission must be one of \('random', 'sequence'\)"):
         tdoa(truth, moored(TRIANGLE), all_heard(5, "abc"), emissions, "periodic")
+
+
+def test_tdoa_oracle_errors_have_the_bound_as_their_mean_square():
+    """The bound's efficient estimator (exact Kalman filter and RTS smoother of the
+    linearised model): its errors are linear in the noise, so the sum of its squared
+    position errors over one impulse of one sd per arrival is its mean-square error over
+    the draws, which is the bound exactly (no process noise, the velocity known); a common
+    error of a ping (its emission time) changes nothing, and without noise on a
+    constant-velocity path it is exact."""
+    n_pings, sigma = 6, 2e-4
+    truth, emissions = straight_truth(n_pings, velocity=(0.3, -0.2))
+    heard = all_heard(n_pings, "abc")
+    # a path the model knows but for its position: no process noise, velocity known
+    prior = BoundPrior(position_sd=1e4, velocity_sd=1e-6)
+    options = {"acceleration_psd": 0.0, "sigma": sigma, "prior": prior}
+    columns = ["filter_error_m", "smoother_error_m"]
+    squares = 0.0
+    for row in range(len(heard)):
+        impulse = sigma * (np.arange(len(heard)) == row)
+        table = tdoa(truth, moored(TRIANGLE), heard, emissions, "random", noise=impulse, **options)
+        squares = squares + table[columns].to_numpy() ** 2
+    bounds = table[["filter_position_m", "smoother_position_m"]].to_numpy()
+    np.testing.assert_allclose(np.sqrt(squares), bounds, rtol=1e-6)
+    noise = np.random.default_rng(5).normal(0.0, sigma, len(heard))
+    drawn = tdoa(truth, moored(TRIANGLE), heard, emissions, "random", noise=noise, **options)
+    shifted = noise + heard["ping"].to_numpy() * 1e-3  # one emission-time error per ping
+    moved = tdoa(truth, moored(TRIANGLE), heard, emissions, "random", noise=shifted, **options)
+    np.testing.assert_allclose(moved[columns], drawn[columns], atol=1e-9)
+    assert drawn[columns].to_numpy().min() > 1e-3
+    quiet = tdoa(truth, moored(TRIANGLE), heard, emissions, "random", noise=0 * noise, **options)
+    np.testing.assert_allclose(quiet[columns], 0.0, atol=1e-9)

@@ -460,6 +460,7 @@ def tdoa_bound(
     offset_sd: float = 1.0,
     drift_sd: float = 1e-4,
     prior: BoundPrior | None = None,
+    noise=None,
 ) -> pd.DataFrame:
     """Posterior Cramér–Rao bounds, per ping, for a tag whose emission times are nuisances.
 
@@ -495,12 +496,19 @@ def tdoa_bound(
         ``emission="sequence"``.
     prior : BoundPrior, optional
         Spread of the tag's position and velocity at the first ping.
+    noise : array_like, shape (M,), optional
+        Timing error (s) of each row of ``heard``: the draws of one realisation. With it the
+        bound's efficient estimator is run on them (:func:`linear_tdoa_errors`), to tell how
+        far a single run's error may sit from the bound by the draws' luck alone.
 
     Returns
     -------
     pandas.DataFrame
         One row per ping: ``time``, ``ping``, ``detections``, ``filter_position_m``,
-        ``smoother_position_m`` (m, bounds on the RMS position error).
+        ``smoother_position_m`` (m, bounds on the RMS position error); with ``noise``
+        also ``filter_error_m`` and ``smoother_error_m``, the position errors (m) of the
+        exact Kalman filter and Rauch–Tung–Striebel smoother of the linearised model given
+        those draws (the bound is their RMS in expectation over the draws).
     """
     if emission not in EMISSION_MODELS:
         raise ValueError(f"emission must be one of {EMISSION_MODELS}, got {emission!r}")
@@ -529,7 +537,7 @@ def tdoa_bound(
         initial[4, 4], initial[5, 5] = offset_sd**2, drift_sd**2
     filtered, predicted = kalman_covariances(initial, transitions, noises, jacobians)
     smoothed = rts_covariances(filtered, predicted, transitions)
-    return pd.DataFrame(
+    out = pd.DataFrame(
         {
             "time": emissions,
             "ping": np.arange(emissions.size),
@@ -538,6 +546,79 @@ def tdoa_bound(
             "smoother_position_m": _position_bound(smoothed),
         }
     )
+    if noise is None:
+        return out
+    noise = np.asarray(noise, dtype=float)
+    if noise.shape != ping.shape or not np.all(np.isfinite(noise)):
+        raise ValueError(f"noise must be finite with one value per heard row {ping.shape}")
+    draws = [
+        _whitened_ping(np.column_stack([block, e]), sigma, jitter_sd, not known)[:, -1]
+        for block, e in zip(rows, _by_ping(noise[:, None], ping, emissions.size), strict=True)
+    ]
+    states = np.zeros((emissions.size, initial.shape[0]))
+    states[:, :4] = _tag_states(truth, emissions)
+    filter_errors, smoother_errors = linear_tdoa_errors(
+        states, transitions, jacobians, draws, filtered, predicted
+    )
+    return out.assign(
+        filter_error_m=np.hypot(*filter_errors[:, POSITION].T),
+        smoother_error_m=np.hypot(*smoother_errors[:, POSITION].T),
+    )
+
+
+def _tag_states(truth: pd.DataFrame, emissions: np.ndarray) -> np.ndarray:
+    """The true ``(x, y, vx, vy)`` (m, m/s) at each emission, shape (K, 4): the path
+    interpolated linearly, its velocity by central differences."""
+    t = truth["time"].to_numpy(dtype=float)
+    columns = []
+    for c in ("x", "y"):
+        position = truth[c].to_numpy(dtype=float)
+        columns.append((np.interp(emissions, t, position), np.gradient(position, t)))
+    (x, vx), (y, vy) = columns
+    return np.column_stack([x, y, np.interp(emissions, t, vx), np.interp(emissions, t, vy)])
+
+
+def linear_tdoa_errors(states, transitions, jacobians, draws, filtered, predicted):
+    """Errors of the exact Kalman filter and RTS smoother of a linear-Gaussian model whose
+    measurements are the truth seen through ``jacobians`` plus the given whitened draws.
+
+    The efficient estimator of :func:`kalman_covariances`' model on one realisation: the
+    filter starts at the truth (its prior mean; the prior is forgotten after a few fixes),
+    predicts with ``F``, and is corrected by ``z_k = H_k x_k + w_k``; its error recursion
+    needs no ``z``: ``ε_{k|k-1} = F ε_{k-1|k-1} + (F x_{k-1} − x_k)`` (the path's own
+    departure from the model's mean motion) and ``ε_{k|k} = ε_{k|k-1} + P_{k|k} H_kᵀ (w_k −
+    H_k ε_{k|k-1})``; the smoother's is ``ε_{k|K} = ε_{k|k} + G_k (ε_{k+1|K} −
+    ε_{k+1|k})``, ``G_k = P_{k|k} Fᵀ P_{k+1|k}⁻¹``.
+
+    Parameters
+    ----------
+    states : numpy.ndarray, shape (K, n)
+        The true state at each step.
+    transitions : numpy.ndarray, shape (K - 1, n, n)
+    jacobians, draws : sequences of K arrays, shapes (m_k, n) and (m_k,)
+        Whitened measurement Jacobians and the whitened noise of the same rows.
+    filtered, predicted : numpy.ndarray, each shape (K, n, n)
+        From :func:`kalman_covariances` of the same model.
+
+    Returns
+    -------
+    filter_errors, smoother_errors : numpy.ndarray, each shape (K, n)
+        Estimate minus truth.
+    """
+    n_steps, n = states.shape
+    ahead = np.zeros((n_steps, n))
+    errors = np.zeros((n_steps, n))
+    for k in range(n_steps):
+        if k > 0:
+            f = transitions[k - 1]
+            ahead[k] = f @ errors[k - 1] + f @ states[k - 1] - states[k]
+        h = jacobians[k]
+        errors[k] = ahead[k] + filtered[k] @ h.T @ (draws[k] - h @ ahead[k])
+    smoothed = errors.copy()
+    for k in range(n_steps - 2, -1, -1):
+        gain = np.linalg.solve(predicted[k + 1], (filtered[k] @ transitions[k].T).T).T
+        smoothed[k] = errors[k] + gain @ (smoothed[k + 1] - ahead[k + 1])
+    return errors, smoothed
 
 
 def _whitened_ping(rows: np.ndarray, sigma: float, jitter_sd: float, eliminate: bool):

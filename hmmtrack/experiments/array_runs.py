@@ -107,6 +107,14 @@ def array_bound_ratios(
         such correction, :func:`~hmmtrack.tracking.measurement.tdoa.per_ping_table`),
         ``smoothed_per_ping_bound_m`` and ``smoothed_per_ping_ratio``;
         ``seconds`` (wall time of the filter).
+        The bound's efficient estimator on the same draws (:func:`_bound`'s oracle: the exact
+        Kalman filter and smoother of the linearised model given the simulated timing
+        errors) beside them, as a yardstick of a single run's luck: ``late_pings``
+        (pings scored from :data:`SKIP` s on), ``oracle_rms_error_m`` (its filter at
+        those pings) and ``oracle_smoothed_rms_error_m`` (its smoother), with
+        ``oracle_ratio`` and ``oracle_smoothed_ratio`` against the filtering and smoothing
+        bounds; with a ping measurement also ``per_ping_pings`` (pings matched) and
+        ``oracle_per_ping_rms_error_m``, ``oracle_per_ping_ratio`` at the same pings.
     """
     rows = []
     for dataset in datasets:
@@ -131,6 +139,12 @@ def array_bound_ratios(
         truth = case.truth.assign(time=keeper(case.truth["time"].to_numpy()))
         bound = _bound(case, bound_emission)
         late = (bound["time"] >= case.emission_times[0] + SKIP).to_numpy()
+        oracle = {"late_pings": int(late.sum())}
+        for name, error, at in (("", "filter", "filter"), ("_smoothed", "smoother", "smoother")):
+            oracle[f"oracle{name}_rms_error_m"] = _rms(bound.loc[late, f"{error}_error_m"])
+            oracle[f"oracle{name}_ratio"] = oracle[f"oracle{name}_rms_error_m"] / _rms(
+                bound.loc[late, f"{at}_position_m"]
+            )
         pings = keeper(case.emission_times)
         config = _config(measurement, case, clocks, receivers, n_particles, settings or {})
         for seed in seeds:
@@ -153,6 +167,11 @@ def array_bound_ratios(
                 row["per_ping_rms_error_m"] = errors["x"]
                 row["per_ping_bound_m"] = _rms(bound.loc[at, "filter_position_m"])
                 row["per_ping_ratio"] = errors["x"] / row["per_ping_bound_m"]
+                row["per_ping_pings"] = at.size
+                row["oracle_per_ping_rms_error_m"] = _rms(bound.loc[at, "filter_error_m"])
+                row["oracle_per_ping_ratio"] = (
+                    row["oracle_per_ping_rms_error_m"] / row["per_ping_bound_m"]
+                )
                 if "smoothed_x" in errors:
                     smoothed = errors["smoothed_x"]
                     row["smoothed_per_ping_rms_error_m"] = smoothed
@@ -164,8 +183,79 @@ def array_bound_ratios(
                 row["smoothed_rms_error_m"] = smoothed
                 row["smoother_bound_m"] = _rms(bound.loc[late, "smoother_position_m"])
                 row["smoothed_ratio"] = smoothed / row["smoother_bound_m"]
-            rows.append(row | {"seconds": seconds})
+            rows.append(row | oracle | {"seconds": seconds})
     return pd.DataFrame(rows)
+
+
+#: the estimators :func:`pooled_ratios` pools: (name, error, bound, pings) columns of
+#: :func:`array_bound_ratios`
+POOLED = (
+    ("per ping", "per_ping_rms_error_m", "per_ping_bound_m", "per_ping_pings"),
+    ("smoothed output", "smoothed_rms_error_m", "smoother_bound_m", "late_pings"),
+    ("oracle filter per ping", "oracle_per_ping_rms_error_m", "per_ping_bound_m", "per_ping_pings"),
+    ("oracle smoother", "oracle_smoothed_rms_error_m", "smoother_bound_m", "late_pings"),
+)
+
+
+def pooled_ratios(
+    runs: pd.DataFrame, *, threshold: float = 1.2, resamples: int = 4000, seed: int = 0
+) -> pd.DataFrame:
+    """Each estimator's error pooled over runs against its bound pooled the same way.
+
+    A posterior Cramér–Rao bound bounds the mean-square error in expectation over the
+    measurement noise (and the path), so an estimator is held to it by its RMS error over
+    every scored ping of every run against the root of the mean squared bound over the same
+    pings; one run's ratio scatters about that by its draws' luck (the oracle's rows show by
+    how much for an efficient estimator).
+
+    Parameters
+    ----------
+    runs : pandas.DataFrame
+        Rows of :func:`array_bound_ratios` (per dataset and seed).
+    threshold : float
+        Ratio whose runs at or below are counted.
+    resamples : int
+        Bootstrap resamples of the datasets (each with all its seeds' runs), for the
+        pooled ratio's 95 % interval.
+    seed : int
+        Seed of the bootstrap.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per estimator of :data:`POOLED` present in ``runs``: ``estimator``,
+        ``pooled_ratio``, ``ci_low``, ``ci_high``, and the per-run ratios' ``median``,
+        ``low``, ``high`` and ``runs_within`` (at or below ``threshold``) of ``runs``.
+    """
+    datasets = runs["dataset"].to_numpy()
+    names = np.unique(datasets)
+    members = [np.flatnonzero(datasets == d) for d in names]
+    rng = np.random.default_rng(seed)
+    picks = rng.integers(0, names.size, (resamples, names.size))
+    out = []
+    for name, error, bound, pings in POOLED:
+        if error not in runs:
+            continue
+        n = runs[pings].to_numpy(dtype=float)
+        squares = n * runs[error].to_numpy(dtype=float) ** 2
+        bounds = n * runs[bound].to_numpy(dtype=float) ** 2
+        per_dataset = np.array([[squares[m].sum(), bounds[m].sum()] for m in members])
+        drawn = per_dataset[picks].sum(axis=1)
+        ratio = runs[error] / runs[bound]
+        out.append(
+            {
+                "estimator": name,
+                "pooled_ratio": float(np.sqrt(squares.sum() / bounds.sum())),
+                "ci_low": float(np.sqrt(np.percentile(drawn[:, 0] / drawn[:, 1], 2.5))),
+                "ci_high": float(np.sqrt(np.percentile(drawn[:, 0] / drawn[:, 1], 97.5))),
+                "median": float(ratio.median()),
+                "low": float(ratio.min()),
+                "high": float(ratio.max()),
+                "runs_within": int((ratio <= threshold).sum()),
+                "runs": len(runs),
+            }
+        )
+    return pd.DataFrame(out)
 
 
 def sequence_versus_random(
@@ -242,9 +332,20 @@ def _config(measurement, case: TaggedArray, clocks, receivers, n_particles, sett
 
 
 def _bound(case: TaggedArray, emission: str) -> pd.DataFrame:
-    """The bound of the tag's heard pings (true receivers, sound speed, time)."""
+    """The bound of the tag's heard pings (true receivers, sound speed, time), with the
+    errors of its efficient estimator given the simulated timing errors of those arrivals
+    (each detection's logged time less its receiver's clock at the true arrival, less any
+    multipath delay: the Gaussian jitter the bound assumes)."""
     array = case.array
-    heard = case.pings.loc[case.pings["detected"], ["ping", "receiver"]]
+    detected = case.pings[case.pings["detected"]]
+    heard = detected[["ping", "receiver"]]
+    clocks = array.clocks
+    jitter = [
+        logged - clocks[receiver](arrival)
+        for logged, receiver, arrival in zip(
+            detected["logged_time"], detected["receiver"], detected["arrival_time"], strict=True
+        )
+    ]
     receivers = array.receivers_truth.assign(time=np.nan)
     window = float(np.mean(case.burst_interval))
     return tdoa_bound(
@@ -256,6 +357,7 @@ def _bound(case: TaggedArray, emission: str) -> pd.DataFrame:
         acceleration_psd=acceleration_psd_from_path(case.truth, window),
         sigma=array.listening.timing_sd,
         sound_speed=array.sound_speed,
+        noise=np.asarray(jitter) - detected["multipath"].to_numpy(),
     )
 
 
