@@ -719,8 +719,16 @@ class PingTrace:
     :data:`PING_TRACE_COLUMNS`).
 
     After each correction: the weighted mean of the particles' posterior mean emission
-    times (``pf.measurement_state.emission``), the weighted mean position and its sds, the
-    receivers that heard the ping (``;``-separated, as observed) and their number.
+    times (``pf.measurement_state.emission``), the weighted mean position at the emission and
+    its sds, the receivers that heard the ping (``;``-separated, as observed) and their
+    number.
+
+    The position is each particle's at its own emission time, taken back from the filter's
+    step (the ping's first arrival rounded to the 1 s grid, up to half a second away) along
+    its velocity, as the measurement scores it
+    (:func:`hmmtrack.tracking.measurement.arrival_time.emission_distance`): the ping fixes
+    that point, while the particles' position at the step also carries their velocity's
+    spread over the lag (reports/decisions.md, "The filter per ping at the emission").
     """
 
     every_step = False
@@ -731,10 +739,15 @@ class PingTrace:
     def corrected(self, pf) -> None:
         p = pf.particles
         weights = pf.weights()[0]
-        x, y = float(weights @ p.x), float(weights @ p.y)
-        x_sd = math.sqrt(max(float(weights @ (p.x - x) ** 2), 0.0))
-        y_sd = math.sqrt(max(float(weights @ (p.y - y) ** 2), 0.0))
-        emission = float(weights @ pf.measurement_state.emission)
+        emissions = pf.measurement_state.emission
+        lag = pf.time - emissions
+        speed = np.asarray(p.speed, dtype=float)
+        at_x = p.x - speed * np.asarray(p.cos_heading) * lag
+        at_y = p.y - speed * np.asarray(p.sin_heading) * lag
+        x, y = float(weights @ at_x), float(weights @ at_y)
+        x_sd = math.sqrt(max(float(weights @ (at_x - x) ** 2), 0.0))
+        y_sd = math.sqrt(max(float(weights @ (at_y - y) ** 2), 0.0))
+        emission = float(weights @ emissions)
         self._rows.append((pf.time, emission, x, y, x_sd, y_sd))
 
     def settled(self, pf) -> None:
