@@ -3,6 +3,8 @@ emission time integrated out, checked against brute-force numerical integration.
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -11,6 +13,8 @@ from scipy import integrate, stats
 from hmmtrack.tracking.measurement.arrival_time import emission_distance
 from hmmtrack.tracking.measurement.pings import arrival_spread, ping_observations, ping_window
 from hmmtrack.tracking.measurement.tdoa import (
+    PingState,
+    PingTrace,
     gaussian_ping_loglik,
     per_ping_table,
     ping_integral,
@@ -153,6 +157,35 @@ def test_per_ping_smoothed_position_is_the_row_of_the_correction_step():
     table = per_ping_table(pings, observations, smoothed)
     assert table["emission_time"].tolist() == [100.4] and table["n_receivers"].tolist() == [3]
     assert table["smoothed_x"].tolist() == [10.0] and table["smoothed_y"].tolist() == [3.0]
+
+
+def test_ping_trace_places_each_particle_at_its_own_emission():
+    """Corrected at the 101 s step, two particles moving at 2 m/s east and 1 m/s north, whose
+    emissions are 100.4 and 100.9 s: the ping's row is their weighted position taken back
+    along their velocities to their emissions, 0.6 and 0.1 s earlier, and its sd theirs."""
+    particles = SimpleNamespace(
+        x=np.array([10.0, 20.0]),
+        y=np.array([5.0, 5.0]),
+        speed=np.array([2.0, 1.0]),
+        cos_heading=np.array([1.0, 0.0]),
+        sin_heading=np.array([0.0, 1.0]),
+    )
+    weights = np.array([0.25, 0.75])
+    pf = SimpleNamespace(
+        particles=particles,
+        time=101.0,
+        weights=lambda: (weights, 1.6, (17.5, 5.0)),
+        measurement_state=PingState(np.array([100.4, 100.9])),
+    )
+    trace = PingTrace()
+    trace.start(pf)
+    trace.corrected(pf)
+    row = trace.result()["pings"].iloc[0]
+    at_x, at_y = np.array([10.0 - 1.2, 20.0]), np.array([5.0, 5.0 - 0.1])
+    assert row["time"] == 101.0 and row["emission_time"] == pytest.approx(100.775)
+    assert (row["x"], row["y"]) == pytest.approx((weights @ at_x, weights @ at_y))
+    assert row["x_sd"] == pytest.approx(np.sqrt(weights @ (at_x - weights @ at_x) ** 2))
+    assert row["y_sd"] == pytest.approx(np.sqrt(weights @ (at_y - weights @ at_y) ** 2))
 
 
 def synthetic_pings(rng, sigma, outliers, n_pings=80, spacing=100.0, sound=1500.0):

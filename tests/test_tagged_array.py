@@ -134,9 +134,10 @@ def test_matched_ping_run_reaches_the_tdoa_bound_at_the_pings_and_smoothed():
     the pings, 0.2 ms simulated jitter; the velocity motion, the bound's own): the position
     right after each ping's correction is close to the TDOA posterior filtering bound of the
     same pings, and the smoothed track (the output) at the emissions close to the smoothing
-    bound (measured, dataset 2 seed 1, 2,000 particles: per ping 1.07x, smoothed 1.12x, at
-    the pings 1.07x; at 5,000 particles over datasets 1-10 x seeds 1-3: per ping 1.02-1.30x,
-    smoothed 1.06-1.24x; reports/decisions.md, "The matched model against the bound"),
+    bound (measured, dataset 2 seed 1, 2,000 particles: per ping 0.98x against the bound's own
+    estimator's 0.93x on the same draws, smoothed 1.12x; at 5,000 particles over datasets
+    1-10 x seeds 1-3, pooled: per ping 1.05x, smoothed 1.14x; reports/decisions.md, "The
+    filter per ping at the emission"),
     while the per-second filter estimate interpolated at the emissions is a prediction
     (ratio ~15). A smoother that lost the fixes (ancestor tracing through the tempered
     pings: 1.8-2.3x) or a bound off by its sd would fail."""
@@ -152,6 +153,9 @@ def test_matched_ping_run_reaches_the_tdoa_bound_at_the_pings_and_smoothed():
         settings=settings | {"burst_interval": (20.0, 40.0)},
     )
     row = table.iloc[0]
-    assert 1.0 < row["per_ping_ratio"] < 1.2
+    # this dataset's draws are lucky: the bound's own estimator on them is below the bound
+    assert 0.9 < row["oracle_per_ping_ratio"] < 0.95
+    assert 1.0 < row["per_ping_ratio"] / row["oracle_per_ping_ratio"] < 1.15
+    assert row["per_ping_ratio"] < 1.2
     assert 1.0 < row["smoothed_ratio"] < 1.4 and 1.0 < row["smoothed_per_ping_ratio"] < 1.4
     assert row["per_ping_ratio"] < row["ratio"] / 5
