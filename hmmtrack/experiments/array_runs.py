@@ -145,9 +145,9 @@ def array_bound_ratios(
         direct = _bound(case, bound_emission, direct=True)
         late = (bound["time"] >= case.emission_times[0] + SKIP).to_numpy()
         oracle = {"late_pings": int(late.sum())}
-        for prefix, errors in (("", bound), ("direct_", direct)):
+        for prefix, oracle_run in (("", bound), ("direct_", direct)):
             for name, kind in (("", "filter"), ("_smoothed", "smoother")):
-                error = _rms(errors.loc[late, f"{kind}_error_m"])
+                error = _rms(oracle_run.loc[late, f"{kind}_error_m"])
                 oracle[f"{prefix}oracle{name}_rms_error_m"] = error
                 oracle[f"{prefix}oracle{name}_ratio"] = error / _rms(
                     bound.loc[late, f"{kind}_position_m"]
@@ -175,8 +175,8 @@ def array_bound_ratios(
                 row["per_ping_bound_m"] = _rms(bound.loc[at, "filter_position_m"])
                 row["per_ping_ratio"] = errors["x"] / row["per_ping_bound_m"]
                 row["per_ping_pings"] = at.size
-                for prefix, errors in (("", bound), ("direct_", direct)):
-                    error = _rms(errors.loc[at, "filter_error_m"])
+                for prefix, oracle_run in (("", bound), ("direct_", direct)):
+                    error = _rms(oracle_run.loc[at, "filter_error_m"])
                     row[f"{prefix}oracle_per_ping_rms_error_m"] = error
                     row[f"{prefix}oracle_per_ping_ratio"] = error / row["per_ping_bound_m"]
                 if "smoothed_x" in errors:
