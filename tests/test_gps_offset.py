@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from scipy.special import logsumexp
 
+from hmmtrack.tracking.measurement import gps_offset
 from hmmtrack.tracking.measurement.gps_offset import GpsOffsetMeasurement
 from hmmtrack.tracking.particles import Particles
 
@@ -126,3 +127,52 @@ def test_first_ping_of_a_receiver_is_the_stationary_prior_likelihood():
     assert np.all(particles.gps_offset_1 != 0.0)
     assert np.isnan(state.time[0]) and state.time[1] == 8.0
     assert state.variance[1] == GPS_SD**2 * WHITE**2 / (GPS_SD**2 + WHITE**2)
+
+
+@pytest.mark.parametrize("moored", [False, True])
+def test_translation_terms_are_the_derivatives_of_the_pings_log_likelihood(moored):
+    # a particle's pings' log-likelihood as its whole (here still) path is translated: the
+    # carried gradient and information are its first and second derivatives and the slope
+    # the offset mean's, against central differences of runs at shifted positions
+    tau = np.inf if moored else TAU
+    measurement = GpsOffsetMeasurement.of(["a"], RATE_SD, GPS_SD, TAU, WHITE, [moored])
+    times, ranges = _pings(1, tau)
+    h = 1e-3
+    particles = _particles(np.array([0.7, 0.7 + h, 0.7 - h]))
+    total, _ = _run(measurement, particles, times, ranges)
+    gradient = (total[1] - total[2]) / (2 * h)
+    curvature = (total[1] - 2 * total[0] + total[2]) / h**2
+    np.testing.assert_allclose(particles.gps_gradient_x[0], gradient, rtol=1e-6)
+    np.testing.assert_allclose(particles.gps_information_xx[0], -curvature, rtol=1e-5)
+    slope = (particles.gps_offset_0[1] - particles.gps_offset_0[2]) / (2 * h)
+    np.testing.assert_allclose(particles.gps_slope_0_x[0], slope, rtol=1e-6)
+    assert particles.gps_information_yy[0] == 0.0  # the line of sight is along x
+
+
+@pytest.mark.parametrize("moored", [False, True])
+def test_one_translation_from_a_point_draws_the_exact_posterior(moored, monkeypatch):
+    # every particle at one point of a still tag's line of sight (flat prior): one
+    # translation move must draw x from the exact posterior (a grid of the pings' likelihood)
+    # and give each particle the offset mean a run at its new position gives (the longest
+    # move lifted, which would truncate a posterior of 1.5 m sd)
+    monkeypatch.setattr(gps_offset, "MAX_TRANSLATION", 50.0)
+    tau = np.inf if moored else TAU
+    measurement = GpsOffsetMeasurement.of(["a"], RATE_SD, GPS_SD, TAU, WHITE, [moored])
+    times, ranges = _pings(2, tau)
+    grid = np.arange(-10.0, 12.0, 0.001)
+    log_post, _ = _run(measurement, _particles(grid), times, ranges)
+    w = np.exp(log_post - logsumexp(log_post))
+    mean = w @ grid
+    sd = np.sqrt(w @ (grid - mean) ** 2)
+    n = 20_000
+    particles = _particles(np.full(n, mean + 0.5 * sd))
+    _run(measurement, particles, times, ranges)
+    score = measurement.score(particles, np.empty((0, 7)), times[-1], measurement.start(
+        _particles(np.zeros(1)), 0.0), None)  # fmt: skip
+    score.move(particles, np.random.default_rng(5))
+    assert abs(particles.x.mean() - mean) < 4 * sd / np.sqrt(n)
+    assert abs(particles.x.std() / sd - 1) < 4 / np.sqrt(2 * n)
+    assert np.all(particles.y == 0.0)
+    check = _particles(particles.x[:5].copy())
+    _run(measurement, check, times, ranges)
+    np.testing.assert_allclose(particles.gps_offset_0[:5], check.gps_offset_0, atol=1e-9)

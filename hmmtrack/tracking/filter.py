@@ -553,9 +553,10 @@ class ParticleFilter:
         or a recovery).
 
         The measurement scores (its ``score`` hook, else ``loglik``), the correction policy
-        applies the log-likelihood, the measurement commits (``Score.commit``), the
-        collectors record. On more than one thread, the correction runs the measurement's
-        chunked kernels on its threads too
+        applies the log-likelihood, the measurement commits (``Score.commit``) and moves the
+        particles (``Score.move``, the estimate then taken again), the collectors record.
+        On more than one thread, the correction runs the measurement's chunked kernels on
+        its threads too
         (:func:`~hmmtrack.tracking.compiled.chunks.default_threads`); on one, they run on
         their own default (the range-rate log-likelihood on one thread, the ping
         measurement's on all of numba's)."""
@@ -581,6 +582,9 @@ class ParticleFilter:
         estimate = self.correction.correct(self, score, table)
         if score.commit is not None:
             score.commit(self.particles)
+        if score.move is not None:
+            score.move(self.particles, self.rng)
+            estimate = self.estimate()
         if self.monitor is not None and self.monitor.corrected(self, score.loglik, prior, rows):
             estimate = self.estimate()
         for collector in self.collect:

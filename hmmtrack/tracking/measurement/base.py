@@ -90,6 +90,10 @@ class Score:
     commit : callable or None
         ``commit(particles)``: what the measurement does once the weights are final (the
         Kalman step of each particle's emission clock, computed by the last scoring).
+    move : callable or None
+        ``move(particles, rng)``: a move of each particle that leaves the weighted posterior
+        unchanged, made after ``commit`` with the filter's generator (the gps offsets'
+        translation of each particle's path).
     events : tuple of (kind, detail)
         Events for the filter to record (e.g. a re-acquired clock).
     """
@@ -97,6 +101,7 @@ class Score:
     loglik: np.ndarray
     rescore: Callable[[Any, np.ndarray], np.ndarray]
     commit: Callable[[Any], None] | None = None
+    move: Callable[[Any, np.random.Generator], None] | None = None
     events: tuple[tuple[str, str], ...] = ()
 
 

@@ -43,6 +43,30 @@ the run state (:meth:`GpsOffsetMeasurement.loglik`, used by the acquisition's gr
 recovery on a range ring) the offsets are at that prior: the paper's likelihood with a range
 variance of ``gps_sd^2 + sigma_white^2``.
 
+The translation move. The offsets' means are learned along each particle's whole path, so
+once the cloud has converged a moored receiver's constant offset is a static parameter: the
+boat's range ties each particle's position along its line of sight to its own offset mean, the
+motion noise re-spreads positions but not those means, and resampling alone thins them out
+until a 1,000-particle cloud sits, too narrow, a few metres off (reports/decisions.md, "The
+still tag's collapse"). The motion models are translation-invariant, so moving a particle's
+whole path by ``δ`` leaves its prior unchanged and changes only its likelihood; to first order
+in ``δ`` (each predicted range changes by ``u · δ``, ``u`` the unit vector from the receiver
+to the particle at that ping) each innovation changes by ``h · δ`` and each offset mean by
+``a_k · δ``, where
+
+    h = -u - rho a_k,    a_k <- rho a_k + gain h,
+
+so the log-likelihood of all the particle's pings along the translation is the quadratic
+``G · δ - δ' I δ / 2`` with ``G = -Σ innovation h / S`` and ``I = Σ h h' / S``, carried per
+particle (fields ``gps_slope_{k}_x/y`` for ``a_k``, ``gps_gradient_x/y``,
+``gps_information_xx/xy/yy``). After each correction every particle draws its translation
+from that conditional, ``N(I⁻¹ G, I⁻¹)`` along each eigenvector of ``I`` whose posterior sd is
+under :data:`MAX_TRANSLATION` (a generalised Gibbs step, Liu & Sabatti 2000), and stays in
+place when the draw is longer than that: this leaves the weighted posterior unchanged up to
+the linearisation and re-draws the offsets' means with the positions. It leaves out the
+range-rates' change with the line of sight (``|v| |δ| / r``: 0.01 m/s for 1 m/s, 1 m, 100 m)
+and the edge of the start region.
+
 The range-rate stays white (sd ``sigma_range_rate``, uncorrelated with the range): the
 observed rate comes from arrival times, which carry no GPS error, and the GPS error enters the
 predicted rate only through the receiver's velocity, averaged over 20 s of fixes
@@ -71,7 +95,13 @@ from hmmtrack.tracking.receivers import ReceiverTracks
 from hmmtrack.tracking.settings import positive, setting
 from hmmtrack.tracking.tempering import Tempered
 
-__all__ = ["GpsOffsetMeasurement", "GpsOffsetSettings", "OffsetState", "offset_steps"]
+__all__ = [
+    "GpsOffsetMeasurement",
+    "GpsOffsetSettings",
+    "OffsetState",
+    "offset_steps",
+    "translate",
+]
 
 #: stationary sd (m) of a receiver's GPS error along any horizontal direction: a consumer or
 #: SBAS-aided receiver's horizontal error of 2-2.5 m rms is 1.4-1.8 m per axis (the
@@ -94,6 +124,19 @@ GPS_TEMPERING_TRIGGER = 0.05
 #: the filter's 1 s steps); 0.5 m made the still tag's regions overconfident
 #: (reports/decisions.md, "Correlated GPS error in the measurement")
 SIGMA_WHITE = 1.0
+#: longest translation (m) a particle is moved by (a longer draw leaves it in place, which keeps
+#: the move reversible), and the largest posterior sd of a direction it is moved along: the
+#: linearised ranges' second-order term δ²/2r is 0.09 m for 3 m at 50 m, and before
+#: convergence the draws would be tens of metres, where the linearisation fails
+MAX_TRANSLATION = 3.0
+#: the particle fields of one translation's log-likelihood: gradient and information
+TRANSLATION_FIELDS = (
+    "gps_gradient_x",
+    "gps_gradient_y",
+    "gps_information_xx",
+    "gps_information_xy",
+    "gps_information_yy",
+)
 
 
 @dataclass(frozen=True)
@@ -306,6 +349,12 @@ class GpsOffsetMeasurement(RangeRateMeasurement):
         """The particle fields of the offsets' means (m), one per receiver."""
         return tuple(f"gps_offset_{k}" for k in range(len(self.receivers)))
 
+    @property
+    def slope_fields(self) -> tuple[str, ...]:
+        """The particle fields of the offsets' means' change per metre of a translation of
+        the particle's path, ``a_k``: x and y of receiver 0, then of receiver 1, ..."""
+        return tuple(f"gps_slope_{k}_{c}" for k in range(len(self.receivers)) for c in "xy")
+
     def as_matrix(self, obs) -> np.ndarray:
         """Observations as an (M, 7) float matrix: :data:`RANGE_RATE_COLUMNS` and the
         receiver's index in :attr:`receivers` (an array is taken as already converted)."""
@@ -315,8 +364,9 @@ class GpsOffsetMeasurement(RangeRateMeasurement):
         return np.column_stack([RangeRateMeasurement.as_matrix(obs), receiver])
 
     def start(self, particles: Particles, time: float, dt: float = 1.0) -> OffsetState:
-        """Offsets' means 0 in every particle; variances at the prior, no ping yet."""
-        for name in self.fields:
+        """Offsets' means and their translation terms 0 in every particle; variances at the
+        prior, no ping yet."""
+        for name in self.fields + self.slope_fields + TRANSLATION_FIELDS:
             particles.extra[name] = np.zeros(particles.n)
         r = len(self.receivers)
         return OffsetState(np.full(r, self.gps_sd**2), np.full(r, np.nan))
@@ -335,33 +385,100 @@ class GpsOffsetMeasurement(RangeRateMeasurement):
         )
         latest = []
 
+        names = self.fields + self.slope_fields + TRANSLATION_FIELDS
+
         def scored(particles, weights=None):
             p = particles
-            means = np.stack([p.extra[name] for name in self.fields])
+            carried = np.stack([p.extra[name] for name in names])
             loglik, updated = offset_loglik(
                 p.x, p.y, p.cos_heading, p.sin_heading, p.speed, np.ascontiguousarray(rows),
-                means, *steps[:3], float(self.covariance[1, 1]),
+                carried, *steps[:3], float(self.covariance[1, 1]),
             )  # fmt: skip
             latest[:] = [updated]
             return loglik
 
         def commit(particles):
-            for k, name in enumerate(self.fields):
+            for k, name in enumerate(names):
                 particles.extra[name] = latest[0][k]
             state.variance, state.time = steps[3].variance, steps[3].time
 
-        return Score(scored(particles), rescore=scored, commit=commit)
+        def move(particles, rng):
+            translate(particles, len(self.receivers), rng.standard_normal((2, particles.n)))
+
+        return Score(scored(particles), rescore=scored, commit=commit, move=move)
+
+
+def translate(particles: Particles, n_receivers: int, normals: np.ndarray) -> None:
+    """Move each particle's path by a translation drawn from its conditional posterior, in
+    place (the module docstring's translation move): positions, offsets' means and the
+    translation's gradient change, ``a_k`` and the information do not.
+
+    Parameters
+    ----------
+    particles : Particles
+        With the fields of :meth:`GpsOffsetMeasurement.start`.
+    n_receivers : int
+    normals : (2, N) float
+        Standard normal draws.
+    """
+    e = particles.extra
+    means = np.stack([e[f"gps_offset_{k}"] for k in range(n_receivers)])
+    slopes = np.stack([e[f"gps_slope_{k}_{c}"] for k in range(n_receivers) for c in "xy"])
+    _translate(
+        particles.x, particles.y, *(e[name] for name in TRANSLATION_FIELDS), means,
+        slopes.reshape(n_receivers, 2, -1), normals, MAX_TRANSLATION,
+    )  # fmt: skip
+    for k in range(n_receivers):
+        e[f"gps_offset_{k}"] = means[k]
+
+
+@njit(cache=True, nogil=True)
+def _translate(x, y, gx, gy, ixx, ixy, iyy, means, slopes, normals, longest):
+    """:func:`translate` on arrays, in place (``means`` (R, N) a copy the caller writes
+    back; ``slopes`` (R, 2, N)). Per particle the eigenvectors ``v`` of the 2 × 2
+    information ``I``; along each with eigenvalue ``λ ≥ 1 / longest²`` a step
+    ``t = v · G / λ + z / √λ``; none when the steps' sum is longer than ``longest`` (m)."""
+    floor = 1.0 / (longest * longest)
+    for i in range(x.size):
+        a, b, c = ixx[i], ixy[i], iyy[i]
+        half_trace = 0.5 * (a + c)
+        root = math.sqrt(0.25 * (a - c) ** 2 + b * b)
+        dx = dy = 0.0
+        for e in range(2):
+            lam = half_trace + root if e == 0 else half_trace - root
+            if lam < floor:
+                continue
+            if b != 0.0:  # eigenvector of [[a, b], [b, c]] for lam
+                vx, vy = lam - c, b
+                norm = math.sqrt(vx * vx + vy * vy)
+                vx, vy = vx / norm, vy / norm
+            elif (a >= c) == (e == 0):
+                vx, vy = 1.0, 0.0
+            else:
+                vx, vy = 0.0, 1.0
+            t = (vx * gx[i] + vy * gy[i]) / lam + normals[e, i] / math.sqrt(lam)
+            dx += t * vx
+            dy += t * vy
+        if dx * dx + dy * dy > longest * longest:
+            continue
+        x[i] += dx
+        y[i] += dy
+        for k in range(means.shape[0]):
+            means[k, i] += slopes[k, 0, i] * dx + slopes[k, 1, i] * dy
+        gx[i] -= a * dx + b * dy
+        gy[i] -= b * dx + c * dy
 
 
 def offset_loglik(
-    x, y, cos_heading, sin_heading, speed, rows, means, rho, predictive, gain, rate_var
+    x, y, cos_heading, sin_heading, speed, rows, carried, rho, predictive, gain, rate_var
 ):
-    """Per-particle log-likelihood (N,) and updated offset means (R, N) of one correction
-    from the means ``means`` (R, N) (:func:`_offset_kernel`)."""
+    """Per-particle log-likelihood (N,) and the updated carried fields (F, N) of one
+    correction from ``carried`` (F, N): the R offsets' means, their 2R slopes ``a_k`` and the
+    translation's gradient (2) and information (3) (:func:`_offset_kernel`)."""
     loglik = np.empty(x.size)
-    updated = np.empty_like(means)
+    updated = np.empty_like(carried)
     _offset_kernel(
-        x, y, cos_heading, sin_heading, speed, rows, means, rho, predictive, gain, rate_var,
+        x, y, cos_heading, sin_heading, speed, rows, carried, rho, predictive, gain, rate_var,
         loglik, updated,
     )  # fmt: skip
     return loglik, updated
@@ -369,32 +486,50 @@ def offset_loglik(
 
 @njit(cache=True, nogil=True)
 def _offset_kernel(
-    x, y, cos_heading, sin_heading, speed, z, means, rho, predictive, gain, rate_var, out,
+    x, y, cos_heading, sin_heading, speed, z, carried, rho, predictive, gain, rate_var, out,
     updated,
 ):  # fmt: skip
     """For every particle: the Kalman predictive log density of each row ``j`` of ``z``
     ((M, 7): :data:`RANGE_RATE_COLUMNS` and the receiver index ``k``; the predicted range and
     range-rate :func:`~hmmtrack.tracking.measurement.range_rate.predicted_row`) with offset mean
     ``rho[j] * m_k`` and variance ``predictive[j]``, plus the white range-rate's (variance
-    ``rate_var``), summed into ``out`` (N,); the offset means after each row's update
-    (``m_k + gain[j] * innovation``) into ``updated`` (R, N), starting from ``means`` (R, N)."""
+    ``rate_var``), summed into ``out`` (N,); the carried fields after each row's update into
+    ``updated`` (F, N), from ``carried`` (F, N; rows: the R means, then ``a_k``'s x and y per
+    receiver, then the translation's gradient x, y and information xx, xy, yy): the mean
+    ``m_k + gain[j] * innovation``, ``a_k + gain[j] * h`` and the gradient and information
+    of the innovation's sensitivity ``h = -u - rho[j] a_k`` (module docstring)."""
+    r = (carried.shape[0] - 5) // 3
+    g = 3 * r  # first translation row
     rate_norm = -0.5 * math.log(2.0 * math.pi * rate_var)
     range_norm = np.empty(z.shape[0])
     for j in range(z.shape[0]):
         range_norm[j] = math.log(2.0 * math.pi * predictive[j])
     for i in range(x.size):
-        for k in range(means.shape[0]):
-            updated[k, i] = means[k, i]
+        for f in range(carried.shape[0]):
+            updated[f, i] = carried[f, i]
         vx = speed[i] * cos_heading[i]
         vy = speed[i] * sin_heading[i]
         total = 0.0
         for j in range(z.shape[0]):
             k = int(z[j, 6])
             r_hat, r_dot_hat = predicted_row(z, j, x[i], y[i], vx, vy)
+            ux = (x[i] - z[j, 2]) / r_hat if r_hat > 0 else 0.0
+            uy = (y[i] - z[j, 3]) / r_hat if r_hat > 0 else 0.0
+            sx = r + 2 * k  # a_k's rows
+            hx = -ux - rho[j] * updated[sx, i]
+            hy = -uy - rho[j] * updated[sx + 1, i]
             mean = rho[j] * updated[k, i]
             innovation = z[j, 0] - r_hat - mean
             total += -0.5 * (range_norm[j] + innovation * innovation / predictive[j])
             updated[k, i] = mean + gain[j] * innovation
+            updated[sx, i] = rho[j] * updated[sx, i] + gain[j] * hx
+            updated[sx + 1, i] = rho[j] * updated[sx + 1, i] + gain[j] * hy
+            scaled = innovation / predictive[j]
+            updated[g, i] -= scaled * hx
+            updated[g + 1, i] -= scaled * hy
+            updated[g + 2, i] += hx * hx / predictive[j]
+            updated[g + 3, i] += hx * hy / predictive[j]
+            updated[g + 4, i] += hy * hy / predictive[j]
             e_v = r_dot_hat - z[j, 1]
             total += rate_norm - 0.5 * e_v * e_v / rate_var
         out[i] = total
