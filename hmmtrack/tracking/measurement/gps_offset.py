@@ -59,11 +59,12 @@ to the particle at that ping) each innovation changes by ``h · δ`` and each of
 so the log-likelihood of all the particle's pings along the translation is the quadratic
 ``G · δ - δ' I δ / 2`` with ``G = -Σ innovation h / S`` and ``I = Σ h h' / S``, carried per
 particle (fields ``gps_slope_{k}_x/y`` for ``a_k``, ``gps_gradient_x/y``,
-``gps_information_xx/xy/yy``). After each correction every particle draws its translation
-from that conditional, ``N(I⁻¹ G, I⁻¹)`` along each eigenvector of ``I`` whose posterior sd is
-under :data:`MAX_TRANSLATION` (a generalised Gibbs step, Liu & Sabatti 2000), and stays in
-place when the draw is longer than that: this leaves the weighted posterior unchanged up to
-the linearisation and re-draws the offsets' means with the positions. It leaves out the
+``gps_information_xx/xy/yy``). After every :data:`TRANSLATION_EVERY`-th correction every
+particle draws its translation from that conditional, ``N(I⁻¹ G, I⁻¹)`` along each
+eigenvector of ``I`` whose posterior sd is under :data:`MAX_TRANSLATION` (a generalised Gibbs
+step, Liu & Sabatti 2000), and stays in place when the draw is longer than that: this leaves
+the weighted posterior unchanged up to the linearisation and re-draws the offsets' means with
+the positions. It leaves out the
 range-rates' change with the line of sight (``|v| |δ| / r``: 0.01 m/s for 1 m/s, 1 m, 100 m)
 and the edge of the start region.
 
@@ -129,6 +130,11 @@ SIGMA_WHITE = 1.0
 #: linearised ranges' second-order term δ²/2r is 0.09 m for 3 m at 50 m, and before
 #: convergence the draws would be tens of metres, where the linearisation fails
 MAX_TRANSLATION = 3.0
+#: the particles are translated after every this many corrections (the first included): a
+#: cloud's offsets' means thin out over hundreds of resamplings, and on held-out seeds a move
+#: every 16 removed the still tag's collapses as one every correction did, at a quarter of
+#: the cost (reports/decisions.md, "The still tag's collapse")
+TRANSLATION_EVERY = 4
 #: the particle fields of one translation's log-likelihood: gradient and information
 TRANSLATION_FIELDS = (
     "gps_gradient_x",
@@ -201,10 +207,13 @@ class OffsetState:
         Posterior variance ``P_k`` (m²) of receiver ``k``'s offset after its latest ping.
     time : (R,) float
         Time (s) of that ping; NaN before the receiver's first scored ping.
+    corrections : int
+        Corrections scored and committed so far (every :data:`TRANSLATION_EVERY`-th moves).
     """
 
     variance: np.ndarray
     time: np.ndarray
+    corrections: int = 0
 
 
 def offset_steps(state: OffsetState, receiver: np.ndarray, time: float, gps_sd, tau, white):
@@ -389,7 +398,7 @@ class GpsOffsetMeasurement(RangeRateMeasurement):
 
         def scored(particles, weights=None):
             p = particles
-            carried = np.stack([p.extra[name] for name in names])
+            carried = tuple(p.extra[name] for name in names)
             loglik, updated = offset_loglik(
                 p.x, p.y, p.cos_heading, p.sin_heading, p.speed, np.ascontiguousarray(rows),
                 carried, *steps[:3], float(self.covariance[1, 1]),
@@ -403,7 +412,9 @@ class GpsOffsetMeasurement(RangeRateMeasurement):
             state.variance, state.time = steps[3].variance, steps[3].time
 
         def move(particles, rng):
-            translate(particles, len(self.receivers), rng.standard_normal((2, particles.n)))
+            if state.corrections % TRANSLATION_EVERY == 0:
+                translate(particles, len(self.receivers), rng.standard_normal((2, particles.n)))
+            state.corrections += 1
 
         return Score(scored(particles), rescore=scored, commit=commit, move=move)
 
@@ -422,20 +433,18 @@ def translate(particles: Particles, n_receivers: int, normals: np.ndarray) -> No
         Standard normal draws.
     """
     e = particles.extra
-    means = np.stack([e[f"gps_offset_{k}"] for k in range(n_receivers)])
-    slopes = np.stack([e[f"gps_slope_{k}_{c}"] for k in range(n_receivers) for c in "xy"])
+    means = tuple(e[f"gps_offset_{k}"] for k in range(n_receivers))
+    slopes = tuple(e[f"gps_slope_{k}_{c}"] for k in range(n_receivers) for c in "xy")
     _translate(
-        particles.x, particles.y, *(e[name] for name in TRANSLATION_FIELDS), means,
-        slopes.reshape(n_receivers, 2, -1), normals, MAX_TRANSLATION,
+        particles.x, particles.y, *(e[name] for name in TRANSLATION_FIELDS), means, slopes,
+        normals, MAX_TRANSLATION,
     )  # fmt: skip
-    for k in range(n_receivers):
-        e[f"gps_offset_{k}"] = means[k]
 
 
 @njit(cache=True, nogil=True)
 def _translate(x, y, gx, gy, ixx, ixy, iyy, means, slopes, normals, longest):
-    """:func:`translate` on arrays, in place (``means`` (R, N) a copy the caller writes
-    back; ``slopes`` (R, 2, N)). Per particle the eigenvectors ``v`` of the 2 × 2
+    """:func:`translate` on arrays, in place (``means``: R arrays (N,); ``slopes``: 2R, x
+    and y of each receiver in turn). Per particle the eigenvectors ``v`` of the 2 × 2
     information ``I``; along each with eigenvalue ``λ ≥ 1 / longest²`` a step
     ``t = v · G / λ + z / √λ``; none when the steps' sum is longer than ``longest`` (m)."""
     floor = 1.0 / (longest * longest)
@@ -463,8 +472,8 @@ def _translate(x, y, gx, gy, ixx, ixy, iyy, means, slopes, normals, longest):
             continue
         x[i] += dx
         y[i] += dy
-        for k in range(means.shape[0]):
-            means[k, i] += slopes[k, 0, i] * dx + slopes[k, 1, i] * dy
+        for k in range(len(means)):
+            means[k][i] += slopes[2 * k][i] * dx + slopes[2 * k + 1][i] * dy
         gx[i] -= a * dx + b * dy
         gy[i] -= b * dx + c * dy
 
@@ -472,11 +481,11 @@ def _translate(x, y, gx, gy, ixx, ixy, iyy, means, slopes, normals, longest):
 def offset_loglik(
     x, y, cos_heading, sin_heading, speed, rows, carried, rho, predictive, gain, rate_var
 ):
-    """Per-particle log-likelihood (N,) and the updated carried fields (F, N) of one
-    correction from ``carried`` (F, N): the R offsets' means, their 2R slopes ``a_k`` and the
-    translation's gradient (2) and information (3) (:func:`_offset_kernel`)."""
+    """Per-particle log-likelihood (N,) and the updated carried fields (a tuple of F arrays
+    (N,)) of one correction from ``carried`` (the same): the R offsets' means, their 2R slopes
+    ``a_k`` and the translation's gradient (2) and information (3) (:func:`_offset_kernel`)."""
     loglik = np.empty(x.size)
-    updated = np.empty_like(carried)
+    updated = tuple(np.empty(x.size) for _ in carried)
     _offset_kernel(
         x, y, cos_heading, sin_heading, speed, rows, carried, rho, predictive, gain, rate_var,
         loglik, updated,
@@ -494,19 +503,21 @@ def _offset_kernel(
     range-rate :func:`~hmmtrack.tracking.measurement.range_rate.predicted_row`) with offset mean
     ``rho[j] * m_k`` and variance ``predictive[j]``, plus the white range-rate's (variance
     ``rate_var``), summed into ``out`` (N,); the carried fields after each row's update into
-    ``updated`` (F, N), from ``carried`` (F, N; rows: the R means, then ``a_k``'s x and y per
-    receiver, then the translation's gradient x, y and information xx, xy, yy): the mean
+    ``updated`` (F arrays (N,)), from ``carried`` (the same: the R means, then ``a_k``'s x and
+    y per receiver, then the translation's gradient x, y and information xx, xy, yy): the mean
     ``m_k + gain[j] * innovation``, ``a_k + gain[j] * h`` and the gradient and information
     of the innovation's sensitivity ``h = -u - rho[j] a_k`` (module docstring)."""
-    r = (carried.shape[0] - 5) // 3
-    g = 3 * r  # first translation row
+    n_fields = len(carried)
+    r = (n_fields - 5) // 3
+    g = 3 * r  # first translation field
+    local = np.empty(n_fields)
     rate_norm = -0.5 * math.log(2.0 * math.pi * rate_var)
     range_norm = np.empty(z.shape[0])
     for j in range(z.shape[0]):
         range_norm[j] = math.log(2.0 * math.pi * predictive[j])
     for i in range(x.size):
-        for f in range(carried.shape[0]):
-            updated[f, i] = carried[f, i]
+        for f in range(n_fields):
+            local[f] = carried[f][i]
         vx = speed[i] * cos_heading[i]
         vy = speed[i] * sin_heading[i]
         total = 0.0
@@ -515,21 +526,23 @@ def _offset_kernel(
             r_hat, r_dot_hat = predicted_row(z, j, x[i], y[i], vx, vy)
             ux = (x[i] - z[j, 2]) / r_hat if r_hat > 0 else 0.0
             uy = (y[i] - z[j, 3]) / r_hat if r_hat > 0 else 0.0
-            sx = r + 2 * k  # a_k's rows
-            hx = -ux - rho[j] * updated[sx, i]
-            hy = -uy - rho[j] * updated[sx + 1, i]
-            mean = rho[j] * updated[k, i]
+            sx = r + 2 * k  # a_k's fields
+            hx = -ux - rho[j] * local[sx]
+            hy = -uy - rho[j] * local[sx + 1]
+            mean = rho[j] * local[k]
             innovation = z[j, 0] - r_hat - mean
             total += -0.5 * (range_norm[j] + innovation * innovation / predictive[j])
-            updated[k, i] = mean + gain[j] * innovation
-            updated[sx, i] = rho[j] * updated[sx, i] + gain[j] * hx
-            updated[sx + 1, i] = rho[j] * updated[sx + 1, i] + gain[j] * hy
+            local[k] = mean + gain[j] * innovation
+            local[sx] = rho[j] * local[sx] + gain[j] * hx
+            local[sx + 1] = rho[j] * local[sx + 1] + gain[j] * hy
             scaled = innovation / predictive[j]
-            updated[g, i] -= scaled * hx
-            updated[g + 1, i] -= scaled * hy
-            updated[g + 2, i] += hx * hx / predictive[j]
-            updated[g + 3, i] += hx * hy / predictive[j]
-            updated[g + 4, i] += hy * hy / predictive[j]
+            local[g] -= scaled * hx
+            local[g + 1] -= scaled * hy
+            local[g + 2] += hx * hx / predictive[j]
+            local[g + 3] += hx * hy / predictive[j]
+            local[g + 4] += hy * hy / predictive[j]
             e_v = r_dot_hat - z[j, 1]
             total += rate_norm - 0.5 * e_v * e_v / rate_var
+        for f in range(n_fields):
+            updated[f][i] = local[f]
         out[i] = total
