@@ -355,14 +355,14 @@ class GpsOffsetMeasurement(RangeRateMeasurement):
 
     @property
     def fields(self) -> tuple[str, ...]:
-        """The particle fields of the offsets' means (m), one per receiver."""
-        return tuple(f"gps_offset_{k}" for k in range(len(self.receivers)))
-
-    @property
-    def slope_fields(self) -> tuple[str, ...]:
-        """The particle fields of the offsets' means' change per metre of a translation of
-        the particle's path, ``a_k``: x and y of receiver 0, then of receiver 1, ..."""
-        return tuple(f"gps_slope_{k}_{c}" for k in range(len(self.receivers)) for c in "xy")
+        """The particle fields the measurement owns, in the kernel's order: the offsets' means
+        (m, ``gps_offset_k``), their change per metre of a translation of the particle's path
+        (``a_k``: ``gps_slope_k_x``, ``gps_slope_k_y``, receiver by receiver), and the
+        translation's gradient and information (:data:`TRANSLATION_FIELDS`)."""
+        r = range(len(self.receivers))
+        means = tuple(f"gps_offset_{k}" for k in r)
+        slopes = tuple(f"gps_slope_{k}_{c}" for k in r for c in "xy")
+        return means + slopes + TRANSLATION_FIELDS
 
     def as_matrix(self, obs) -> np.ndarray:
         """Observations as an (M, 7) float matrix: :data:`RANGE_RATE_COLUMNS` and the
@@ -375,7 +375,7 @@ class GpsOffsetMeasurement(RangeRateMeasurement):
     def start(self, particles: Particles, time: float, dt: float = 1.0) -> OffsetState:
         """Offsets' means and their translation terms 0 in every particle; variances at the
         prior, no ping yet."""
-        for name in self.fields + self.slope_fields + TRANSLATION_FIELDS:
+        for name in self.fields:
             particles.extra[name] = np.zeros(particles.n)
         r = len(self.receivers)
         return OffsetState(np.full(r, self.gps_sd**2), np.full(r, np.nan))
@@ -394,7 +394,7 @@ class GpsOffsetMeasurement(RangeRateMeasurement):
         )
         latest = []
 
-        names = self.fields + self.slope_fields + TRANSLATION_FIELDS
+        names = self.fields
 
         def scored(particles, weights=None):
             p = particles
