@@ -64,9 +64,10 @@ particle draws its translation from that conditional, ``N(I⁻¹ G, I⁻¹)`` al
 eigenvector of ``I`` whose posterior sd is under :data:`MAX_TRANSLATION` (a generalised Gibbs
 step, Liu & Sabatti 2000), and stays in place when the draw is longer than that: this leaves
 the weighted posterior unchanged up to the linearisation and re-draws the offsets' means with
-the positions. It leaves out the
-range-rates' change with the line of sight (``|v| |δ| / r``: 0.01 m/s for 1 m/s, 1 m, 100 m)
-and the edge of the start region.
+the positions. It leaves out the range-rates' change with the line of sight (``|v| |δ| / r``:
+0.01 m/s for 1 m/s, 1 m, 100 m), the edge of the start region, and the moves that change
+positions without the offsets (the tempering's ``regularisation_move``, a recovery's
+re-placed particles), whose paths it then translates as if they had not jumped.
 
 The range-rate stays white (sd ``sigma_range_rate``, uncorrelated with the range): the
 observed rate comes from arrival times, which carry no GPS error, and the GPS error enters the
@@ -393,7 +394,6 @@ class GpsOffsetMeasurement(RangeRateMeasurement):
             self.sigma_white,
         )
         latest = []
-
         names = self.fields
 
         def scored(particles, weights=None):
