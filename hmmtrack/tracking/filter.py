@@ -202,18 +202,19 @@ def _weight_summary(x, y, log_weight, threads: int = 1):
     return weights, log_total, *summary
 
 
-def _weigh(log_weight, loglik, x, y, threads: int = 1, out=None):
+def _weigh(log_weight, loglik, x, y, threads: int = 1, out=None, scored=None):
     """The correction's arithmetic: add ``loglik`` to the log weights, normalise them, and
     return the normalised weights, moments and ESS
     (:func:`hmmtrack.tracking.compiled.weighing.weigh` on ``threads`` threads, into the
-    arrays ``out`` when given).
+    arrays ``out`` when given; with ``scored``, the log-likelihood computed into ``loglik``
+    first).
 
     Returns ``(status, log_weight, weights, mean_x, mean_y, var_x, var_y, cov_xy, n_eff)``
     where ``status`` is 0 (done), 1 (``loglik`` has NaN or ``+inf``) or 2 (every particle
     impossible); the rest is meaningful only when ``status == 0``. Equal to
     :func:`hmmtrack.tracking.resampling.log_normalise` and :func:`_weight_summary` (tested).
     """
-    status, updated, weights, _, summary = weigh(log_weight, loglik, x, y, threads, out)
+    status, updated, weights, _, summary = weigh(log_weight, loglik, x, y, threads, out, scored)
     if status:
         return status, None, None, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     return 0, updated, weights, *summary
@@ -390,6 +391,12 @@ class ParticleFilter:
         self._start = getattr(measurement, "start", None)
         self._as_matrix = getattr(measurement, "as_matrix", None)
         self._score = getattr(measurement, "score", None)
+        # the measurement's arguments of its compiled per-chunk log-likelihood, when it has
+        # one and the correction is the plain one: the log-likelihood is then computed in
+        # the weighing's first pass (one parallel region and one pass over the particles
+        # less; the same values)
+        fused = self._score is None and type(self.correction) is Plain
+        self._loglik_terms = getattr(measurement, "loglik_terms", None) if fused else None
         # numba's thread count of this thread (``numba.set_num_threads``: 1 in the worker
         # processes of hmmtrack.experiments.executors, which run one trial per core)
         self._thread_choice = ThreadChoice(numba.get_num_threads())
@@ -411,6 +418,8 @@ class ParticleFilter:
         # two pairs of arrays that corrections write their log weights and weights into
         # (see _buffers): a correction allocates no arrays of N entries
         self._correction_arrays: tuple | None = None
+        # the array a fused correction writes its log-likelihood into (see _scored_correction)
+        self._loglik: np.ndarray | None = None
         #: ancestor indices (N,) of the last resampling (None before any); read by smoothers
         self.last_ancestors: np.ndarray | None = None
         #: with a mixture, its components' weight, mean and covariance (K, 6) after the last
@@ -565,36 +574,50 @@ class ParticleFilter:
             return self._scored_correction(rows, table)
 
     def _scored_correction(self, rows, table) -> Estimate:
-        """:meth:`_correct`'s steps."""
+        """:meth:`_correct`'s steps; with a measurement that offers ``loglik_terms`` and the
+        plain correction, the log-likelihood is computed in the weighing's first pass
+        (:func:`hmmtrack.tracking.compiled.weighing.weigh`'s ``scored``)."""
         p = self.particles
         measurement = self.measurement
         time = self.time
-        if self._score is None:
-            score = Score(
-                measurement.loglik(p, rows, time=time),
-                rescore=lambda particles, weights: measurement.loglik(particles, rows, time=time),
-            )
+        if self._loglik_terms is not None:
+            prior = None if self.monitor is None else self.monitor.before(self)
+            if self._loglik is None or self._loglik.size != p.n:
+                self._loglik = np.empty(p.n)
+            loglik = self._loglik
+            estimate = self.weigh(loglik, table, self._loglik_terms(p, rows, time))
         else:
-            score = self._score(p, rows, time, self.measurement_state, self.weights()[0])
-        for kind, detail in score.events:
-            self._record(kind, detail)
-        prior = None if self.monitor is None else self.monitor.before(self)
-        estimate = self.correction.correct(self, score, table)
-        if score.commit is not None:
-            score.commit(self.particles)
-        if score.move is not None:
-            score.move(self.particles, self.rng)
-            estimate = self.estimate()
-        if self.monitor is not None and self.monitor.corrected(self, score.loglik, prior, rows):
+            if self._score is None:
+                score = Score(
+                    measurement.loglik(p, rows, time=time),
+                    rescore=lambda particles, weights: measurement.loglik(
+                        particles, rows, time=time
+                    ),
+                )
+            else:
+                score = self._score(p, rows, time, self.measurement_state, self.weights()[0])
+            for kind, detail in score.events:
+                self._record(kind, detail)
+            prior = None if self.monitor is None else self.monitor.before(self)
+            estimate = self.correction.correct(self, score, table)
+            if score.commit is not None:
+                score.commit(self.particles)
+            if score.move is not None:
+                score.move(self.particles, self.rng)
+                estimate = self.estimate()
+            loglik = score.loglik
+        if self.monitor is not None and self.monitor.corrected(self, loglik, prior, rows):
             estimate = self.estimate()
         for collector in self.collect:
             collector.corrected(self)
         return estimate
 
-    def weigh(self, loglik, rows) -> Estimate:
+    def weigh(self, loglik, rows, scored=None) -> Estimate:
         """Add ``loglik`` (N,) to the log weights and normalise (one compiled call); recover
         from degenerate weights. ``rows()`` returns the observations (only built when
-        needed: for an error message or a recovery)."""
+        needed: for an error message or a recovery). With ``scored``, the measurement's
+        ``loglik_terms``, the log-likelihood is computed in the same call, into ``loglik``
+        (a float64 array (N,))."""
         p = self.particles
         loglik = np.asarray(loglik, dtype=np.float64)
         if loglik.shape != (p.n,):
@@ -603,7 +626,7 @@ class ParticleFilter:
                 f"expected ({p.n},), at time {self.time} for observations:\n{rows()}"
             )
         status, log_weight, weights, *moments, n_eff = _weigh(
-            p.log_weight, loglik, p.x, p.y, self.correction_threads(), self._buffers(p)
+            p.log_weight, loglik, p.x, p.y, self.correction_threads(), self._buffers(p), scored
         )
         if status == 1:
             raise ValueError(

@@ -178,11 +178,11 @@ def in_chunks(kernel, parallel, n: int, threads: int | None, args: tuple, out) -
     """Run ``kernel(*args, counter, out)`` over all chunks of ``n`` particles.
 
     With ``threads`` > 1 (``None``: that of the enclosing :func:`default_threads` block, else
-    ``numba.get_num_threads()``), ``parallel(threads, *args, counter, out)`` (tuple
-    arguments spread into their items) runs the kernel on that many threads of numba's
-    threading layer at once (OpenMP's threads wait awake for a while between calls, so a
-    call starts in a few microseconds), each claiming the next unclaimed chunk whenever it
-    finishes one (:func:`next_chunk`): a thread that starts
+    ``numba.get_num_threads()``), ``parallel(threads, *args, counter, out)`` (plain tuple
+    arguments spread into their items, named tuples passed whole) runs the kernel on that
+    many threads of numba's threading layer at once (OpenMP's threads wait awake for a while
+    between calls, so a call starts in a few microseconds), each claiming the next unclaimed
+    chunk whenever it finishes one (:func:`next_chunk`): a thread that starts
     late or is slowed by other work on the machine simply runs fewer chunks. Every chunk
     writes its own particles and its own row of ``out``, so the results do not depend on
     which thread ran it. Under numba's "workqueue" layer only one Python thread at a time
@@ -205,8 +205,9 @@ def in_chunks(kernel, parallel, n: int, threads: int | None, args: tuple, out) -
         exclusive = layer == "workqueue"
         if not exclusive or _WORKQUEUE_LOCK.acquire(blocking=False):
             _OPENMP_STARTED = _OPENMP_STARTED or layer == "omp"
-            # tuples of arrays (the von Mises tables) are passed to ``parallel`` as their items
-            flat = [item for arg in args for item in (arg if isinstance(arg, tuple) else (arg,))]
+            # plain tuples of arrays (the von Mises tables) are passed to ``parallel`` as their
+            # items; named tuples (a measurement's arguments of weighing.chunk_loglik) whole
+            flat = [item for arg in args for item in (arg if type(arg) is tuple else (arg,))]
             try:
                 # Load the serial kernel before its parallel twin (a call with every chunk
                 # already claimed does nothing): a twin loaded first from numba's on-disk

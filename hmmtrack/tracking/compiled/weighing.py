@@ -4,10 +4,12 @@ A correction adds a log-likelihood (N,) to the particles' log weights, normalise
 their log-sum-exp and summarises the weights: the weighted mean and covariance of the
 positions and the effective sample size (ESS). :func:`weigh` does it in four passes over the
 particles, three of them in the chunks of :mod:`hmmtrack.tracking.compiled.chunks` on as many
-threads as asked (:func:`~hmmtrack.tracking.compiled.chunks.in_chunks`):
+threads as asked (:func:`~hmmtrack.tracking.compiled.chunks.in_chunks`), all in one compiled
+call:
 
-1. per chunk: the updated log weights, whether the log-likelihood has NaN or ``+inf``
-   entries, and the chunk's largest log weight (its first index);
+1. per chunk: the measurement's log-likelihood when it is computed here (below), the updated
+   log weights, whether the log-likelihood has NaN or ``+inf`` entries, and the chunk's
+   largest log weight (its first index);
 2. per chunk: the weights ``exp(log weight - largest)``;
 3. on one thread: the sums of the weights, of their position moments about the heaviest
    particle and of their squares (:func:`moment_sums`). These sums feed back into the filter
@@ -22,7 +24,16 @@ Every chunk writes only its own particles and its own row of results, combined i
 so the results do not depend on the number of threads; they are bit for bit those of the
 NumPy composition (``log_weight + loglik``, ``np.argmax``, ``np.exp``, one pass of sums).
 
-It knows nothing of measurements or resampling schemes.
+A measurement whose log-likelihood is a compiled loop over particles can have it computed in
+the first pass, chunk by chunk, instead of in a pass (and a parallel region) of its own: it
+registers an implementation of :func:`chunk_loglik` for a ``NamedTuple`` class of its own
+holding the particle arrays and constants the loop reads (numba's ``overload``, chosen by that
+class), and hands :func:`weigh` an instance as ``scored``. :func:`loglik_chunks` runs the same
+implementation alone (for the grid of an acquisition, a recovery, tests). A function passed
+as an argument would do the same, but numba does not cache a kernel compiled for a function
+argument (it recompiles in every process).
+
+It knows nothing of particular measurements or of resampling schemes.
 """
 
 from __future__ import annotations
@@ -31,23 +42,46 @@ import math
 
 import numba
 import numpy as np
-from numba import njit
+from numba import njit, types
+from numba.extending import overload
 
-from hmmtrack.tracking.compiled.chunks import chunking, in_chunks, next_chunk
+from hmmtrack.tracking.compiled.chunks import block_threads, chunking, in_chunks, next_chunk
 
-__all__ = ["moment_sums", "weigh"]
+__all__ = ["chunk_loglik", "loglik_chunks", "moment_sums", "weigh"]
 
 #: the passes of :func:`_weigh_kernel`
 _UPDATE, _EXPONENTIALS, _NORMALISE = 0, 1, 2
 
 
+def chunk_loglik(scored, lo, hi, out):
+    """``out[:] =`` a measurement's log-likelihood (one correction's observations) of the
+    particles ``lo:hi``; ``out`` has ``hi - lo`` entries.
+
+    Compiled only: each measurement that offers it registers its implementation for its
+    own ``NamedTuple`` class of ``scored`` (``numba.extending.overload(chunk_loglik)``,
+    returning ``None`` for other types), which holds the particle arrays (N,) and the
+    constants it reads. ``scored`` ``None`` does nothing (the log-likelihood is given).
+    Each particle's value must be computed alone, so that it does not depend on the chunks.
+    """
+    raise TypeError("chunk_loglik runs in compiled kernels only (weighing.loglik_chunks calls it)")
+
+
+@overload(chunk_loglik)
+def _given_loglik(scored, lo, hi, out):
+    """:func:`chunk_loglik` of ``scored`` ``None``: nothing to compute."""
+    if isinstance(scored, types.NoneType):
+        return lambda scored, lo, hi, out: None
+    return None
+
+
 @njit(cache=True, nogil=True)
 def _weigh_kernel(
-    phase, log_weight, loglik, add, updated, weights, top, total, shift, counter, found
+    phase, log_weight, loglik, add, scored, updated, weights, top, total, shift, counter, found
 ):  # fmt: skip
     """One pass over every chunk not yet claimed (:func:`next_chunk`).
 
-    ``_UPDATE``: ``updated = log_weight + loglik`` (``add``; else a copy of ``log_weight``),
+    ``_UPDATE``: ``loglik`` of the chunk from ``scored`` (:func:`chunk_loglik`, unless
+    ``None``), ``updated = log_weight + loglik`` (``add``; else a copy of ``log_weight``),
     ``found[chunk] = (whether loglik has NaN or +inf, index of the chunk's first largest
     updated log weight, that log weight)``. ``_EXPONENTIALS``: ``weights = exp(updated -
     top)``. ``_NORMALISE``: ``weights /= total``, ``updated -= shift``.
@@ -62,9 +96,10 @@ def _weigh_kernel(
             bad = False
             chunk_log_weight = log_weight[lo:hi]
             if add:
-                chunk_loglik = loglik[lo:hi]
+                chunk_scores = loglik[lo:hi]
+                chunk_loglik(scored, lo, hi, chunk_scores)
                 for i in range(chunk_updated.size):
-                    li = chunk_loglik[i]
+                    li = chunk_scores[i]
                     bad |= not li < np.inf
                     chunk_updated[i] = chunk_log_weight[i] + li
             else:
@@ -132,13 +167,15 @@ def _largest(add, found):
 
 
 @njit(cache=True, nogil=True)
-def _weigh_serial(log_weight, loglik, add, x, y, updated, weights, result, counter, found):
+def _weigh_serial(
+    log_weight, loglik, add, scored, x, y, updated, weights, result, counter, found
+):  # fmt: skip
     """:func:`weigh`'s passes on the calling thread; ``result[:] = (status, log_total, mean
     x, mean y, var x, var y, cov xy, ESS)``. Does nothing when ``counter`` says every chunk
     was claimed (how :func:`~hmmtrack.tracking.compiled.chunks.in_chunks` loads it)."""
     if counter[0] > 0:
         return
-    args = (log_weight, loglik, add, updated, weights)
+    args = (log_weight, loglik, add, scored, updated, weights)
     _weigh_kernel(_UPDATE, *args, 0.0, 0.0, 0.0, counter, found)
     status, k, top = _largest(add, found)
     result[0] = status
@@ -156,35 +193,36 @@ def _weigh_serial(log_weight, loglik, add, x, y, updated, weights, result, count
 
 @njit(cache=True, nogil=True, parallel=True)
 def _weigh_parallel(
-    threads, log_weight, loglik, add, x, y, updated, weights, result, counter, found
+    threads, log_weight, loglik, add, scored, x, y, updated, weights, result, counter, found
 ):  # fmt: skip
     """:func:`_weigh_serial` with the chunked passes on ``threads`` threads."""
     for _ in numba.prange(threads):
         _weigh_kernel(
-            _UPDATE, log_weight, loglik, add, updated, weights, 0.0, 0.0, 0.0, counter, found
-        )
+            _UPDATE, log_weight, loglik, add, scored, updated, weights, 0.0, 0.0, 0.0,
+            counter, found,
+        )  # fmt: skip
     status, k, top = _largest(add, found)
     result[0] = status
     if status == 0:
         counter[0] = 0
         for _ in numba.prange(threads):
             _weigh_kernel(
-                _EXPONENTIALS, log_weight, loglik, add, updated, weights, top, 0.0, 0.0,
-                counter, found,
+                _EXPONENTIALS, log_weight, loglik, add, scored, updated, weights, top, 0.0,
+                0.0, counter, found,
             )  # fmt: skip
         summary = moment_sums(weights, x, y, k)
         log_total = top + math.log(summary[0])
         counter[0] = 0
         for _ in numba.prange(threads):
             _weigh_kernel(
-                _NORMALISE, log_weight, loglik, add, updated, weights, top, summary[0],
-                log_total, counter, found,
+                _NORMALISE, log_weight, loglik, add, scored, updated, weights, top,
+                summary[0], log_total, counter, found,
             )  # fmt: skip
         result[1] = log_total
         result[2:] = np.array(summary[1:])
 
 
-def weigh(log_weight, loglik, x, y, threads: int = 1, out=None):
+def weigh(log_weight, loglik, x, y, threads: int = 1, out=None, scored=None):
     """Log weights plus a log-likelihood, normalised, with their weights' summary.
 
     Parameters
@@ -192,7 +230,8 @@ def weigh(log_weight, loglik, x, y, threads: int = 1, out=None):
     log_weight : numpy.ndarray, shape (N,)
         Log weights (finite or ``-inf``).
     loglik : numpy.ndarray, shape (N,), or None
-        Log-likelihood to add; ``None``: summarise ``log_weight`` itself.
+        Log-likelihood to add; ``None``: summarise ``log_weight`` itself. With ``scored``,
+        the float64 array that receives the log-likelihood computed here.
     x, y : numpy.ndarray, shape (N,)
         Positions (m).
     threads : int
@@ -220,9 +259,35 @@ def weigh(log_weight, loglik, x, y, threads: int = 1, out=None):
     add = loglik is not None
     updated, weights = (np.empty(n), np.empty(n)) if out is None else out
     result = np.empty(8)
-    args = (log_weight, loglik if add else log_weight, add, x, y, updated, weights, result)
+    args = (log_weight, loglik if add else log_weight, add, scored, x, y, updated, weights, result)
     in_chunks(_weigh_serial, _weigh_parallel, n, threads, args, np.empty((chunking(n)[0], 3)))
     status = int(result[0])
     if status:
         return status, None, None, None, None
     return 0, updated, weights, float(result[1]), result[2:].tolist()
+
+
+@njit(cache=True, nogil=True)
+def _loglik_kernel(scored, counter, out):
+    """:func:`chunk_loglik` of every chunk of ``out`` (N,) not yet claimed (:func:`next_chunk`)."""
+    chunk, lo, hi = next_chunk(counter, out.size)
+    while chunk >= 0:
+        chunk_loglik(scored, lo, hi, out[lo:hi])
+        chunk, lo, hi = next_chunk(counter, out.size)
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def _loglik_parallel(threads, scored, counter, out):
+    """:func:`_loglik_kernel` on ``threads`` threads."""
+    for _ in numba.prange(threads):
+        _loglik_kernel(scored, counter, out)
+
+
+def loglik_chunks(scored, n: int) -> np.ndarray:
+    """A measurement's log-likelihood (N,) of ``n`` particles from its :func:`chunk_loglik`
+    arguments ``scored``, in chunks on the threads of the enclosing
+    :func:`~hmmtrack.tracking.compiled.chunks.default_threads` block, else on one (the same
+    values on any number)."""
+    out = np.empty(n)
+    in_chunks(_loglik_kernel, _loglik_parallel, n, block_threads(1), (scored,), out)
+    return out

@@ -25,10 +25,12 @@ so it is not passed to the likelihood (:meth:`RangeRateMeasurement.split` makes 
 
 The log-likelihood is a compiled loop over particles and observations, on the (M, 6) matrix
 form of the observations (:meth:`RangeRateMeasurement.as_matrix`: the filter converts a
-whole run's observations once and scores row slices), in the chunks of
-:mod:`hmmtrack.tracking.compiled.chunks` on the threads of the enclosing
-:func:`~hmmtrack.tracking.compiled.chunks.default_threads` block (the filter's corrections
-on more than one thread), else on one (the same values on any number);
+whole run's observations once and scores row slices), chunk by chunk
+(:func:`hmmtrack.tracking.compiled.weighing.chunk_loglik` of :class:`RangeRateTerms`): the
+filter's correction runs it inside its weighing pass (:meth:`RangeRateMeasurement.loglik_terms`),
+:meth:`RangeRateMeasurement.loglik` on its own, on the threads of the enclosing
+:func:`~hmmtrack.tracking.compiled.chunks.default_threads` block, else on one (the same
+values on any number);
 :func:`predicted_range_and_rate` is the same prediction in NumPy (for tests and plots).
 
 This module does not resample or move particles, and does not compute ranges from
@@ -40,14 +42,14 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import ClassVar
+from typing import ClassVar, NamedTuple
 
-import numba
 import numpy as np
 import pandas as pd
-from numba import njit
+from numba import njit, types
+from numba.extending import overload
 
-from hmmtrack.tracking.compiled.chunks import block_threads, in_chunks, next_chunk
+from hmmtrack.tracking.compiled.weighing import chunk_loglik, loglik_chunks
 from hmmtrack.tracking.measurement import ranging
 from hmmtrack.tracking.measurement.base import (
     EVENT_COLUMNS,
@@ -513,14 +515,18 @@ class RangeRateMeasurement:
         -------
         (N,) float; finite unless a squared error overflows (``-inf`` then).
         """
+        return loglik_chunks(self.loglik_terms(particles, obs), particles.n)
+
+    def loglik_terms(self, particles: Particles, obs, time: float | None = None) -> RangeRateTerms:
+        """The arguments of :meth:`loglik`'s compiled loop (:class:`RangeRateTerms`), which
+        the filter's correction runs in its weighing pass
+        (:func:`hmmtrack.tracking.compiled.weighing.chunk_loglik`); parameters as
+        :meth:`loglik`."""
         p = particles
-        out = np.empty(p.n)
-        args = (
+        return RangeRateTerms(
             p.x, p.y, p.cos_heading, p.sin_heading, p.speed,
             np.ascontiguousarray(self.as_matrix(obs)), self._precision, self._log_norm,
         )  # fmt: skip
-        in_chunks(_range_rate_kernel, _range_rate_parallel, p.n, block_threads(1), args, out)
-        return out
 
     @staticmethod
     def as_matrix(obs) -> np.ndarray:
@@ -658,19 +664,37 @@ def check_bounds(
             )
 
 
-@njit(cache=True, nogil=True)
-def _range_rate_kernel(x, y, cos_heading, sin_heading, speed, z, precision, log_norm, counter, out):
-    """:meth:`RangeRateMeasurement.loglik` of every chunk of particles not yet claimed
-    (:func:`~hmmtrack.tracking.compiled.chunks.next_chunk`) into ``out`` (N,); ``z`` is
-    (M, 6) in the order of :data:`RANGE_RATE_COLUMNS` (:func:`predicted_row`); each
-    particle's value is computed alone."""
-    p00, p01, p11 = precision[0, 0], precision[0, 1], precision[1, 1]
-    chunk, lo, hi = next_chunk(counter, x.size)
-    while chunk >= 0:
+class RangeRateTerms(NamedTuple):
+    """What the range-rate log-likelihood of one correction reads: the particles' positions
+    (m), heading cosines and sines and speeds (m/s), each (N,); the observations ``z``
+    (M, 6) in the order of :data:`RANGE_RATE_COLUMNS`; the precision ``Sigma_z^-1`` (2, 2)
+    and the Gaussian's log normalising constant (:func:`_range_rate_chunk`)."""
+
+    x: np.ndarray
+    y: np.ndarray
+    cos_heading: np.ndarray
+    sin_heading: np.ndarray
+    speed: np.ndarray
+    z: np.ndarray
+    precision: np.ndarray
+    log_norm: float
+
+
+@overload(chunk_loglik)
+def _range_rate_chunk(scored, lo, hi, out):
+    """:func:`~hmmtrack.tracking.compiled.weighing.chunk_loglik` of :class:`RangeRateTerms`:
+    :meth:`RangeRateMeasurement.loglik` of the particles ``lo:hi`` into ``out``, each
+    particle's value computed alone (:func:`predicted_row`)."""
+    if not (isinstance(scored, types.BaseNamedTuple) and scored.instance_class is RangeRateTerms):
+        return None
+
+    def chunk(scored, lo, hi, out):
+        z, precision, log_norm = scored.z, scored.precision, scored.log_norm
+        p00, p01, p11 = precision[0, 0], precision[0, 1], precision[1, 1]
         # loops over views of the chunk (the house form of chunked passes: 2-3x faster than
         # indexing lo:hi of the whole arrays)
-        xs, ys, out_chunk = x[lo:hi], y[lo:hi], out[lo:hi]
-        cs, ss, vs = cos_heading[lo:hi], sin_heading[lo:hi], speed[lo:hi]
+        xs, ys = scored.x[lo:hi], scored.y[lo:hi]
+        cs, ss, vs = scored.cos_heading[lo:hi], scored.sin_heading[lo:hi], scored.speed[lo:hi]
         for i in range(xs.size):
             vx = vs[i] * cs[i]
             vy = vs[i] * ss[i]
@@ -682,16 +706,6 @@ def _range_rate_kernel(x, y, cos_heading, sin_heading, speed, z, precision, log_
                 total += log_norm - 0.5 * (
                     p00 * e_r * e_r + 2.0 * p01 * e_r * e_v + p11 * e_v * e_v
                 )
-            out_chunk[i] = total
-        chunk, lo, hi = next_chunk(counter, x.size)
+            out[i] = total
 
-
-@njit(cache=True, nogil=True, parallel=True)
-def _range_rate_parallel(
-    threads, x, y, cos_heading, sin_heading, speed, z, precision, log_norm, counter, out
-):  # fmt: skip
-    """:func:`_range_rate_kernel` on ``threads`` threads."""
-    for _ in numba.prange(threads):
-        _range_rate_kernel(
-            x, y, cos_heading, sin_heading, speed, z, precision, log_norm, counter, out
-        )
+    return chunk
