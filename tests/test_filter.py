@@ -18,7 +18,12 @@ from hmmtrack.tracking.filter import (
 from hmmtrack.tracking.measurement.range_rate import RangeRateMeasurement
 from hmmtrack.tracking.motion import BaselineMotion, HMMMotion, VelocityMotion
 from hmmtrack.tracking.particles import _ARRAY_NAMES, Particles, sqrt_largest_eigenvalue
-from hmmtrack.tracking.resampling import effective_sample_size, log_normalise, multinomial
+from hmmtrack.tracking.resampling import (
+    RESAMPLERS,
+    effective_sample_size,
+    log_normalise,
+    multinomial,
+)
 
 TAG = np.array([30.0, -20.0])
 T0 = 1.7e9
@@ -458,6 +463,38 @@ def test_last_ancestors_are_the_resampling_draw():
     np.testing.assert_array_equal(pf.last_ancestors, multinomial(replay, weights, 500))
     np.testing.assert_array_equal(pf.particles.x, before.x[pf.last_ancestors])
     np.testing.assert_array_equal(pf.particles.speed, before.speed[pf.last_ancestors])
+
+
+@pytest.mark.parametrize("scheme", ["multinomial", "stratified", "systematic", "residual"])
+def test_resampling_in_one_pass_is_the_schemes_draw_and_the_gather(scheme, monkeypatch):
+    """The inverse-CDF schemes' points are merged and the new particles gathered chunk by
+    chunk in one pass (the residual scheme: drawn, then gathered): the ancestors are the
+    scheme's own draw and the particles exactly ``field[ancestors]``, on one thread and on
+    two, and with a field of another layout (merged, then taken)."""
+    monkeypatch.setattr(filter_module, "PARALLEL_MIN_CORRECTION", 1)
+    obs = circling_observations().iloc[:1]
+    for threads in (1, 2):
+        for strided in (False, True):
+            pf = make_filter("hmm", n=3000, seed=2, threads=threads, resampling=scheme)
+            pf.initialise(T0)
+            pf.predict(4)
+            pf.correct(obs)
+            if strided:
+                pf.particles.speed = np.random.default_rng(0).normal(size=6000)[::2]
+            before = pf.particles.copy()
+            weights = pf.weights()[0].copy()
+            state = pf.rng.bit_generator.state
+            pf.resample_if_due()
+            replay = np.random.default_rng()
+            replay.bit_generator.state = state
+            want = RESAMPLERS[scheme](replay, weights, 3000)
+            np.testing.assert_array_equal(pf.last_ancestors, want)
+            for name in _ARRAY_NAMES:
+                taken = getattr(before, name)[want]
+                if name == "log_weight":
+                    taken = np.full(3000, -np.log(3000))
+                np.testing.assert_array_equal(getattr(pf.particles, name), taken)
+            assert pf.particles.speed.flags.c_contiguous
 
 
 def test_automatic_threads_respect_numbas_thread_count(monkeypatch):

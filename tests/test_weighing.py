@@ -47,3 +47,35 @@ def test_weigh_reports_bad_loglik_and_impossible_particles_in_any_chunk():
         status, out, weights, _, summary = weigh(first, None, x, y, threads)
         assert status == 0 and weights[3000] == weights[4000] == 0.5
         assert summary[0] == pytest.approx(0.5 * (x[3000] + x[4000]), rel=1e-12, abs=1e-12)
+
+
+def test_a_measurement_scored_inside_weigh_gives_the_bits_of_scoring_first():
+    """The range-rate log-likelihood computed chunk by chunk in weigh's first pass
+    (``scored``) is the one ``loglik`` returns, and weigh's results are those of adding it
+    afterwards, on any number of threads."""
+    from hmmtrack.tracking.compiled.chunks import default_threads
+    from hmmtrack.tracking.compiled.weighing import loglik_chunks
+    from hmmtrack.tracking.measurement.range_rate import RangeRateMeasurement
+    from hmmtrack.tracking.particles import Particles
+
+    n = 70_001
+    rng = np.random.default_rng(5)
+    p = Particles.from_state(
+        rng.uniform(-500, 500, n), rng.uniform(-500, 500, n), rng.uniform(-3, 3, n),
+        speed=rng.uniform(0, 2, n),
+    )  # fmt: skip
+    p.log_weight = rng.normal(-5.0, 3.0, n)
+    model = RangeRateMeasurement.from_std(3.0, 0.2)
+    rows = np.array([[300.0, 0.4, 100.0, -50.0, 0.9, 0.0], [450.0, -0.1, -200.0, 80.0, 0, 0]])
+    expected = model.loglik(p, rows)
+    assert np.isfinite(expected).all() and expected.std() > 1.0
+    want = weigh(p.log_weight, expected, p.x, p.y, 1)
+    for threads in (1, 2, 3):
+        with default_threads(threads):
+            np.testing.assert_array_equal(loglik_chunks(model.loglik_terms(p, rows), n), expected)
+        scores = np.full(n, np.nan)
+        got = weigh(p.log_weight, scores, p.x, p.y, threads, scored=model.loglik_terms(p, rows))
+        np.testing.assert_array_equal(scores, expected)
+        assert got[0] == 0 and got[3:] == want[3:]
+        np.testing.assert_array_equal(got[1], want[1])
+        np.testing.assert_array_equal(got[2], want[2])

@@ -66,15 +66,29 @@ from typing import NamedTuple
 import numba
 import numpy as np
 import pandas as pd
+from numba import njit
 
 from hmmtrack.random import SeedLike, as_generator
 from hmmtrack.tracking.compiled import streams as rs
-from hmmtrack.tracking.compiled.chunks import default_threads
+from hmmtrack.tracking.compiled.chunks import default_threads, in_chunks, next_chunk
 from hmmtrack.tracking.compiled.threads import ThreadChoice
 from hmmtrack.tracking.compiled.weighing import weigh
 from hmmtrack.tracking.measurement.base import Score
-from hmmtrack.tracking.particles import Particles, as_bounds, sqrt_largest_eigenvalue
-from hmmtrack.tracking.resampling import RESAMPLERS, Scratch, get_resampler
+from hmmtrack.tracking.particles import (
+    Particles,
+    as_bounds,
+    gather_chunk,
+    sqrt_largest_eigenvalue,
+)
+from hmmtrack.tracking.resampling import (
+    POINTS,
+    RESAMPLERS,
+    Inversion,
+    Scratch,
+    get_resampler,
+    merge_points,
+    merge_segments,
+)
 from hmmtrack.tracking.settings import (
     Settings,
     boolean,
@@ -229,6 +243,60 @@ def _weighted_moments(p: Particles, weights: np.ndarray, origin) -> np.ndarray:
     )
 
 
+@njit(cache=True, nogil=True)
+def _resample_kernel(
+    cumulative, points, last, ancestors, x, y, heading, cos_heading, sin_heading, speed,
+    turn_rate, time_since_draw, x_to, y_to, heading_to, cos_heading_to, sin_heading_to,
+    speed_to, turn_rate_to, time_since_draw_to, log_source, log_target, equal, log_fill,
+    state_source, counter, state_target,
+):  # fmt: skip
+    """For each chunk not yet claimed (:func:`~hmmtrack.tracking.compiled.chunks.next_chunk`)
+    of the new particles ``lo:hi``: their ancestors, the points ``lo:hi`` inverted against
+    the cumulative weights (:func:`~hmmtrack.tracking.resampling.merge_points`; the
+    ancestors do not depend on the chunks), then the particles gathered
+    (:func:`~hmmtrack.tracking.particles.gather_chunk`, arguments from
+    :meth:`Particles.gather_arrays`) while the chunk's ancestors are in the cache."""
+    chunk, lo, hi = next_chunk(counter, ancestors.size)
+    while chunk >= 0:
+        merge_points(cumulative, points, ancestors, lo, hi, last)
+        gather_chunk(
+            lo, hi, ancestors, x, y, heading, cos_heading, sin_heading, speed, turn_rate,
+            time_since_draw, x_to, y_to, heading_to, cos_heading_to, sin_heading_to, speed_to,
+            turn_rate_to, time_since_draw_to, log_source, log_target, equal, log_fill,
+            state_source, state_target,
+        )  # fmt: skip
+        chunk, lo, hi = next_chunk(counter, ancestors.size)
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def _resample_parallel(
+    threads, cumulative, points, last, ancestors, x, y, heading, cos_heading, sin_heading,
+    speed, turn_rate, time_since_draw, x_to, y_to, heading_to, cos_heading_to,
+    sin_heading_to, speed_to, turn_rate_to, time_since_draw_to, log_source, log_target,
+    equal, log_fill, state_source, counter, state_target,
+):  # fmt: skip
+    """:func:`_resample_kernel` on ``threads`` threads."""
+    for _ in numba.prange(threads):
+        _resample_kernel(
+            cumulative, points, last, ancestors, x, y, heading, cos_heading, sin_heading,
+            speed, turn_rate, time_since_draw, x_to, y_to, heading_to, cos_heading_to,
+            sin_heading_to, speed_to, turn_rate_to, time_since_draw_to, log_source,
+            log_target, equal, log_fill, state_source, counter, state_target,
+        )  # fmt: skip
+
+
+def _loglik_terms(measurement):
+    """The measurement's ``loglik_terms`` hook (the arguments of its compiled per-chunk
+    log-likelihood, :func:`hmmtrack.tracking.compiled.weighing.chunk_loglik`), unless it has
+    none or its class overrides ``loglik`` below the class that defines the hook (a subclass
+    that scores differently is scored by its ``loglik``)."""
+    if getattr(measurement, "loglik_terms", None) is None:
+        return None
+    mro = type(measurement).__mro__
+    owner = {name: next(c for c in mro if name in vars(c)) for name in ("loglik", "loglik_terms")}
+    return measurement.loglik_terms if owner["loglik"] is owner["loglik_terms"] else None
+
+
 def _n_rows(obs) -> int:
     """Number of observations in a DataFrame or a mapping of equal-length columns."""
     if isinstance(obs, pd.DataFrame):
@@ -373,7 +441,9 @@ class ParticleFilter:
         self.n_particles = int(n_particles)
         self.bounds = as_bounds(bounds)
         self.resampling = resampling
-        self._resample = get_resampler(resampling)
+        # an inverse-CDF scheme's draw alone (its points, merged with the gather of the new
+        # particles in one pass: see _resample_into), else the scheme
+        self._resample = POINTS.get(resampling) or get_resampler(resampling)
         # the resampling's work arrays, reused (see resample)
         self.scratch = Scratch()
         self.resample_when = resample_when
@@ -396,7 +466,7 @@ class ParticleFilter:
         # the weighing's first pass (one parallel region and one pass over the particles
         # less; the same values)
         fused = self._score is None and type(self.correction) is Plain
-        self._loglik_terms = getattr(measurement, "loglik_terms", None) if fused else None
+        self._loglik_terms = _loglik_terms(measurement) if fused else None
         # numba's thread count of this thread (``numba.set_num_threads``: 1 in the worker
         # processes of hmmtrack.experiments.executors, which run one trial per core)
         self._thread_choice = ThreadChoice(numba.get_num_threads())
@@ -727,8 +797,12 @@ class ParticleFilter:
         weights, _, origin = self.weights()
         if self.mixture is None:
             self.scratch.threads = self.correction_threads()
-            ancestors = self._resample(self.rng, weights, p.n, self.scratch)
-            self._take(p, ancestors)
+            drawn = self._resample(self.rng, weights, p.n, self.scratch)
+            if isinstance(drawn, Inversion):
+                ancestors = self._resample_into(p, drawn)
+            else:
+                ancestors = drawn
+                self._take(p, ancestors)
             # equal weights now; the old weighted mean still lies inside the cloud
             self._weighed = (self.particles.log_weight, self._equal_weights(), float(p.n), origin)
         else:
@@ -741,6 +815,29 @@ class ParticleFilter:
         self.last_ancestors = ancestors
         for collector in self.collect:
             collector.resampled(self, ancestors)
+
+    def _resample_into(self, p: Particles, drawn: Inversion) -> np.ndarray:
+        """The particles become ``p``'s at the points ``drawn`` (an inverse-CDF scheme's):
+        each chunk's points inverted (:func:`hmmtrack.tracking.resampling.merge_points`)
+        and its new particles gathered into the spare arrays in the same pass, with equal
+        weights, on the correction's threads (one parallel region and one pass over the
+        ancestors instead of two: the same ancestors and particles as :meth:`_take` of the
+        scheme's); ``p``'s arrays become the spare ones. Returns the ancestors (N,)."""
+        n, threads = drawn.n, self.scratch.threads
+        cumulative, points, last = self.scratch.prepare(drawn)
+        ancestors = np.empty(n, dtype=np.int64)
+        if not p.contiguous():  # fields replaced by arrays of another layout
+            whole = np.array([0, cumulative.size]), np.array([0, n])
+            merge_segments(cumulative, points, *whole, np.array([last]), threads, ancestors)
+            self._take(p, ancestors)
+            return ancestors
+        taken, arrays = p.gather_arrays(self._spare, n)
+        args = (cumulative, points, last, ancestors, *arrays)
+        in_chunks(_resample_kernel, _resample_parallel, n, threads, args, taken.state)
+        taken.extra = {name: value[ancestors] for name, value in p.extra.items()}
+        self.particles = taken
+        self._spare = p
+        return ancestors
 
     def _take(self, p: Particles, ancestors: np.ndarray) -> None:
         """The particles become ``p``'s ``ancestors`` with equal weights, gathered into the

@@ -24,7 +24,14 @@ from numba import njit
 
 from hmmtrack.tracking.compiled.chunks import in_chunks, next_chunk
 
-__all__ = ["Bounds", "Particles", "as_bounds", "split_in_two", "sqrt_largest_eigenvalue"]
+__all__ = [
+    "Bounds",
+    "Particles",
+    "as_bounds",
+    "gather_chunk",
+    "split_in_two",
+    "sqrt_largest_eigenvalue",
+]
 
 Bounds = tuple[float, float, float, float]
 
@@ -214,23 +221,13 @@ class Particles:
             )
         m = indices.size
         names = _MOTION_NAMES if equal_weights else _FLOAT_NAMES
-        sources = tuple(getattr(self, name) for name in names)
-        if all(a.dtype == _FLOAT64 and a.flags.c_contiguous for a in sources):
+        if self.contiguous(names):
             inside = _all_inside(indices, self.n)
             if inside:
-                taken = out if _fits(out, m, self) else _empty(m, self.state.dtype)
-                log_target = taken.log_weight
-                log_source = log_target if equal_weights else self.log_weight
+                taken, arrays = self.gather_arrays(out, m, equal_weights)
                 in_chunks(
-                    _gather_kernel, _gather_parallel, m, threads,
-                    (
-                        *(getattr(self, name) for name in _MOTION_NAMES),
-                        *(getattr(taken, name) for name in _MOTION_NAMES),
-                        log_source, log_target, equal_weights, -math.log(max(m, 1)),
-                        self.state, indices,
-                    ),
-                    taken.state,
-                )  # fmt: skip
+                    _gather_kernel, _gather_parallel, m, threads, (indices, *arrays), taken.state
+                )
         else:  # fields replaced by arrays of another layout: NumPy's indexing
             inside = m == 0 or 0 <= indices.min() <= indices.max() < self.n
             if inside:
@@ -246,6 +243,34 @@ class Particles:
             )
         taken.extra = {name: value[indices] for name, value in self.extra.items()}
         return taken
+
+    def contiguous(self, names: tuple[str, ...] | None = None) -> bool:
+        """Whether the float fields ``names`` (default: all) are contiguous float64 arrays,
+        as the compiled gather (:meth:`take`, :meth:`gather_arrays`) needs them."""
+        for name in _FLOAT_NAMES if names is None else names:
+            a = getattr(self, name)
+            if not (a.dtype == _FLOAT64 and a.flags.c_contiguous):
+                return False
+        return True
+
+    def gather_arrays(
+        self, out: Particles | None, m: int, equal_weights: bool = True
+    ) -> tuple[Particles, tuple]:
+        """The particles that receive ``m`` particles gathered from these (``out`` when it
+        fits, as in :meth:`take`; else new arrays; their extra fields not set) and the
+        arguments of :func:`gather_chunk` after ``indices`` (the sources, the targets, the
+        log weights' source and target, ``equal_weights``, its fill ``-log m``, the
+        states): for a compiled pass that finds the indices of a chunk and gathers it (the
+        particle filter's resampling). The motion and log-weight arrays must be contiguous
+        float64 arrays."""
+        taken = out if _fits(out, m, self) else _empty(m, self.state.dtype)
+        log_target = taken.log_weight
+        return taken, (
+            *(getattr(self, name) for name in _MOTION_NAMES),
+            *(getattr(taken, name) for name in _MOTION_NAMES),
+            log_target if equal_weights else self.log_weight, log_target, equal_weights,
+            -math.log(max(m, 1)), self.state,
+        )  # fmt: skip
 
     def normalised_weights(self) -> np.ndarray:
         """Weights ``exp(log_weight)`` scaled to sum one, shape ``(N,)``."""
@@ -316,36 +341,52 @@ def _all_inside(indices, n):
     return inside
 
 
-@njit(cache=True, nogil=True)
-def _gather_kernel(
-    x, y, heading, cos_heading, sin_heading, speed, turn_rate, time_since_draw,
-    x_to, y_to, heading_to, cos_heading_to, sin_heading_to, speed_to, turn_rate_to,
-    time_since_draw_to, log_source, log_target, equal, log_fill, state_source, indices,
-    counter, state_target,
+@njit(cache=True, inline="always")
+def gather_chunk(
+    lo, hi, indices, x, y, heading, cos_heading, sin_heading, speed, turn_rate,
+    time_since_draw, x_to, y_to, heading_to, cos_heading_to, sin_heading_to, speed_to,
+    turn_rate_to, time_since_draw_to, log_source, log_target, equal, log_fill, state_source,
+    state_target,
 ):  # fmt: skip
-    """For each chunk not yet claimed (:func:`next_chunk`) of the ``M`` new particles
-    ``lo:hi``: ``x_to[lo:hi] = x[indices[lo:hi]]`` and so on for every motion array, the
-    same for the state and the log weight, or ``log_fill`` for every log weight when
-    ``equal``. Indices must lie inside the sources. The arrays are separate arguments, not
-    tuples: the call's dispatch types a tuple of arrays more slowly than the arrays
-    themselves (about 1.5 us less per call for these two)."""
+    """For the new particles ``lo:hi``: ``x_to[lo:hi] = x[indices[lo:hi]]`` and so on for
+    every motion array, the same for the state and the log weight, or ``log_fill`` for every
+    log weight when ``equal``. Indices must lie inside the sources. The arrays are separate
+    arguments, not tuples: a call's dispatch types a tuple of arrays more slowly than the
+    arrays themselves (about 1.5 us less per call for these two)."""
     sources = (x, y, heading, cos_heading, sin_heading, speed, turn_rate, time_since_draw)
     targets = (
         x_to, y_to, heading_to, cos_heading_to, sin_heading_to, speed_to, turn_rate_to,
         time_since_draw_to,
     )  # fmt: skip
+    # loops over views of the chunk, not over lo:hi of the whole arrays: about 2x faster
+    # (reports/decisions.md, "Resampling and correction passes")
+    chunk_indices = indices[lo:hi]
+    for k in range(len(sources)):
+        _gather(sources[k], targets[k][lo:hi], chunk_indices)
+    _gather(state_source, state_target[lo:hi], chunk_indices)
+    if equal:
+        log_target[lo:hi] = log_fill
+    else:
+        _gather(log_source, log_target[lo:hi], chunk_indices)
+
+
+@njit(cache=True, nogil=True)
+def _gather_kernel(
+    indices, x, y, heading, cos_heading, sin_heading, speed, turn_rate, time_since_draw,
+    x_to, y_to, heading_to, cos_heading_to, sin_heading_to, speed_to, turn_rate_to,
+    time_since_draw_to, log_source, log_target, equal, log_fill, state_source, counter,
+    state_target,
+):  # fmt: skip
+    """:func:`gather_chunk` of each chunk not yet claimed (:func:`next_chunk`) of the ``M``
+    new particles."""
     chunk, lo, hi = next_chunk(counter, indices.size)
     while chunk >= 0:
-        # loops over views of the chunk, not over lo:hi of the whole arrays: about 2x faster
-        # (reports/decisions.md, "Resampling and correction passes")
-        chunk_indices = indices[lo:hi]
-        for k in range(len(sources)):
-            _gather(sources[k], targets[k][lo:hi], chunk_indices)
-        _gather(state_source, state_target[lo:hi], chunk_indices)
-        if equal:
-            log_target[lo:hi] = log_fill
-        else:
-            _gather(log_source, log_target[lo:hi], chunk_indices)
+        gather_chunk(
+            lo, hi, indices, x, y, heading, cos_heading, sin_heading, speed, turn_rate,
+            time_since_draw, x_to, y_to, heading_to, cos_heading_to, sin_heading_to, speed_to,
+            turn_rate_to, time_since_draw_to, log_source, log_target, equal, log_fill,
+            state_source, state_target,
+        )  # fmt: skip
         chunk, lo, hi = next_chunk(counter, indices.size)
 
 
@@ -358,17 +399,17 @@ def _gather(source, target, indices):
 
 @njit(cache=True, nogil=True, parallel=True)
 def _gather_parallel(
-    threads, x, y, heading, cos_heading, sin_heading, speed, turn_rate, time_since_draw,
-    x_to, y_to, heading_to, cos_heading_to, sin_heading_to, speed_to, turn_rate_to,
-    time_since_draw_to, log_source, log_target, equal, log_fill, state_source, indices,
+    threads, indices, x, y, heading, cos_heading, sin_heading, speed, turn_rate,
+    time_since_draw, x_to, y_to, heading_to, cos_heading_to, sin_heading_to, speed_to,
+    turn_rate_to, time_since_draw_to, log_source, log_target, equal, log_fill, state_source,
     counter, state_target,
 ):  # fmt: skip
     for _ in numba.prange(threads):
         _gather_kernel(
-            x, y, heading, cos_heading, sin_heading, speed, turn_rate, time_since_draw,
-            x_to, y_to, heading_to, cos_heading_to, sin_heading_to, speed_to, turn_rate_to,
-            time_since_draw_to, log_source, log_target, equal, log_fill, state_source, indices,
-            counter, state_target,
+            indices, x, y, heading, cos_heading, sin_heading, speed, turn_rate,
+            time_since_draw, x_to, y_to, heading_to, cos_heading_to, sin_heading_to,
+            speed_to, turn_rate_to, time_since_draw_to, log_source, log_target, equal,
+            log_fill, state_source, counter, state_target,
         )  # fmt: skip
 
 

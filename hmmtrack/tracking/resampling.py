@@ -14,7 +14,9 @@ indices into ``weights`` so that index ``i`` is expected to appear ``n * weights
 functions. Multinomial, stratified and systematic draw sorted points in ``[0, 1)`` with
 NumPy and invert the cumulative weights in linear compiled passes (:func:`inverse_cdf`);
 given a :class:`Scratch` (the particle filter's) they reuse its work arrays from one call to
-the next and invert in chunks on its threads, with the same ancestors.
+the next and invert in chunks on its threads, with the same ancestors. Their draws alone
+(:data:`POINTS`, an :class:`Inversion` each) let a caller run the chunked inversion itself:
+the particle filter merges each chunk's points and gathers its new particles in one pass.
 :func:`effective_sample_size` measures weight degeneracy from log weights.
 
 This module does not weigh particles or move them; it only chooses ancestors.
@@ -23,6 +25,7 @@ This module does not weigh particles or move them; it only chooses ancestors.
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import NamedTuple
 
 import numba
 import numpy as np
@@ -31,7 +34,9 @@ from numba import njit
 from hmmtrack.tracking.compiled.chunks import in_chunks, next_chunk
 
 __all__ = [
+    "POINTS",
     "RESAMPLERS",
+    "Inversion",
     "Scratch",
     "effective_sample_size",
     "first_above",
@@ -42,10 +47,13 @@ __all__ = [
     "merge_points",
     "merge_segments",
     "multinomial",
+    "multinomial_points",
     "prepare_points",
     "residual",
     "stratified",
+    "stratified_points",
     "systematic",
+    "systematic_points",
 ]
 
 
@@ -274,16 +282,37 @@ class Scratch:
         """``rng.standard_exponential(size)`` into a work array."""
         return rng.standard_exponential(size, out=self.array("values", size))
 
+    def prepare(self, inversion: Inversion) -> tuple[np.ndarray, np.ndarray, int]:
+        """The cumulative weights (M,) and the ascending points (n,) of ``inversion``
+        (:func:`prepare_points`, into work arrays) and the last index of positive weight:
+        what :func:`merge_points` inverts, chunk by chunk."""
+        cumulative = self.array("cumulative", inversion.weights.size)
+        points = self.array("points", inversion.n)
+        return cumulative, points, _prepare_into(*inversion, cumulative, points)
+
+
+class Inversion(NamedTuple):
+    """An inverse-CDF scheme's draw: the ascending points ``values[k] * value_scale``
+    (``running`` False) or ``(values[0] + ... + values[k]) * value_scale`` (``running``
+    True: the order statistics from spacings), ``n`` of them, to be inverted against the
+    cumulative sum of ``weights * weight_scale`` (:func:`invert`)."""
+
+    weights: np.ndarray
+    weight_scale: float
+    values: np.ndarray
+    n: int
+    value_scale: float
+    running: bool
+
 
 def _invert_with(scratch, weights, weight_scale, values, n, value_scale, running):
     """:func:`invert` into ``scratch``'s arrays (``None``: :func:`invert` itself), its merge
     on ``scratch.threads`` threads."""
     if scratch is None:
         return invert(weights, weight_scale, values, n, value_scale, running)
-    cumulative = scratch.array("cumulative", weights.size)
-    points = scratch.array("points", n)
-    args = (weights, weight_scale, values, n, value_scale, running, cumulative, points)
-    last = _prepare_into(*args)
+    cumulative, points, last = scratch.prepare(
+        Inversion(weights, weight_scale, values, n, value_scale, running)
+    )
     out = np.empty(n, dtype=np.int64)
     whole = np.array([0, weights.size], dtype=np.int64), np.array([0, n], dtype=np.int64)
     merge_segments(cumulative, points, *whole, np.array([last]), scratch.threads, out)
@@ -352,11 +381,18 @@ def multinomial(
     -------
     (n,) int64 array of indices into ``weights``, sorted ascending.
     """
+    return _invert_with(scratch, *multinomial_points(rng, weights, n, scratch))
+
+
+def multinomial_points(
+    rng: np.random.Generator, weights: np.ndarray, n: int, scratch: Scratch | None = None
+) -> Inversion:
+    """:func:`multinomial`'s draw before its inversion (the same parameters)."""
     w, weight_scale = _checked_weights(weights)
     spacings = (
         rng.standard_exponential(n + 1) if scratch is None else scratch.exponentials(rng, n + 1)
     )
-    return _invert_with(scratch, w, weight_scale, spacings, n, 1.0 / spacings.sum(), True)
+    return Inversion(w, weight_scale, spacings, n, 1.0 / spacings.sum(), True)
 
 
 def stratified(
@@ -366,9 +402,15 @@ def stratified(
 
     Parameters and return value as :func:`multinomial`.
     """
+    return _invert_with(scratch, *stratified_points(rng, weights, n, scratch))
+
+
+def stratified_points(
+    rng: np.random.Generator, weights: np.ndarray, n: int, scratch: Scratch | None = None
+) -> Inversion:
+    """:func:`stratified`'s draw before its inversion (the same parameters)."""
     w, weight_scale = _checked_weights(weights)
-    points = _evenly_spaced(rng, n, scratch, shared=False)
-    return _invert_with(scratch, w, weight_scale, points, n, 1.0, False)
+    return Inversion(w, weight_scale, _evenly_spaced(rng, n, scratch, shared=False), n, 1.0, False)
 
 
 def systematic(
@@ -379,9 +421,15 @@ def systematic(
     Index ``i`` appears ``floor(n w_i)`` or ``ceil(n w_i)`` times.
     Parameters and return value as :func:`multinomial`.
     """
+    return _invert_with(scratch, *systematic_points(rng, weights, n, scratch))
+
+
+def systematic_points(
+    rng: np.random.Generator, weights: np.ndarray, n: int, scratch: Scratch | None = None
+) -> Inversion:
+    """:func:`systematic`'s draw before its inversion (the same parameters)."""
     w, weight_scale = _checked_weights(weights)
-    points = _evenly_spaced(rng, n, scratch, shared=True)
-    return _invert_with(scratch, w, weight_scale, points, n, 1.0, False)
+    return Inversion(w, weight_scale, _evenly_spaced(rng, n, scratch, shared=True), n, 1.0, False)
 
 
 def residual(
@@ -408,6 +456,16 @@ RESAMPLERS: dict[str, Resampler] = {
     "residual": residual,
     "stratified": stratified,
     "systematic": systematic,
+}
+
+
+#: the inverse-CDF schemes' draws before their inversion, by name: a caller that merges the
+#: points itself (the particle filter, in one pass with the gather of the new particles)
+#: runs ``Scratch.prepare`` and :func:`merge_points`
+POINTS: dict[str, Callable[..., Inversion]] = {
+    "multinomial": multinomial_points,
+    "stratified": stratified_points,
+    "systematic": systematic_points,
 }
 
 
