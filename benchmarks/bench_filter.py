@@ -30,13 +30,13 @@ whole run) with the mode-keeping filter (``filter="mode-keeping"``: acquisition 
 mixture) against the paper's (``filter="paper"``) at the same particle count (process CPU
 time, all threads), in the same run, best of ``--repeat``; the budget is 1.3x.
 
-A third table (``--section correction``) times one correction and resampling as the
-filter runs them (the range-rate log-likelihood of one observation, the compiled weighing
-into reused arrays, multinomial resampling with the filter's work arrays, the gather into
-the spare particles) on one thread and on two, for N = 10,000 to 100,000 (or ``--sizes``),
-interleaved, best of 40 rounds, with the best time of each of these stages: the
-measurement behind the filter's ``PARALLEL_MIN_CORRECTION`` (corrections on the
-prediction's threads from that many particles).
+A third table (``--section correction``) times one correction and resampling of a
+``ParticleFilter`` (the range-rate log-likelihood of one observation computed in the
+compiled weighing into reused arrays; the multinomial draw and cumulative sums, then the
+inversion merged with the gather into the spare particles) on one thread and on two, for
+N = 10,000 to 100,000 (or ``--sizes``), interleaved, best of 40 rounds, with the best time
+of each of the two stages: the measurement behind the filter's ``PARALLEL_MIN_CORRECTION``
+(corrections on the prediction's threads from that many particles).
 
 Run: ``python benchmarks/bench_filter.py`` (``--quick`` for a 600 s trial and N up to
 10,000; ``--sizes 10000`` picks the particle numbers; ``--repeat k`` keeps the best of k
@@ -60,13 +60,9 @@ from hmmtrack import scenarios
 from hmmtrack.experiments.configs import tracking_config
 from hmmtrack.hmm import Gamma, MovementHMM, VonMises
 from hmmtrack.tracking import pipeline
-from hmmtrack.tracking.compiled.chunks import default_threads
-from hmmtrack.tracking.compiled.weighing import weigh
 from hmmtrack.tracking.filter import ParticleFilter
 from hmmtrack.tracking.measurement.range_rate import RangeRateMeasurement
 from hmmtrack.tracking.motion import HMMMotion, VelocityMotion, motion_model
-from hmmtrack.tracking.particles import Particles
-from hmmtrack.tracking.resampling import Scratch, multinomial
 
 BOUNDS = (-1000.0, 1000.0, -1000.0, 1000.0)
 #: issue 13's budget: CPU time of the mode-keeping filter over the plain one, same particles
@@ -173,50 +169,48 @@ def mode_keeping_cost(sizes, repeat: int) -> None:
 
 
 #: the stages of one correction and resampling (:func:`correction_cycle`)
-STAGES = ("loglik", "weigh", "resample", "gather")
+STAGES = ("correct", "resample")
 
 
-def correction_cycle(rng, particles, spare, rows, arrays, scratch: Scratch, clock) -> None:
-    """One correction and resampling as the filter runs them, on ``scratch.threads``: the
-    range-rate log-likelihood of ``rows``, the weighing, multinomial resampling and the
-    gather; ``clock[stage]`` accumulates each stage's wall-clock time (s)."""
-    p, threads = particles, scratch.threads
+def correction_cycle(pf: ParticleFilter, rows: np.ndarray, clock: dict) -> None:
+    """One correction and resampling of the filter ``pf`` on its threads: the range-rate
+    log-likelihood of ``rows`` computed in the weighing's compiled call (``correct``), then
+    the multinomial draw, its cumulative sums and the inversion merged with the gather of
+    the new particles (``resample``); ``clock[stage]`` accumulates each stage's wall-clock
+    time (s)."""
     start = time.perf_counter()
-    with default_threads(threads):
-        loglik = MEASUREMENT.loglik(p, rows)
-    marks = [start, time.perf_counter()]
-    _, _, weights, _, _ = weigh(p.log_weight, loglik, p.x, p.y, threads, arrays)
-    marks.append(time.perf_counter())
-    ancestors = multinomial(rng, weights, p.n, scratch)
-    marks.append(time.perf_counter())
-    p.take(ancestors, True, out=spare, threads=threads)
-    marks.append(time.perf_counter())
-    for k, stage in enumerate(STAGES):
-        clock[stage] += marks[k + 1] - marks[k]
+    pf.correct(rows)
+    middle = time.perf_counter()
+    pf.resample()
+    clock["correct"] += middle - start
+    clock["resample"] += time.perf_counter() - middle
 
 
 def correction_cost(sizes) -> None:
     """Print one correction and resampling on one thread against two (same run), and the
     best time of each stage."""
-    rng = np.random.default_rng(0)
     rows = MEASUREMENT.as_matrix(observations(60.0).iloc[[2]])
+    motion = VelocityMotion(sigma_speed=0.05, sigma_turn_rate=0.02)
     stage_columns = "".join(f"{f'{stage} 1/2 us':>20}" for stage in STAGES)
     print(f"{'N':>8}{'1 thr ms':>10}{'2 thr ms':>10}{'1 / 2':>7}{stage_columns}")
     for n in sizes:
-        particles = Particles.uniform(rng, n, BOUNDS)
-        data = (particles, particles.copy(), rows, (np.empty(n), np.empty(n)))
         best = {1: np.inf, 2: np.inf}
         stages = {threads: dict.fromkeys(STAGES, np.inf) for threads in best}
-        scratch = {threads: Scratch(threads) for threads in best}
-        calls = max(1, 200_000 // n)
+        filters = {}
         for threads in best:
-            correction_cycle(rng, *data, scratch[threads], dict.fromkeys(STAGES, 0.0))
+            # from PARALLEL_MIN_CORRECTION particles the corrections run on these threads
+            pf = filters[threads] = ParticleFilter(
+                motion, MEASUREMENT, n, BOUNDS, rng=0, threads=threads
+            )
+            pf.initialise(0.0)
+            correction_cycle(pf, rows, dict.fromkeys(STAGES, 0.0))
+        calls = max(1, 200_000 // n)
         for _ in range(40):
-            for threads in best:
+            for threads, pf in filters.items():
                 clock = dict.fromkeys(STAGES, 0.0)
                 start = time.perf_counter()
                 for _ in range(calls):
-                    correction_cycle(rng, *data, scratch[threads], clock)
+                    correction_cycle(pf, rows, clock)
                 best[threads] = min(best[threads], (time.perf_counter() - start) / calls)
                 for stage, total in clock.items():
                     stages[threads][stage] = min(stages[threads][stage], total / calls)
