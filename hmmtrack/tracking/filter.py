@@ -38,10 +38,13 @@ compiled kernel). The compiled path draws from per-particle random streams, so o
 gives one answer whatever the number of threads; by default the number of threads is chosen
 by timing one thread against all (:class:`ThreadChoice`; a prediction with the correction
 and resampling after it), because on a shared machine more threads are often slower. A
-correction is a handful of compiled passes (log-likelihood; the normalisation with the
-moments and ESS in one compiled call, :func:`hmmtrack.tracking.compiled.weighing.weigh`;
-the resampling's inverse CDF and gather into the spare particle arrays), on the threads of
-the latest prediction from :data:`PARALLEL_MIN_CORRECTION` particles;
+correction is two compiled calls: the log-likelihood, the normalisation, the moments and
+the ESS in one (:func:`hmmtrack.tracking.compiled.weighing.weigh`, the log-likelihood in
+its first pass when the measurement offers ``loglik_terms``, else a call before it), and
+the resampling's inverse CDF merged with the gather into the spare particle arrays in one
+pass per chunk (an inverse-CDF scheme's :data:`~hmmtrack.tracking.resampling.POINTS`
+draw; after its serial cumulative sums), on the threads of the latest prediction from
+:data:`PARALLEL_MIN_CORRECTION` particles;
 :meth:`ParticleFilter.iterate` converts all observations once to the measurement model's
 matrix form when the model offers one (``as_matrix``) instead of slicing a table at every
 correction. After each resampling :attr:`ParticleFilter.last_ancestors` holds the ancestor

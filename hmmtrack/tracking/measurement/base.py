@@ -51,6 +51,13 @@ Optional hooks, used by the filter when present:
   the tag's position and the gap between two of them beyond which the smoother bridges them
   by a straight line (:class:`hmmtrack.tracking.smoothing.Smoothed`; the ping measurement:
   a missed ping of a random-interval tag);
+* ``loglik_terms(particles, rows, time) -> NamedTuple``: the arguments of ``loglik``'s
+  compiled per-chunk loop, registered as an overload of
+  :func:`hmmtrack.tracking.compiled.weighing.chunk_loglik` for that ``NamedTuple`` class;
+  with the plain correction and no ``score`` hook, the filter then computes the
+  log-likelihood inside its weighing's first pass (one parallel region and one pass over
+  the particles less, the same values). Used only where the class that defines it also
+  defines ``loglik`` (a subclass that overrides ``loglik`` alone is scored by it);
 * ``recover(particles, table, time, rng) -> str | None``: re-place the particles after
   degenerate weights (every particle impossible) and describe what was done; ``None``
   leaves the filter's fallback, uniform in the bounds.
