@@ -69,29 +69,15 @@ from typing import NamedTuple
 import numba
 import numpy as np
 import pandas as pd
-from numba import njit
 
 from hmmtrack.random import SeedLike, as_generator
 from hmmtrack.tracking.compiled import streams as rs
-from hmmtrack.tracking.compiled.chunks import default_threads, in_chunks, next_chunk
+from hmmtrack.tracking.compiled.chunks import default_threads
 from hmmtrack.tracking.compiled.threads import ThreadChoice
 from hmmtrack.tracking.compiled.weighing import weigh
 from hmmtrack.tracking.measurement.base import Score
-from hmmtrack.tracking.particles import (
-    Particles,
-    as_bounds,
-    gather_chunk,
-    sqrt_largest_eigenvalue,
-)
-from hmmtrack.tracking.resampling import (
-    POINTS,
-    RESAMPLERS,
-    Inversion,
-    Scratch,
-    get_resampler,
-    merge_points,
-    merge_segments,
-)
+from hmmtrack.tracking.particles import Particles, as_bounds, sqrt_largest_eigenvalue
+from hmmtrack.tracking.resampling import POINTS, RESAMPLERS, Inversion, Scratch, get_resampler
 from hmmtrack.tracking.settings import (
     Settings,
     boolean,
@@ -244,48 +230,6 @@ def _weighted_moments(p: Particles, weights: np.ndarray, origin) -> np.ndarray:
     return np.array(
         [weights @ dx, weights @ dy, weights @ (dx * dx), weights @ (dy * dy), weights @ (dx * dy)]
     )
-
-
-@njit(cache=True, nogil=True)
-def _resample_kernel(
-    cumulative, points, last, ancestors, x, y, heading, cos_heading, sin_heading, speed,
-    turn_rate, time_since_draw, x_to, y_to, heading_to, cos_heading_to, sin_heading_to,
-    speed_to, turn_rate_to, time_since_draw_to, log_source, log_target, equal, log_fill,
-    state_source, counter, state_target,
-):  # fmt: skip
-    """For each chunk not yet claimed (:func:`~hmmtrack.tracking.compiled.chunks.next_chunk`)
-    of the new particles ``lo:hi``: their ancestors, the points ``lo:hi`` inverted against
-    the cumulative weights (:func:`~hmmtrack.tracking.resampling.merge_points`; the
-    ancestors do not depend on the chunks), then the particles gathered
-    (:func:`~hmmtrack.tracking.particles.gather_chunk`, arguments from
-    :meth:`Particles.gather_arrays`) while the chunk's ancestors are in the cache."""
-    chunk, lo, hi = next_chunk(counter, ancestors.size)
-    while chunk >= 0:
-        merge_points(cumulative, points, ancestors, lo, hi, last)
-        gather_chunk(
-            lo, hi, ancestors, x, y, heading, cos_heading, sin_heading, speed, turn_rate,
-            time_since_draw, x_to, y_to, heading_to, cos_heading_to, sin_heading_to, speed_to,
-            turn_rate_to, time_since_draw_to, log_source, log_target, equal, log_fill,
-            state_source, state_target,
-        )  # fmt: skip
-        chunk, lo, hi = next_chunk(counter, ancestors.size)
-
-
-@njit(cache=True, nogil=True, parallel=True)
-def _resample_parallel(
-    threads, cumulative, points, last, ancestors, x, y, heading, cos_heading, sin_heading,
-    speed, turn_rate, time_since_draw, x_to, y_to, heading_to, cos_heading_to,
-    sin_heading_to, speed_to, turn_rate_to, time_since_draw_to, log_source, log_target,
-    equal, log_fill, state_source, counter, state_target,
-):  # fmt: skip
-    """:func:`_resample_kernel` on ``threads`` threads."""
-    for _ in numba.prange(threads):
-        _resample_kernel(
-            cumulative, points, last, ancestors, x, y, heading, cos_heading, sin_heading,
-            speed, turn_rate, time_since_draw, x_to, y_to, heading_to, cos_heading_to,
-            sin_heading_to, speed_to, turn_rate_to, time_since_draw_to, log_source,
-            log_target, equal, log_fill, state_source, counter, state_target,
-        )  # fmt: skip
 
 
 def _loglik_terms(measurement):
@@ -444,8 +388,8 @@ class ParticleFilter:
         self.n_particles = int(n_particles)
         self.bounds = as_bounds(bounds)
         self.resampling = resampling
-        # an inverse-CDF scheme's draw alone (its points, merged with the gather of the new
-        # particles in one pass: see _resample_into), else the scheme
+        # an inverse-CDF scheme's draw alone (its points, merged in the pass that gathers
+        # the new particles: see resample), else the scheme
         self._resample = POINTS.get(resampling) or get_resampler(resampling)
         # the resampling's work arrays, reused (see resample)
         self.scratch = Scratch()
@@ -801,8 +745,9 @@ class ParticleFilter:
         if self.mixture is None:
             self.scratch.threads = self.correction_threads()
             drawn = self._resample(self.rng, weights, p.n, self.scratch)
-            if isinstance(drawn, Inversion):
-                ancestors = self._resample_into(p, drawn)
+            if isinstance(drawn, Inversion):  # merged in the pass that gathers the particles
+                ancestors = np.empty(p.n, dtype=np.int64)
+                self._take(p, ancestors, self.scratch.prepare(drawn))
             else:
                 ancestors = drawn
                 self._take(p, ancestors)
@@ -819,35 +764,14 @@ class ParticleFilter:
         for collector in self.collect:
             collector.resampled(self, ancestors)
 
-    def _resample_into(self, p: Particles, drawn: Inversion) -> np.ndarray:
-        """The particles become ``p``'s at the points ``drawn`` (an inverse-CDF scheme's):
-        each chunk's points inverted (:func:`hmmtrack.tracking.resampling.merge_points`)
-        and its new particles gathered into the spare arrays in the same pass, with equal
-        weights, on the correction's threads (one parallel region and one pass over the
-        ancestors instead of two: the same ancestors and particles as :meth:`_take` of the
-        scheme's); ``p``'s arrays become the spare ones. Returns the ancestors (N,)."""
-        n, threads = drawn.n, self.scratch.threads
-        cumulative, points, last = self.scratch.prepare(drawn)
-        ancestors = np.empty(n, dtype=np.int64)
-        if not p.contiguous():  # fields replaced by arrays of another layout
-            whole = np.array([0, cumulative.size]), np.array([0, n])
-            merge_segments(cumulative, points, *whole, np.array([last]), threads, ancestors)
-            self._take(p, ancestors)
-            return ancestors
-        taken, arrays = p.gather_arrays(self._spare, n)
-        args = (cumulative, points, last, ancestors, *arrays)
-        in_chunks(_resample_kernel, _resample_parallel, n, threads, args, taken.state)
-        taken.extra = {name: value[ancestors] for name, value in p.extra.items()}
-        self.particles = taken
-        self._spare = p
-        return ancestors
-
-    def _take(self, p: Particles, ancestors: np.ndarray) -> None:
+    def _take(self, p: Particles, ancestors: np.ndarray, locate=None) -> None:
         """The particles become ``p``'s ``ancestors`` with equal weights, gathered into the
         spare arrays (those of the particles before the previous resampling, which nothing
-        holds on to) on the correction's threads; ``p``'s arrays become the spare ones."""
-        spare = self._spare
-        self.particles = p.take(ancestors, True, out=spare, threads=self.correction_threads())
+        holds on to) on the correction's threads; ``p``'s arrays become the spare ones.
+        With ``locate`` (an inverse CDF ready to merge), each chunk's ancestors are found
+        into ``ancestors`` in the pass that gathers it (:meth:`Particles.take`)."""
+        threads = self.correction_threads()
+        self.particles = p.take(ancestors, True, self._spare, threads, locate)
         self._spare = p
 
     def _equal_weights(self) -> np.ndarray:

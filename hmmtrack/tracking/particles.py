@@ -22,16 +22,9 @@ import numpy as np
 import pandas as pd
 from numba import njit
 
-from hmmtrack.tracking.compiled.chunks import in_chunks, next_chunk
+from hmmtrack.tracking.compiled.chunks import chunk_ancestors, in_chunks, next_chunk
 
-__all__ = [
-    "Bounds",
-    "Particles",
-    "as_bounds",
-    "gather_chunk",
-    "split_in_two",
-    "sqrt_largest_eigenvalue",
-]
+__all__ = ["Bounds", "Particles", "as_bounds", "split_in_two", "sqrt_largest_eigenvalue"]
 
 Bounds = tuple[float, float, float, float]
 
@@ -193,13 +186,15 @@ class Particles:
         equal_weights: bool = False,
         out: Particles | None = None,
         threads: int = 1,
+        locate=None,
     ) -> Particles:
         """Particles ``self[indices]`` for every field (used after resampling).
 
         Parameters
         ----------
         indices : (M,) int array
-            Ancestor of each new particle.
+            Ancestor of each new particle; with ``locate``, a contiguous int64 array that
+            receives them.
         equal_weights : bool
             Give the new particles the equal log weights ``-log M`` instead of their
             ancestors' (what resampling does; the old ones are then not gathered).
@@ -212,6 +207,11 @@ class Particles:
         threads : int
             Threads for the compiled gather (in the chunks of
             :mod:`hmmtrack.tracking.compiled.chunks`; results do not depend on it).
+        locate : NamedTuple, optional
+            Finds the ancestors chunk by chunk in the pass that gathers them, into
+            ``indices`` (:func:`hmmtrack.tracking.compiled.chunks.chunk_ancestors`; a
+            resampling's :class:`hmmtrack.tracking.resampling.Prepared`: its inverse CDF's
+            merge), so that they are in the cache when their particles are gathered.
         """
         indices = np.asarray(indices)
         if indices.ndim != 1 or not np.issubdtype(indices.dtype, np.integer):
@@ -221,13 +221,26 @@ class Particles:
             )
         m = indices.size
         names = _MOTION_NAMES if equal_weights else _FLOAT_NAMES
-        if self.contiguous(names):
-            inside = _all_inside(indices, self.n)
+        source = self
+        if locate is not None and not _contiguous(self, names):
+            source = _contiguous_copy(self)  # fields of another layout: the kernel reads these
+        if _contiguous(source, names):
+            inside = locate is not None or _all_inside(indices, self.n)
             if inside:
-                taken, arrays = self.gather_arrays(out, m, equal_weights)
+                taken = out if _fits(out, m, source) else _empty(m, source.state.dtype)
+                log_target = taken.log_weight
+                log_source = log_target if equal_weights else source.log_weight
                 in_chunks(
-                    _gather_kernel, _gather_parallel, m, threads, (indices, *arrays), taken.state
-                )
+                    _gather_kernel, _gather_parallel, m, threads,
+                    (
+                        locate, indices,
+                        *(getattr(source, name) for name in _MOTION_NAMES),
+                        *(getattr(taken, name) for name in _MOTION_NAMES),
+                        log_source, log_target, equal_weights, -math.log(max(m, 1)),
+                        source.state,
+                    ),
+                    taken.state,
+                )  # fmt: skip
         else:  # fields replaced by arrays of another layout: NumPy's indexing
             inside = m == 0 or 0 <= indices.min() <= indices.max() < self.n
             if inside:
@@ -243,34 +256,6 @@ class Particles:
             )
         taken.extra = {name: value[indices] for name, value in self.extra.items()}
         return taken
-
-    def contiguous(self, names: tuple[str, ...] | None = None) -> bool:
-        """Whether the float fields ``names`` (default: all) are contiguous float64 arrays,
-        as the compiled gather (:meth:`take`, :meth:`gather_arrays`) needs them."""
-        for name in _FLOAT_NAMES if names is None else names:
-            a = getattr(self, name)
-            if not (a.dtype == _FLOAT64 and a.flags.c_contiguous):
-                return False
-        return True
-
-    def gather_arrays(
-        self, out: Particles | None, m: int, equal_weights: bool = True
-    ) -> tuple[Particles, tuple]:
-        """The particles that receive ``m`` particles gathered from these (``out`` when it
-        fits, as in :meth:`take`; else new arrays; their extra fields not set) and the
-        arguments of :func:`gather_chunk` after ``indices`` (the sources, the targets, the
-        log weights' source and target, ``equal_weights``, its fill ``-log m``, the
-        states): for a compiled pass that finds the indices of a chunk and gathers it (the
-        particle filter's resampling). The motion and log-weight arrays must be contiguous
-        float64 arrays."""
-        taken = out if _fits(out, m, self) else _empty(m, self.state.dtype)
-        log_target = taken.log_weight
-        return taken, (
-            *(getattr(self, name) for name in _MOTION_NAMES),
-            *(getattr(taken, name) for name in _MOTION_NAMES),
-            log_target if equal_weights else self.log_weight, log_target, equal_weights,
-            -math.log(max(m, 1)), self.state,
-        )  # fmt: skip
 
     def normalised_weights(self) -> np.ndarray:
         """Weights ``exp(log_weight)`` scaled to sum one, shape ``(N,)``."""
@@ -332,6 +317,25 @@ def _fits(out: Particles | None, m: int, source: Particles) -> bool:
     )
 
 
+def _contiguous(p: Particles, names: tuple[str, ...]) -> bool:
+    """Whether the float fields ``names`` of ``p`` are contiguous float64 arrays (what the
+    compiled gather reads)."""
+    for name in names:
+        a = getattr(p, name)
+        if not (a.dtype == _FLOAT64 and a.flags.c_contiguous):
+            return False
+    return True
+
+
+def _contiguous_copy(p: Particles) -> Particles:
+    """``p`` with every field a contiguous array of its dtype (copies where needed)."""
+    copy = object.__new__(Particles)
+    for name in _FLOAT_NAMES:
+        setattr(copy, name, np.ascontiguousarray(getattr(p, name), dtype=np.float64))
+    copy.state = np.ascontiguousarray(p.state)
+    return copy
+
+
 @njit(cache=True)
 def _all_inside(indices, n):
     """Whether every index lies in ``0..n-1`` (one branch-free, vectorised pass)."""
@@ -341,52 +345,40 @@ def _all_inside(indices, n):
     return inside
 
 
-@njit(cache=True, inline="always")
-def gather_chunk(
-    lo, hi, indices, x, y, heading, cos_heading, sin_heading, speed, turn_rate,
+@njit(cache=True, nogil=True)
+def _gather_kernel(
+    locate, indices, x, y, heading, cos_heading, sin_heading, speed, turn_rate,
     time_since_draw, x_to, y_to, heading_to, cos_heading_to, sin_heading_to, speed_to,
     turn_rate_to, time_since_draw_to, log_source, log_target, equal, log_fill, state_source,
-    state_target,
+    counter, state_target,
 ):  # fmt: skip
-    """For the new particles ``lo:hi``: ``x_to[lo:hi] = x[indices[lo:hi]]`` and so on for
-    every motion array, the same for the state and the log weight, or ``log_fill`` for every
-    log weight when ``equal``. Indices must lie inside the sources. The arrays are separate
-    arguments, not tuples: a call's dispatch types a tuple of arrays more slowly than the
-    arrays themselves (about 1.5 us less per call for these two)."""
+    """For each chunk not yet claimed (:func:`next_chunk`) of the ``M`` new particles
+    ``lo:hi``: their ancestors ``indices[lo:hi]`` found by ``locate``
+    (:func:`~hmmtrack.tracking.compiled.chunks.chunk_ancestors`; ``None``: given), then
+    ``x_to[lo:hi] = x[indices[lo:hi]]`` and so on for every motion array, the same for the
+    state and the log weight, or ``log_fill`` for every log weight when ``equal``. Indices
+    must lie inside the sources. The arrays are separate arguments, not tuples: the call's
+    dispatch types a tuple of arrays more slowly than the arrays themselves (about 1.5 us
+    less per call for these two)."""
     sources = (x, y, heading, cos_heading, sin_heading, speed, turn_rate, time_since_draw)
     targets = (
         x_to, y_to, heading_to, cos_heading_to, sin_heading_to, speed_to, turn_rate_to,
         time_since_draw_to,
     )  # fmt: skip
-    # loops over views of the chunk, not over lo:hi of the whole arrays: about 2x faster
-    # (reports/decisions.md, "Resampling and correction passes")
-    chunk_indices = indices[lo:hi]
-    for k in range(len(sources)):
-        _gather(sources[k], targets[k][lo:hi], chunk_indices)
-    _gather(state_source, state_target[lo:hi], chunk_indices)
-    if equal:
-        log_target[lo:hi] = log_fill
-    else:
-        _gather(log_source, log_target[lo:hi], chunk_indices)
-
-
-@njit(cache=True, nogil=True)
-def _gather_kernel(
-    indices, x, y, heading, cos_heading, sin_heading, speed, turn_rate, time_since_draw,
-    x_to, y_to, heading_to, cos_heading_to, sin_heading_to, speed_to, turn_rate_to,
-    time_since_draw_to, log_source, log_target, equal, log_fill, state_source, counter,
-    state_target,
-):  # fmt: skip
-    """:func:`gather_chunk` of each chunk not yet claimed (:func:`next_chunk`) of the ``M``
-    new particles."""
     chunk, lo, hi = next_chunk(counter, indices.size)
     while chunk >= 0:
-        gather_chunk(
-            lo, hi, indices, x, y, heading, cos_heading, sin_heading, speed, turn_rate,
-            time_since_draw, x_to, y_to, heading_to, cos_heading_to, sin_heading_to, speed_to,
-            turn_rate_to, time_since_draw_to, log_source, log_target, equal, log_fill,
-            state_source, state_target,
-        )  # fmt: skip
+        if locate is not None:  # pruned when compiled for None: the indices are given
+            chunk_ancestors(locate, lo, hi, indices)
+        # loops over views of the chunk, not over lo:hi of the whole arrays: about 2x faster
+        # (reports/decisions.md, "Resampling and correction passes")
+        chunk_indices = indices[lo:hi]
+        for k in range(len(sources)):
+            _gather(sources[k], targets[k][lo:hi], chunk_indices)
+        _gather(state_source, state_target[lo:hi], chunk_indices)
+        if equal:
+            log_target[lo:hi] = log_fill
+        else:
+            _gather(log_source, log_target[lo:hi], chunk_indices)
         chunk, lo, hi = next_chunk(counter, indices.size)
 
 
@@ -399,14 +391,14 @@ def _gather(source, target, indices):
 
 @njit(cache=True, nogil=True, parallel=True)
 def _gather_parallel(
-    threads, indices, x, y, heading, cos_heading, sin_heading, speed, turn_rate,
+    threads, locate, indices, x, y, heading, cos_heading, sin_heading, speed, turn_rate,
     time_since_draw, x_to, y_to, heading_to, cos_heading_to, sin_heading_to, speed_to,
     turn_rate_to, time_since_draw_to, log_source, log_target, equal, log_fill, state_source,
     counter, state_target,
 ):  # fmt: skip
     for _ in numba.prange(threads):
         _gather_kernel(
-            indices, x, y, heading, cos_heading, sin_heading, speed, turn_rate,
+            locate, indices, x, y, heading, cos_heading, sin_heading, speed, turn_rate,
             time_since_draw, x_to, y_to, heading_to, cos_heading_to, sin_heading_to,
             speed_to, turn_rate_to, time_since_draw_to, log_source, log_target, equal,
             log_fill, state_source, counter, state_target,

@@ -16,7 +16,8 @@ NumPy and invert the cumulative weights in linear compiled passes (:func:`invers
 given a :class:`Scratch` (the particle filter's) they reuse its work arrays from one call to
 the next and invert in chunks on its threads, with the same ancestors. Their draws alone
 (:data:`POINTS`, an :class:`Inversion` each) let a caller run the chunked inversion itself:
-the particle filter merges each chunk's points and gathers its new particles in one pass.
+the particle filter merges each chunk's points and gathers its new particles in one pass
+(:class:`Prepared`, ``Particles.take``'s ``locate``).
 :func:`effective_sample_size` measures weight degeneracy from log weights.
 
 This module does not weigh particles or move them; it only chooses ancestors.
@@ -29,14 +30,16 @@ from typing import NamedTuple
 
 import numba
 import numpy as np
-from numba import njit
+from numba import njit, types
+from numba.extending import overload
 
-from hmmtrack.tracking.compiled.chunks import in_chunks, next_chunk
+from hmmtrack.tracking.compiled.chunks import chunk_ancestors, in_chunks, next_chunk
 
 __all__ = [
     "POINTS",
     "RESAMPLERS",
     "Inversion",
+    "Prepared",
     "Scratch",
     "effective_sample_size",
     "first_above",
@@ -282,13 +285,12 @@ class Scratch:
         """``rng.standard_exponential(size)`` into a work array."""
         return rng.standard_exponential(size, out=self.array("values", size))
 
-    def prepare(self, inversion: Inversion) -> tuple[np.ndarray, np.ndarray, int]:
-        """The cumulative weights (M,) and the ascending points (n,) of ``inversion``
-        (:func:`prepare_points`, into work arrays) and the last index of positive weight:
-        what :func:`merge_points` inverts, chunk by chunk."""
+    def prepare(self, inversion: Inversion) -> Prepared:
+        """``inversion``'s cumulative weights and points (:func:`prepare_points`, into work
+        arrays), ready to be merged chunk by chunk."""
         cumulative = self.array("cumulative", inversion.weights.size)
         points = self.array("points", inversion.n)
-        return cumulative, points, _prepare_into(*inversion, cumulative, points)
+        return Prepared(cumulative, points, _prepare_into(*inversion, cumulative, points))
 
 
 class Inversion(NamedTuple):
@@ -303,6 +305,32 @@ class Inversion(NamedTuple):
     n: int
     value_scale: float
     running: bool
+
+
+class Prepared(NamedTuple):
+    """An inversion ready to merge (:meth:`Scratch.prepare`): the cumulative weights (M,)
+    (``inf`` at ``last``), the ascending points (n,) and the last index of positive weight.
+    As the ``locate`` of :meth:`hmmtrack.tracking.particles.Particles.take`, each chunk of
+    the new particles finds its ancestors by :func:`merge_points` in the pass that gathers
+    it (:func:`_merge_chunk`)."""
+
+    cumulative: np.ndarray
+    points: np.ndarray
+    last: int
+
+
+@overload(chunk_ancestors)
+def _merge_chunk(locate, lo, hi, ancestors):
+    """:func:`~hmmtrack.tracking.compiled.chunks.chunk_ancestors` of :class:`Prepared`: the
+    points ``lo:hi`` merged with the cumulative weights (the same ancestors as one merge of
+    all of them)."""
+    if not (isinstance(locate, types.BaseNamedTuple) and locate.instance_class is Prepared):
+        return None
+
+    def merge(locate, lo, hi, ancestors):
+        merge_points(locate.cumulative, locate.points, ancestors, lo, hi, locate.last)
+
+    return merge
 
 
 def _invert_with(scratch, weights, weight_scale, values, n, value_scale, running):
@@ -460,8 +488,8 @@ RESAMPLERS: dict[str, Resampler] = {
 
 
 #: the inverse-CDF schemes' draws before their inversion, by name: a caller that merges the
-#: points itself (the particle filter, in one pass with the gather of the new particles)
-#: runs ``Scratch.prepare`` and :func:`merge_points`
+#: points itself (the particle filter, in the pass that gathers the new particles) runs
+#: ``Scratch.prepare`` and hands the :class:`Prepared` to ``Particles.take``
 POINTS: dict[str, Callable[..., Inversion]] = {
     "multinomial": multinomial_points,
     "stratified": stratified_points,

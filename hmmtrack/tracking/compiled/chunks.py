@@ -33,6 +33,7 @@ __all__ = [
     "N_MOMENTS",
     "chunking",
     "block_threads",
+    "chunk_ancestors",
     "default_threads",
     "in_chunks",
     "moments_pass",
@@ -110,6 +111,19 @@ def next_chunk(counter, n):
     if chunk >= n_chunks:
         return -1, 0, 0
     return chunk, chunk * size, min(n, (chunk + 1) * size)
+
+
+def chunk_ancestors(locate, lo, hi, ancestors):
+    """``ancestors[lo:hi] =`` the ancestors of the new particles ``lo:hi`` of a resampling,
+    found by ``locate`` in the pass that gathers them
+    (:meth:`hmmtrack.tracking.particles.Particles.take`).
+
+    Compiled only: a resampling registers its implementation for its own ``NamedTuple``
+    class of ``locate`` (``numba.extending.overload(chunk_ancestors)``, returning ``None``
+    for other types; :class:`hmmtrack.tracking.resampling.Prepared`, the inverse CDF's
+    merge). The ancestors must not depend on the chunks.
+    """
+    raise TypeError("chunk_ancestors runs in compiled kernels only (Particles.take calls it)")
 
 
 #: how many times an idle OpenMP thread of GNU libgomp (numba's "omp" layer here) polls for

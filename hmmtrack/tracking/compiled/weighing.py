@@ -42,8 +42,7 @@ import math
 
 import numba
 import numpy as np
-from numba import njit, types
-from numba.extending import overload
+from numba import njit
 
 from hmmtrack.tracking.compiled.chunks import block_threads, chunking, in_chunks, next_chunk
 
@@ -60,18 +59,10 @@ def chunk_loglik(scored, lo, hi, out):
     Compiled only: each measurement that offers it registers its implementation for its
     own ``NamedTuple`` class of ``scored`` (``numba.extending.overload(chunk_loglik)``,
     returning ``None`` for other types), which holds the particle arrays (N,) and the
-    constants it reads. ``scored`` ``None`` does nothing (the log-likelihood is given).
-    Each particle's value must be computed alone, so that it does not depend on the chunks.
+    constants it reads. Each particle's value must be computed alone, so that it does not
+    depend on the chunks.
     """
     raise TypeError("chunk_loglik runs in compiled kernels only (weighing.loglik_chunks calls it)")
-
-
-@overload(chunk_loglik)
-def _given_loglik(scored, lo, hi, out):
-    """:func:`chunk_loglik` of ``scored`` ``None``: nothing to compute."""
-    if isinstance(scored, types.NoneType):
-        return lambda scored, lo, hi, out: None
-    return None
 
 
 @njit(cache=True, nogil=True)
@@ -97,7 +88,8 @@ def _weigh_kernel(
             chunk_log_weight = log_weight[lo:hi]
             if add:
                 chunk_scores = loglik[lo:hi]
-                chunk_loglik(scored, lo, hi, chunk_scores)
+                if scored is not None:  # pruned when compiled for None
+                    chunk_loglik(scored, lo, hi, chunk_scores)
                 for i in range(chunk_updated.size):
                     li = chunk_scores[i]
                     bad |= not li < np.inf
