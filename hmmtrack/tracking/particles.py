@@ -221,10 +221,10 @@ class Particles:
             )
         m = indices.size
         names = _MOTION_NAMES if equal_weights else _FLOAT_NAMES
-        source = self
-        if locate is not None and not _contiguous(self, names):
-            source = _contiguous_copy(self)  # fields of another layout: the kernel reads these
-        if _contiguous(source, names):
+        source, compiled = self, _contiguous(self, names)
+        if locate is not None and not compiled:  # fields of another layout: the kernel reads
+            source, compiled = _contiguous_copy(self), True  # contiguous copies
+        if compiled:
             inside = locate is not None or _all_inside(indices, self.n)
             if inside:
                 taken = out if _fits(out, m, source) else _empty(m, source.state.dtype)

@@ -121,7 +121,8 @@ def chunk_ancestors(locate, lo, hi, ancestors):
     Compiled only: a resampling registers its implementation for its own ``NamedTuple``
     class of ``locate`` (``numba.extending.overload(chunk_ancestors)``, returning ``None``
     for other types; :class:`hmmtrack.tracking.resampling.Prepared`, the inverse CDF's
-    merge). The ancestors must not depend on the chunks.
+    merge). The ancestors must not depend on the chunks. The gather kernel compiles the
+    implementation into itself: after editing it, clear numba's cache.
     """
     raise TypeError("chunk_ancestors runs in compiled kernels only (Particles.take calls it)")
 

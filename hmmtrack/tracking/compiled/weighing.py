@@ -60,7 +60,8 @@ def chunk_loglik(scored, lo, hi, out):
     own ``NamedTuple`` class of ``scored`` (``numba.extending.overload(chunk_loglik)``,
     returning ``None`` for other types), which holds the particle arrays (N,) and the
     constants it reads. Each particle's value must be computed alone, so that it does not
-    depend on the chunks.
+    depend on the chunks. The kernels here compile the implementation into themselves:
+    after editing it, clear numba's cache (their cached copies are not refreshed).
     """
     raise TypeError("chunk_loglik runs in compiled kernels only (weighing.loglik_chunks calls it)")
 
