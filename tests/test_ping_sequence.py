@@ -15,6 +15,8 @@ from hmmtrack.cli import main
 from hmmtrack.experiments.array_runs import sequence_versus_random
 from hmmtrack.scenarios.array import tagged_array
 from hmmtrack.tracking.measurement.sequence import (
+    FLOOR_SHARE,
+    LATE_MEAN,
     PingSequenceSettings,
     align_sequence,
     sequence_ping_integral,
@@ -23,18 +25,46 @@ from hmmtrack.tracking.measurement.tdoa import gaussian_ping_loglik
 
 
 def brute_force(residual, mu, var, sigma, fraction, half_width):
-    """``log ∫ N(T; mu, var) Π p(r_i − T) dT``, the mean and variance of T: the trapezoid
-    on a million nodes of the whole support (a step below 1 µs: finer than any core)."""
-    t = np.linspace(residual.max() - half_width, residual.min() + half_width, 1_000_001)
-    density = stats.norm.pdf(t, mu, np.sqrt(var))
-    for r in residual:
-        e = r - t
-        density *= (1 - fraction) * stats.norm.pdf(e, 0, sigma) + fraction / (2 * half_width) * (
-            np.abs(e) <= half_width
-        )
-    value = integrate.trapezoid(density, t)
-    mean = integrate.trapezoid(t * density, t) / value
-    return np.log(value), mean, integrate.trapezoid((t - mean) ** 2 * density, t) / value
+    """``log ∫ N(T; mu, var) Π p(r_i − T) dT``, the mean and variance of T, with ``p`` the
+    core, the late exponential and the floor: Simpson's rule between the density's
+    breakpoints (each arrival's ``r``, ``r ± L``, ``r ± 12σ``; the prior's ``mu ± 12 sd``),
+    40 steps per the narrowest of ``σ``, the prior's sd and the late mean, a second beyond
+    the earliest floor (where only the late exponentials remain)."""
+    rate, sd = 1 / LATE_MEAN, np.sqrt(var)
+    points = np.concatenate(
+        [residual, residual - half_width, residual + half_width, residual - 12 * sigma]
+        + [residual + 12 * sigma, [mu - 12 * sd, mu, mu + 12 * sd]]
+    )
+    start, stop = residual.min() - half_width - 1.0, residual.max() + half_width
+    edges = np.unique(np.clip(points, start, stop))
+    step = min(sigma, sd, LATE_MEAN) / 40
+    t = [
+        np.linspace(a, b, 2 * int(np.ceil((b - a) / step / 2)) + 1)
+        for a, b in zip(edges[:-1], edges[1:], strict=True)
+    ]
+
+    def density(t):
+        # which piecewise parts are on: at the piece's middle (its ends may be breakpoints)
+        middle = t[t.size // 2]
+        value = stats.norm.pdf(t, mu, sd)
+        for r in residual:
+            e = r - t
+            late = rate * np.exp(-rate * e) if r > middle else 0.0
+            floor = 1 / (2 * half_width) if abs(r - middle) < half_width else 0.0
+            value *= (
+                (1 - fraction) * stats.norm.pdf(e, 0, sigma)
+                + fraction * (1 - FLOOR_SHARE) * late
+                + fraction * FLOOR_SHARE * floor
+            )
+        return value
+
+    f = [density(piece) for piece in t]
+    value = sum(integrate.simpson(fk, x=tk) for fk, tk in zip(f, t, strict=True))
+    mean = sum(integrate.simpson(tk * fk, x=tk) for fk, tk in zip(f, t, strict=True)) / value
+    second = sum(
+        integrate.simpson((tk - mean) ** 2 * fk, x=tk) for fk, tk in zip(f, t, strict=True)
+    )
+    return np.log(value), mean, second / value
 
 
 @pytest.mark.parametrize("trial", range(16))
@@ -52,6 +82,23 @@ def test_integral_with_the_clock_prior_equals_brute_force_quadrature(trial):
     assert log_l == pytest.approx(expected, abs=1e-6)
     assert mean == pytest.approx(expected_mean, abs=1e-8)
     assert var == pytest.approx(expected_var, rel=1e-5, abs=1e-13)
+
+
+def test_an_outlier_is_priced_by_its_delay_and_an_early_one_only_by_the_floor():
+    # a ping heard by three receivers, the particle's clock fitting two of them; the third
+    # 30 or 100 ms late (multipath) or 100 ms early (the particle too far from it: the
+    # moorings' excursions). A uniform outlier priced all three the same.
+    clock = (0.0, 1e-3**2, 2e-3, 0.05, 0.5)  # prior mean and variance, σ, ε, L
+    late_30, late_100, early_100 = (
+        sequence_ping_integral(np.array([0.0, 0.0, r]), *clock)[0] for r in (0.03, 0.1, -0.1)
+    )
+    late, floor = 0.05 * (1 - FLOOR_SHARE) / LATE_MEAN, 0.05 * FLOOR_SHARE / (2 * 0.5)
+    delay = late * np.exp(-np.array([0.03, 0.1]) / LATE_MEAN) + floor
+    # the slope back: 70 ms more delay cost 3.5 nats (70 ms / LATE_MEAN), less the floor
+    assert late_30 - late_100 == pytest.approx(np.log(delay[0] / delay[1]), rel=0.01)
+    assert late_30 - late_100 > 3.0
+    # an early arrival is no multipath: only the floor explains it
+    assert late_100 - early_100 == pytest.approx(np.log(delay[1] / floor), rel=0.01)
 
 
 def test_without_outliers_the_integral_is_closed_form_and_a_flat_prior_gives_tdoa():

@@ -28,20 +28,20 @@ clock), with its drift ``b``: between pings ``Δ`` scheduled seconds apart ``u �
 random walks of ``u`` and ``b`` (:data:`PHASE_DENSITY`, :data:`DRIFT_DENSITY`), and ``j`` the
 emission's own jitter (:data:`EMISSION_JITTER`, not carried over). Offset and drift are not
 integrated out in closed form because the arrivals' residual density is a Gaussian core with
-a uniform outlier (:mod:`hmmtrack.tracking.measurement.tdoa`): the ping's likelihood given a
-particle's position and clock is
+outliers, late ones priced by their delay and a small floor either way (the shape of
+:class:`~hmmtrack.tracking.measurement.arrival_time.ArrivalLikelihood`): the ping's likelihood
+given a particle's position and clock is
 
     ℓ(x) = ∫ N(T; û, P_uu + J²) Π_i p(r_i − T) dT,   r_i = t_i − d_i(x)/c − scheduled,
 
-the flat-prior integral of the ping measurement with the particle's predicted emission as
-prior. It is exact: closed form without outliers, otherwise the same clusters of residuals as
-:func:`~hmmtrack.tracking.measurement.tdoa.ping_integral` with the prior in the trapezoid
-(:func:`sequence_ping_integral`, checked against ``scipy.integrate.quad``). The clock is then
-updated by the posterior mean and variance of ``T`` (exact without outliers; the
-moment-matched Gaussian with them). Before the first ping the offset's prior is
-:data:`OFFSET_SD` (flat at the milliseconds of the arrivals: the first ping sets each
-particle's offset from its position, as the arrival-time measurement's clock starts), so
-the first ping weighs as in the random-interval model and every later one also by its
+with the particle's predicted emission as prior. It is exact: closed form without outliers,
+otherwise a sum of truncated Gaussians, one per assignment of the arrivals to the core, the
+late tail and the floor (:func:`sequence_ping_integral`, checked against a brute-force
+quadrature). The clock is then updated by the posterior mean and variance of ``T`` (exact
+without outliers; the moment-matched Gaussian with them). Before the first ping the
+offset's prior is :data:`OFFSET_SD` (flat at the milliseconds of the arrivals: the first
+ping sets each particle's offset from its position, as the arrival-time measurement's clock
+starts), so the first ping weighs as in the random-interval model and every later one also by its
 emission time: one receiver then places the tag on a range circle, two on a point pair.
 Pings the alignment did not match are scored as random-interval pings
 (:func:`~hmmtrack.tracking.measurement.tdoa.ping_loglik`), clock untouched.
@@ -90,12 +90,9 @@ from hmmtrack.tracking.measurement.clocked import (
 from hmmtrack.tracking.measurement.detection import LogisticDetection, SilenceModel, softplus
 from hmmtrack.tracking.measurement.pings import ping_observations
 from hmmtrack.tracking.measurement.tdoa import (
-    CLUSTER_SIGMAS,
-    STEPS_PER_SD,
     PingSettings,
     PingTDOA,
     arrival_sigma_setting,
-    cluster_excess,
     gaussian_ping_loglik,
     ping_loglik,
     ping_residuals,
@@ -159,6 +156,10 @@ EMISSION_JITTER = 1e-4
 #: OFFSET_SD): a clock fitted where the particle was, far from the tag, would otherwise keep
 #: it from every particle that moves close to the tag
 CLOCK_RESET = 0.01
+#: mean delay (s) of a late (multipath) arrival in the emission integral, and the share of the
+#: outliers on a floor either way: ArrivalLikelihood's defaults (20 ms; 1e-3 of 0.05)
+LATE_MEAN = 20e-3
+FLOOR_SHARE = 0.02
 #: random-walk densities of the offset (s²/s: 55 µs over 30 s) and of the drift (1/s: 3 ppm
 #: over 1,000 s, a crystal following the water's temperature)
 PHASE_DENSITY = 1e-10
@@ -412,65 +413,62 @@ def sequence_observations(obs: pd.DataFrame, sequence, source: str) -> pd.DataFr
 
 
 @njit(cache=True)
-def _truncated_normal(mu, var, lo, hi):
-    """Log mass of ``N(mu, var)`` on ``[lo, hi]``, and the mean and variance of ``T − mu``
-    there."""
-    sd = math.sqrt(var)
-    alpha = (lo - mu) / sd
-    beta = (hi - mu) / sd
-    mass = 0.5 * (math.erfc(-beta / math.sqrt(2.0)) - math.erfc(-alpha / math.sqrt(2.0)))
-    if not mass > 0.0:
-        return -math.inf, 0.0, var
-    pa = math.exp(-0.5 * alpha * alpha) / math.sqrt(2.0 * math.pi)
-    pb = math.exp(-0.5 * beta * beta) / math.sqrt(2.0 * math.pi)
-    mean = sd * (pa - pb) / mass
-    ta = alpha * pa if np.isfinite(alpha) else 0.0
-    tb = beta * pb if np.isfinite(beta) else 0.0
-    second = var * (1.0 + (ta - tb) / mass)
-    return math.log(mass), mean, max(second - mean * mean, 0.0)
+def _log_normal_tail(z):
+    """``log P(Z > z)`` for a standard normal ``Z``, without underflow far in the tail."""
+    if z < 20.0:
+        return math.log(0.5 * math.erfc(z / math.sqrt(2.0)))
+    # the Mills ratio's continued fraction 1/(z + 1/(z + 2/(z + ...))), converged at z ≥ 20
+    fraction = z
+    for k in range(40, 0, -1):
+        fraction = z + k / fraction
+    return -0.5 * z * z - 0.5 * _LOG_2PI - math.log(fraction)
 
 
 @njit(cache=True)
-def _prior_cluster(s, a, b, mu, var, sigma, log_peak):
-    """``log ∫_a^b N(T; mu, var) (Π_i (1 + q_i(T)) − 1) dT`` and the first two moments of
-    ``T − mu`` under it (``q_i`` as in
-    :func:`~hmmtrack.tracking.measurement.tdoa.cluster_excess`); trapezoid with
-    :data:`~hmmtrack.tracking.measurement.tdoa.STEPS_PER_SD` steps per the narrower of the
-    product bump (``σ/√m``) and the prior (``√var``)."""
-    m = s.size
-    width = min(sigma / math.sqrt(m), math.sqrt(var)) / STEPS_PER_SD
-    steps = int(math.ceil((b - a) / width)) + 1
-    h = (b - a) / steps
-    excess, c = cluster_excess(s, a, h, steps, sigma, log_peak)
-    centre = min(max(mu, a), b)
-    top = -0.5 * (centre - mu) ** 2 / var  # the prior's largest log density on [a, b]
-    total = first = second = 0.0
-    for k in range(steps + 1):
-        d = a + k * h - mu
-        value = excess[k] * math.exp(-0.5 * d * d / var - top)
-        if k == 0 or k == steps:
-            value *= 0.5
-        total += value
-        first += value * d
-        second += value * d * d
-    if not total > 0.0:
-        return -math.inf, 0.0, 0.0
-    log_prior = top - 0.5 * (_LOG_2PI + math.log(var))
-    return m * c + log_prior + math.log(total * h), first / total, second / total
+def _log_normal_mass(alpha, beta):
+    """``log P(alpha < Z < beta)`` for a standard normal ``Z`` (``alpha < beta``)."""
+    if alpha > 0.0:
+        upper = _log_normal_tail(alpha)
+        return upper + math.log1p(-math.exp(_log_normal_tail(beta) - upper))
+    if beta < 0.0:
+        upper = _log_normal_tail(-beta)
+        return upper + math.log1p(-math.exp(_log_normal_tail(-alpha) - upper))
+    outside = math.exp(_log_normal_tail(beta)) + math.exp(_log_normal_tail(-alpha))
+    return math.log1p(-outside)
+
+
+@njit(cache=True)
+def _truncated_moments(alpha, beta, log_mass):
+    """Mean and variance of a standard normal truncated to ``[alpha, beta]`` of log mass
+    ``log_mass``."""
+    pa = math.exp(-0.5 * alpha * alpha - 0.5 * _LOG_2PI - log_mass) if alpha > -1e300 else 0.0
+    pb = math.exp(-0.5 * beta * beta - 0.5 * _LOG_2PI - log_mass) if beta < 1e300 else 0.0
+    mean = pa - pb
+    ta = alpha * pa if pa > 0.0 else 0.0
+    tb = beta * pb if pb > 0.0 else 0.0
+    return mean, max(1.0 + ta - tb - mean * mean, 0.0)
 
 
 @njit(cache=True)
 def sequence_ping_integral(residual, mu, var, sigma, outlier_fraction, half_width):
-    """``log ∫ N(T; mu, var) Π_i p(r_i − T) dT`` with the ping measurement's residual density
-    ``p`` (core sd ``sigma``, outliers ``ε`` uniform on ``±half_width``), and the posterior
-    mean and variance of ``T``.
+    """``log ∫ N(T; mu, var) Π_i p(r_i − T) dT`` with the arrival residual's physical density
+    ``p``, and the posterior mean and variance of ``T``.
+
+    ``p(e) = (1 − ε)·N(e; 0, σ) + ε(1 − φ)·Exp(e; LATE_MEAN) + εφ·U(e; ±L)``: a direct path,
+    a late (multipath) arrival priced by its delay (:data:`LATE_MEAN`), and a small floor
+    either way (share ``φ`` = :data:`FLOOR_SHARE`), the shape of
+    :class:`~hmmtrack.tracking.measurement.arrival_time.ArrivalLikelihood`. A uniform outlier
+    on ``±L`` alone would let a confident cloud discard one receiver's arrival at a constant
+    price ping after ping and slide away along the other receivers' ranges; the exponential
+    gives the likelihood a slope back toward the truth (reports/decisions.md, "The moorings'
+    excursions").
 
     Without outliers it is closed form: the flat integral
     (:func:`~hmmtrack.tracking.measurement.tdoa.gaussian_ping_loglik`) times
-    ``N(r̄; mu, var + σ²/n)``. With them, the integrand is ``β^n N(T; mu, var) Π(1 + q_i)``
-    (``β = ε/(2L)``): the prior's mass on the support ``[max r − L, min r + L]`` (every
-    arrival an outlier) plus, per cluster of residuals closer than ``2Kσ``, a trapezoid of
-    the prior times ``Π_cluster(1 + q_i) − 1`` over the cluster's ``±Kσ`` span.
+    ``N(r̄; mu, var + σ²/n)``. With them it is exact too: the product expands into one term
+    per assignment of each arrival to a component (``3^n``), each a Gaussian in ``T`` times
+    ``exp(λ k T)`` on an interval (``T < r_i`` for a late arrival, ``|r_i − T| < L`` for a
+    floor arrival), so a truncated Gaussian's mass and moments.
 
     Parameters
     ----------
@@ -479,7 +477,8 @@ def sequence_ping_integral(residual, mu, var, sigma, outlier_fraction, half_widt
     mu, var : float
         Prior mean (s) and variance (s²) of the emission's offset ``T``.
     sigma, outlier_fraction, half_width : float
-        As :func:`~hmmtrack.tracking.measurement.tdoa.ping_integral`.
+        Core sd (s), outlier share ``ε`` and the floor's half-width ``L`` (s), as
+        :func:`~hmmtrack.tracking.measurement.tdoa.ping_integral`.
 
     Returns
     -------
@@ -496,42 +495,65 @@ def sequence_ping_integral(residual, mu, var, sigma, outlier_fraction, half_widt
         log_l = flat - 0.5 * (_LOG_2PI + math.log(total)) - 0.5 * (mean - mu) ** 2 / total
         post = 1.0 / (1.0 / var + 1.0 / spread)
         return log_l, post * (mu / var + mean / spread), post
-    s = np.sort(residual)
-    beta = outlier_fraction / (2.0 * half_width)
-    log_peak = math.log((1.0 - outlier_fraction) / (sigma * math.sqrt(2.0 * math.pi)) / beta)
-    lo = s[n - 1] - half_width
-    hi = s[0] + half_width
-    reach = CLUSTER_SIGMAS * sigma
-    # terms: every arrival an outlier, then one per cluster; log weight and moments of T − mu
-    logs = np.empty(n + 1)
-    firsts = np.empty(n + 1)
-    seconds = np.empty(n + 1)
-    if hi > lo:
-        logs[0], firsts[0], v = _truncated_normal(mu, var, lo, hi)
-        seconds[0] = v + firsts[0] ** 2
-    else:
-        logs[0], firsts[0], seconds[0] = -math.inf, 0.0, 0.0
-    n_terms = 1
-    first = 0
-    for last in range(n):
-        if last < n - 1 and s[last + 1] - s[last] <= 2.0 * reach:
+    rate = 1.0 / LATE_MEAN
+    log_core = math.log1p(-outlier_fraction) - math.log(sigma) - 0.5 * _LOG_2PI
+    log_late = math.log(outlier_fraction * (1.0 - FLOOR_SHARE) * rate)
+    log_floor = math.log(outlier_fraction * FLOOR_SHARE / (2.0 * half_width))
+    log_prior = -0.5 * (_LOG_2PI + math.log(var))
+    n_terms = 3**n
+    logs = np.full(n_terms, -math.inf)
+    means = np.zeros(n_terms)  # of T − mu
+    seconds = np.zeros(n_terms)
+    for code in range(n_terms):
+        c = code
+        n_core = n_late = 0
+        core_sum = late_sum = 0.0
+        lo, hi = -math.inf, math.inf
+        log_c = log_prior
+        for i in range(n):
+            kind = c % 3
+            c //= 3
+            r = residual[i] - mu
+            if kind == 0:
+                n_core += 1
+                core_sum += r
+                log_c += log_core
+            elif kind == 1:
+                n_late += 1
+                late_sum += r
+                hi = min(hi, r)
+                log_c += log_late
+            else:
+                lo = max(lo, r - half_width)
+                hi = min(hi, r + half_width)
+                log_c += log_floor
+        if not hi > lo:
             continue
-        a = max(s[first] - reach, lo)
-        b = min(s[last] + reach, hi)
-        if b > a:
-            logs[n_terms], firsts[n_terms], seconds[n_terms] = _prior_cluster(
-                s[first : last + 1], a, b, mu, var, sigma, log_peak
-            )
-            n_terms += 1
-        first = last + 1
-    top = logs[:n_terms].max()
+        precision = 1.0 / var + n_core / (sigma * sigma)
+        centre = (core_sum / (sigma * sigma) + rate * n_late) / precision
+        quad = centre * centre / var
+        for i in range(n):
+            if (code // 3**i) % 3 == 0:
+                quad += (centre - (residual[i] - mu)) ** 2 / (sigma * sigma)
+        sd = 1.0 / math.sqrt(precision)
+        alpha = (lo - centre) / sd
+        beta = (hi - centre) / sd
+        log_mass = _log_normal_mass(alpha, beta)
+        logs[code] = (
+            log_c - 0.5 * quad + rate * (n_late * centre - late_sum)
+            + 0.5 * (_LOG_2PI - math.log(precision)) + log_mass
+        )  # fmt: skip
+        m, v = _truncated_moments(alpha, beta, log_mass)
+        means[code] = centre + sd * m
+        seconds[code] = sd * sd * v + means[code] ** 2
+    top = logs.max()
     if top == -math.inf:
         return -math.inf, mu, var
-    weight = np.exp(logs[:n_terms] - top)
+    weight = np.exp(logs - top)
     total = weight.sum()
-    mean = (weight * firsts[:n_terms]).sum() / total
-    moment = (weight * seconds[:n_terms]).sum() / total
-    return n * math.log(beta) + top + math.log(total), mu + mean, max(moment - mean * mean, 0.0)
+    mean = (weight * means).sum() / total
+    moment = (weight * seconds).sum() / total
+    return top + math.log(total), mu + mean, max(moment - mean * mean, 0.0)
 
 
 @njit(cache=True, nogil=True)
