@@ -1,5 +1,6 @@
 """The ping measurement of a tag with a known burst sequence: the integral over the emission
-time with the particle's clock as prior (against brute-force quadrature and the closed form),
+time with the particle's clock as prior (against brute-force quadrature, the closed form and
+its expansion over every assignment of the arrivals to core, late tail and floor),
 the alignment of the sequence to simulated pings with missed pings and a drifting clock, the
 sequence file's errors, and a run through ``hmmtrack track``."""
 
@@ -8,7 +9,9 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 import pytest
-from scipy import integrate, stats
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy import integrate, special, stats
 
 from hmmtrack import io
 from hmmtrack.cli import main
@@ -82,6 +85,118 @@ def test_integral_with_the_clock_prior_equals_brute_force_quadrature(trial):
     assert log_l == pytest.approx(expected, abs=1e-6)
     assert mean == pytest.approx(expected_mean, abs=1e-8)
     assert var == pytest.approx(expected_var, rel=1e-5, abs=1e-13)
+
+
+def expanded(residual, mu, var, sigma, fraction, half_width):
+    """The integral as the 3^n version computed it (the oracle): the product of the
+    arrivals' three-part densities expanded over every assignment of each arrival to core,
+    late tail or floor, each term a Gaussian times ``e^{λkT}`` on an interval, a truncated
+    Gaussian; vectorised over the assignments. Returns log ∫, the mean and variance of T."""
+    n, rate = residual.size, 1 / LATE_MEAN
+    kinds = (np.arange(3**n)[:, None] // 3 ** np.arange(n)) % 3  # (3^n, n)
+    core, late, floor = kinds == 0, kinds == 1, kinds == 2
+    r = residual - mu
+    log_c = (
+        -0.5 * np.log(2 * np.pi * var)
+        + core.sum(1) * (np.log1p(-fraction) - np.log(sigma) - 0.5 * np.log(2 * np.pi))
+        + late.sum(1) * np.log(fraction * (1 - FLOOR_SHARE) * rate)
+        + floor.sum(1) * np.log(fraction * FLOOR_SHARE / (2 * half_width))
+    )
+    lo = np.max(np.where(floor, r - half_width, -np.inf), axis=1)
+    hi = np.min(np.where(late, r, np.where(floor, r + half_width, np.inf)), axis=1)
+    keep = hi > lo
+    precision = 1 / var + core.sum(1) / sigma**2
+    centre = ((core * r).sum(1) / sigma**2 + rate * late.sum(1)) / precision
+    quad = centre**2 / var + (core * (centre[:, None] - r) ** 2).sum(1) / sigma**2
+    sd = 1 / np.sqrt(precision)
+    alpha, beta = (lo - centre) / sd, (hi - centre) / sd
+    # log(Φ(β) − Φ(α)) without cancellation in either tail
+    upper = alpha > 0
+    top = np.where(upper, special.log_ndtr(-alpha), special.log_ndtr(beta))
+    low = np.where(upper, special.log_ndtr(-beta), special.log_ndtr(alpha))
+    with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
+        log_mass = np.where(keep, top + np.log1p(-np.exp(low - top)), -np.inf)
+        logs = (
+            log_c - 0.5 * quad + rate * (late.sum(1) * centre - (late * r).sum(1))
+            + 0.5 * np.log(2 * np.pi / precision) + log_mass
+        )  # fmt: skip
+        keep &= np.isfinite(logs)
+        pa = np.exp(stats.norm.logpdf(alpha[keep]) - log_mass[keep])
+        pb = np.exp(stats.norm.logpdf(beta[keep]) - log_mass[keep])
+        ta = np.where(pa > 0, alpha[keep] * pa, 0.0)
+        tb = np.where(pb > 0, beta[keep] * pb, 0.0)
+    logs, sd = logs[keep], sd[keep]
+    means = centre[keep] + sd * (pa - pb)
+    variances = sd**2 * np.maximum(1 + ta - tb - (pa - pb) ** 2, 0.0)
+    log_l = special.logsumexp(logs)
+    weight = np.exp(logs - log_l)
+    mean = weight @ means
+    return log_l, mu + mean, weight @ (variances + (means - mean) ** 2)
+
+
+def random_ping(rng, n, kind):
+    """Residuals (s), the prior's mean and variance, σ, ε and L of a random ping: ``kind``
+    0 all direct arrivals, 1 some 0-1.5 L either way, 2 two clusters up to 0.1 s apart."""
+    sigma, fraction = 10 ** rng.uniform(-4, -1.5), rng.uniform(0.01, 0.3)
+    half_width, sd, true = rng.uniform(0.2, 2.0), 10 ** rng.uniform(-4.5, 0), rng.uniform(-0.2, 0.2)
+    residual = true + rng.normal(0, sigma, n)
+    if kind == 1:
+        residual += (rng.random(n) < 0.4) * rng.uniform(-1.5, 1.5, n) * half_width
+    if kind == 2:
+        residual[: n // 2] += rng.uniform(-0.1, 0.1)
+    mu = true + rng.normal(0, sd) * rng.choice([0.5, 3.0, 10.0])
+    return residual, mu, sd**2, sigma, fraction, half_width
+
+
+def assert_as_expanded(args):
+    """The integral against :func:`expanded`: log-likelihood to 1e-9 nats (and double
+    precision's rounding of values beyond 1e5 nats); the posterior mean to 1e-6 of its sd
+    and the variance to 1e-5 of itself (1e-12 s² where narrower), unless the log-likelihood
+    is below -1e4 (a particle whose clock or position no arrival fits: weightless, and its
+    posterior far in the terms' tails, where their moments lose their digits)."""
+    log_l, mean, var = sequence_ping_integral(*args)
+    expected, expected_mean, expected_var = expanded(*args)
+    assert log_l == pytest.approx(expected, abs=1e-9, rel=1e-14)
+    if expected > -1e4:
+        assert mean == pytest.approx(expected_mean, abs=1e-6 * np.sqrt(expected_var) + 1e-12)
+        assert var == pytest.approx(expected_var, rel=1e-5, abs=1e-12)
+
+
+@pytest.mark.parametrize("n", range(1, 8))
+def test_integral_equals_the_expansion_over_every_assignment(n):
+    rng = np.random.default_rng(100 + n)
+    for trial in range(24):
+        assert_as_expanded(random_ping(rng, n, trial % 3))
+
+
+@pytest.mark.parametrize(
+    "case", ["all outliers", "one arrival 1 s off", "12 direct", "two clusters", "1 s early"]
+)
+def test_integral_equals_the_expansion_at_extreme_residuals(case):
+    rng = np.random.default_rng(7)
+    sigma, fraction, half_width = 2e-3, 0.05, 1.0
+    n = 12 if case == "12 direct" else 6
+    residual = 0.01 + rng.normal(0, sigma, n)
+    if case == "all outliers":
+        residual = rng.uniform(-0.8, 0.8, n)
+    if case == "one arrival 1 s off":
+        residual[0] += 1.0
+    if case == "1 s early":
+        residual[0] -= 1.0
+    if case == "two clusters":
+        residual[:3] += 0.05
+    for sd in (1e-4, 1e-3, 1.0):  # the particle's clock, and the reset prior
+        assert_as_expanded((residual, 0.0, sd**2, sigma, fraction, half_width))
+
+
+@given(
+    n=st.integers(1, 5),
+    seed=st.integers(0, 2**32 - 1),
+    kind=st.integers(0, 2),
+)
+@settings(max_examples=40)
+def test_integral_equals_the_expansion_on_random_pings(n, seed, kind):
+    assert_as_expanded(random_ping(np.random.default_rng(seed), n, kind))
 
 
 def test_an_outlier_is_priced_by_its_delay_and_an_early_one_only_by_the_floor():

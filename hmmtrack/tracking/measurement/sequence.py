@@ -107,6 +107,7 @@ __all__ = [
     "EMISSION_JITTER",
     "GROUPING_RECEIVERS",
     "GROUPING_SHARE",
+    "INTEGRAL_TOLERANCE",
     "OFFSET_SD",
     "PERIOD_ARRIVAL_SIGMA",
     "PERIOD_BROADENING",
@@ -160,6 +161,20 @@ CLOCK_RESET = 0.01
 #: outliers on a floor either way: ArrivalLikelihood's defaults (20 ms; 1e-3 of 0.05)
 LATE_MEAN = 20e-3
 FLOOR_SHARE = 0.02
+#: relative error allowed to each part the emission integral drops (a core beyond its
+#: reach, a piece or sub-pieces bounded below it): the integral is exact to ~1e-10
+INTEGRAL_TOLERANCE = 1e-11
+#: widest sub-piece of the emission integral's quadrature, in the integrand's narrowest
+#: scales, and the Gauss-Legendre rules by a sub-piece's width: (widest, nodes, weights) of
+#: the fewest nodes whose error on any such stretch of a Gaussian of that sd is below 1e-13
+#: of the Gaussian's mass
+_GL_WIDEST = 7.0
+_GL_RULES = tuple(
+    (widest, *np.polynomial.legendre.leggauss(nodes))
+    for widest, nodes in (
+        (0.25, 4), (0.75, 6), (1.5, 8), (2.0, 10), (3.0, 12), (5.0, 16), (_GL_WIDEST, 20)
+    )
+)  # fmt: skip
 #: random-walk densities of the offset (s²/s: 55 µs over 30 s) and of the drift (1/s: 3 ppm
 #: over 1,000 s, a crystal following the water's temperature)
 PHASE_DENSITY = 1e-10
@@ -450,6 +465,322 @@ def _truncated_moments(alpha, beta, log_mass):
 
 
 @njit(cache=True)
+def _core_reach(core, late, floor, sigma, rate):
+    """``K``: beyond ``Kσ`` of its residual an arrival's core density is below
+    :data:`INTEGRAL_TOLERANCE` of its floor (within ``L``) and of its late tail (earlier than
+    ``L``), so it is dropped there (:func:`sequence_ping_integral`)."""
+    k_floor = math.sqrt(2.0 * max(math.log(core / (INTEGRAL_TOLERANCE * floor)), 0.0))
+    # the tail: d²/2σ² − λd ≥ log(core / (tol·late)) for every d ≥ Kσ (increasing there)
+    lift = max(math.log(core / (INTEGRAL_TOLERANCE * late)), 0.0)
+    skew = rate * sigma
+    return max(k_floor, skew + math.sqrt(skew * skew + 2.0 * lift), 1.0)
+
+
+@njit(cache=True)
+def _pooled(mean, variance, new_mean, new_variance, share):
+    """Mean and variance of a mixture of a distribution (``mean``, ``variance``) and a new
+    one with weight ``share``."""
+    shift = new_mean - mean
+    mean += share * shift
+    variance = (1.0 - share) * variance + share * new_variance + share * (1.0 - share) * shift**2
+    return mean, variance
+
+
+@njit(cache=True)
+def _log_mass_bound(a, b, centre, precision):
+    """An upper bound of ``log ∫_a^b N(T; centre, 1/precision) dT`` without ``erfc``: 1, the
+    peak's density times the width, or the Mills ratio's tail."""
+    root = math.sqrt(precision)
+    log_width = math.log((b - a) * root) - 0.5 * _LOG_2PI if b - a < math.inf else math.inf
+    if a <= centre <= b:
+        return min(0.0, log_width)
+    z = (a - centre) * root if centre < a else (centre - b) * root
+    return -0.5 * z * z - 0.5 * _LOG_2PI + min(log_width + 0.5 * _LOG_2PI, -math.log(z))
+
+
+@njit(cache=True)
+def _log_factors_bound(lo, hi, r, sigma, kind, factor, constant, core):
+    """Upper bounds of the log of the arrivals' pointwise factors (``kind`` > 0, as
+    :func:`_piece` fills them) on ``[lo, hi]`` within a piece, each core at its residual's
+    nearest point (no residual lies inside a piece) and each late tail at the piece's end:
+    of the product, and of the part of it with at least one core (the product less the
+    cores left out: ``Σ_i c_i Π_{j<i} (B_j + A_j) Π_{j>i} (c_j + B_j + A_j)``)."""
+    product = 1.0
+    without = 1.0  # the product with the cores so far left out
+    excess = 0.0
+    for i in range(r.size):
+        if kind[i] == 1:
+            product *= factor[i] + constant[i]
+            excess *= factor[i] + constant[i]
+            without *= factor[i] + constant[i]
+        elif kind[i] == 2:
+            e = max(lo - r[i], r[i] - hi, 0.0) / sigma
+            peak = core * math.exp(-0.5 * e * e)
+            excess = excess * (peak + factor[i] + constant[i]) + peak * without
+            product *= peak + factor[i] + constant[i]
+            without *= factor[i] + constant[i]
+    return math.log(product), math.log(excess) if excess > 0.0 else -math.inf
+
+
+@njit(cache=True)
+def _piece(
+    r, window, lift, a, b, sigma, var, half_width, core, late, floor, rate, kind, factor,
+    constant,
+):  # fmt: skip
+    """Classify the arrivals on the piece ``(a, b)`` between cuts, fill ``kind``, ``factor``
+    and ``constant`` (n,), and return the piece's Gaussian, log constant and bound.
+
+    On the piece each arrival is *dead* (``T > r + L``: only its core, a Gaussian factor of
+    ``G``), *late-only* (``T < r − L``: ``late·e^{λ(T − r)}``), *floor-only*
+    (``r < T < r + L``), *mixed* (``kind`` 1: ``factor`` its late tail at ``b``,
+    ``constant`` its floor) or, within its cluster's ``window`` (2, n) and not dead,
+    *active* (``kind`` 2: its core, ``factor`` its late tail at ``b`` if ``T < r`` else 0,
+    ``constant`` its floor if ``|T − r| < L`` else 0). The integrand is
+    ``e^c · G(T) · v^m · Π_{kind>0} (…)`` with ``v = e^{λ(T − b)} ≤ 1``,
+    ``G(T) = exp(−P(T − centre)²/2)`` and ``m`` the late-only count. The late tails at ``b``
+    are ``late·e^{λ(b − max r)}·lift_i``, ``lift`` (n,) = ``e^{λ(max r − r_i)}`` (empty: each
+    its own ``exp``, for residuals too far apart).
+
+    Returns
+    -------
+    precision, centre : float
+        ``P`` (s⁻²) and centre (s) of ``G``: the prior times the dead cores.
+    log_c : float
+        ``c``: the constants of ``G``, the late-only tails at ``b`` and the floors.
+    m, n_active : int
+        Late-only and active arrivals.
+    log_bound : float
+        An upper bound of the log of the piece's integral.
+    """
+    n = r.size
+    t = 0.5 * (a + b) if b - a < math.inf else (b - 1.0 if a == -math.inf else a + 1.0)
+    s2 = sigma * sigma
+    base = late * math.exp(rate * (b - r.max())) if lift.size and b < math.inf else 0.0
+    n_dead = 0
+    dead_sum = 0.0
+    m = 0
+    late_sum = 0.0
+    n_floor = 0
+    n_active = 0
+    for i in range(n):
+        d = t - r[i]
+        kind[i] = 0
+        if d > half_width:
+            n_dead += 1
+            dead_sum += r[i]
+        elif window[0, i] < t < window[1, i]:
+            kind[i] = 2
+            factor[i] = 0.0
+            if d < 0.0:
+                factor[i] = base * lift[i] if lift.size else late * math.exp(rate * (b - r[i]))
+            constant[i] = floor if abs(d) < half_width else 0.0
+            n_active += 1
+        elif d < -half_width:
+            m += 1
+            late_sum += r[i]
+        elif d > 0.0:
+            n_floor += 1
+        else:
+            kind[i] = 1
+            factor[i] = base * lift[i] if lift.size else late * math.exp(rate * (b - r[i]))
+            constant[i] = floor
+    precision = 1.0 / var + n_dead / s2
+    centre = dead_sum / s2 / precision
+    log_c = -0.5 * (_LOG_2PI + math.log(var)) - 0.5 * centre * centre / var
+    log_c += n_dead * math.log(core)
+    for i in range(n):
+        if t - r[i] > half_width:
+            log_c -= 0.5 * (r[i] - centre) ** 2 / s2
+    log_c += n_floor * math.log(floor)
+    if m > 0:
+        log_c += m * math.log(late) + rate * (m * b - late_sum)
+    log_bound = log_c + 0.5 * (_LOG_2PI - math.log(precision))
+    log_bound += _log_mass_bound(a, b, centre, precision)
+    log_bound += _log_factors_bound(a, b, r, sigma, kind, factor, constant, core)[0]
+    return precision, centre, log_c, m, n_active, log_bound
+
+
+@njit(cache=True)
+def _closed_piece(a, b, end, precision, centre, log_c, m, kind, factor, constant, rate, scratch):
+    """Log integral, mean and variance of ``T`` on ``(a, b)`` within a piece ending at
+    ``end``, the cores left out: the product ``Π_{kind>0} (B_i + A_i v)`` (``constant``,
+    ``factor``; ``v = e^{λ(T − end)}``) expanded in powers of ``v`` (``scratch``, (n + 1,)),
+    each times ``v^m G`` integrated in closed form (a truncated Gaussian)."""
+    coefficients = scratch
+    degree = 0
+    coefficients[0] = 1.0
+    for i in range(kind.size):
+        if kind[i] > 0:
+            coefficients[degree + 1] = 0.0
+            for j in range(degree + 1, 0, -1):
+                coefficients[j] = constant[i] * coefficients[j] + factor[i] * coefficients[j - 1]
+            coefficients[0] *= constant[i]
+            degree += 1
+    sd = 1.0 / math.sqrt(precision)
+    log_scale = log_c + 0.5 * (_LOG_2PI - math.log(precision))
+    total = -math.inf
+    first = spread = 0.0
+    for j in range(degree + 1):
+        if not coefficients[j] > 0.0:
+            continue
+        k = (m + j) * rate
+        shifted = centre + k / precision
+        alpha = (a - shifted) / sd
+        beta = (b - shifted) / sd
+        log_mass = _log_normal_mass(alpha, beta)
+        exponent = 0.0 if k == 0.0 else k * (centre - end) + 0.5 * k * k / precision
+        log_term = log_scale + math.log(coefficients[j]) + exponent + log_mass
+        if log_term == -math.inf:
+            continue
+        mean, variance = _truncated_moments(alpha, beta, log_mass)
+        grown = np.logaddexp(total, log_term)
+        first, spread = _pooled(
+            first, spread, shifted + sd * mean, sd * sd * variance, math.exp(log_term - grown)
+        )
+        total = grown
+    return total, first, spread
+
+
+@njit(cache=True)
+def _gauss_legendre(width):
+    """The Gauss-Legendre rule (nodes, weights on [-1, 1]) for a sub-piece ``width`` of the
+    integrand's scales wide (at most :data:`_GL_WIDEST`): the fewest nodes that integrate a
+    Gaussian of that scale to ~1e-15 (:data:`_GL_RULES`)."""
+    for k in range(len(_GL_RULES) - 1):
+        if width <= _GL_RULES[k][0]:
+            return _GL_RULES[k][1], _GL_RULES[k][2]
+    return _GL_RULES[-1][1], _GL_RULES[-1][2]
+
+
+@njit(cache=True)
+def _quadrature_piece(
+    a, b, r, sigma, precision, centre, log_c, m, n_active, kind, factor, constant, log_total,
+    core, rate, scratch, cores, bends,
+):  # fmt: skip
+    """Log integral, mean and variance of ``T`` on a piece with active cores.
+
+    Gauss-Legendre on equal sub-pieces of at most :data:`_GL_WIDEST` of the integrand's
+    narrowest scales (the sd of ``G`` times the active cores, ``1/√(P + n_active/σ²)``, or
+    less where ``G``'s centre is outside the piece; the late tails' ``1/(λ·count)``),
+    walked outward from ``G``'s centre. A direction stops where the rest
+    of the piece's part with a core is below :data:`INTEGRAL_TOLERANCE` of the integral so
+    far (``log_total`` before this piece; bounded by ``G``'s largest value and mass there
+    and :func:`_log_factors_bound`); the rest without the cores, unless it is below that
+    too, is integrated in closed form (:func:`_closed_piece`).
+    """
+    n = r.size
+    sd = 1.0 / math.sqrt(precision)
+    anchor = min(max(centre, a), b)
+    scale = min(
+        1.0 / math.sqrt(precision + n_active / (sigma * sigma)),
+        sd / max(1.0, abs(anchor - centre) / sd),
+    )
+    lates = m
+    for i in range(n):
+        if kind[i] > 0 and factor[i] > 0.0:
+            lates += 1
+    if lates > 0:
+        scale = min(scale, 1.0 / (rate * lates))
+    pieces = int(math.ceil((b - a) / (_GL_WIDEST * scale)))
+    h = (b - a) / pieces
+    nodes, weights = _gauss_legendre(h / scale)
+    half = 0.5 * h
+    pairs = nodes.size // 2  # the rules have an even number of nodes
+    for q in range(pairs):
+        t = half * nodes[nodes.size - 1 - q]
+        bends[0, q] = math.exp(-0.5 * precision * t * t)  # G's curvature at ±t
+        bends[1, q] = math.exp(-0.5 * (t / sigma) ** 2)  # a core's
+        bends[2, q] = math.exp(rate * t)  # v's slope at +t
+    start = min(int((anchor - a) / h), pieces - 1)
+    log_half_mass = math.log(0.5 * sd) + 0.5 * _LOG_2PI  # of G beyond its centre
+    log_ref = log_c - 0.5 * precision * (anchor - centre) ** 2
+    skip = math.log(INTEGRAL_TOLERANCE)
+    total = first = second = 0.0
+    rest_log, rest_mean, rest_variance = -math.inf, 0.0, 0.0  # the closed-form rests
+    for direction in (-1, 1):
+        j = start if direction == -1 else start + 1
+        while 0 <= j < pieces:
+            lo = a + j * h
+            near = lo + h if direction == -1 else lo  # the sub-piece's end nearest the anchor
+            if total > 0.0:
+                far = b if direction == 1 else a
+                z = max(direction * (near - centre), 0.0) / sd
+                log_g = log_c - 0.5 * z * z + min(log_half_mass, math.log(abs(far - near)))
+                log_all, log_excess = _log_factors_bound(
+                    min(near, far), max(near, far), r, sigma, kind, factor, constant, core
+                )
+                here = np.logaddexp(
+                    np.logaddexp(log_total, rest_log), log_ref + math.log(total * half)
+                )
+                if log_g + log_excess < here + skip:
+                    if log_g + log_all >= here + skip:
+                        part = _closed_piece(
+                            min(near, far), max(near, far), b, precision, centre, log_c, m,
+                            kind, factor, constant, rate, scratch,
+                        )  # fmt: skip
+                        grown = np.logaddexp(rest_log, part[0])
+                        if grown > -math.inf:
+                            rest_mean, rest_variance = _pooled(
+                                rest_mean, rest_variance, part[1], part[2],
+                                math.exp(part[0] - grown),
+                            )  # fmt: skip
+                            rest_log = grown
+                    break
+            # the nodes in pairs ±t about the middle: each exp(quadratic) factor is its
+            # value at the middle, a curvature term shared by the piece and a slope term
+            # whose value at −t is the inverse of its value at t
+            mid = lo + half
+            g_mid = math.exp(
+                -0.5 * precision * ((mid - centre) ** 2 - (anchor - centre) ** 2)
+                + m * rate * (mid - b)
+            )
+            g_slope = (m * rate - precision * (mid - centre)) * half
+            v_mid = math.exp(rate * (mid - b)) if lates > m else 0.0
+            for i in range(n):
+                if kind[i] == 2:
+                    e = (mid - r[i]) / sigma
+                    cores[0, i] = core * math.exp(-0.5 * e * e)
+                    cores[1, i] = -e / sigma * half
+            for q in range(pairs):
+                t = nodes[nodes.size - 1 - q]
+                slope = math.exp(g_slope * t)
+                upper = g_mid * bends[0, q] * slope
+                lower = g_mid * bends[0, q] / slope
+                v_upper = v_mid * bends[2, q]
+                v_lower = v_mid / bends[2, q] if v_mid > 0.0 else 0.0
+                for i in range(n):
+                    if kind[i] == 1:
+                        upper *= constant[i] + factor[i] * v_upper
+                        lower *= constant[i] + factor[i] * v_lower
+                    elif kind[i] == 2:
+                        c_mid = cores[0, i] * bends[1, q]
+                        if c_mid > 0.0:
+                            c_slope = math.exp(cores[1, i] * t)
+                            upper *= c_mid * c_slope + factor[i] * v_upper + constant[i]
+                            lower *= c_mid / c_slope + factor[i] * v_lower + constant[i]
+                        else:
+                            upper *= factor[i] * v_upper + constant[i]
+                            lower *= factor[i] * v_lower + constant[i]
+                w = weights[q]
+                d_upper = mid + half * t - anchor
+                d_lower = mid - half * t - anchor
+                total += w * (upper + lower)
+                first += w * (upper * d_upper + lower * d_lower)
+                second += w * (upper * d_upper * d_upper + lower * d_lower * d_lower)
+            j += direction
+    if not total > 0.0:
+        return rest_log, rest_mean, rest_variance
+    mean = first / total
+    log_q = log_ref + math.log(total * half)
+    grown = np.logaddexp(log_q, rest_log)
+    mean, variance = _pooled(
+        anchor + mean, max(second / total - mean**2, 0.0), rest_mean, rest_variance,
+        math.exp(rest_log - grown),
+    )  # fmt: skip
+    return grown, mean, variance
+
+
+@njit(cache=True)
 def sequence_ping_integral(residual, mu, var, sigma, outlier_fraction, half_width):
     """``log ∫ N(T; mu, var) Π_i p(r_i − T) dT`` with the arrival residual's physical density
     ``p``, and the posterior mean and variance of ``T``.
@@ -465,10 +796,19 @@ def sequence_ping_integral(residual, mu, var, sigma, outlier_fraction, half_widt
 
     Without outliers it is closed form: the flat integral
     (:func:`~hmmtrack.tracking.measurement.tdoa.gaussian_ping_loglik`) times
-    ``N(r̄; mu, var + σ²/n)``. With them it is exact too: the product expands into one term
-    per assignment of each arrival to a component (``3^n``), each a Gaussian in ``T`` times
-    ``exp(λ k T)`` on an interval (``T < r_i`` for a late arrival, ``|r_i − T| < L`` for a
-    floor arrival), so a truncated Gaussian's mass and moments.
+    ``N(r̄; mu, var + σ²/n)``. With them the line is cut at every arrival's ``r``, ``r ± L``
+    and ``r ± Kσ`` (``K`` from :func:`_core_reach`: beyond it a core is below
+    :data:`INTEGRAL_TOLERANCE` of the same arrival's floor or late tail, and dropped). On each
+    piece the prior times the cores of the arrivals more than ``L`` before ``T`` is one
+    Gaussian ``G``, and every other arrival's factor is ``A·e^{λT} + B`` or, near its
+    residual, that plus its core. A piece without a core is integrated in closed form (the
+    product expanded in powers of ``e^{λT}``, each a truncated Gaussian: ``O(n²)``); a piece
+    with cores by Gauss-Legendre on sub-pieces a few of its narrowest scales wide. The
+    pieces are taken largest bound first, and a piece (or the rest of a piece's sub-pieces)
+    whose bound is below :data:`INTEGRAL_TOLERANCE` of the integral so far is skipped, so a
+    ping costs about its clusters' quadrature, not the ``3^n`` assignments of its arrivals to
+    core, tail and floor. The relative error is below ~1e-10 (checked against the ``3^n``
+    expansion and a brute-force quadrature in the tests).
 
     Parameters
     ----------
@@ -496,64 +836,81 @@ def sequence_ping_integral(residual, mu, var, sigma, outlier_fraction, half_widt
         post = 1.0 / (1.0 / var + 1.0 / spread)
         return log_l, post * (mu / var + mean / spread), post
     rate = 1.0 / LATE_MEAN
-    log_core = math.log1p(-outlier_fraction) - math.log(sigma) - 0.5 * _LOG_2PI
-    log_late = math.log(outlier_fraction * (1.0 - FLOOR_SHARE) * rate)
-    log_floor = math.log(outlier_fraction * FLOOR_SHARE / (2.0 * half_width))
-    log_prior = -0.5 * (_LOG_2PI + math.log(var))
-    n_terms = 3**n
-    logs = np.full(n_terms, -math.inf)
-    means = np.zeros(n_terms)  # of T − mu
-    seconds = np.zeros(n_terms)
-    for code in range(n_terms):
-        c = code
-        n_core = n_late = 0
-        core_sum = late_sum = 0.0
-        lo, hi = -math.inf, math.inf
-        log_c = log_prior
-        for i in range(n):
-            kind = c % 3
-            c //= 3
-            r = residual[i] - mu
-            if kind == 0:
-                n_core += 1
-                core_sum += r
-                log_c += log_core
-            elif kind == 1:
-                n_late += 1
-                late_sum += r
-                hi = min(hi, r)
-                log_c += log_late
-            else:
-                lo = max(lo, r - half_width)
-                hi = min(hi, r + half_width)
-                log_c += log_floor
-        if not hi > lo:
+    core = (1.0 - outlier_fraction) / (sigma * math.sqrt(2.0 * math.pi))
+    late = outlier_fraction * (1.0 - FLOOR_SHARE) * rate
+    floor = outlier_fraction * FLOOR_SHARE / (2.0 * half_width)
+    reach = _core_reach(core, late, floor, sigma, rate) * sigma
+    r = residual - mu
+    order = np.argsort(r)
+    # each arrival's cluster window: residuals less than 2Kσ apart share one
+    window = np.empty((2, n))
+    cuts = np.empty(5 * n)
+    n_cuts = 0
+    first = 0
+    for k in range(n):
+        if k < n - 1 and r[order[k + 1]] - r[order[k]] <= 2.0 * reach:
             continue
-        precision = 1.0 / var + n_core / (sigma * sigma)
-        centre = (core_sum / (sigma * sigma) + rate * n_late) / precision
-        quad = centre * centre / var
-        for i in range(n):
-            if (code // 3**i) % 3 == 0:
-                quad += (centre - (residual[i] - mu)) ** 2 / (sigma * sigma)
-        sd = 1.0 / math.sqrt(precision)
-        alpha = (lo - centre) / sd
-        beta = (hi - centre) / sd
-        log_mass = _log_normal_mass(alpha, beta)
-        logs[code] = (
-            log_c - 0.5 * quad + rate * (n_late * centre - late_sum)
-            + 0.5 * (_LOG_2PI - math.log(precision)) + log_mass
-        )  # fmt: skip
-        m, v = _truncated_moments(alpha, beta, log_mass)
-        means[code] = centre + sd * m
-        seconds[code] = sd * sd * v + means[code] ** 2
-    top = logs.max()
-    if top == -math.inf:
+        lo, hi = r[order[first]] - reach, r[order[k]] + reach
+        for j in range(first, k + 1):
+            window[0, order[j]], window[1, order[j]] = lo, hi
+        cuts[n_cuts : n_cuts + 2] = lo, hi
+        n_cuts += 2
+        first = k + 1
+    for i in range(n):
+        cuts[n_cuts : n_cuts + 3] = r[i] - half_width, r[i], r[i] + half_width
+        n_cuts += 3
+    cuts = np.sort(cuts[:n_cuts])
+    n_pieces = n_cuts + 1
+    # each piece's arrivals, Gaussian (precision, centre, log constant, late-only count,
+    # active count) and bound
+    lift = np.exp(rate * (r.max() - r)) if rate * (r.max() - r.min()) < 600.0 else r[:0]
+    kind = np.zeros((n_pieces, n), dtype=np.int64)
+    factor = np.zeros((n_pieces, n))
+    constant = np.zeros((n_pieces, n))
+    gauss = np.zeros((n_pieces, 5))
+    bounds = np.full(n_pieces, -math.inf)
+    for k in range(n_pieces):
+        a = cuts[k - 1] if k > 0 else -math.inf
+        b = cuts[k] if k < n_cuts else math.inf
+        if b > a:
+            out = _piece(
+                r, window, lift, a, b, sigma, var, half_width, core, late, floor, rate, kind[k],
+                factor[k], constant[k],
+            )  # fmt: skip
+            gauss[k, 0], gauss[k, 1], gauss[k, 2], gauss[k, 3], gauss[k, 4] = out[:5]
+            bounds[k] = out[5]
+    logs = np.full(n_pieces, -math.inf)
+    means = np.zeros(n_pieces)
+    variances = np.zeros(n_pieces)
+    scratch = np.empty(n + 1)
+    cores = np.empty((2, n))
+    bends = np.empty((3, _GL_RULES[-1][1].size // 2))
+    log_total = -math.inf
+    skip = math.log(INTEGRAL_TOLERANCE)
+    for k in np.argsort(-bounds):
+        if bounds[k] == -math.inf or bounds[k] < log_total + skip:
+            break
+        a = cuts[k - 1] if k > 0 else -math.inf
+        b = cuts[k] if k < n_cuts else math.inf
+        precision, centre, log_c = gauss[k, 0], gauss[k, 1], gauss[k, 2]
+        m, n_active = int(gauss[k, 3]), int(gauss[k, 4])
+        if n_active == 0:
+            logs[k], means[k], variances[k] = _closed_piece(
+                a, b, b, precision, centre, log_c, m, kind[k], factor[k], constant[k], rate,
+                scratch,
+            )  # fmt: skip
+        else:
+            logs[k], means[k], variances[k] = _quadrature_piece(
+                a, b, r, sigma, precision, centre, log_c, m, n_active, kind[k], factor[k],
+                constant[k], log_total, core, rate, scratch, cores, bends,
+            )  # fmt: skip
+        log_total = np.logaddexp(log_total, logs[k])
+    if log_total == -math.inf:
         return -math.inf, mu, var
-    weight = np.exp(logs - top)
-    total = weight.sum()
-    mean = (weight * means).sum() / total
-    moment = (weight * seconds).sum() / total
-    return top + math.log(total), mu + mean, max(moment - mean * mean, 0.0)
+    weight = np.exp(logs - log_total)
+    mean = (weight * means).sum()
+    variance = (weight * (variances + (means - mean) ** 2)).sum()
+    return log_total, mu + mean, variance
 
 
 @njit(cache=True, nogil=True)
