@@ -10,7 +10,7 @@ a checkout with that history. Inputs as the fixed-period moorings score them: co
 outlier share 0.05, floor half-width 1 s; per ping the two priors every particle scores (its
 clock, sd 1 ms about the truth, and the reset prior, sd 1 s); pings ``clean`` (every arrival
 direct) and ``late`` (one arrival 30 ms late). Reported: µs per call (mean over the pings and
-both priors, best of three passes), and ``now`` over ``uniform``. The machine (CPU, cores,
+both priors, each call's best of five), and ``now`` over ``uniform``. The machine (CPU, cores,
 load) is printed at the start and the end.
 
     python benchmarks/bench_ping_integral.py [--receivers 3 5 6 8 10 12] [--pings 200]
@@ -69,15 +69,16 @@ def pings(rng, n: int, count: int, late: bool):
     return out
 
 
-def per_call(integral, calls, passes: int = 3) -> float:
-    """Best of ``passes`` of the mean µs per call of ``integral`` over ``calls``."""
-    best = np.inf
-    for _ in range(passes):
-        start = time.perf_counter()
-        for residual, mu, var in calls:
+def per_call(integral, calls, repeats: int = 5) -> float:
+    """µs per call of ``integral``: the mean over ``calls`` of each call's best of
+    ``repeats`` (on a shared machine a pass over many calls is seldom left alone)."""
+    best = np.full(len(calls), np.inf)
+    for _ in range(repeats):
+        for k, (residual, mu, var) in enumerate(calls):
+            start = time.perf_counter()
             integral(residual, mu, var, SIGMA, FRACTION, HALF_WIDTH)
-        best = min(best, (time.perf_counter() - start) / len(calls))
-    return 1e6 * best
+            best[k] = min(best[k], time.perf_counter() - start)
+    return 1e6 * float(best.mean())
 
 
 def main() -> None:
@@ -88,7 +89,7 @@ def main() -> None:
     print(describe("start"))
     with tempfile.TemporaryDirectory() as folder:
         versions = {k: old_integral(c, Path(folder)) for k, c in VERSIONS.items()}
-        versions["now"] = sequence_ping_integral
+        versions = {"uniform": versions["uniform"], "now": sequence_ping_integral} | versions
         rng = np.random.default_rng(0)
         print("receivers  ping   " + "".join(f"{k:>10}" for k in versions) + "  now/uniform")
         for n in args.receivers:
@@ -98,7 +99,7 @@ def main() -> None:
                 for key, integral in versions.items():
                     integral(*calls[0], SIGMA, FRACTION, HALF_WIDTH)  # compiled
                     few = key == "3^n" and n > SLOW_RECEIVERS
-                    times[key] = per_call(integral, calls[:4] if few else calls, 1 if few else 3)
+                    times[key] = per_call(integral, calls[:4] if few else calls, 1 if few else 5)
                 row = "".join(f"{times[k]:>10.1f}" for k in versions)
                 kind = "late" if late else "clean"
                 print(f"{n:>9}  {kind:<5}  {row}  {times['now'] / times['uniform']:>10.2f}")

@@ -655,7 +655,7 @@ def _gauss_legendre(width):
 @njit(cache=True)
 def _quadrature_piece(
     a, b, r, sigma, precision, centre, log_c, m, n_active, kind, factor, constant, log_total,
-    core, rate, scratch, cores, bends,
+    core, rate, scratch, cores, bends, slopes,
 ):  # fmt: skip
     """Log integral, mean and variance of ``T`` on a piece with active cores.
 
@@ -667,6 +667,11 @@ def _quadrature_piece(
     far (``log_total`` before this piece; bounded by ``G``'s largest value and mass there
     and :func:`_log_factors_bound`); the rest without the cores, unless it is below that
     too, is integrated in closed form (:func:`_closed_piece`).
+
+    The nodes are taken in pairs ``±t`` about each sub-piece's middle, where every factor
+    ``exp(quadratic)`` is its value at the middle, a curvature term the piece shares and a
+    slope term (its inverse at ``−t``); a core's slope term is its own (``slopes``, once a
+    piece) times one the cores share (once a pair).
     """
     n = r.size
     sd = 1.0 / math.sqrt(precision)
@@ -692,6 +697,17 @@ def _quadrature_piece(
         bends[1, q] = math.exp(-0.5 * (t / sigma) ** 2)  # a core's
         bends[2, q] = math.exp(rate * t)  # v's slope at +t
     start = min(int((anchor - a) / h), pieces - 1)
+    # a core's slope at t is exp((r − mid)·κt) = exp((r − ref)·κt)·exp(−(mid − ref)·κt);
+    # the first is the piece's (kept where it cannot overflow: |(r − ref)·κ| < 300)
+    kappa = half / (sigma * sigma)
+    ref = a + (start + 0.5) * h
+    for i in range(n):
+        if kind[i] == 2:
+            lift = (r[i] - ref) * kappa
+            cores[2, i] = abs(lift) < 300.0
+            if cores[2, i]:
+                for q in range(pairs):
+                    slopes[i, q] = math.exp(lift * nodes[nodes.size - 1 - q])
     log_half_mass = math.log(0.5 * sd) + 0.5 * _LOG_2PI  # of G beyond its centre
     log_ref = log_c - 0.5 * precision * (anchor - centre) ** 2
     skip = math.log(INTEGRAL_TOLERANCE)
@@ -736,6 +752,8 @@ def _quadrature_piece(
             )
             g_slope = (m * rate - precision * (mid - centre)) * half
             v_mid = math.exp(rate * (mid - b)) if lates > m else 0.0
+            drift = (mid - ref) * kappa
+            shared = abs(drift) < 300.0
             for i in range(n):
                 if kind[i] == 2:
                     e = (mid - r[i]) / sigma
@@ -744,6 +762,7 @@ def _quadrature_piece(
             for q in range(pairs):
                 t = nodes[nodes.size - 1 - q]
                 slope = math.exp(g_slope * t)
+                common = math.exp(-drift * t) if shared else 1.0
                 upper = g_mid * bends[0, q] * slope
                 lower = g_mid * bends[0, q] / slope
                 v_upper = v_mid * bends[2, q]
@@ -755,7 +774,10 @@ def _quadrature_piece(
                     elif kind[i] == 2:
                         c_mid = cores[0, i] * bends[1, q]
                         if c_mid > 0.0:
-                            c_slope = math.exp(cores[1, i] * t)
+                            if shared and cores[2, i]:
+                                c_slope = slopes[i, q] * common
+                            else:
+                                c_slope = math.exp(cores[1, i] * t)
                             upper *= c_mid * c_slope + factor[i] * v_upper + constant[i]
                             lower *= c_mid / c_slope + factor[i] * v_lower + constant[i]
                         else:
@@ -827,6 +849,24 @@ def sequence_ping_integral(residual, mu, var, sigma, outlier_fraction, half_widt
     mean, variance : float
         Posterior mean (s) and variance (s²) of ``T``.
     """
+    work, counts = _workspace(residual.size)
+    return _emission_integral(residual, mu, var, sigma, outlier_fraction, half_width, work, counts)
+
+
+@njit(cache=True)
+def _workspace(n):
+    """Scratch arrays (float, int) for :func:`_emission_integral` of ``n`` arrivals, so that
+    a kernel scoring many particles allocates them once."""
+    pieces = 5 * n + 1
+    rule = _GL_RULES[-1][1].size // 2
+    return np.empty(23 * n + 2 * pieces * n + 9 * pieces + 3 * rule + 1), np.empty(
+        n + pieces * n, dtype=np.int64
+    )
+
+
+@njit(cache=True)
+def _emission_integral(residual, mu, var, sigma, outlier_fraction, half_width, work, counts):
+    """:func:`sequence_ping_integral` in the scratch of :func:`_workspace`."""
     n = residual.size
     if outlier_fraction == 0.0:
         flat, mean = gaussian_ping_loglik(residual, sigma)
@@ -835,16 +875,43 @@ def sequence_ping_integral(residual, mu, var, sigma, outlier_fraction, half_widt
         log_l = flat - 0.5 * (_LOG_2PI + math.log(total)) - 0.5 * (mean - mu) ** 2 / total
         post = 1.0 / (1.0 / var + 1.0 / spread)
         return log_l, post * (mu / var + mean / spread), post
+    pieces = 5 * n + 1
+    rule = _GL_RULES[-1][1].size // 2
+    views = np.cumsum(
+        np.array([n, 2 * n, 5 * n, n, pieces * n, pieces * n, 5 * pieces, pieces, pieces])
+    )
+    r = work[: views[0]]
+    window = work[views[0] : views[1]].reshape((2, n))
+    cuts = work[views[1] : views[2]]
+    lift = work[views[2] : views[3]]
+    factor = work[views[3] : views[4]].reshape((pieces, n))
+    constant = work[views[4] : views[5]].reshape((pieces, n))
+    gauss = work[views[5] : views[6]].reshape((pieces, 5))
+    bounds = work[views[6] : views[7]]
+    logs = work[views[7] : views[8]]
+    rest = views[8]
+    means = work[rest : rest + pieces]
+    variances = work[rest + pieces : rest + 2 * pieces]
+    scratch = work[rest + 2 * pieces : rest + 2 * pieces + n + 1]
+    rest += 2 * pieces + n + 1
+    cores = work[rest : rest + 3 * n].reshape((3, n))
+    bends = work[rest + 3 * n : rest + 3 * n + 3 * rule].reshape((3, rule))
+    slopes = work[rest + 3 * n + 3 * rule : rest + 13 * n + 3 * rule].reshape((n, rule))
+    order = counts[:n]
+    kind = counts[n : n + pieces * n].reshape((pieces, n))
     rate = 1.0 / LATE_MEAN
     core = (1.0 - outlier_fraction) / (sigma * math.sqrt(2.0 * math.pi))
     late = outlier_fraction * (1.0 - FLOOR_SHARE) * rate
     floor = outlier_fraction * FLOOR_SHARE / (2.0 * half_width)
     reach = _core_reach(core, late, floor, sigma, rate) * sigma
-    r = residual - mu
-    order = np.argsort(r)
+    for i in range(n):  # the residuals about the prior, their order by insertion
+        r[i] = residual[i] - mu
+        j = i
+        while j > 0 and r[order[j - 1]] > r[i]:
+            order[j] = order[j - 1]
+            j -= 1
+        order[j] = i
     # each arrival's cluster window: residuals less than 2Kσ apart share one
-    window = np.empty((2, n))
-    cuts = np.empty(5 * n)
     n_cuts = 0
     first = 0
     for k in range(n):
@@ -853,43 +920,45 @@ def sequence_ping_integral(residual, mu, var, sigma, outlier_fraction, half_widt
         lo, hi = r[order[first]] - reach, r[order[k]] + reach
         for j in range(first, k + 1):
             window[0, order[j]], window[1, order[j]] = lo, hi
-        cuts[n_cuts : n_cuts + 2] = lo, hi
+        cuts[n_cuts], cuts[n_cuts + 1] = lo, hi
         n_cuts += 2
         first = k + 1
     for i in range(n):
-        cuts[n_cuts : n_cuts + 3] = r[i] - half_width, r[i], r[i] + half_width
+        cuts[n_cuts], cuts[n_cuts + 1], cuts[n_cuts + 2] = (
+            r[i] - half_width, r[i], r[i] + half_width
+        )  # fmt: skip
         n_cuts += 3
-    cuts = np.sort(cuts[:n_cuts])
+    cuts[:n_cuts].sort()
     n_pieces = n_cuts + 1
     # each piece's arrivals, Gaussian (precision, centre, log constant, late-only count,
     # active count) and bound
-    lift = np.exp(rate * (r.max() - r)) if rate * (r.max() - r.min()) < 600.0 else r[:0]
-    kind = np.zeros((n_pieces, n), dtype=np.int64)
-    factor = np.zeros((n_pieces, n))
-    constant = np.zeros((n_pieces, n))
-    gauss = np.zeros((n_pieces, 5))
-    bounds = np.full(n_pieces, -math.inf)
+    top, bottom = r[order[n - 1]], r[order[0]]
+    spread_ok = rate * (top - bottom) < 600.0
+    for i in range(n):
+        lift[i] = math.exp(rate * (top - r[i])) if spread_ok else 0.0
+    lifts = lift if spread_ok else lift[:0]
     for k in range(n_pieces):
         a = cuts[k - 1] if k > 0 else -math.inf
         b = cuts[k] if k < n_cuts else math.inf
+        bounds[k] = -math.inf
+        logs[k] = -math.inf
         if b > a:
             out = _piece(
-                r, window, lift, a, b, sigma, var, half_width, core, late, floor, rate, kind[k],
-                factor[k], constant[k],
+                r, window, lifts, a, b, sigma, var, half_width, core, late, floor, rate,
+                kind[k], factor[k], constant[k],
             )  # fmt: skip
             gauss[k, 0], gauss[k, 1], gauss[k, 2], gauss[k, 3], gauss[k, 4] = out[:5]
             bounds[k] = out[5]
-    logs = np.full(n_pieces, -math.inf)
-    means = np.zeros(n_pieces)
-    variances = np.zeros(n_pieces)
-    scratch = np.empty(n + 1)
-    cores = np.empty((2, n))
-    bends = np.empty((3, _GL_RULES[-1][1].size // 2))
     log_total = -math.inf
     skip = math.log(INTEGRAL_TOLERANCE)
-    for k in np.argsort(-bounds):
+    while True:  # the pieces by bound, largest first, until the rest are negligible
+        k = 0
+        for j in range(1, n_pieces):
+            if bounds[j] > bounds[k]:
+                k = j
         if bounds[k] == -math.inf or bounds[k] < log_total + skip:
             break
+        bounds[k] = -math.inf
         a = cuts[k - 1] if k > 0 else -math.inf
         b = cuts[k] if k < n_cuts else math.inf
         precision, centre, log_c = gauss[k, 0], gauss[k, 1], gauss[k, 2]
@@ -902,14 +971,19 @@ def sequence_ping_integral(residual, mu, var, sigma, outlier_fraction, half_widt
         else:
             logs[k], means[k], variances[k] = _quadrature_piece(
                 a, b, r, sigma, precision, centre, log_c, m, n_active, kind[k], factor[k],
-                constant[k], log_total, core, rate, scratch, cores, bends,
+                constant[k], log_total, core, rate, scratch, cores, bends, slopes,
             )  # fmt: skip
         log_total = np.logaddexp(log_total, logs[k])
     if log_total == -math.inf:
         return -math.inf, mu, var
-    weight = np.exp(logs - log_total)
-    mean = (weight * means).sum()
-    variance = (weight * (variances + (means - mean) ** 2)).sum()
+    mean = 0.0
+    for k in range(n_pieces):
+        if logs[k] > -math.inf:
+            mean += math.exp(logs[k] - log_total) * means[k]
+    variance = 0.0
+    for k in range(n_pieces):
+        if logs[k] > -math.inf:
+            variance += math.exp(logs[k] - log_total) * (variances[k] + (means[k] - mean) ** 2)
     return log_total, mu + mean, variance
 
 
@@ -922,6 +996,7 @@ def _sequence_kernel(
     """:func:`sequence_ping_loglik` for every particle of each chunk not yet claimed
     (:func:`~hmmtrack.tracking.compiled.chunks.next_chunk`)."""
     residual = np.empty(arrival.size)
+    work, counts = _workspace(arrival.size)
     jitter = EMISSION_JITTER * EMISSION_JITTER
     parts = np.empty((2, 7))  # per prior: log weight, mean of T, updated clock (5)
     chunk, lo, hi = next_chunk(counter, x.size)
@@ -945,8 +1020,8 @@ def _sequence_kernel(
                 wide = OFFSET_SD * OFFSET_SD if k == 1 else 0.0
                 share = CLOCK_RESET if k == 1 else 1.0 - CLOCK_RESET
                 prior = p_uu + wide + jitter
-                log_k, mean, var = sequence_ping_integral(
-                    residual, u, prior, sigma, outlier_fraction, half_width
+                log_k, mean, var = _emission_integral(
+                    residual, u, prior, sigma, outlier_fraction, half_width, work, counts
                 )
                 gain_u = (p_uu + wide) / prior
                 gain_b = p_ub / prior
