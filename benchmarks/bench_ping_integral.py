@@ -13,7 +13,7 @@ direct) and ``late`` (one arrival 30 ms late). Reported: µs per call (mean over
 both priors, each call's best of five), and ``now`` over ``uniform``. The machine (CPU, cores,
 load) is printed at the start and the end.
 
-    python benchmarks/bench_ping_integral.py [--receivers 3 5 6 8 10 12] [--pings 200]
+    python benchmarks/bench_ping_integral.py [--receivers 1 2 3 5 6 8 10 12] [--pings 200]
 """
 
 from __future__ import annotations
@@ -83,7 +83,7 @@ def per_call(integral, calls, repeats: int = 5) -> float:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--receivers", type=int, nargs="+", default=[3, 5, 6, 8, 10, 12])
+    parser.add_argument("--receivers", type=int, nargs="+", default=[1, 2, 3, 5, 6, 8, 10, 12])
     parser.add_argument("--pings", type=int, default=200)
     args = parser.parse_args()
     print(describe("start"))

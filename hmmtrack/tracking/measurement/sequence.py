@@ -166,9 +166,8 @@ FLOOR_SHARE = 0.02
 #: reach, a piece or sub-pieces bounded below it): the integral is exact to ~1e-10
 INTEGRAL_TOLERANCE = 1e-11
 #: a ping heard by at most this many receivers has its emission integral expanded over the
-#: 3^n assignments of its arrivals (at most 9 truncated Gaussians), beyond it computed by
-#: pieces: per call, 1.9 / 4.3 µs against 4.5 / 6.0 µs at one and two receivers, and
-#: 11 µs against 8 µs at three (reports/decisions.md, "The grouped ping's outlier integral")
+#: 3^n assignments of its arrivals, by more computed by pieces: the cheaper of the two
+#: (reports/decisions.md, "The grouped ping's outlier integral, cheap for many receivers")
 EXPANDED_RECEIVERS = 2
 #: widest sub-piece of the emission integral's quadrature, in the integrand's narrowest
 #: scales, and the Gauss-Legendre rules by a sub-piece's width: (widest, nodes, weights) of
