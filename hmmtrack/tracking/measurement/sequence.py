@@ -34,10 +34,13 @@ given a particle's position and clock is
 
     ℓ(x) = ∫ N(T; û, P_uu + J²) Π_i p(r_i − T) dT,   r_i = t_i − d_i(x)/c − scheduled,
 
-with the particle's predicted emission as prior. It is exact: closed form without outliers,
-otherwise a sum of truncated Gaussians, one per assignment of the arrivals to the core, the
-late tail and the floor (:func:`sequence_ping_integral`, checked against a brute-force
-quadrature). The clock is then updated by the posterior mean and variance of ``T`` (exact
+with the particle's predicted emission as prior. It is closed form without outliers; with
+them, a sum of truncated Gaussians, one per assignment of the arrivals to the core, the late
+tail and the floor, for one or two receivers, and for more the same density integrated by
+pieces (closed form where no core counts, Gauss-Legendre where one does) to 1e-9 nats of
+that sum at a cost that grows with the ping's clusters, not as ``3^n``
+(:func:`sequence_ping_integral`, checked against the sum and a brute-force quadrature).
+The clock is then updated by the posterior mean and variance of ``T`` (exact
 without outliers; the moment-matched Gaussian with them). Before the first ping the
 offset's prior is :data:`OFFSET_SD` (flat at the milliseconds of the arrivals: the first
 ping sets each particle's offset from its position, as the arrival-time measurement's clock
