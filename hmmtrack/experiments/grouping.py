@@ -175,6 +175,7 @@ def share_sweep(
     motion: str = "velocity",
     duration: float = 3600.0,
     settings: dict | None = None,
+    filter_offsets: Sequence[int] = (0,),
 ) -> pd.DataFrame:
     """The rows of :func:`grouping_rows` on the moored array
     (:func:`hmmtrack.scenarios.realistic.moored_array`) at each 50 % detection range: a
@@ -184,18 +185,23 @@ def share_sweep(
     Parameters
     ----------
     seeds : sequence of int
-        Scenario seeds (one dataset per seed and range); the filters run with the same seed.
+        Scenario seeds (one dataset per seed and range).
     detection_ranges : sequence of float
         ``moored_array``'s ``detection_range`` (array radii).
     methods, n_particles, motion, duration, settings
         As :func:`grouping_rows`.
+    filter_offsets : sequence of int
+        Every method runs on each dataset once per offset, with filter seed ``seed + offset``
+        (the same detections): ``(0,)`` is one run with the dataset's seed, as
+        :func:`grouping_rows`; :data:`FILTER_OFFSETS` gives the filters' own spread that
+        :func:`filter_seed_summary` judges by.
 
     Returns
     -------
     pandas.DataFrame
-        :func:`grouping_rows`' columns (``scenario`` names the range), with
-        ``detection_range``, ``share_by_3`` (the share of pings heard by three or more
-        receivers that the command line's choice reads,
+        :func:`grouping_rows`' columns (``scenario`` names the range, ``seed`` the dataset),
+        with ``filter_seed``, ``detection_range``, ``share_by_3`` (the share of pings heard by
+        three or more receivers that the command line's choice reads,
         :func:`~hmmtrack.tracking.measurement.sequence.fixed_period_measurement`) and
         ``pings_choose`` (its choice) on every row.
     """
@@ -207,17 +213,26 @@ def share_sweep(
             detections, _, options = clock_inputs(case, seed, n_particles, motion, duration)
             sc = case.scenario
             choice, share = fixed_period_measurement(detections, sc.receivers, sc.period)
-            for row in case_rows(name, case, seed, detections, options, methods, settings):
-                rows.append(
-                    row
-                    | {
-                        "detection_range": detection_range,
-                        "share_by_3": share,
-                        "pings_choose": choice,
-                    }
-                )
+            for offset in filter_offsets:
+                fseed = seed + offset
+                dataset = {
+                    "seed": seed,
+                    "filter_seed": fseed,
+                    "detection_range": detection_range,
+                    "share_by_3": share,
+                    "pings_choose": choice,
+                }
+                seeded = options | {"seed": fseed}
+                runs = case_rows(name, case, fseed, detections, seeded, methods, settings)
+                rows += [row | dataset for row in runs]
     return pd.DataFrame(rows)
 
+
+#: filter seeds ``seed + offset`` of :func:`share_sweep` on the same detections, over which
+#: :func:`filter_seed_summary` averages each method: one filter seed's run scatters by up to
+#: 1.36x (arrival-time) and 1.72x (grouped) about its dataset's others (reports/decisions.md,
+#: "The moorings' excursions")
+FILTER_OFFSETS = (0, 1000, 2000)
 
 #: a grouped run counts as worse when its error is this much above the arrival-time run's
 WORSE_BY = 0.10
@@ -283,3 +298,93 @@ def paired_summary(
             row["heard_by_3"] = float(wide[("heard_by_3", method)].mean())
         out.append(row)
     return pd.DataFrame(out)
+
+
+#: the pooled ratio of :func:`filter_seed_summary` is "not worse" when its upper 95 % bound is
+#: below this: worse by more than 5 % excluded
+NOT_WORSE_BY = 1.05
+
+
+def filter_seed_summary(
+    rows: pd.DataFrame,
+    method: str = "grouped pings",
+    baseline: str = "arrival-time",
+    *,
+    n_boot: int = 10_000,
+    seed: int = 0,
+) -> tuple[pd.DataFrame, dict]:
+    """``method`` against ``baseline`` per dataset, each averaged over its filter seeds, and
+    pooled over datasets: the criterion "grouping is not worse" judged beyond one filter
+    seed's luck (reports/decisions.md, "Never worse, judged over three filter seeds").
+
+    Parameters
+    ----------
+    rows : pandas.DataFrame
+        :func:`share_sweep` rows (``scenario``, ``seed``, ``filter_seed``, ``method``,
+        ``error_after_10_min_m``), several filter seeds per dataset (:data:`FILTER_OFFSETS`).
+    method, baseline : str
+        The ``method`` labels compared; a dataset counts when both ran on the same filter
+        seeds, and only those seeds are used.
+    n_boot : int
+        Bootstrap resamples of the datasets for the pooled ratio's interval.
+    seed : int
+        Seed of the bootstrap.
+
+    Returns
+    -------
+    per_dataset : pandas.DataFrame
+        One row per dataset (``scenario``, ``seed``): ``filter_seeds`` (how many),
+        ``<baseline>_m`` and ``<method>_m`` (mean error from 10 min on over the filter
+        seeds, m), ``<baseline>_max_m`` (the baseline's worst filter seed), each method's
+        ``*_spread`` (max ÷ min over filter seeds), ``ratio`` (the means' ratio, method ÷
+        baseline) and ``within_noise`` (the method's mean no higher than the baseline's
+        worst filter seed).
+    pooled : dict
+        ``datasets``; ``geometric_ratio`` (the geometric mean of the datasets' ratios: the
+        errors' scales differ fourfold between detection ranges) with its percentile
+        bootstrap 95 % interval ``ratio_lo``, ``ratio_hi``; ``not_worse`` (``ratio_hi`` below
+        :data:`NOT_WORSE_BY`); ``mean_ratio`` (the datasets' mean ratio); the pooled mean
+        errors ``<baseline>_m`` and ``<method>_m`` (m); ``within_noise`` (datasets within
+        their noise).
+    """
+    error = "error_after_10_min_m"
+    compared = rows[rows["method"].isin((method, baseline))]
+    wide = compared.pivot_table(
+        index=["scenario", "seed", "filter_seed"], columns="method", values=error
+    ).dropna()
+    out = []
+    for (name, data_seed), dataset in wide.groupby(level=["scenario", "seed"], sort=False):
+        a = dataset[method].to_numpy(dtype=float)
+        b = dataset[baseline].to_numpy(dtype=float)
+        out.append(
+            {
+                "scenario": name,
+                "seed": data_seed,
+                "filter_seeds": a.size,
+                f"{baseline}_m": b.mean(),
+                f"{method}_m": a.mean(),
+                f"{baseline}_max_m": b.max(),
+                f"{baseline}_spread": b.max() / b.min(),
+                f"{method}_spread": a.max() / a.min(),
+                "ratio": a.mean() / b.mean(),
+                "within_noise": bool(a.mean() <= b.max()),
+            }
+        )
+    per_dataset = pd.DataFrame(out)
+    log_ratio = np.log(per_dataset["ratio"].to_numpy())
+    rng = np.random.default_rng(seed)
+    picks = rng.integers(0, log_ratio.size, (n_boot, log_ratio.size))
+    boot = np.exp(log_ratio[picks].mean(axis=1))
+    lo, hi = np.percentile(boot, [2.5, 97.5])
+    pooled = {
+        "datasets": log_ratio.size,
+        "geometric_ratio": float(np.exp(log_ratio.mean())),
+        "ratio_lo": float(lo),
+        "ratio_hi": float(hi),
+        "not_worse": bool(hi < NOT_WORSE_BY),
+        "mean_ratio": float(per_dataset["ratio"].mean()),
+        f"{baseline}_m": float(per_dataset[f"{baseline}_m"].mean()),
+        f"{method}_m": float(per_dataset[f"{method}_m"].mean()),
+        "within_noise": int(per_dataset["within_noise"].sum()),
+    }
+    return per_dataset, pooled
