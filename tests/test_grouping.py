@@ -24,6 +24,12 @@ from hmmtrack.experiments.clock_runs import (
     score_run,
     track_arrival,
 )
+from hmmtrack.experiments.grouping import (
+    MIRROR_FROM,
+    filter_seed_summary,
+    outlier_pings,
+    share_sweep,
+)
 from hmmtrack.scenarios.realistic import moored_array
 from hmmtrack.tracking.config import TrackingConfig
 from hmmtrack.tracking.filter import ParticleFilter
@@ -265,6 +271,75 @@ def test_the_moored_arrays_detection_range_moves_the_share_heard_by_three_across
         assert name == ("ping-sequence" if detection_range == 1.75 else "arrival-time")
     assert shares[0.8] < GROUPING_SHARE < shares[1.75]
     assert 0.03 < shares[0.8] < 0.08 and shares[1.75] > 0.7
+
+
+def test_the_filter_seed_summary_averages_each_method_over_its_filter_seeds():
+    # per dataset the means over filter seeds run by both methods; "within noise" when their
+    # ratio is no larger than the baseline's own max ÷ min; pooled the ratios' geometric mean
+    runs = [
+        ("a", 1, 1, "arrival-time", 10.0),
+        ("a", 1, 1001, "arrival-time", 11.0),
+        ("a", 1, 2001, "arrival-time", 12.0),
+        ("a", 1, 1, "grouped pings", 9.0),
+        ("a", 1, 1001, "grouped pings", 10.0),
+        ("a", 1, 2001, "grouped pings", 11.0),
+        ("a", 1, 3001, "grouped pings", 99.0),  # no arrival-time run at this filter seed
+        ("b", 2, 2, "arrival-time", 5.0),
+        ("b", 2, 1002, "arrival-time", 5.0),
+        ("b", 2, 2002, "arrival-time", 5.5),
+        ("b", 2, 2, "grouped pings", 5.0),
+        ("b", 2, 1002, "grouped pings", 5.0),
+        ("b", 2, 2002, "grouped pings", 10.0),
+        ("b", 2, 2, "other", 1.0),
+    ]
+    rows = pd.DataFrame(
+        runs, columns=["scenario", "seed", "filter_seed", "method", "error_after_10_min_m"]
+    )
+    per_dataset, pooled = filter_seed_summary(rows, n_boot=2000)
+    a, b = per_dataset.to_dict("records")
+    assert a["filter_seeds"] == 3 and a["grouped pings_m"] == pytest.approx(10.0)
+    assert a["arrival-time_spread"] == pytest.approx(1.2) and a["grouped pings_spread"] == 11 / 9
+    assert a["ratio"] == pytest.approx(10 / 11) and a["within_noise"]
+    assert b["ratio"] == pytest.approx(20 / 15.5) and not b["within_noise"]  # spread 1.1
+    assert pooled["geometric_ratio"] == pytest.approx(math.sqrt(10 / 11 * 20 / 15.5))
+    assert pooled["ratio_lo"] == pytest.approx(10 / 11) and pooled["ratio_hi"] == pytest.approx(
+        20 / 15.5
+    )
+    assert not pooled["not_worse"] and pooled["within_noise"] == 1
+    assert pooled["arrival-time_m"] == pytest.approx((11 + 31 / 6) / 2)
+
+
+def test_the_share_sweep_runs_each_dataset_at_every_filter_seed_on_the_same_detections():
+    kwargs = {"methods": ("arrival-time",), "n_particles": 300, "duration": 900.0}
+    once = share_sweep([3], [1.2], **kwargs)
+    rows = share_sweep([3], [1.2], filter_offsets=(0, 1000), **kwargs)
+    assert list(rows["seed"]) == [3, 3] and list(rows["filter_seed"]) == [3, 1003]
+    assert rows["share_by_3"].nunique() == 1
+    errors = rows["error_after_10_min_m"]
+    assert errors.iloc[0] == once["error_after_10_min_m"].iloc[0]
+    assert errors.iloc[1] != errors.iloc[0]
+
+
+def test_a_ping_needs_an_outlier_where_its_arrivals_cannot_all_be_direct_paths():
+    # 100 pings from TAG: heard by the three moorings, every other one with the third
+    # mooring's arrival 30 ms late (multipath), every fifth by two moorings only (not
+    # counted); at the tag the late pings need an outlier, 60 m away every ping does
+    positions = MOORINGS[["x", "y"]].to_numpy()
+    rows = []
+    for k in range(100):
+        for i, (x, y) in enumerate(positions[: 2 if k % 5 == 0 else 3]):
+            late = 0.03 if i == 2 and k % 2 else 0.0
+            arrival = FIRST + k * PERIOD + np.hypot(TAG[0] - x, TAG[1] - y) / SOUND + late
+            rows.append((k, arrival, x, y))
+    obs = pd.DataFrame(rows, columns=["ping", "arrival", "receiver_x", "receiver_y"])
+    obs["time"] = obs.groupby("ping")["arrival"].transform("min")
+    times = np.arange(FIRST - 10.0, FIRST + 100 * PERIOD + 10.0)
+    counted = [k for k in range(100) if k % 5 and k * PERIOD >= MIRROR_FROM]
+    late = np.mean([k % 2 == 1 for k in counted])
+    at_tag = pd.DataFrame({"time": times, "x": TAG[0], "y": TAG[1]})
+    assert outlier_pings(obs, at_tag, SOUND) == pytest.approx(late)
+    away = at_tag.assign(y=TAG[1] + 60.0)
+    assert outlier_pings(obs, away, SOUND) == 1.0
 
 
 def test_each_kind_of_sequence_has_its_own_arrival_sd_unless_told():

@@ -14,8 +14,9 @@ case's detection curve (unheard pings as information), and scores them as the st
 :func:`share_sweep` runs the same pair on the moored array at shorter detection ranges, where
 fewer pings reach all three receivers: it sets the share of pings heard by three from which
 the command line groups a fixed-period tag's pings
-(:data:`~hmmtrack.tracking.measurement.sequence.GROUPING_SHARE`).
-This module runs and scores; it writes nothing.
+(:data:`~hmmtrack.tracking.measurement.sequence.GROUPING_SHARE`); run at several filter seeds
+per dataset, :func:`filter_seed_summary` judges whether grouping is worse beyond the filters'
+own scatter. This module runs and scores; it writes nothing.
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
+from hmmtrack.analysis.metrics import truth_at
 from hmmtrack.analysis.mirror import mirror_share, mirror_track
 from hmmtrack.experiments.arrival import cases
 from hmmtrack.experiments.clock_runs import (
@@ -38,6 +40,7 @@ from hmmtrack.experiments.clock_runs import (
     without_silences,
 )
 from hmmtrack.scenarios.realistic import moored_array
+from hmmtrack.tracking.config import TrackingConfig
 from hmmtrack.tracking.measurement.sequence import fixed_period_measurement
 from hmmtrack.tracking.pipeline import track
 
@@ -56,13 +59,23 @@ MIRROR_PAIR = ("auv-1", "auv-2")
 #: the estimates of :func:`on_mirror` from this many seconds on, as the error after 10 min
 MIRROR_FROM = 600.0
 
-#: the methods of :func:`grouping_rows`
+#: the methods of :func:`grouping_rows`; "random-interval pings" is the ``"ping"`` measurement
+#: told only that the tag's intervals lie within :data:`RANDOM_INTERVAL` of its period (each
+#: ping's emission free, no detection curve, its own random-walk motion): whether its outliers
+#: let the cloud escape as the grouped ping's uniform one did
 METHODS = (
     "arrival-time",
     "arrival-time, no detection curve",
     "grouped pings",
     "grouped pings, no detection curve",
+    "random-interval pings",
 )
+#: the random-interval run's burst interval about the tag's period (s): the moored array's
+#: 8 s tag wanders 0.1 s from its schedule
+RANDOM_INTERVAL = 1.0
+#: a ping's arrivals cannot all be direct paths from a position when their residuals
+#: (arrival − range / c) span more than this (s): 5 of the moorings' 2 ms arrival sds
+OUTLIER_SPAN = 10e-3
 
 
 def on_mirror(estimates: pd.DataFrame, scenario) -> float:
@@ -87,8 +100,55 @@ def _run(method: str, case, seed: int, detections, options: dict, settings):
         return track_arrival(detections, sc.receivers, without_silences(options))
     if method == "grouped pings, no detection curve":
         options = without_silences(options)
+    if method == "random-interval pings":
+        config = options["config"]
+        config = TrackingConfig.from_keys(
+            **{
+                "measurement": "ping",
+                "burst_interval": (sc.period - RANDOM_INTERVAL, sc.period + RANDOM_INTERVAL),
+                "bounds": case.search_bounds,
+                "n_particles": config.filter.n_particles,
+                "start": config.start,
+                "end": config.end,
+            }
+            | dict(settings or {})
+        )
+        # its own motion, as a user's run: with the velocity motion it diverges to km here
+        return track(detections, sc.receivers, config, config.motion.build(), seed=seed)
     config = grouped_config(options, sc.period, case.search_bounds, settings)
     return track(detections, sc.receivers, config, options["motion"], seed=seed)
+
+
+def outlier_pings(observations: pd.DataFrame, track: pd.DataFrame, sound_speed: float) -> float:
+    """Share of the pings heard by three or more receivers, from :data:`MIRROR_FROM` s after
+    the first on, whose arrivals cannot all be direct paths from ``track``'s position at the
+    ping (their residuals span more than :data:`OUTLIER_SPAN`).
+
+    At the true path this is the multipath's share; a cloud that has escaped along the
+    ranges of the receivers it still fits needs an outlier at nearly every ping
+    (reports/decisions.md, "The moorings' excursions: diagnosed, not fixed").
+
+    Parameters
+    ----------
+    observations : pandas.DataFrame
+        A ping run's observations (``ping``, ``time`` its first arrival, ``arrival``,
+        ``receiver_x``, ``receiver_y``; s, m).
+    track : pandas.DataFrame
+        Positions (``time`` s, ``x``, ``y`` m): the estimates or the truth, interpolated at
+        each ping's first arrival.
+    sound_speed : float
+        m/s.
+    """
+    heard = observations.groupby("ping")["ping"].transform("size")
+    late = observations["time"] >= observations["time"].iloc[0] + MIRROR_FROM
+    obs = observations[(heard >= 3) & late]
+    if obs.empty:
+        return float("nan")
+    x, y = truth_at(track, obs["time"].to_numpy())
+    ranges = np.hypot(obs["receiver_x"].to_numpy() - x, obs["receiver_y"].to_numpy() - y)
+    residual = pd.Series(obs["arrival"].to_numpy() - ranges / sound_speed, index=obs.index)
+    span = residual.groupby(obs["ping"]).agg(lambda r: r.max() - r.min())
+    return float(np.mean(span > OUTLIER_SPAN))
 
 
 def grouping_rows(
@@ -118,16 +178,18 @@ def grouping_rows(
     duration : float
         Length of each run (s).
     settings : dict, optional
-        More settings of the grouped run by key (e.g. ``arrival_sigma``).
+        More settings of the grouped and random-interval runs by key (e.g.
+        ``arrival_sigma``).
 
     Returns
     -------
     pandas.DataFrame
         One row per case, seed and method: ``scenario``, ``seed``, ``method``, the columns of
         :func:`~hmmtrack.experiments.clock_runs.score_run`, ``cpu_s`` (the run's CPU time, s),
-        ``on_mirror`` (:func:`on_mirror`), and for the grouped run ``heard_per_ping``
-        (receivers per ping), ``heard_by_3`` (share of pings heard by three or more) and
-        ``echoes_dropped``.
+        ``on_mirror`` (:func:`on_mirror`), and for the runs on pings ``heard_per_ping``
+        (receivers per ping), ``heard_by_3`` (share of pings heard by three or more),
+        ``echoes_dropped``, and ``outliers_at_estimate`` and ``outliers_at_truth``
+        (:func:`outlier_pings` along the estimates and the true path).
     """
     rows = []
     for seed in seeds:
@@ -151,11 +213,15 @@ def case_rows(name, case, seed, detections, options, methods, settings) -> list[
         row |= score_run(result.estimates, case.scenario.truth)
         row["cpu_s"] = time.process_time() - began
         row["on_mirror"] = on_mirror(result.estimates, case.scenario)
-        if method.startswith("grouped"):
-            heard = result.observations.groupby("ping").size()
+        if "pings" in method:
+            obs = result.observations
+            heard = obs.groupby("ping").size()
             row["heard_per_ping"] = float(heard.mean())
             row["heard_by_3"] = float(np.mean(heard >= 3))
-            row["echoes_dropped"] = int(result.observations.attrs.get("echoes_dropped", 0))
+            row["echoes_dropped"] = int(obs.attrs.get("echoes_dropped", 0))
+            speed = case.scenario.sound_speed
+            row["outliers_at_estimate"] = outlier_pings(obs, result.estimates, speed)
+            row["outliers_at_truth"] = outlier_pings(obs, case.scenario.truth, speed)
         rows.append(row)
     return rows
 
