@@ -4,7 +4,9 @@ the arrival-time filter's term for term when one receiver hears each ping, and b
 three moored receivers; the default that groups a fixed-period tag's pings only where three
 receivers hear them, each kind of sequence's own arrival sd, and the matched-ping kernel the
 same on one thread and two (reports/decisions.md, "Fixed-period tags with ping grouping",
-"Fixed-period grouping with the detection curve" and "Fixed-period grouping by default")."""
+"Fixed-period grouping with the detection curve", "Fixed-period grouping by default" and
+"Never worse, judged over three filter seeds": the experiment's filter seeds, its summary and
+the outlier count that shows an escape)."""
 
 from __future__ import annotations
 
