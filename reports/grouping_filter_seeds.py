@@ -39,6 +39,10 @@ def run(args) -> None:
         rows = share_sweep([seed], [radii], methods=args.methods, filter_offsets=FILTER_OFFSETS)
         if args.label:
             rows["method"] = rows["method"].replace("grouped pings", args.label)
+        if os.path.exists(args.out):
+            columns = list(pd.read_csv(args.out, nrows=0).columns)
+            if list(rows.columns) != columns:
+                raise SystemExit(f"{args.out} has other columns (older code?): use a new file")
         rows.to_csv(args.out, mode="a", header=not os.path.exists(args.out), index=False)
         print(rows[["scenario", "seed", "filter_seed", "method", "error_after_10_min_m"]])
 
