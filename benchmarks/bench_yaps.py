@@ -138,8 +138,9 @@ def main_() -> None:
 
 
 def draw(tracks: dict[str, pd.DataFrame], pings: pd.DataFrame, path: str) -> None:
-    """The GPS, the filter's and the smoother's per-second tracks and the filter's position
-    right after each ping, in metres."""
+    """The GPS, the filter's and the smoother's per-second tracks, the filter's position
+    right after each ping and YAPS's own shipped track (its position at each ping), in
+    metres."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -161,6 +162,9 @@ def draw(tracks: dict[str, pd.DataFrame], pings: pd.DataFrame, path: str) -> Non
             label=f"{kind} (per second)",
         )
     ax.plot(pings["x"] - origin[0], pings["y"] - origin[1], "C3.", ms=4, label="filtered at pings")
+    yaps = pd.read_csv(DATA / "yaps_reference_track_15266.csv")
+    yaps = yaps[yaps["top"].between(*span)]
+    ax.plot(yaps["x"] - origin[0], yaps["y"] - origin[1], "C4--", lw=1, label="YAPS (shipped fit)")
     ax.plot(hydros["x"] - origin[0], hydros["y"] - origin[1], "g^", label="hydrophones")
     margin = 30.0  # the array and its surroundings (a first, unconverged ping may lie off it)
     ax.set_xlim(hydros["x"].min() - origin[0] - margin, hydros["x"].max() - origin[0] + margin)
