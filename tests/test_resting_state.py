@@ -14,8 +14,10 @@ from hmmtrack.hmm import Gamma, MovementHMM, VonMises, Weibull, WrappedCauchy
 from hmmtrack.hmm.formula import Design
 from hmmtrack.tracking import pipeline as tracking
 from hmmtrack.tracking.compiled import streams as rs
+from hmmtrack.experiments.trials import _motion
 from hmmtrack.tracking.motion import (
     HMM_RESTING,
+    HMM_STILL_RESTING,
     HMMMotion,
     RestingState,
     bundled_model_path,
@@ -285,3 +287,62 @@ def test_filter_posterior_rests_on_a_fixed_tag_and_swims_on_a_moving_one(name, b
     cloud = run.snapshots[scenario.end]
     resting = cloud.loc[cloud["state"] == 2, "weight"].sum() / cloud["weight"].sum()
     assert bounds[0] <= resting <= bounds[1]
+
+
+# ------------------------------------------------------------------------- a tag that holds still
+
+
+def rested_bundled(resting):
+    """The bundled model with ``resting``, as tracking adds it."""
+    bundled = MovementHMM.load(bundled_model_path())
+    metres = resting.drift_speed * bundled.dt
+    return bundled.with_resting_state(
+        resting.enter_per_hour, resting.leave_per_hour, resting_step=metres
+    )
+
+
+def test_trials_hold_the_resting_tag_still_under_the_gps_measurement_only():
+    gps = _motion("hmm", "range-rate-gps")
+    assert gps.model.to_dict() == rested_bundled(HMM_STILL_RESTING).to_dict()
+    assert gps.variant == "time_consistent"
+    assert _motion("hmm", "range-rate").model.to_dict() == motion_model("hmm").model.to_dict()
+    assert _motion("hmm").model.to_dict() == rested_bundled(HMM_RESTING).to_dict()
+    assert _motion("velocity", "range-rate-gps") == motion_model("velocity")
+    assert (HMM_STILL_RESTING.enter_per_hour, HMM_STILL_RESTING.leave_per_hour) == (
+        HMM_RESTING.enter_per_hour,
+        HMM_RESTING.leave_per_hour,
+    )
+
+
+def resting_cloud_after(resting, seconds, n=4000):
+    """Positions (2, n) and held speeds (n,) of ``n`` particles resting at the origin after
+    ``seconds`` (at most the fitted step) of the compiled time-consistent HMM with
+    ``resting``, from fixed streams."""
+    still = RestingState(0.0, 1e-5, resting.drift_speed)  # nobody leaves within the test
+    model = rested_bundled(still)
+    motion = HMMMotion(model, variant="time_consistent", heading_diffusion=0.2)
+    p = resting_particles(n, model.n_states - 1)
+    streams = rs.new_streams(np.random.default_rng(21), n)
+    motion.advance(p, streams, int(seconds), 1.0, p.normalised_weights(), (0.0, 0.0))
+    assert np.all(p.state == model.n_states - 1)
+    return np.stack([p.x, p.y]), p.speed
+
+
+@pytest.mark.parametrize("seconds", [8, 60])
+def test_a_still_resting_cloud_stops_widening(seconds):
+    """A resting particle's speed is held over the fitted step (exponential, mean the
+    drift), so its distance from where it rested is at most speed x time, and the cloud's
+    mean squared spread at most E[speed^2] t^2 = 2 drift^2 t^2: under the still resting
+    state 0.02 m over a ping interval and 0.17 m over a minute, against the gps
+    measurement's white sd of 1 m. The default's drift spreads 25 times as far, from the
+    same draws (the steps scale with the drift)."""
+    still, speed = resting_cloud_after(HMM_STILL_RESTING, seconds)
+    default, _ = resting_cloud_after(HMM_RESTING, seconds)
+    distance = np.hypot(*still)
+    assert np.all(distance <= speed * seconds + 1e-12)
+    bound = math.sqrt(2.0) * HMM_STILL_RESTING.drift_speed * seconds
+    spread = math.sqrt(np.mean(distance**2))
+    # 4,000 exponential speeds: E[speed^2] within 7 % (one sd), so the root within 4 %
+    assert 0.25 * bound <= spread <= 1.15 * bound  # it drifts (turning), slowly
+    ratio = HMM_STILL_RESTING.drift_speed / HMM_RESTING.drift_speed
+    np.testing.assert_allclose(still, ratio * default, rtol=1e-9, atol=1e-12)

@@ -30,9 +30,10 @@ from hmmtrack.random import SeedLike, as_generator
 from hmmtrack.scenarios import Scenario
 from hmmtrack.tracking import pipeline as tracking
 from hmmtrack.tracking.filter import ParticleFilter
+from hmmtrack.tracking.measurement.gps_offset import GpsOffsetMeasurement
 from hmmtrack.tracking.measurement.range_rate import OBSERVATION_COLUMNS, RangeRateMeasurement
 from hmmtrack.tracking.motion import MOTIONS as MOTION_FACTORIES
-from hmmtrack.tracking.motion import motion_model
+from hmmtrack.tracking.motion import HMM_STILL_RESTING, motion_model
 
 #: the paper's three motion models, in its order (the names of the motion registry)
 MOTIONS = tuple(MOTION_FACTORIES)
@@ -210,7 +211,8 @@ def track_scenario(
     scenario : Scenario
     motion_name : {"baseline", "velocity", "hmm"}
         :func:`hmmtrack.tracking.motion.motion_model` with its defaults; the HMM (the bundled
-        white-shark model) in the :data:`HMM_VARIANT` variant.
+        white-shark model) in the :data:`HMM_VARIANT` variant, whose resting state holds
+        still under the ``range-rate-gps`` measurement (:func:`_motion`).
     seed : int, SeedSequence or Generator
     n_particles : int
     loss_fraction : float
@@ -262,7 +264,7 @@ def track_scenario(
     )
     if detections.empty:  # everything dropped: the filter runs on its motion model alone
         pf = ParticleFilter(
-            _motion(motion_name),
+            _motion(motion_name, measurement),
             RangeRateMeasurement(np.array(config.measurement.covariance)),
             n_particles=n_particles,
             bounds=bounds,
@@ -274,16 +276,22 @@ def track_scenario(
         detections,
         scenario.receivers,
         config,
-        _motion(motion_name),
+        _motion(motion_name, measurement),
         seed=seed,
         snapshot_times=snapshot_times,
     )
 
 
-def _motion(motion_name: str):
-    """The motion model of a trial: tracking's defaults, the HMM in :data:`HMM_VARIANT`."""
+def _motion(motion_name: str, measurement: str = "range-rate"):
+    """The motion model of a trial: tracking's defaults, the HMM in :data:`HMM_VARIANT`.
+
+    Under the ``range-rate-gps`` measurement the HMM's resting state holds still
+    (:data:`hmmtrack.tracking.motion.HMM_STILL_RESTING`): that measurement's translation move
+    parts a still cloud's resampled copies, the one job of the default resting state's drift.
+    """
     if motion_name == "hmm":
-        return motion_model("hmm", variant=HMM_VARIANT)
+        resting = HMM_STILL_RESTING if measurement == GpsOffsetMeasurement.name else "default"
+        return motion_model("hmm", variant=HMM_VARIANT, resting=resting)
     return motion_model(motion_name)
 
 

@@ -25,6 +25,7 @@ __all__ = [
     "BASELINE_SIGMA",
     "HMM_HEADING_DIFFUSION",
     "HMM_RESTING",
+    "HMM_STILL_RESTING",
     "MOTIONS",
     "VELOCITY_SIGMA_SPEED",
     "VELOCITY_SIGMA_TURN_RATE",
@@ -74,6 +75,13 @@ class RestingState:
 #: resampled copies of a resting particle do not pile up on one point.
 #: ``motion_model("hmm", resting=None)`` switches it off
 HMM_RESTING = RestingState(enter_per_hour=0.5, leave_per_hour=2.0, drift_speed=0.05)
+#: resting state of the HMM motion model under a measurement that spreads a still cloud
+#: itself (the ``range-rate-gps`` measurement's translation move re-draws every particle's
+#: position from its own conditional posterior): :data:`HMM_RESTING`'s rates, and a resting
+#: tag that holds still. The default's drift is there only to part resampled copies; as a
+#: motion it widens a still tag's cloud along its best-measured line of sight by a third
+#: (reports/decisions.md, "A resting tag that holds still")
+HMM_STILL_RESTING = RestingState(enter_per_hour=0.5, leave_per_hour=2.0, drift_speed=0.002)
 
 
 #: file name of the bundled white-shark model in the package data
