@@ -10,11 +10,11 @@ from scipy import stats
 
 from hmmtrack.experiments import paper_scenarios
 from hmmtrack.experiments.configs import tracking_config
+from hmmtrack.experiments.trials import _motion
 from hmmtrack.hmm import Gamma, MovementHMM, VonMises, Weibull, WrappedCauchy
 from hmmtrack.hmm.formula import Design
 from hmmtrack.tracking import pipeline as tracking
 from hmmtrack.tracking.compiled import streams as rs
-from hmmtrack.experiments.trials import _motion
 from hmmtrack.tracking.motion import (
     HMM_RESTING,
     HMM_STILL_RESTING,

@@ -32,8 +32,8 @@ from hmmtrack.tracking import pipeline as tracking
 from hmmtrack.tracking.filter import ParticleFilter
 from hmmtrack.tracking.measurement.gps_offset import GpsOffsetMeasurement
 from hmmtrack.tracking.measurement.range_rate import OBSERVATION_COLUMNS, RangeRateMeasurement
-from hmmtrack.tracking.motion import MOTIONS as MOTION_FACTORIES
 from hmmtrack.tracking.motion import HMM_STILL_RESTING, motion_model
+from hmmtrack.tracking.motion import MOTIONS as MOTION_FACTORIES
 
 #: the paper's three motion models, in its order (the names of the motion registry)
 MOTIONS = tuple(MOTION_FACTORIES)
