@@ -79,8 +79,8 @@ HMM_RESTING = RestingState(enter_per_hour=0.5, leave_per_hour=2.0, drift_speed=0
 #: itself (the ``range-rate-gps`` measurement's translation move re-draws every particle's
 #: position from its own conditional posterior): :data:`HMM_RESTING`'s rates, and a resting
 #: tag that holds still. The default's drift is there only to part resampled copies; as a
-#: motion it widens a still tag's cloud along its best-measured line of sight by a third
-#: (reports/decisions.md, "A resting tag that holds still")
+#: motion it makes a still tag's regions about 1.2 times too wide along its best-measured
+#: line of sight (reports/decisions.md, "A resting tag that holds still")
 HMM_STILL_RESTING = RestingState(enter_per_hour=0.5, leave_per_hour=2.0, drift_speed=0.002)
 
 
