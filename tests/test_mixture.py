@@ -32,6 +32,7 @@ from hmmtrack.tracking.mixture import (
     with_modes,
 )
 from hmmtrack.tracking.motion.baseline import BaselineMotion
+from hmmtrack.tracking.particles import Particles
 from hmmtrack.tracking.resampling import Scratch, invert
 
 #: the toy model: distance of the modes from the line (m), noise of ``|x|`` and ``y`` (m),
@@ -373,11 +374,11 @@ def test_components_invert_as_each_component_alone_on_any_threads(grouped):
         for run in runs[1:]:
             for got, first in zip(run, runs[0], strict=True):
                 np.testing.assert_array_equal(got, first)
-        # the labels renumbered over the live components, and the new particles' moments
-        # summed with the ancestors: the very numbers of a pass of component_moments
+        # the new particles' labels, their ancestors' renumbered over the live components,
+        # and their moments: the very numbers of a pass of component_moments
         relabelled = (np.cumsum(counts > 0) - 1)[labels]
-        np.testing.assert_array_equal(runs[0].labels, relabelled)
         ancestors = runs[0].ancestors
+        np.testing.assert_array_equal(runs[0].labels, relabelled[ancestors])
         np.testing.assert_array_equal(
             runs[0].moments,
             component_moments(
@@ -443,3 +444,59 @@ def test_each_scheme_resamples_within_components_without_bias(scheme):
     # each particle is copied N_k w_i / π_k times on average
     expected = np.where(labels == 1, 0.0, counts[labels] * weights / component_weight[labels])
     np.testing.assert_allclose(copies / 400, expected, atol=0.25)
+
+
+@pytest.mark.parametrize("grouped", [True, False])
+def test_the_filters_resampling_merges_each_component_inside_the_gather(grouped):
+    # Mixture.draw's components merged chunk by chunk in Particles.take's gather (six
+    # chunks, components spanning several), on one and two threads: the ancestors of
+    # resample_components (checked against each component's own inversion above), every
+    # field gathered exactly, and finish's weights, labels and moments equal to its own
+    rng = np.random.default_rng(8)
+    n = 6000
+    west = rng.random(n) < 0.4
+    x = np.where(west, rng.normal(-300.0, 20.0, n), rng.normal(300.0, 20.0, n))
+    y = rng.normal(0.0, 30.0, n)
+    labels = (~west).astype(np.int64)
+    order = np.argsort(labels, kind="stable") if grouped else np.arange(n)
+    weights = rng.random(n) ** 4
+    weights[rng.random(n) < 0.1] = 0.0
+    weights /= weights.sum()
+    mixture = Mixture()
+    for scheme, code in SCHEME_CODES.items():
+        for threads in (1, 2):
+            p = Particles.uniform(np.random.default_rng(1), n, (-400.0, 400.0, -100.0, 100.0))
+            p.x, p.y = x[order], y[order]
+            p.speed, p.turn_rate = rng.random(n), rng.normal(0.0, 0.1, n)
+            p.state = rng.integers(0, 3, n).astype(p.state.dtype)
+            p.extra["component"] = labels[order]
+            w = weights[order]
+            pf = SimpleNamespace(
+                particles=p,
+                rng=np.random.default_rng(9),
+                resampling=scheme,
+                scratch=Scratch(),
+                correction_threads=lambda threads=threads: threads,
+            )
+            drawn = mixture.draw(pf, w)
+            new = p.take(drawn.ancestors, True, None, threads, drawn.locate)
+            log_weight, new_weights, n_eff, mean, moments = mixture.finish(drawn, new)
+            reclustered = mixture.recluster(p.x, p.y, w, labels[order])
+            live = np.count_nonzero(drawn.counts)
+            expected = resample_components(
+                w, reclustered, drawn.counts, drawn.component_weight, code,
+                scheme_draws(np.random.default_rng(9), code, n, live), p.x, p.y,
+            )  # fmt: skip
+            assert live == 2
+            np.testing.assert_array_equal(drawn.ancestors, expected.ancestors)
+            for name in ("x", "y", "heading", "speed", "turn_rate", "state"):
+                np.testing.assert_array_equal(
+                    getattr(new, name), getattr(p, name)[expected.ancestors]
+                )
+            np.testing.assert_array_equal(new.log_weight, np.full(n, -np.log(n)))
+            np.testing.assert_array_equal(log_weight, expected.log_weight)
+            np.testing.assert_array_equal(new_weights, expected.weights)
+            np.testing.assert_array_equal([n_eff, *mean], expected.summary)
+            np.testing.assert_array_equal(moments, expected.moments)
+            np.testing.assert_array_equal(new.extra["component"], expected.labels)
+            assert "component" not in p.extra  # taken out before the gather

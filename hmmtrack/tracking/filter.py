@@ -440,7 +440,7 @@ class ParticleFilter:
         #: ancestor indices (N,) of the last resampling (None before any); read by smoothers
         self.last_ancestors: np.ndarray | None = None
         #: with a mixture, its components' weight, mean and covariance (K, 6) after the last
-        #: resampling (:meth:`hmmtrack.tracking.mixture.Mixture.resample`); read by
+        #: resampling (:meth:`hmmtrack.tracking.mixture.Mixture.finish`); read by
         #: :class:`hmmtrack.tracking.mixture.Modes`
         self.component_moments: np.ndarray | None = None
         #: the measurement's state of this run (its ``start`` hook's; None without one)
@@ -753,11 +753,13 @@ class ParticleFilter:
                 self._take(p, ancestors)
             # equal weights now; the old weighted mean still lies inside the cloud
             self._weighed = (self.particles.log_weight, self._equal_weights(), float(p.n), origin)
-        else:
-            ancestors, log_weight, weights, n_eff, mean, self.component_moments = (
-                self.mixture.resample(self, weights)
+        else:  # each component's merge in the pass that gathers its new particles
+            drawn = self.mixture.draw(self, weights)
+            ancestors = drawn.ancestors
+            self._take(p, ancestors, drawn.locate)
+            log_weight, weights, n_eff, mean, self.component_moments = self.mixture.finish(
+                drawn, self.particles
             )
-            self._take(p, ancestors)
             self.particles.log_weight = log_weight
             self._weighed = (log_weight, weights, n_eff, mean)
         self.last_ancestors = ancestors

@@ -45,8 +45,8 @@ from hmmtrack.tracking.compiled.chunks import chunking, in_chunks, next_chunk
 from hmmtrack.tracking.particles import split_in_two, sqrt_largest_eigenvalue
 from hmmtrack.tracking.resampling import (
     Scratch,
+    Segments,
     invert,
-    merge_points,
     merge_segments,
     prepare_points,
 )
@@ -54,6 +54,7 @@ from hmmtrack.tracking.resampling import (
 __all__ = [
     "CONVERGENCE_THRESHOLD",
     "Components",
+    "Drawn",
     "ESTIMATE_MODE_COLUMNS",
     "MODE_COLUMNS",
     "ONE_MODE_WEIGHT",
@@ -142,16 +143,21 @@ class Mixture:
         """One component holds every fresh particle."""
         pf.particles.extra[COMPONENT] = np.zeros(pf.particles.n, dtype=np.int64)
 
-    def resample(self, pf, weights: np.ndarray) -> tuple:
-        """Recluster, then resample each component on its own with the filter's scheme.
+    def draw(self, pf, weights: np.ndarray) -> Drawn:
+        """Recluster, then draw each component's new particles with the filter's scheme,
+        to be gathered by ``Particles.take(drawn.ancestors, ..., locate=drawn.locate)`` and
+        finished by :meth:`finish`.
 
-        Two compiled calls around the scheme's draws: the components' moments, the
+        One compiled call before the scheme's draws: the components' moments, the
         reclustering and the allocation (:func:`_recluster_and_allocate`; the moments on
-        the correction's threads first when it has more than one), then the resampling of
-        all components (:func:`resample_components`) in the filter's work arrays, its merge
-        on the correction's threads, which also sums the new particles' ESS, mean and
-        component moments. So the cost beside the plain filter's resampling is a few
-        passes over the particles, not a Python loop.
+        the correction's threads first when it has more than one); one after them: every
+        component's cumulative weights and points in the filter's work arrays
+        (:func:`_prepare_components`). The merge of the points with the cumulative weights
+        runs chunk by chunk in the pass that gathers the new particles
+        (:class:`hmmtrack.tracking.resampling.Segments`), on the correction's threads;
+        residual's ancestors are found here. The particles' component labels are taken out
+        of ``pf.particles.extra`` (:meth:`finish` gives the new particles theirs without a
+        gather).
 
         Parameters
         ----------
@@ -159,26 +165,9 @@ class Mixture:
             Its particles, generator (``pf.rng``) and scheme name (``pf.resampling``).
         weights : numpy.ndarray, shape (N,)
             Normalised weights of the particles.
-
-        Returns
-        -------
-        ancestors : numpy.ndarray, shape (N,), int64
-            Ancestor of each new particle, grouped by component.
-        log_weight : numpy.ndarray, shape (N,)
-            Log weight ``log(π_k / N_k)`` of each new particle (the labels travel with the
-            ancestors in the particle field ``component``).
-        weights : numpy.ndarray, shape (N,)
-            Their normalised weights.
-        n_eff : float
-            Their effective sample size ``1 / Σ w²``.
-        mean : (float, float)
-            Their weighted mean position (m).
-        moments : numpy.ndarray, shape (K, 6)
-            The new particles' :func:`component_moments` (the same numbers), ``K`` the live
-            components (what :class:`Modes` reports).
         """
         p = pf.particles
-        labels = p.extra[COMPONENT]
+        labels = p.extra.pop(COMPONENT)
         threads = pf.correction_threads()
         moments = (
             _NO_MOMENTS
@@ -200,14 +189,44 @@ class Mixture:
         code = SCHEME_CODES[pf.resampling]
         scratch = pf.scratch  # the filter's work arrays, unused by its own scheme here
         draws = scheme_draws(pf.rng, code, p.n, live, scratch)
-        scratch.threads = threads
-        new = resample_components(
-            weights, labels, counts, component_weight, code, draws, p.x, p.y, scratch
+        ancestors, segments = _segments(
+            weights, labels, counts, component_weight, code, draws, scratch
         )
-        # live components numbered 0..K-1 in order (the labels travel with the ancestors)
-        p.extra[COMPONENT] = new.labels
-        n_eff, mean_x, mean_y = new.summary.tolist()
-        return new.ancestors, new.log_weight, new.weights, n_eff, (mean_x, mean_y), new.moments
+        locate = None if code == SCHEME_CODES["residual"] else segments
+        return Drawn(ancestors, locate, counts, component_weight)
+
+    def finish(self, drawn: Drawn, particles) -> tuple:
+        """The weights of the particles gathered from :meth:`draw`'s ancestors, and their
+        component labels (the particle field ``component``, live components numbered
+        ``0..K-1`` in order).
+
+        Parameters
+        ----------
+        drawn : Drawn
+            :meth:`draw`'s result, its ancestors gathered.
+        particles : Particles
+            The new particles (``particles.extra`` receives the labels).
+
+        Returns
+        -------
+        log_weight : numpy.ndarray, shape (N,)
+            Log weight ``log(π_k / N_k)`` of each new particle.
+        weights : numpy.ndarray, shape (N,)
+            Their normalised weights.
+        n_eff : float
+            Their effective sample size ``1 / Σ w²``.
+        mean : (float, float)
+            Their weighted mean position (m).
+        moments : numpy.ndarray, shape (K, 6)
+            The new particles' :func:`component_moments` (the same numbers), ``K`` the live
+            components (what :class:`Modes` reports).
+        """
+        log_weight, weights, summary, labels, moments = _finish_components(
+            drawn.counts, drawn.component_weight, particles.x, particles.y
+        )
+        particles.extra[COMPONENT] = labels
+        n_eff, mean_x, mean_y = summary.tolist()
+        return log_weight, weights, n_eff, (mean_x, mean_y), moments
 
     def recluster(self, x, y, weights, labels) -> np.ndarray:
         """New component labels (N,): merge components whose means meet, split those that
@@ -273,7 +292,7 @@ def _recluster_and_allocate(
     x, y, weights, labels, moments, max_components, min_separation, split_share, prune_weight,
     floor,
 ):  # fmt: skip
-    """The compiled part of :meth:`Mixture.resample` before the draws, from the components'
+    """The compiled part of :meth:`Mixture.draw` before the draws, from the components'
     moments (:func:`component_moments`; summed here, on this thread, when ``moments`` has
     no rows): the new labels (N,), the component weights (K,), the particles each gets
     (K,), :func:`allocate`, and the number of components that get any."""
@@ -284,6 +303,30 @@ def _recluster_and_allocate(
     )
     counts = allocate(component_weight, labels.size, prune_weight, floor)
     return labels, component_weight, counts, np.count_nonzero(counts)
+
+
+class Drawn(NamedTuple):
+    """What :meth:`Mixture.draw` returns.
+
+    Attributes
+    ----------
+    ancestors : numpy.ndarray, shape (N,), int64
+        The new particles' ancestors, grouped by component in component order: filled by
+        the gather's ``locate`` when it is given, else already.
+    locate : Segments or None
+        Every live component's inversion, merged chunk by chunk in the pass that gathers
+        the new particles (``Particles.take``'s ``locate``); ``None`` (residual) when the
+        ancestors are given.
+    counts : numpy.ndarray, shape (K,), int64
+        New particles per component (:func:`allocate`).
+    component_weight : numpy.ndarray, shape (K,)
+        Sum of the old weights of each component.
+    """
+
+    ancestors: np.ndarray
+    locate: Segments | None
+    counts: np.ndarray
+    component_weight: np.ndarray
 
 
 class Components(NamedTuple):
@@ -304,9 +347,9 @@ class Components(NamedTuple):
         summed here, one component at a time, rather than by NumPy's dot products (which
         hand arrays over 10,000 to OpenBLAS threads: a millisecond or more per call on a
         busy machine).
-    labels : numpy.ndarray, shape (N,), int64
-        The old particles' labels renumbered ``0..K'-1`` over the live components (those
-        with ``counts > 0``): the new particles take them from their ancestors.
+    labels : numpy.ndarray, shape (M,), int64
+        The new particles' components, numbered ``0..K'-1`` over the live components (those
+        with ``counts > 0``) in order.
     moments : numpy.ndarray, shape (K', 6)
         :func:`component_moments` of the new particles (positions of the ancestors, the
         new weights and labels): the same sums in the same order, taken in the pass that
@@ -332,7 +375,8 @@ def resample_components(
     every component's cumulative weights and points formed in one pass, then merged in the
     chunks of all components' points on ``scratch.threads`` threads; the ancestors do not
     depend on the threads); residual keeps ``floor(N_k w)`` copies and draws the rest
-    multinomially. On one thread the whole is one compiled call.
+    multinomially. (The particle filter runs the same steps with the merge inside its
+    gather: :meth:`Mixture.draw`.)
 
     Parameters
     ----------
@@ -356,43 +400,25 @@ def resample_components(
         and one thread.
     """
     scratch = Scratch() if scratch is None else scratch
-    total = int(counts.sum())
+    ancestors, segments = _segments(weights, labels, counts, component_weight, code, draws, scratch)
+    if code != SCHEME_CODES["residual"]:
+        merge_segments(*segments, scratch.threads, ancestors)
+    finished = _finish_components(counts, component_weight, x[ancestors], y[ancestors])
+    return Components(ancestors, *finished)
+
+
+def _segments(weights, labels, counts, component_weight, code, draws, scratch: Scratch):
+    """The ancestors' array (filled for residual) and the components' :class:`Segments`
+    in ``scratch``'s work arrays (:func:`_prepare_components`)."""
     cumulative = scratch.array("cumulative", labels.size)
-    points = scratch.array("points", total)
+    points = scratch.array("points", int(counts.sum()))
     gathered = scratch.array("gathered", labels.size)
-    ancestors = np.empty(total, dtype=np.int64)
-    inputs = (weights, labels, counts, component_weight, code, draws)
-    if scratch.threads == 1 or code == SCHEME_CODES["residual"]:
-        return Components(*_resample_serial(*inputs, cumulative, points, gathered, ancestors, x, y))
-    prepared = _prepare_components(*inputs, cumulative, points, gathered, ancestors)
-    start, at, last = prepared[:3]
-    merge_segments(cumulative, points, start, at, last, scratch.threads, ancestors)
-    finished = _finish_components(prepared, counts, component_weight, code, x, y, ancestors)
-    return Components(*finished)
-
-
-@njit(cache=True)
-def _resample_serial(
-    weights, labels, counts, component_weight, code, draws, cumulative, points, gathered,
-    ancestors, x, y,
-):  # fmt: skip
-    """:func:`resample_components` on this thread in one call: each component's merge by
-    :func:`hmmtrack.tracking.resampling.merge_points` over its whole segment (any split of
-    the points into chunks gives the same ancestors)."""
+    ancestors = np.empty(points.size, dtype=np.int64)
     prepared = _prepare_components(
         weights, labels, counts, component_weight, code, draws, cumulative, points, gathered,
         ancestors,
     )  # fmt: skip
-    start, at, last = prepared[:3]
-    if code != 1:
-        for k in range(counts.size):
-            a, b = at[k], at[k + 1]
-            if b > a:
-                merge_points(
-                    cumulative[start[k] : start[k + 1]], points[a:b], ancestors[a:b], 0, b - a,
-                    last[k],
-                )  # fmt: skip
-    return _finish_components(prepared, counts, component_weight, code, x, y, ancestors)
+    return ancestors, Segments(cumulative, points, *prepared)
 
 
 @njit(cache=True)
@@ -403,23 +429,20 @@ def _prepare_components(
     """The serial part of :func:`resample_components` before the merge.
 
     Component ``k``'s particles are ``start[k]:start[k + 1]`` in label order (themselves
-    when ``grouped``, as a resampling leaves them, else ``members`` of that slice) and its
-    new particles ``at[k]:at[k + 1]``; fills ``cumulative[start[k]:start[k + 1]]`` and
-    ``points[at[k]:at[k + 1]]`` by :func:`hmmtrack.tracking.resampling.prepare_points` (``last[k]``
-    its last index of positive weight), taking ``gathered`` for the weights of ungrouped
-    labels; residual writes its ancestors (particle indices) at once. Also each label
-    renumbered over the live components, ``relabelled`` (N,): the number of live components
-    up to it, less one."""
+    when the labels are grouped, as a resampling leaves them, else ``members`` of that
+    slice; ``members`` is empty when grouped) and its new particles ``at[k]:at[k + 1]``;
+    fills ``cumulative[start[k]:start[k + 1]]`` and ``points[at[k]:at[k + 1]]`` by
+    :func:`hmmtrack.tracking.resampling.prepare_points` (``last[k]`` its last index of
+    positive weight), taking ``gathered`` for the weights of ungrouped labels; residual
+    writes its ancestors (particle indices) at once. Returns ``start, at, last, members``
+    (:class:`~hmmtrack.tracking.resampling.Segments`' last four)."""
     n_components = counts.size
     start = np.zeros(n_components + 1, dtype=np.int64)
-    rank = np.cumsum(counts > 0) - 1
-    relabelled = np.empty(labels.size, dtype=np.int64)
     # labels in component order (as a resampling leaves them): each component's particles
     # are a slice, so no index list is built and no weights are gathered
     grouped = True
     for i in range(labels.size):
         start[labels[i] + 1] += 1
-        relabelled[i] = rank[labels[i]]
         if i > 0 and labels[i] < labels[i - 1]:
             grouped = False
     for k in range(n_components):
@@ -472,23 +495,21 @@ def _prepare_components(
                 own_points[j] = (j + draws[d + j if code == 2 else d]) / c
             last[k] = prepare_points(w, scale, own_points, c, 1.0, False, cum, own_points)
             d += c if code == 2 else 1
-    return start, at, last, members, grouped, relabelled
+    return start, at, last, members
 
 
 @njit(cache=True)
-def _finish_components(prepared, counts, component_weight, code, x, y, ancestors):
-    """The serial part of :func:`resample_components` after the merge: ``ancestors`` made
-    particle indices (but residual's, already so), the log weights, the weights, the
-    summary, the renumbered labels and the new particles' component moments, one component
-    at a time (the moments' sums in the chunks of
-    :func:`hmmtrack.tracking.compiled.chunks.chunking` over the new particles, about each
-    component's first new particle, as :func:`component_moments` sums them)."""
-    start, at, members, grouped, relabelled = (
-        prepared[0], prepared[1], prepared[3], prepared[4], prepared[5],
-    )  # fmt: skip
-    total = ancestors.size
+def _finish_components(counts, component_weight, x, y):
+    """The serial part of :func:`resample_components` after the merge, from the new
+    particles' positions ``x, y`` (M,) (grouped by component): their log weights, weights,
+    summary, labels and component moments, one component at a time (the moments' sums in
+    the chunks of :func:`hmmtrack.tracking.compiled.chunks.chunking` over the new
+    particles, about each component's first new particle, as :func:`component_moments`
+    sums them)."""
+    total = x.size
     log_weight = np.empty(total)
     new_weights = np.empty(total)
+    labels = np.empty(total, dtype=np.int64)
     sum_squares = mean_x = mean_y = 0.0
     live = 0.0
     n_live = 0
@@ -500,19 +521,17 @@ def _finish_components(prepared, counts, component_weight, code, x, y, ancestors
     size = chunking(total)[1]
     sums = np.zeros((chunking(total)[0], n_live, 6))
     r = 0  # the live rank of component k
+    a = 0  # its first new particle
     for k in range(counts.size):
         c = counts[k]
         if c == 0:
             continue
-        lo, a = start[k], at[k]
         log_w = math.log(component_weight[k] / live / c)
         w_k = math.exp(log_w)
         log_weight[a : a + c] = log_w
         new_weights[a : a + c] = w_k
-        if code != 1:
-            for j in range(a, a + c):
-                ancestors[j] = lo + ancestors[j] if grouped else members[lo + ancestors[j]]
-        ox, oy = x[ancestors[a]], y[ancestors[a]]
+        labels[a : a + c] = r
+        ox, oy = x[a], y[a]
         origin[r, 0], origin[r, 1] = ox, oy
         sx = sy = 0.0
         j = a
@@ -521,7 +540,7 @@ def _finish_components(prepared, counts, component_weight, code, x, y, ancestors
             end = min(a + c, (chunk + 1) * size)
             own = sums[chunk]
             for i in range(j, end):
-                xi, yi = x[ancestors[i]], y[ancestors[i]]
+                xi, yi = x[i], y[i]
                 sx += xi
                 sy += yi
                 _add_moments(own, r, w_k, xi - ox, yi - oy)
@@ -530,9 +549,10 @@ def _finish_components(prepared, counts, component_weight, code, x, y, ancestors
         mean_x += w_k * sx
         mean_y += w_k * sy
         r += 1
+        a += c
     summary = np.array([1.0 / sum_squares, mean_x, mean_y])
     moments = _moments_of_sums(sums, origin)
-    return ancestors, log_weight, new_weights, summary, relabelled, moments
+    return log_weight, new_weights, summary, labels, moments
 
 
 @njit(cache=True)

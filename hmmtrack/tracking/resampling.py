@@ -41,12 +41,14 @@ __all__ = [
     "Inversion",
     "Prepared",
     "Scratch",
+    "Segments",
     "effective_sample_size",
     "first_above",
     "get_resampler",
     "inverse_cdf",
     "invert",
     "log_normalise",
+    "merge_chunk",
     "merge_points",
     "merge_segments",
     "multinomial",
@@ -198,42 +200,58 @@ def _prepare_into(weights, weight_scale, values, n, value_scale, running, cumula
     )
 
 
+@njit(cache=True, inline="always")
+def merge_chunk(cumulative, points, start, at, last, members, lo, hi, out):
+    """``out[lo:hi]`` = the ancestors of the points ``lo:hi`` of several independent
+    inversions (segments, :func:`merge_segments`): :func:`merge_points` piece by piece where
+    the range spans several segments, each index within its segment then made an index into
+    the whole (``start[k] + j``, or ``members[start[k] + j]`` when ``members`` is not empty).
+    Any split of the points into ranges gives the same ancestors."""
+    k = 0
+    while at[k + 1] <= lo:
+        k += 1
+    while k < last.size and at[k] < hi:
+        a, b = at[k], at[k + 1]
+        first, end = max(lo, a), min(hi, b)
+        if first < end:
+            cum = cumulative[start[k] : start[k + 1]]
+            merge_points(cum, points[a:b], out[a:b], first - a, end - a, last[k])
+            for j in range(first, end):
+                i = start[k] + out[j]
+                out[j] = i if members.size == 0 else members[i]
+        k += 1
+
+
 @njit(cache=True, nogil=True)
-def _merge_kernel(cumulative, points, start, at, last, counter, out):
-    """:func:`merge_points` of every chunk of ``out`` not yet claimed (:func:`next_chunk`),
-    piece by piece where a chunk spans several segments (:func:`merge_segments`)."""
+def _merge_kernel(cumulative, points, start, at, last, members, counter, out):
+    """:func:`merge_chunk` of every chunk of ``out`` not yet claimed (:func:`next_chunk`)."""
     chunk, lo, hi = next_chunk(counter, out.size)
     while chunk >= 0:
-        k = 0
-        while at[k + 1] <= lo:
-            k += 1
-        while k < last.size and at[k] < hi:
-            a, b = at[k], at[k + 1]
-            if max(lo, a) < min(hi, b):
-                cum = cumulative[start[k] : start[k + 1]]
-                merge_points(cum, points[a:b], out[a:b], max(lo, a) - a, min(hi, b) - a, last[k])
-            k += 1
+        merge_chunk(cumulative, points, start, at, last, members, lo, hi, out)
         chunk, lo, hi = next_chunk(counter, out.size)
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def _merge_parallel(threads, cumulative, points, start, at, last, counter, out):
+def _merge_parallel(threads, cumulative, points, start, at, last, members, counter, out):
     """:func:`_merge_kernel` on ``threads`` threads."""
     for _ in numba.prange(threads):
-        _merge_kernel(cumulative, points, start, at, last, counter, out)
+        _merge_kernel(cumulative, points, start, at, last, members, counter, out)
 
 
-def merge_segments(cumulative, points, start, at, last, threads: int, out) -> None:
+def merge_segments(cumulative, points, start, at, last, members, threads: int, out) -> None:
     """:func:`merge_points` of several independent inversions at once, in the chunks of
-    :mod:`hmmtrack.tracking.compiled.chunks` on ``threads`` threads.
+    :mod:`hmmtrack.tracking.compiled.chunks` on ``threads`` threads (:func:`merge_chunk`).
 
     Segment ``k`` has the cumulative weights ``cumulative[start[k]:start[k + 1]]`` (its
     last index of positive weight ``last[k]``) and the ascending points
-    ``points[at[k]:at[k + 1]]``; ``out[at[k]:at[k + 1]]`` receives their indices within the
-    segment. One segment is the whole cloud's inversion (:class:`Scratch`); the mixture
-    filter's components are several (:func:`hmmtrack.tracking.mixture.resample_components`).
-    Any split of the points into chunks gives the same indices, so they do not depend on
-    ``threads``.
+    ``points[at[k]:at[k + 1]]``; ``out[at[k]:at[k + 1]]`` receives their ancestors: the
+    index ``j`` found within the segment made ``start[k] + j``, or ``members[start[k] + j]``
+    when ``members`` is not empty (segment ``k``'s weights were those of the particles
+    ``members[start[k]:start[k + 1]]``). One segment is the whole cloud's inversion
+    (:class:`Scratch`); the mixture filter's components are several
+    (:func:`hmmtrack.tracking.mixture.resample_components`; :class:`Segments` does the same
+    chunk by chunk in the pass that gathers the new particles). Any split of the points
+    into chunks gives the same ancestors, so they do not depend on ``threads``.
 
     Parameters
     ----------
@@ -242,10 +260,11 @@ def merge_segments(cumulative, points, start, at, last, threads: int, out) -> No
     start : numpy.ndarray, shape (K + 1,) int64
     at : numpy.ndarray, shape (K + 1,) int64
     last : numpy.ndarray, shape (K,) int64
+    members : numpy.ndarray, shape (start[K],) or (0,), int64
     threads : int
     out : numpy.ndarray, shape (at[K],) int64
     """
-    args = (cumulative, points, start, at, last)
+    args = (cumulative, points, start, at, last, members)
     in_chunks(_merge_kernel, _merge_parallel, out.size, threads, args, out)
 
 
@@ -333,6 +352,39 @@ def _merge_chunk(locate, lo, hi, ancestors):
     return merge
 
 
+class Segments(NamedTuple):
+    """Several inversions ready to merge (:func:`merge_segments`' arguments): as the
+    ``locate`` of :meth:`hmmtrack.tracking.particles.Particles.take`, each chunk of the new
+    particles finds its ancestors by :func:`merge_chunk` in the pass that gathers it (the
+    mixture filter's components, :meth:`hmmtrack.tracking.mixture.Mixture.draw`)."""
+
+    cumulative: np.ndarray
+    points: np.ndarray
+    start: np.ndarray
+    at: np.ndarray
+    last: np.ndarray
+    members: np.ndarray
+
+
+@overload(chunk_ancestors)
+def _merge_segments_chunk(locate, lo, hi, ancestors):
+    """:func:`~hmmtrack.tracking.compiled.chunks.chunk_ancestors` of :class:`Segments`."""
+    if not (isinstance(locate, types.BaseNamedTuple) and locate.instance_class is Segments):
+        return None
+
+    def merge(locate, lo, hi, ancestors):
+        merge_chunk(
+            locate.cumulative, locate.points, locate.start, locate.at, locate.last,
+            locate.members, lo, hi, ancestors,
+        )  # fmt: skip
+
+    return merge
+
+
+#: "the segments' indices are the particles'" (:func:`merge_segments`' ``members``)
+_NO_MEMBERS = np.zeros(0, dtype=np.int64)
+
+
 def _invert_with(scratch, weights, weight_scale, values, n, value_scale, running):
     """:func:`invert` into ``scratch``'s arrays (``None``: :func:`invert` itself), its merge
     on ``scratch.threads`` threads."""
@@ -343,7 +395,7 @@ def _invert_with(scratch, weights, weight_scale, values, n, value_scale, running
     )
     out = np.empty(n, dtype=np.int64)
     whole = np.array([0, weights.size], dtype=np.int64), np.array([0, n], dtype=np.int64)
-    merge_segments(cumulative, points, *whole, np.array([last]), scratch.threads, out)
+    merge_segments(cumulative, points, *whole, np.array([last]), _NO_MEMBERS, scratch.threads, out)
     return out
 
 
