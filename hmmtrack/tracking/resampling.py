@@ -144,9 +144,9 @@ def prepare_points(weights, weight_scale, values, n, value_scale, running, cumul
 
 
 @njit(cache=True, inline="always")
-def merge_points(cumulative, points, out, lo, hi, last):
-    """``out[k]`` = the first ``j`` with ``cumulative[j] > points[k]`` for ``k`` in
-    ``lo..hi-1`` (ascending points; ``cumulative[last]`` is ``inf``).
+def merge_points(cumulative, points, out, lo, hi, first, last):
+    """``out[k]`` = the first ``j`` from ``first`` on with ``cumulative[j] > points[k]`` for
+    ``k`` in ``lo..hi-1`` (ascending points; ``cumulative[last]`` is ``inf``).
 
     The points are split in four runs, each started by a binary search and merged with the
     cumulative weights by :func:`_merge_step`, the four in lockstep. A plain merge of random
@@ -157,7 +157,7 @@ def merge_points(cumulative, points, out, lo, hi, last):
     size = (m + 3) // 4
     e0, e1, e2 = lo + min(size, m), lo + min(2 * size, m), lo + min(3 * size, m)
     k0, k1, k2, k3 = lo, e0, e1, e2
-    j0 = first_above(cumulative, points[k0], 0, last) if k0 < e0 else last
+    j0 = first_above(cumulative, points[k0], first, last) if k0 < e0 else last
     j1 = first_above(cumulative, points[k1], j0, last) if k1 < e1 else last
     j2 = first_above(cumulative, points[k2], j1, last) if k2 < e2 else last
     j3 = first_above(cumulative, points[k3], j2, last) if k3 < hi else last
@@ -188,7 +188,7 @@ def invert(weights, weight_scale, values, n, value_scale, running):
     last = prepare_points(
         weights, weight_scale, values, n, value_scale, running, cumulative, points
     )
-    merge_points(cumulative, points, out, 0, n, last)
+    merge_points(cumulative, points, out, 0, n, 0, last)
     return out
 
 
@@ -204,9 +204,10 @@ def _prepare_into(weights, weight_scale, values, n, value_scale, running, cumula
 def merge_chunk(cumulative, points, start, at, last, members, lo, hi, out):
     """``out[lo:hi]`` = the ancestors of the points ``lo:hi`` of several independent
     inversions (segments, :func:`merge_segments`): :func:`merge_points` piece by piece where
-    the range spans several segments, each index within its segment then made an index into
-    the whole (``start[k] + j``, or ``members[start[k] + j]`` when ``members`` is not empty).
-    Any split of the points into ranges gives the same ancestors."""
+    the range spans several segments, each searching its own segment of ``cumulative``, so
+    that it finds ``start[k] + j`` for the index ``j`` within the segment (made
+    ``members[start[k] + j]`` when ``members`` is not empty). Any split of the points into
+    ranges gives the same ancestors."""
     k = 0
     while at[k + 1] <= lo:
         k += 1
@@ -214,11 +215,13 @@ def merge_chunk(cumulative, points, start, at, last, members, lo, hi, out):
         a, b = at[k], at[k + 1]
         first, end = max(lo, a), min(hi, b)
         if first < end:
-            cum = cumulative[start[k] : start[k + 1]]
-            merge_points(cum, points[a:b], out[a:b], first - a, end - a, last[k])
-            for j in range(first, end):
-                i = start[k] + out[j]
-                out[j] = i if members.size == 0 else members[i]
+            own = out[a:b]
+            merge_points(
+                cumulative, points[a:b], own, first - a, end - a, start[k], start[k] + last[k]
+            )
+            if members.size > 0:
+                for j in range(first - a, end - a):
+                    own[j] = members[own[j]]
         k += 1
 
 
@@ -347,7 +350,7 @@ def _merge_chunk(locate, lo, hi, ancestors):
         return None
 
     def merge(locate, lo, hi, ancestors):
-        merge_points(locate.cumulative, locate.points, ancestors, lo, hi, locate.last)
+        merge_points(locate.cumulative, locate.points, ancestors, lo, hi, 0, locate.last)
 
     return merge
 
