@@ -171,3 +171,17 @@ def test_scratch_and_threads_leave_the_ancestors_unchanged(name):
             for _ in range(2):
                 got = resample(np.random.default_rng(n + power), w, n, scratch)
                 np.testing.assert_array_equal(got, expected)
+
+
+def test_scratch_alternates_between_two_arrays_of_each_name():
+    scratch = Scratch()
+    first = scratch.alternate("w", 5)
+    second = scratch.alternate("w", 5)
+    assert first is not second and not np.shares_memory(first, second)
+    assert scratch.alternate("w", 5) is first and scratch.alternate("w", 5) is second
+    labels = scratch.alternate("labels", 5, np.dtype(np.int64))
+    assert labels.dtype == np.int64 and labels.shape == (5,)
+    assert first.dtype == np.float64 and scratch.alternate("w", 5) is first  # own turns
+    resized = scratch.alternate("w", 7)
+    assert resized.shape == (7,) and resized is not second
+    assert scratch.array("w", 5) is not first  # the plain work arrays are apart

@@ -758,7 +758,7 @@ class ParticleFilter:
             ancestors = drawn.ancestors
             self._take(p, ancestors, drawn.locate)
             log_weight, weights, n_eff, mean, self.component_moments = self.mixture.finish(
-                drawn, self.particles
+                drawn, self.particles, self.scratch
             )
             self.particles.log_weight = log_weight
             self._weighed = (log_weight, weights, n_eff, mean)

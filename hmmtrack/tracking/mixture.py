@@ -195,7 +195,7 @@ class Mixture:
         locate = None if code == SCHEME_CODES["residual"] else segments
         return Drawn(ancestors, locate, counts, component_weight)
 
-    def finish(self, drawn: Drawn, particles) -> tuple:
+    def finish(self, drawn: Drawn, particles, scratch: Scratch | None = None) -> tuple:
         """The weights of the particles gathered from :meth:`draw`'s ancestors, and their
         component labels (the particle field ``component``, live components numbered
         ``0..K-1`` in order).
@@ -206,6 +206,10 @@ class Mixture:
             :meth:`draw`'s result, its ancestors gathered.
         particles : Particles
             The new particles (``particles.extra`` receives the labels).
+        scratch : Scratch, optional
+            The filter's work arrays: the log weights, weights and labels are written into
+            two sets of its arrays in turn (:meth:`Scratch.alternate`: each stays valid
+            until the resampling after the next); by default new arrays.
 
         Returns
         -------
@@ -221,9 +225,19 @@ class Mixture:
             The new particles' :func:`component_moments` (the same numbers), ``K`` the live
             components (what :class:`Modes` reports).
         """
-        log_weight, weights, summary, labels, moments = _finish_components(
-            drawn.counts, drawn.component_weight, particles.x, particles.y
+        n = particles.n
+        if scratch is None:
+            into = np.empty(n), np.empty(n), np.empty(n, dtype=np.int64)
+        else:
+            into = (
+                scratch.alternate("mixture log weight", n),
+                scratch.alternate("mixture weights", n),
+                scratch.alternate("mixture labels", n, _INT64),
+            )
+        summary, moments = _finish_components(
+            drawn.counts, drawn.component_weight, particles.x, particles.y, *into
         )
+        log_weight, weights, labels = into
         particles.extra[COMPONENT] = labels
         n_eff, mean_x, mean_y = summary.tolist()
         return log_weight, weights, n_eff, (mean_x, mean_y), moments
@@ -266,6 +280,8 @@ class Mixture:
 
 #: codes of the resampling schemes in :func:`resample_components`
 SCHEME_CODES = {"multinomial": 0, "residual": 1, "stratified": 2, "systematic": 3}
+#: the labels' dtype (for :meth:`~hmmtrack.tracking.resampling.Scratch.alternate`)
+_INT64 = np.dtype(np.int64)
 #: "no moments given": :func:`_recluster_and_allocate` sums them itself
 _NO_MOMENTS = np.zeros((0, 6))
 
@@ -403,8 +419,15 @@ def resample_components(
     ancestors, segments = _segments(weights, labels, counts, component_weight, code, draws, scratch)
     if code != SCHEME_CODES["residual"]:
         merge_segments(*segments, scratch.threads, ancestors)
-    finished = _finish_components(counts, component_weight, x[ancestors], y[ancestors])
-    return Components(ancestors, *finished)
+    log_weight, weights, labels = (
+        np.empty(ancestors.size),
+        np.empty(ancestors.size),
+        np.empty(ancestors.size, dtype=np.int64),
+    )
+    summary, moments = _finish_components(
+        counts, component_weight, x[ancestors], y[ancestors], log_weight, weights, labels
+    )
+    return Components(ancestors, log_weight, weights, summary, labels, moments)
 
 
 def _segments(weights, labels, counts, component_weight, code, draws, scratch: Scratch):
@@ -499,17 +522,14 @@ def _prepare_components(
 
 
 @njit(cache=True)
-def _finish_components(counts, component_weight, x, y):
+def _finish_components(counts, component_weight, x, y, log_weight, new_weights, labels):
     """The serial part of :func:`resample_components` after the merge, from the new
-    particles' positions ``x, y`` (M,) (grouped by component): their log weights, weights,
-    summary, labels and component moments, one component at a time (the moments' sums in
-    the chunks of :func:`hmmtrack.tracking.compiled.chunks.chunking` over the new
-    particles, about each component's first new particle, as :func:`component_moments`
-    sums them)."""
+    particles' positions ``x, y`` (M,) (grouped by component): their log weights, weights
+    and labels into the arrays (M,) given, and their summary and component moments, one
+    component at a time (the moments' sums in the chunks of
+    :func:`hmmtrack.tracking.compiled.chunks.chunking` over the new particles, about each
+    component's first new particle, as :func:`component_moments` sums them)."""
     total = x.size
-    log_weight = np.empty(total)
-    new_weights = np.empty(total)
-    labels = np.empty(total, dtype=np.int64)
     sum_squares = mean_x = mean_y = 0.0
     live = 0.0
     n_live = 0
@@ -551,8 +571,7 @@ def _finish_components(counts, component_weight, x, y):
         r += 1
         a += c
     summary = np.array([1.0 / sum_squares, mean_x, mean_y])
-    moments = _moments_of_sums(sums, origin)
-    return log_weight, new_weights, summary, labels, moments
+    return summary, _moments_of_sums(sums, origin)
 
 
 @njit(cache=True)

@@ -271,6 +271,10 @@ def merge_segments(cumulative, points, start, at, last, members, threads: int, o
     in_chunks(_merge_kernel, _merge_parallel, out.size, threads, args, out)
 
 
+#: the work arrays' usual dtype (comparing with a dtype is faster than with ``np.float64``)
+_FLOAT64 = np.dtype(np.float64)
+
+
 class Scratch:
     """Work arrays of the inverse-CDF schemes (multinomial, stratified, systematic), reused
     from one resampling to the next, and the threads they run on.
@@ -286,12 +290,27 @@ class Scratch:
     def __init__(self, threads: int = 1) -> None:
         self.threads = threads
         self._arrays: dict[str, np.ndarray] = {}
+        self._turns: dict[str, int] = {}
 
     def array(self, name: str, size: int) -> np.ndarray:
         """The float work array ``name`` with ``size`` entries (its contents undefined)."""
-        array = self._arrays.get(name)
-        if array is None or array.size != size:
-            array = self._arrays[name] = np.empty(size)
+        return self._kept(name, size, _FLOAT64)
+
+    def alternate(self, name: str, size: int, dtype: np.dtype = _FLOAT64) -> np.ndarray:
+        """Of two work arrays ``name`` with ``size`` entries, the one the previous call did
+        not return (its contents undefined): for results that must outlive the next
+        resampling but not the one after it (the mixture's new log weights, weights and
+        labels, :meth:`hmmtrack.tracking.mixture.Mixture.finish`), so that none is a fresh
+        array to fault in."""
+        turn = self._turns.get(name, 0)
+        self._turns[name] = 1 - turn
+        return self._kept(f"{name} {turn}", size, dtype)
+
+    def _kept(self, key: str, size: int, dtype) -> np.ndarray:
+        """The work array ``key``, made anew when it has not ``size`` entries of ``dtype``."""
+        array = self._arrays.get(key)
+        if array is None or array.size != size or array.dtype != dtype:
+            array = self._arrays[key] = np.empty(size, dtype=dtype)
         return array
 
     def steps(self, n: int) -> np.ndarray:
