@@ -31,6 +31,7 @@ This module moves no particle in time and reads no file.
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 
@@ -79,10 +80,16 @@ class Acquisition:
         if not 0.0 < self.uniform_share < 1.0:
             raise ValueError(f"uniform_share must lie in (0, 1), got {self.uniform_share!r}")
 
-    def first(self, corrections):
-        """The corrections to score: the first :attr:`corrections` of ``corrections`` (a
-        sequence of ``(time, rows)``, by time) within :attr:`window` of the first."""
-        chosen = list(corrections[: self.corrections])
+    def first(self, corrections, measurement=None):
+        """The corrections to score: the first :attr:`corrections` of ``corrections`` (an
+        iterable of ``(time, rows)``, by time, read no further than needed) within
+        :attr:`window` of the first; of those that inform ``measurement`` when it says which
+        do (its ``informative(rows)`` hook: a ping heard by one receiver says nothing of
+        where the tag is)."""
+        informative = getattr(measurement, "informative", None)
+        if informative is not None:
+            corrections = (c for c in corrections if informative(c[1]))
+        chosen = list(itertools.islice(corrections, self.corrections))
         return [c for c in chosen if c[0] - chosen[0][0] <= self.window] if chosen else []
 
     def acquire(self, pf, corrections) -> str | None:
@@ -102,9 +109,14 @@ class Acquisition:
             What was done (for the filter's ``acquired`` event); ``None`` when there was
             nothing to score (the particles are left uniform).
         """
-        chosen = self.first(corrections)
+        chosen = self.first(corrections, pf.measurement)
         if not chosen:
             return None
+        return self.place(pf, chosen)
+
+    def place(self, pf, chosen) -> str:
+        """Re-place the filter's particles from the likelihood of the ``chosen``
+        corrections (:meth:`first`), as :meth:`acquire` does; what was done."""
         _, loglik = grid_loglik(pf.measurement, pf.bounds, self.cells, chosen, pf.dt)
         beta = temper(loglik, self.grid_ess)
         p = pf.particles
@@ -151,7 +163,9 @@ def grid_loglik(measurement, bounds, cells: int, corrections, dt: float = 1.0, e
     measurement
         A :class:`hmmtrack.tracking.measurement.base.Measurement`: scored by its ``score``
         hook (with a fresh ``start`` state, the clock of the arrival-time measurement) when
-        it has one, else by ``loglik``.
+        it has one, else by ``loglik``; when it has an ``on_grid(cell)`` hook, as that
+        returns it for the grid's cell (m): a likelihood sharper than a cell (a ping's
+        hyperbolae, metres wide) widened so that the cell centres do not miss it.
     bounds : (xmin, xmax, ymin, ymax)
         m.
     cells : int
@@ -173,6 +187,9 @@ def grid_loglik(measurement, bounds, cells: int, corrections, dt: float = 1.0, e
         finite value minus 50 nats, a cell that no observation allows).
     """
     xmin, xmax, ymin, ymax = as_bounds(bounds)
+    on_grid = getattr(measurement, "on_grid", None)
+    if on_grid is not None:
+        measurement = on_grid(max(xmax - xmin, ymax - ymin) / cells)
     cx = xmin + (np.arange(cells) + 0.5) * (xmax - xmin) / cells
     cy = ymin + (np.arange(cells) + 0.5) * (ymax - ymin) / cells
     gx, gy = np.meshgrid(cx, cy)

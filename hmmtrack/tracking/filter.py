@@ -133,6 +133,10 @@ FILTERS = {
 #: paper rows) name ``"paper"``
 DEFAULT_FILTER = "mode-keeping"
 BACKENDS = ("auto", "numba", "numpy")
+#: the particle fields a motion model's ``initialise`` sets (besides the position and weight)
+_MOTION_FIELDS = (
+    "heading", "cos_heading", "sin_heading", "speed", "turn_rate", "state", "time_since_draw",
+)  # fmt: skip
 RESAMPLE_WHEN = ("always", "ess")
 
 
@@ -881,8 +885,7 @@ class ParticleFilter:
         # the measurement's own matrix form of all observations, converted once (a pandas
         # slice per correction costs more than the correction)
         matrix = obs if self._as_matrix is None else self._as_matrix(obs)
-        if self.acquisition is not None:
-            self._acquire(start, ticks, matrix)
+        deferred = None if self.acquisition is None else self._acquire(start, ticks, matrix)
         if outside.size:
             self._record(
                 "observations_outside_window",
@@ -904,6 +907,8 @@ class ParticleFilter:
             predicted = self.predict(stop - current)
             yield from predicted[:-1]
             estimate = predicted[-1] if predicted else self.estimate()
+            if deferred is not None and stop == deferred[0]:
+                self._start_at_acquisition(deferred[1])
             if hi > lo:
                 estimate = self._correct(matrix[lo:hi], lambda lo=lo, hi=hi: obs.iloc[lo:hi])
             if stop in snap_ticks and snapshots is not None:
@@ -913,22 +918,54 @@ class ParticleFilter:
             yield estimate
             current = stop
 
-    def _acquire(self, start: float, ticks: np.ndarray, rows) -> None:
-        """Run the acquisition on the first corrections and record an ``acquired`` event
-        (no warning). ``ticks`` (M,), ascending, are the prediction steps of ``rows``, the
-        observations in the measurement's form in the same order (sliced per correction,
-        as :meth:`iterate` slices them)."""
-        first = np.unique(ticks)[: self.acquisition.corrections]
-        bounds = zip(
-            first.tolist(),
-            np.searchsorted(ticks, first).tolist(),
-            np.searchsorted(ticks, first + 1).tolist(),
-            strict=True,
-        )
-        corrections = [(start + tick * self.dt, rows[lo:hi]) for tick, lo, hi in bounds]
-        detail = self.acquisition.acquire(self, corrections)
-        if detail is not None:
-            self.events.append({"time": self.time, "kind": "acquired", "detail": detail})
+    def _acquire(self, start: float, ticks: np.ndarray, rows) -> tuple[int, list] | None:
+        """Run the acquisition on the first corrections that inform the measurement
+        (:meth:`Acquisition.first <hmmtrack.tracking.acquisition.Acquisition.first>`) and
+        record an ``acquired`` event (no warning). ``ticks`` (M,), ascending, are the
+        prediction steps of ``rows``, the observations in the measurement's form in the same
+        order (sliced per correction, as :meth:`iterate` slices them).
+
+        When corrections that say nothing of the position come first (pings heard by one
+        receiver), the tag may move far before the first one that does: the acquisition is
+        then deferred to that correction's step, returned with the corrections chosen
+        (:meth:`_start_at_acquisition`), and the particles stay uniform until it."""
+        steps = np.unique(ticks)
+
+        def corrections():
+            for tick in steps.tolist():
+                lo, hi = np.searchsorted(ticks, [tick, tick + 1]).tolist()
+                yield start + tick * self.dt, rows[lo:hi]
+
+        chosen = self.acquisition.first(corrections(), self.measurement)
+        if not chosen:
+            return None
+        tick = round((chosen[0][0] - start) / self.dt)
+        if tick > steps[0]:
+            return tick, chosen
+        detail = self.acquisition.place(self, chosen)
+        self.events.append({"time": self.time, "kind": "acquired", "detail": detail})
+        return None
+
+    def _start_at_acquisition(self, chosen) -> None:
+        """The deferred acquisition (:meth:`_acquire`), at the first correction that informs
+        the measurement: the particles start afresh there -- motion fields as
+        :meth:`initialise` draws them, positions and weights from the ``chosen``
+        corrections' likelihood, the measurement's run state and the mixture restarted --
+        and an ``acquired`` event is recorded (no warning)."""
+        p = self.particles
+        fresh = Particles.uniform(self.rng, p.n, self.bounds)
+        self.motion.initialise(self.rng, fresh)
+        for name in _MOTION_FIELDS:
+            setattr(p, name, getattr(fresh, name))
+        p.extra.update(fresh.extra)
+        detail = self.acquisition.place(self, chosen)
+        if self._start is not None:
+            self.measurement_state = self._start(p, self.time, self.dt)
+        if self.mixture is not None:
+            self.mixture.initialised(self)
+        if self.monitor is not None:
+            self.monitor.start(self)
+        self.events.append({"time": self.time, "kind": "acquired", "detail": detail})
 
     def _snapshot_ticks(self, snapshot_times, start: float, n_ticks: int) -> np.ndarray:
         snap = np.asarray(snapshot_times, dtype=np.float64)

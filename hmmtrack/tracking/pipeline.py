@@ -427,7 +427,11 @@ def particle_filter(
             *([Modes()] if settings.mixture or settings.modes else []),
         ],
         mixture=Mixture() if settings.mixture else None,
-        acquisition=Acquisition() if settings.acquisition else None,
+        acquisition=(
+            getattr(measurement, "default_acquisition", Acquisition())
+            if settings.acquisition
+            else None
+        ),
         monitor=(
             Monitor(long_gap=settings.long_gap, loss=settings.monitor)
             if settings.long_gap or settings.monitor

@@ -56,6 +56,12 @@ class Tempered:
         effective particles than this in one pass (the cloud much wider than the
         likelihood: before convergence, after a gap), and then in steps that keep ``ess``;
         a correction between the two is applied in one pass. ``None``: ``ess``.
+    accept : bool
+        Keep each particle's move only with the Metropolis probability of the likelihood
+        applied so far, ``min(1, exp(β (ℓ(moved) − ℓ(before))))`` (β the powers applied),
+        else put it back: the move is shaped by the whole cloud's covariance, so while
+        stray particles far away hold weight it throws the particles off a mode a few
+        metres wide (a ping's fix); ``False``: every move is kept (the regularisation alone).
 
     Notes
     -----
@@ -67,6 +73,7 @@ class Tempered:
 
     ess: float = 0.3
     trigger: float | None = None
+    accept: bool = False
 
     def __post_init__(self) -> None:
         if not 0.0 < self.ess < 1.0:
@@ -102,6 +109,7 @@ class Tempered:
             pf.particles.log_weight = before
         bandwidth = (4.0 / (pf.n_particles * 4.0)) ** (1.0 / 6.0)
         remaining = 1.0
+        stale = False
         while True:
             p = pf.particles
             beta, p.log_weight, weights = temper(p.log_weight, loglik, remaining, self.ess * p.n)
@@ -111,9 +119,26 @@ class Tempered:
                 break
             pf.resample()
             p = pf.particles
+            before = (p.x, p.y, loglik[pf.last_ancestors])
             p.x, p.y = regularisation_move(p.x, p.y, pf.rng.standard_normal((2, p.n)), bandwidth)
             loglik = score.rescore(p, pf.weights()[0])
+            if self.accept:
+                loglik, stale = _metropolis(pf, before, loglik, 1.0 - remaining)
+        if stale:
+            score.rescore(p, pf.weights()[0])  # the measurement's run state at the kept places
         return pf.estimate()
+
+
+def _metropolis(pf, before, loglik, applied: float):
+    """Keep each moved particle with probability ``min(1, exp(applied · Δℓ))``, else put
+    it back (``before``: positions (m) and log-likelihood before the move, (N,) each); the
+    log-likelihood at the kept places, and whether any was put back (the measurement last
+    scored the moved places). One ``(N,)`` uniform draw from the filter's generator."""
+    p = pf.particles
+    x, y, old = before
+    kept = np.log(pf.rng.uniform(size=p.n)) < applied * (loglik - old)
+    p.x, p.y = np.where(kept, p.x, x), np.where(kept, p.y, y)
+    return np.where(kept, loglik, old), not kept.all()
 
 
 @njit(cache=True)

@@ -58,6 +58,7 @@ tag to a metre.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from typing import ClassVar
@@ -68,6 +69,7 @@ import pandas as pd
 from numba import njit
 
 from hmmtrack.sync.pings import largest_travel_time
+from hmmtrack.tracking.acquisition import Acquisition
 from hmmtrack.tracking.compiled.chunks import in_chunks, next_chunk
 from hmmtrack.tracking.measurement.arrival_time import emission_distance, vertical_parts
 from hmmtrack.tracking.measurement.base import Score, no_events
@@ -145,6 +147,11 @@ PING_MOTION = {"name": "baseline", "sigma_position": 2.5}
 PING_SMOOTHING_LAG = 60
 #: receivers that must hear a ping for it to fix the tag's position (two time differences)
 FIX_RECEIVERS = 3
+#: the acquisition of a ping run (:class:`hmmtrack.tracking.acquisition.Acquisition`): from
+#: the first fixes (pings heard by :data:`FIX_RECEIVERS`, :meth:`PingTDOA.informative`)
+#: within five minutes of the first, three of them so that one multipath arrival does not
+#: place the start
+PING_ACQUISITION = Acquisition(corrections=3, window=300.0)
 #: slack (s) beyond the burst interval's maximum before two fixes are taken to have a missed
 #: ping between them: the corrections' rounding to the 1 s grid and the travel times
 MISSED_PING_SLACK = 5.0
@@ -582,9 +589,10 @@ class PingTDOA:
     settings: ClassVar[type] = PingSettings
     columns: ClassVar[tuple[str, ...]] = ("arrival", "ping", "receiver_x", "receiver_y")
     fields: ClassVar[tuple[str, ...]] = ()
-    default_correction: ClassVar[Tempered] = Tempered(PING_TEMPERING_ESS)
+    default_correction: ClassVar[Tempered] = Tempered(PING_TEMPERING_ESS, accept=True)
     default_motion: ClassVar[dict] = PING_MOTION
     default_smoothing_lag: ClassVar[int] = PING_SMOOTHING_LAG
+    default_acquisition: ClassVar[Acquisition] = PING_ACQUISITION
     #: smoothed by backward simulation under a random walk
     #: (:class:`hmmtrack.tracking.smoothing.BackwardSmoother`): a sharp ping leaves the
     #: steps before it few traced ancestors
@@ -646,6 +654,27 @@ class PingTDOA:
     def collectors(self) -> tuple:
         """A fresh :class:`PingTrace`."""
         return (PingTrace(),)
+
+    @staticmethod
+    def informative(rows: np.ndarray) -> bool:
+        """Whether ``rows`` (:meth:`as_matrix`) can fix the tag, so that an acquisition
+        (:meth:`hmmtrack.tracking.acquisition.Acquisition.first`) starts from them: one of
+        their pings heard by :data:`FIX_RECEIVERS` or more receivers. A ping heard by one
+        receiver says nothing of the position, and one heard by two a hyperbola that the
+        tag's motion until the next fix smears along."""
+        _, heard = np.unique(rows[:, 5], return_counts=True)
+        return bool(heard.max(initial=0) >= FIX_RECEIVERS)
+
+    def on_grid(self, cell: float) -> PingTDOA:
+        """This measurement as a grid of ``cell``-metre cells scores it
+        (:func:`hmmtrack.tracking.acquisition.grid_loglik`): a ping's hyperbolae are a few
+        metres wide (``σ`` times the sound speed), so a grid point a few metres off them
+        would miss a cell that holds the tag. Each arrival's residual is widened by its
+        spread over a cell -- a uniform point in a square of side ``cell`` projects on any
+        direction with sd ``cell / √12``, so the travel time spreads by that over the sound
+        speed -- and the core sd becomes ``√(σ² + (cell / (c √12))²)``."""
+        spread = cell / (self.sound_speed * math.sqrt(12.0))
+        return dataclasses.replace(self, sigma=math.hypot(self.sigma, spread))
 
     def start(self, particles, time: float, dt: float = 1.0) -> PingState:
         """A fresh run state (no particle fields)."""
