@@ -18,7 +18,7 @@ from hmmtrack.io.outputs import check_paths
 
 #: the named filters (:data:`hmmtrack.tracking.filter.FILTERS`), written out so that
 #: ``--help`` imports no tracking code
-FILTER_NAMES = ("paper", "mode-keeping")
+FILTER_NAMES = ("paper", "mode-keeping", "acquired")
 
 DESCRIPTION = (
     "Rerun the paper's experiments on the bundled synthetic datasets and write every figure "

@@ -266,8 +266,9 @@ def register(subparsers) -> None:
         help=(
             "named filter: mode-keeping (--acquisition --mixture --long-gap: particles drawn "
             "from the first detections' likelihood, every mode of the posterior kept, the tag "
-            "re-acquired after a long silence) or paper (the "
-            "paper's algorithm: particles uniform in the box, the whole cloud resampled); the "
+            "re-acquired after a long silence), paper (the "
+            "paper's algorithm: particles uniform in the box, the whole cloud resampled) or "
+            "acquired (the paper's with --acquisition); the "
             f"switch options override it (default: {DEFAULT_FILTER}; "
             + "; ".join(f"{f} for --measurement {m}" for m, f in MEASUREMENT_FILTERS.items())
             + ")"

@@ -120,11 +120,14 @@ PARALLEL_MIN_CORRECTION = 10_000
 #: the search box, the whole cloud resampled, no monitor); ``mode-keeping``: issue 13's
 #: (particles drawn from the first corrections' likelihood, every mode kept by mixture
 #: resampling, re-acquired after a long gap; reports/decisions.md, "Mode-keeping filter"
-#: and "The long gap in the default filter"). The lost-tag test (``monitor``) is in
-#: neither: on the shark pursuit it re-acquires onto the mirror as often as onto the tag
+#: and "The long gap in the default filter"); ``acquired``: the paper's started from the
+#: first corrections' likelihood (the ping measurement's: reports/decisions.md, "Finding a
+#: random-interval tag on three moorings"). The lost-tag test (``monitor``) is in none: on
+#: the shark pursuit it re-acquires onto the mirror as often as onto the tag
 FILTERS = {
     "paper": {"acquisition": False, "mixture": False, "long_gap": False, "monitor": False},
     "mode-keeping": {"acquisition": True, "mixture": True, "long_gap": True, "monitor": False},
+    "acquired": {"acquisition": True, "mixture": False, "long_gap": False, "monitor": False},
 }
 #: the filter whose switches are :class:`FilterSettings`' defaults, run by a configuration
 #: that names none, for every measurement: it keeps both intersections of two rings where

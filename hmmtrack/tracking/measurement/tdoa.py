@@ -150,8 +150,11 @@ FIX_RECEIVERS = 3
 #: the acquisition of a ping run (:class:`hmmtrack.tracking.acquisition.Acquisition`): from
 #: the first fixes (pings heard by :data:`FIX_RECEIVERS`, :meth:`PingTDOA.informative`)
 #: within five minutes of the first, three of them so that one multipath arrival does not
-#: place the start
-PING_ACQUISITION = Acquisition(corrections=3, window=300.0)
+#: place the start; on a grid of 256 x 256 (9 m cells over the moorings' 2.4 km box): at 64 x
+#: 64 (37 m) too few particles fall within the metres of a fix for the tempered correction
+#: to find it, and a still tag with exact arrivals was lost (reports/decisions.md, "Finding
+#: a random-interval tag on three moorings")
+PING_ACQUISITION = Acquisition(corrections=3, window=300.0, cells=256)
 #: slack (s) beyond the burst interval's maximum before two fixes are taken to have a missed
 #: ping between them: the corrections' rounding to the 1 s grid and the travel times
 MISSED_PING_SLACK = 5.0
