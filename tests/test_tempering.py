@@ -5,6 +5,7 @@ tempered exactly as without a trigger."""
 from __future__ import annotations
 
 import warnings
+from types import SimpleNamespace
 
 import numpy as np
 import pandas as pd
@@ -13,7 +14,7 @@ import pytest
 from hmmtrack.tracking.filter import ParticleFilter
 from hmmtrack.tracking.motion.baseline import BaselineMotion
 from hmmtrack.tracking.resampling import effective_sample_size
-from hmmtrack.tracking.tempering import Plain, Tempered
+from hmmtrack.tracking.tempering import Plain, Tempered, _metropolis
 
 N = 500
 BOX = (-100.0, 100.0, -100.0, 100.0)
@@ -102,3 +103,34 @@ def test_degenerate_weights_are_recovered_as_by_the_plain_correction():
         np.testing.assert_array_equal(getattr(triggered, name), getattr(plain, name))
     assert estimate == want
     assert estimate.n_eff < 0.05 * N
+
+
+def test_a_move_is_kept_with_the_metropolis_probability_of_the_powers_applied():
+    """``_metropolis``: a move that gains likelihood is always kept, one that loses 1e9
+    nats never, and one that loses ``log(1/0.3) / applied`` nats three times in ten (a
+    binomial count within five sds); the log-likelihood returned is that of the kept
+    places, and a rejection is reported (the measurement last scored the moved places)."""
+    n = 20_000
+    before_x, before_y = np.zeros(n), np.zeros(n)
+    old = np.zeros(n)
+    applied = 0.4
+    for change, share in [(1.0, 1.0), (-1e9, 0.0), (np.log(0.3) / applied, 0.3)]:
+        p = SimpleNamespace(n=n, x=np.ones(n), y=np.full(n, 2.0))
+        pf = SimpleNamespace(particles=p, rng=np.random.default_rng(8))
+        moved = np.full(n, change)
+        loglik, stale = _metropolis(pf, (before_x, before_y, old), moved, applied)
+        kept = p.x == 1.0
+        assert np.array_equal(p.y == 2.0, kept)
+        assert np.array_equal(loglik, np.where(kept, moved, old))
+        assert stale == (share < 1.0)
+        assert abs(kept.mean() - share) <= 5 * np.sqrt(share * (1 - share) / n) + 1e-12
+
+
+def test_accepted_moves_keep_the_tempered_correction_on_the_point():
+    """With the Metropolis acceptance the tempered correction still ends on the point and
+    keeps at least ``ess`` of the particles."""
+    sd = 1.0
+    assert one_pass_ess(sd) < 0.05
+    particles, estimate = corrected(Tempered(0.5, accept=True), sd)
+    assert effective_sample_size(particles.log_weight) >= 0.5 * N * (1 - 1e-3)
+    assert estimate.x == pytest.approx(20.0, abs=1.0)
