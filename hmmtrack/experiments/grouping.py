@@ -113,7 +113,9 @@ def _run(method: str, case, seed: int, detections, options: dict, settings):
             }
             | dict(settings or {})
         )
-        # its own motion, as a user's run: with the velocity motion it diverges to km here
+        # its own motion, as a user's run (with the velocity motion it ran off to km here
+        # until the acquisition from the first fixes: reports/decisions.md, "Finding a
+        # random-interval tag on three moorings")
         return track(detections, sc.receivers, config, config.motion.build(), seed=seed)
     config = grouped_config(options, sc.period, case.search_bounds, settings)
     return track(detections, sc.receivers, config, options["motion"], seed=seed)
