@@ -22,6 +22,13 @@ corrections instead, evaluated on a coarse grid over the box:
    (:func:`propose`): the filter then scores the same observations as always, so its
    posterior is the paper's, only better sampled -- both intersections start populated.
 
+A measurement may say which corrections inform it (an ``informative(rows)`` hook: a ping
+heard by one receiver says nothing of the position); then the first informative ones are
+scored, and when others come before them the filter starts its particles at the first
+informative one (:meth:`hmmtrack.tracking.filter.ParticleFilter.iterate`), not at the start.
+A measurement sharper than a cell (a ping's hyperbolae) widens itself for the grid (an
+``on_grid(cell)`` hook, :func:`grid_loglik`).
+
 The same grid re-places the particles when the tag is lost
 (:class:`hmmtrack.tracking.monitor.Monitor`): there the recent corrections are scored and
 the particles take the grid posterior's weights.
@@ -92,31 +99,23 @@ class Acquisition:
         chosen = list(itertools.islice(corrections, self.corrections))
         return [c for c in chosen if c[0] - chosen[0][0] <= self.window] if chosen else []
 
-    def acquire(self, pf, corrections) -> str | None:
-        """Re-place the filter's fresh particles from the likelihood of ``corrections``.
+    def place(self, pf, chosen) -> str:
+        """Re-place the filter's fresh particles from the likelihood of the ``chosen``
+        corrections.
 
         Parameters
         ----------
         pf : ParticleFilter
-            Just initialised: its particles, bounds, generator, measurement and ``dt``.
-        corrections : sequence of (float, rows)
-            The run's corrections in time order: time (s) and the observations in the
-            measurement's form (what the filter scores); the first ones are used.
+            Just started: its particles, bounds, generator, measurement and ``dt``.
+        chosen : sequence of (float, rows)
+            The corrections to score (:meth:`first`): time (s) and the observations in the
+            measurement's form (what the filter scores).
 
         Returns
         -------
-        str or None
-            What was done (for the filter's ``acquired`` event); ``None`` when there was
-            nothing to score (the particles are left uniform).
+        str
+            What was done (for the filter's ``acquired`` event).
         """
-        chosen = self.first(corrections, pf.measurement)
-        if not chosen:
-            return None
-        return self.place(pf, chosen)
-
-    def place(self, pf, chosen) -> str:
-        """Re-place the filter's particles from the likelihood of the ``chosen``
-        corrections (:meth:`first`), as :meth:`acquire` does; what was done."""
         _, loglik = grid_loglik(pf.measurement, pf.bounds, self.cells, chosen, pf.dt)
         beta = temper(loglik, self.grid_ess)
         p = pf.particles
@@ -133,7 +132,7 @@ class Acquisition:
 
     def reacquire(self, pf, corrections, bounds, min_ess: float | None = None) -> str:
         """Re-place the particles on the grid posterior of recent ``corrections`` (already
-        scored by the filter) over ``bounds``: positions drawn as in :meth:`acquire`, log
+        scored by the filter) over ``bounds``: positions drawn as in :meth:`place`, log
         weights the grid's tempered log-likelihood minus the proposal's, so the cloud is
         that posterior under a uniform prior over the box. ``min_ess`` (default
         :attr:`grid_ess`) tempers the likelihood itself: observations that are not trusted
