@@ -396,8 +396,9 @@ def particle_filter(
     -------
     ParticleFilter
         Corrected by the measurement's default policy, or tempered at
-        ``settings.tempering_ess`` when set; with ``settings.mixture``, resampled by
-        components (:class:`hmmtrack.tracking.mixture.Mixture`) and reporting them
+        ``settings.tempering_ess`` when set (with the default's acceptance of moves);
+        with ``settings.mixture``, resampled by components
+        (:class:`hmmtrack.tracking.mixture.Mixture`) and reporting them
         (:class:`hmmtrack.tracking.mixture.Modes`; with ``settings.modes`` too, the
         clusters of the cloud); with ``settings.acquisition``, started
         from the first corrections' likelihood
@@ -405,11 +406,9 @@ def particle_filter(
         and ``settings.monitor``, watched for a long gap and a lost tag and re-acquired
         (:class:`hmmtrack.tracking.monitor.Monitor`, those two rules).
     """
-    correction = (
-        measurement.default_correction
-        if settings.tempering_ess is None
-        else Tempered(settings.tempering_ess)
-    )
+    correction = measurement.default_correction
+    if settings.tempering_ess is not None:  # (the measurement's acceptance of moves kept)
+        correction = Tempered(settings.tempering_ess, accept=getattr(correction, "accept", False))
     return ParticleFilter(
         motion,
         measurement,
