@@ -62,13 +62,15 @@ MIRROR_FROM = 600.0
 #: the methods of :func:`grouping_rows`; "random-interval pings" is the ``"ping"`` measurement
 #: told only that the tag's intervals lie within :data:`RANDOM_INTERVAL` of its period (each
 #: ping's emission free, no detection curve, its own random-walk motion): whether its outliers
-#: let the cloud escape as the grouped ping's uniform one did
+#: let the cloud escape as the grouped ping's uniform one did; ", velocity motion" runs it with
+#: the motion of the other rows instead
 METHODS = (
     "arrival-time",
     "arrival-time, no detection curve",
     "grouped pings",
     "grouped pings, no detection curve",
     "random-interval pings",
+    "random-interval pings, velocity motion",
 )
 #: the random-interval run's burst interval about the tag's period (s): the moored array's
 #: 8 s tag wanders 0.1 s from its schedule
@@ -100,7 +102,7 @@ def _run(method: str, case, seed: int, detections, options: dict, settings):
         return track_arrival(detections, sc.receivers, without_silences(options))
     if method == "grouped pings, no detection curve":
         options = without_silences(options)
-    if method == "random-interval pings":
+    if method.startswith("random-interval pings"):
         config = options["config"]
         config = TrackingConfig.from_keys(
             **{
@@ -113,10 +115,12 @@ def _run(method: str, case, seed: int, detections, options: dict, settings):
             }
             | dict(settings or {})
         )
-        # its own motion, as a user's run (with the velocity motion it ran off to km here
-        # until the acquisition from the first fixes: reports/decisions.md, "Finding a
-        # random-interval tag on three moorings")
-        return track(detections, sc.receivers, config, config.motion.build(), seed=seed)
+        # its own motion, as a user's run, unless told (with the velocity motion it ran off
+        # to km here until the acquisition from the first fixes: reports/decisions.md,
+        # "Finding a random-interval tag on three moorings")
+        own = method == "random-interval pings"
+        motion = config.motion.build() if own else options["motion"]
+        return track(detections, sc.receivers, config, motion, seed=seed)
     config = grouped_config(options, sc.period, case.search_bounds, settings)
     return track(detections, sc.receivers, config, options["motion"], seed=seed)
 
