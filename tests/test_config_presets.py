@@ -446,23 +446,21 @@ def test_a_named_filter_sets_its_switches_and_the_section_keys_override_them(tmp
         TrackingConfig.from_keys(**base, filter="best")
 
 
-def test_the_ping_measurement_runs_the_acquired_filter_unless_told():
+def test_the_ping_measurement_runs_the_papers_filter_unless_told():
     """A configuration that names no filter runs :data:`DEFAULT_FILTER` (mode-keeping) with
-    every measurement but those of :data:`MEASUREMENT_FILTERS` (ping: the paper's with the
-    acquisition); a named filter or an explicit switch wins, and the switches survive a
-    round trip."""
+    every measurement but those of :data:`MEASUREMENT_FILTERS` (ping: the paper's); a named
+    filter or an explicit switch wins, and the switches survive a round trip."""
     switches = ("acquisition", "mixture", "long_gap", "monitor")
 
     def on(config):
         return tuple(getattr(config.filter, k) for k in switches)
 
-    assert MEASUREMENT_FILTERS == {"ping": "acquired"}
+    assert MEASUREMENT_FILTERS == {"ping": "paper"}
     for measurement in ("range-rate", "arrival-time", "ping-sequence"):
         config = TrackingConfig.from_keys(measurement=measurement, period=8.0)
         assert on(config) == (True, True, True, False), measurement
     ping = TrackingConfig.from_keys(measurement="ping")
-    assert on(ping) == (True, False, False, False)
-    assert on(TrackingConfig.from_keys(measurement="ping", filter="paper")) == (False,) * 4
+    assert on(ping) == (False, False, False, False)
     assert TrackingConfig.from_dict(ping.to_dict()) == ping
     assert on(TrackingConfig.from_keys(measurement="ping", filter="mode-keeping")) == (
         True,

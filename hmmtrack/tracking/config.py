@@ -79,13 +79,13 @@ PRESET_DIR = Path(__file__).resolve().parents[1] / "data" / "presets"
 SECTIONS = {"measurement": "range-rate", "motion": "hmm", "filter": None}
 #: the named filter (:data:`~hmmtrack.tracking.filter.FILTERS`) a configuration that names
 #: none runs with these measurements instead of
-#: :data:`~hmmtrack.tracking.filter.DEFAULT_FILTER`: the ping measurement's is the paper's
-#: with the acquisition (``"acquired"``). On YAPS's array, which hears each ping at many
-#: receivers, the mixture kept one component throughout (reports/decisions.md, "The
-#: library's default filter"); on three moorings the acquisition from the first fixes finds
-#: the tag that a uniform start searched for most of an hour (reports/decisions.md,
-#: "Finding a random-interval tag on three moorings")
-MEASUREMENT_FILTERS = {"ping": "acquired"}
+#: :data:`~hmmtrack.tracking.filter.DEFAULT_FILTER`: on YAPS's array, which hears each ping
+#: at many receivers, the mode-keeping filter kept one component throughout and its smoothed
+#: median was 0.03-0.09 m higher (reports/decisions.md, "The library's default filter"); the
+#: ``"acquired"`` filter (the first fixes' likelihood) finds a tag on three moorings only
+#: with the tempered moves' acceptance, which costs the dense simulated array
+#: (reports/decisions.md, "Finding a random-interval tag on three moorings")
+MEASUREMENT_FILTERS = {"ping": "paper"}
 
 
 def section_classes(section: str) -> dict[str | None, type]:
@@ -324,7 +324,7 @@ def section_default(data: Mapping, section: str) -> dict:
     section names another model, or for a filter section that names a filter of
     :data:`~hmmtrack.tracking.filter.FILTERS` (``"paper"``, ``"mode-keeping"``) that
     filter's switches, and for one that names none the switches of the measurement's filter
-    in :data:`MEASUREMENT_FILTERS` (the ping measurement: ``"acquired"``).
+    in :data:`MEASUREMENT_FILTERS` (the ping measurement: ``"paper"``).
 
     Parameters
     ----------

@@ -592,7 +592,7 @@ class PingTDOA:
     settings: ClassVar[type] = PingSettings
     columns: ClassVar[tuple[str, ...]] = ("arrival", "ping", "receiver_x", "receiver_y")
     fields: ClassVar[tuple[str, ...]] = ()
-    default_correction: ClassVar[Tempered] = Tempered(PING_TEMPERING_ESS, accept=True)
+    default_correction: ClassVar[Tempered] = Tempered(PING_TEMPERING_ESS)
     default_motion: ClassVar[dict] = PING_MOTION
     default_smoothing_lag: ClassVar[int] = PING_SMOOTHING_LAG
     default_acquisition: ClassVar[Acquisition] = PING_ACQUISITION
