@@ -351,13 +351,13 @@ def paired_summary(
         a = wide[(error, method)].to_numpy(dtype=float)
         b = wide[(error, baseline)].to_numpy(dtype=float)
         ratio = a / b
-        boot = np.median(ratio[rng.integers(0, ratio.size, (n_boot, ratio.size))], axis=1)
+        lo, hi = _bootstrap_interval(ratio, lambda s: np.median(s, axis=1), n_boot, rng)
         row = {
             "scenario": name,
             "runs": ratio.size,
             "median_ratio": float(np.median(ratio)),
-            "ratio_lo": float(np.percentile(boot, 2.5)),
-            "ratio_hi": float(np.percentile(boot, 97.5)),
+            "ratio_lo": lo,
+            "ratio_hi": hi,
             "wilcoxon_p": float(stats.wilcoxon(a, b).pvalue),
             "p_worse": float(stats.wilcoxon(a, b, alternative="greater").pvalue),
             "worse_share": float(np.mean(ratio > 1.0 + WORSE_BY)),
@@ -370,6 +370,15 @@ def paired_summary(
             row["heard_by_3"] = float(wide[("heard_by_3", method)].mean())
         out.append(row)
     return pd.DataFrame(out)
+
+
+def _bootstrap_interval(values, statistic, n_boot: int, rng) -> tuple[float, float]:
+    """Percentile-bootstrap 95 % interval of ``statistic`` over ``values`` (K,): ``n_boot``
+    resamples of K drawn with replacement from ``rng``; ``statistic`` maps the resamples
+    (n_boot, K) to one value each (n_boot,)."""
+    picks = rng.integers(0, values.size, (n_boot, values.size))
+    lo, hi = np.percentile(statistic(values[picks]), [2.5, 97.5])
+    return float(lo), float(hi)
 
 
 #: the pooled ratio of :func:`filter_seed_summary` is "not worse" when its upper 95 % bound is
@@ -445,14 +454,12 @@ def filter_seed_summary(
     per_dataset = pd.DataFrame(out)
     log_ratio = np.log(per_dataset["ratio"].to_numpy())
     rng = np.random.default_rng(seed)
-    picks = rng.integers(0, log_ratio.size, (n_boot, log_ratio.size))
-    boot = np.exp(log_ratio[picks].mean(axis=1))
-    lo, hi = np.percentile(boot, [2.5, 97.5])
+    lo, hi = _bootstrap_interval(log_ratio, lambda s: np.exp(s.mean(axis=1)), n_boot, rng)
     pooled = {
         "datasets": log_ratio.size,
         "geometric_ratio": float(np.exp(log_ratio.mean())),
-        "ratio_lo": float(lo),
-        "ratio_hi": float(hi),
+        "ratio_lo": lo,
+        "ratio_hi": hi,
         "not_worse": bool(hi < NOT_WORSE_BY),
         "mean_ratio": float(per_dataset["ratio"].mean()),
         f"{baseline}_m": float(per_dataset[f"{baseline}_m"].mean()),
