@@ -165,7 +165,7 @@ def clock_inputs(case: ClockScenario, seed, n_particles: int, motion: str, durat
 def config_options(config: TrackingConfig) -> dict:
     """The :func:`track_arrival` options an arrival-time ``config`` sets: the configuration
     and its motion model (seed and smoother lag are the caller's)."""
-    return {"config": config, "motion": config.motion.build()}
+    return {"config": config, "motion": config.motion_model()}
 
 
 def without_silences(options: dict) -> dict:

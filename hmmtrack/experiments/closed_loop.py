@@ -539,5 +539,5 @@ def arrival_time_tracker(config: TrackingConfig, seed: SeedLike = None) -> Parti
         config.measurement, observations=None, receivers=None
     )
     return particle_filter(
-        config.filter, measurement, config.bounds, config.motion.build(), seed=seed
+        config.filter, measurement, config.bounds, config.motion_model(), seed=seed
     )

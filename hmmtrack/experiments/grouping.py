@@ -119,7 +119,7 @@ def _run(method: str, case, seed: int, detections, options: dict, settings):
         # to km here until the acquisition from the first fixes: reports/decisions.md,
         # "Finding a random-interval tag on three moorings")
         own = method == "random-interval pings"
-        motion = config.motion.build() if own else options["motion"]
+        motion = config.motion_model() if own else options["motion"]
         return track(detections, sc.receivers, config, motion, seed=seed)
     config = grouped_config(options, sc.period, case.search_bounds, settings)
     return track(detections, sc.receivers, config, options["motion"], seed=seed)

@@ -29,11 +29,11 @@ from hmmtrack.experiments.configs import tracking_config
 from hmmtrack.random import SeedLike, as_generator
 from hmmtrack.scenarios import Scenario
 from hmmtrack.tracking import pipeline as tracking
+from hmmtrack.tracking.config import measurement_motion
 from hmmtrack.tracking.filter import ParticleFilter
-from hmmtrack.tracking.measurement.gps_offset import GpsOffsetMeasurement
 from hmmtrack.tracking.measurement.range_rate import OBSERVATION_COLUMNS, RangeRateMeasurement
-from hmmtrack.tracking.motion import HMM_STILL_RESTING, motion_model
 from hmmtrack.tracking.motion import MOTIONS as MOTION_FACTORIES
+from hmmtrack.tracking.motion.settings import MOTION_SETTINGS, HMMSettings
 
 #: the paper's three motion models, in its order (the names of the motion registry)
 MOTIONS = tuple(MOTION_FACTORIES)
@@ -211,8 +211,8 @@ def track_scenario(
     scenario : Scenario
     motion_name : {"baseline", "velocity", "hmm"}
         :func:`hmmtrack.tracking.motion.motion_model` with its defaults; the HMM (the bundled
-        white-shark model) in the :data:`HMM_VARIANT` variant, whose resting state holds
-        still under the ``range-rate-gps`` measurement (:func:`_motion`).
+        white-shark model) in the :data:`HMM_VARIANT` variant, with the settings the
+        measurement gives it (:func:`_motion`).
     seed : int, SeedSequence or Generator
     n_particles : int
     loss_fraction : float
@@ -283,16 +283,14 @@ def track_scenario(
 
 
 def _motion(motion_name: str, measurement: str = "range-rate"):
-    """The motion model of a trial: tracking's defaults, the HMM in :data:`HMM_VARIANT`.
-
-    Under the ``range-rate-gps`` measurement the HMM's resting state holds still
-    (:data:`hmmtrack.tracking.motion.HMM_STILL_RESTING`): that measurement's translation move
-    parts a still cloud's resampled copies, the one job of the default resting state's drift.
-    """
-    if motion_name == "hmm":
-        resting = HMM_STILL_RESTING if measurement == GpsOffsetMeasurement.name else "default"
-        return motion_model("hmm", variant=HMM_VARIANT, resting=resting)
-    return motion_model(motion_name)
+    """The motion model of a trial: tracking's defaults under ``measurement``, the HMM in
+    :data:`HMM_VARIANT`, by the tracking layer's rule
+    (:func:`hmmtrack.tracking.config.measurement_motion`; e.g. under ``range-rate-gps`` the
+    HMM's resting tag holds still and its held speeds take a log random walk)."""
+    settings = (
+        HMMSettings(variant=HMM_VARIANT) if motion_name == "hmm" else MOTION_SETTINGS[motion_name]()
+    )
+    return measurement_motion(settings, measurement)
 
 
 @dataclass(frozen=True)

@@ -21,7 +21,11 @@ where a section may leave out any key with a default (``name`` too: ``"range-rat
 ``"paper"`` or ``"mode-keeping"``, whose switches its own keys then override, else it runs
 :data:`~hmmtrack.tracking.filter.DEFAULT_FILTER`), a relative ``model`` path (and
 ``clocks``, a clock file of ``hmmtrack sync``) is relative to the file, and an unknown key
-is an error that names the file, the section and the valid keys.
+is an error that names the file, the section and the valid keys. A motion setting left
+unset (``None``, "the measurement's") takes the value the measurement gives that motion
+model in :data:`MEASUREMENT_MOTIONS` when the run builds its motion model
+(:meth:`TrackingConfig.motion_model`): under ``range-rate-gps`` the HMM's resting tag holds
+still and its held speeds take a log random walk; a value given in the section wins.
 
 A *preset* is a bundled file of settings only, without the keys that describe one data set
 (period, ``r0``, transmitter, bounds, start, end), for one kind of deployment; read by name
@@ -44,6 +48,7 @@ from pathlib import Path
 
 from hmmtrack.tracking.filter import FILTERS, FilterSettings
 from hmmtrack.tracking.measurement import MEASUREMENTS
+from hmmtrack.tracking.motion.registry import HMM_GPS_SPEED_DIFFUSION, HMM_STILL_RESTING
 from hmmtrack.tracking.motion.settings import MOTION_SETTINGS, HMMSettings
 from hmmtrack.tracking.settings import (
     Settings,
@@ -56,9 +61,11 @@ from hmmtrack.tracking.settings import (
 __all__ = [
     "DESCRIPTIVE_KEYS",
     "MEASUREMENT_FILTERS",
+    "MEASUREMENT_MOTIONS",
     "PRESET_DIR",
     "SECTIONS",
     "TrackingConfig",
+    "measurement_motion",
     "merge_settings",
     "nest",
     "preset_names",
@@ -86,6 +93,45 @@ SECTIONS = {"measurement": "range-rate", "motion": "hmm", "filter": None}
 #: with the tempered moves' acceptance, which costs the dense simulated array
 #: (reports/decisions.md, "Finding a random-interval tag on three moorings")
 MEASUREMENT_FILTERS = {"ping": "paper"}
+#: the motion settings a measurement runs each motion model with where the ``motion``
+#: section leaves them unset (``None``): {measurement: {motion model: {key: value}}}. The
+#: ``range-rate-gps`` measurement parts a still cloud's resampled copies itself (its
+#: translation move), so the HMM's resting tag holds still
+#: (:data:`~hmmtrack.tracking.motion.HMM_STILL_RESTING`); its regions are narrow enough to
+#: show the few distinct held speeds that resampling leaves, so the swimming states' speed
+#: takes a log random walk (:data:`~hmmtrack.tracking.motion.HMM_GPS_SPEED_DIFFUSION`)
+#: (reports/decisions.md, "A resting tag that holds still" and "The HMM's held speed as a
+#: log-speed random walk")
+MEASUREMENT_MOTIONS = {
+    "range-rate-gps": {
+        "hmm": {
+            "resting_drift": HMM_STILL_RESTING.drift_speed,
+            "speed_diffusion": HMM_GPS_SPEED_DIFFUSION,
+        },
+    },
+}
+
+
+def measurement_motion(motion: Settings, measurement: str):
+    """The motion model that the ``motion`` section's settings build under the measurement
+    named ``measurement``: each setting the section leaves unset (``None``) and
+    :data:`MEASUREMENT_MOTIONS` gives for that measurement and motion model takes that
+    value; a setting given explicitly wins.
+
+    Parameters
+    ----------
+    motion : Settings
+        A motion section (:data:`~hmmtrack.tracking.motion.settings.MOTION_SETTINGS`).
+    measurement : str
+        A measurement's name (:data:`~hmmtrack.tracking.measurement.MEASUREMENTS`).
+
+    Returns
+    -------
+    MotionModel
+    """
+    own = MEASUREMENT_MOTIONS.get(measurement, {}).get(motion.name, {})
+    unset = {key: value for key, value in own.items() if getattr(motion, key) is None}
+    return dataclasses.replace(motion, **unset).build()
 
 
 def section_classes(section: str) -> dict[str | None, type]:
@@ -230,6 +276,11 @@ class TrackingConfig(Settings):
                 )
         if self.start is not None and self.end is not None and not self.start < self.end:
             raise ValueError(f"start ({self.start}) must be before end ({self.end})")
+
+    def motion_model(self):
+        """The run's motion model: the ``motion`` section's, with the settings it leaves to
+        the measurement filled in (:func:`measurement_motion`)."""
+        return measurement_motion(self.motion, self.measurement.name)
 
     @property
     def smoothing(self) -> int | None:

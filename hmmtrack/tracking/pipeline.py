@@ -459,7 +459,9 @@ def track(
     ----------
     detections, receivers, config
         See :func:`build_observations`; the configuration's sections name the measurement,
-        the motion model (its model file, variant, resting state), the filter's settings,
+        the motion model (its model file, variant, resting state; settings it leaves unset
+        are the measurement's, :meth:`~hmmtrack.tracking.config.TrackingConfig.motion_model`),
+        the filter's settings,
         its ``clocks`` a clock file mapping the receivers' times to the common time base
         (and the positions it refined, :func:`clock_positions`),
         and its smoothing lag
@@ -515,7 +517,7 @@ def track(
             "(its motion section, e.g. config.override(motion=...))"
         )
     if motion is None:
-        motion = config.motion.build()
+        motion = config.motion_model()
     bounds = measurement.start_box(
         observations, receivers, settings, config.bounds, config.start if start is None else start
     )

@@ -26,6 +26,7 @@ from hmmtrack.tracking.motion.baseline import BaselineMotion
 from hmmtrack.tracking.motion.hmm import HMM_VARIANTS, HMMMotion
 from hmmtrack.tracking.motion.registry import (
     BASELINE_SIGMA,
+    HMM_GPS_SPEED_DIFFUSION,
     HMM_HEADING_DIFFUSION,
     HMM_RESTING,
     HMM_STILL_RESTING,
@@ -34,12 +35,14 @@ from hmmtrack.tracking.motion.registry import (
     VELOCITY_SIGMA_TURN_RATE,
     RestingState,
     bundled_model_path,
+    default_resting,
     motion_model,
 )
 from hmmtrack.tracking.motion.velocity import VelocityMotion
 
 __all__ = [
     "BASELINE_SIGMA",
+    "HMM_GPS_SPEED_DIFFUSION",
     "HMM_HEADING_DIFFUSION",
     "HMM_RESTING",
     "HMM_STILL_RESTING",
@@ -53,5 +56,6 @@ __all__ = [
     "RestingState",
     "VelocityMotion",
     "bundled_model_path",
+    "default_resting",
     "motion_model",
 ]

@@ -7,7 +7,8 @@ from the step and angle distributions of its state of a fitted
 variants (:data:`HMM_VARIANTS`, see :class:`HMMMotion`): ``"time_consistent"`` (the fitted
 time step respected at any prediction step, draw clocks staggered across particles) and
 ``"paper"`` (new state and new draws every prediction step, whatever ``model.dt``);
-optionally a heading random walk (``heading_diffusion``) on top of the fitted model.
+optionally a heading random walk (``heading_diffusion``) and a random walk of the log of the
+held speed (``speed_diffusion``) on top of the fitted model.
 
 The compiled kernel draws with vectorised passes (:func:`_draw_pass`,
 :func:`_transition_pass`) whose draws are exactly those of the scalar samplers of
@@ -253,13 +254,30 @@ def _jitter_and_chain_draws(streams, w, jitter_scale, turn, u, retry):
             turn[i] = w[i] + jitter_scale * z
 
 
+@njit(cache=True)
+def _speed_walk(v, behaviour, streams, walk_scale, z, retry):
+    """The log-speed random walk of a sub-step: ``v *= exp(walk_scale[state] Z)`` for each
+    particle (n,), ``Z`` drawn as :func:`streams.normal` draws it (:func:`streams.normals_into`;
+    ``z`` float and ``retry`` boolean scratch). ``walk_scale`` (K,) is each state's
+    ``speed_diffusion sqrt(h)``; a particle in a state of scale 0 draws and keeps its speed.
+    The kernel runs it right after the arc (its normal follows the heading diffusion's normal
+    and the chain's uniform, which that draws before the arc, and precedes the chain's
+    uniform without it), and out of line: only when some state's scale is positive, so that
+    without it the draws are those of the kernel without a walk."""
+    rs.normals_into(streams, z, retry)
+    for i in range(v.size):
+        v[i] *= math.exp(walk_scale[behaviour[i]] * z[i])
+
+
 @njit(cache=True, nogil=True)
 def _hmm_kernel(
     x, y, heading, c, s, v, w, behaviour, clock, streams, n_steps, n_sub, sub_step,
     draw_interval, metres_per_step_unit, fitted_dt, cumulative, gamma_d, gamma_c, gamma_boost,
-    gamma_scale, zero_mass, vonmises_tables, heading_diffusion, weights, ox, oy, counter, sums,
+    gamma_scale, zero_mass, vonmises_tables, heading_diffusion, walk_scale, weights, ox, oy,
+    counter, sums,
 ):  # fmt: skip
     due = draw_interval * (1.0 - 1e-9)
+    speed_walk = walk_scale.max() > 0.0
     jitter_scale = heading_diffusion / math.sqrt(sub_step)  # rad/s of this sub-step
     speed_factor = metres_per_step_unit / fitted_dt
     chunk, lo, hi = next_chunk(counter, x.size)
@@ -270,6 +288,7 @@ def _hmm_kernel(
         chain_u = np.empty(hi - lo)
         next_state = np.empty(hi - lo, dtype=np.int64)
         retry = np.empty(hi - lo, dtype=np.bool_)
+        walk_z = np.empty(hi - lo if speed_walk else 0)
         draws = (
             np.empty((4, hi - lo)),
             np.empty((2, hi - lo), dtype=np.uint64),
@@ -287,9 +306,13 @@ def _hmm_kernel(
                         chunk_streams, ws, jitter_scale, scratch, chain_u, retry
                     )
                     arc_pass(xs, ys, cs, ss, hs, vs, scratch, sub_step)
+                    if speed_walk:
+                        _speed_walk(vs, ks, chunk_streams, walk_scale, walk_z, retry)
                     _next_states(ks, cumulative, chain_u, next_state)
                 else:
                     arc_pass(xs, ys, cs, ss, hs, vs, ws, sub_step)
+                    if speed_walk:
+                        _speed_walk(vs, ks, chunk_streams, walk_scale, walk_z, retry)
                     _transition_pass(ks, chunk_streams, cumulative, chain_u, next_state)
                 for i in range(clocks.size):
                     clocks[i] += sub_step
@@ -303,7 +326,7 @@ def _hmm_parallel(
     threads, x, y, heading, c, s, v, w, behaviour, clock, streams, n_steps, n_sub, sub_step,
     draw_interval, metres_per_step_unit, fitted_dt, cumulative, gamma_d, gamma_c, gamma_boost,
     gamma_scale, zero_mass, vm_mean, vm_kappa, vm_width, vm_f_left, vm_f_right, vm_cut,
-    vm_alias, heading_diffusion, weights, ox, oy, counter, sums,
+    vm_alias, heading_diffusion, walk_scale, weights, ox, oy, counter, sums,
 ):  # fmt: skip
     """:func:`_hmm_kernel` on ``threads`` threads; the von Mises tables (a tuple in the
     kernel) are passed as their seven arrays."""
@@ -313,7 +336,7 @@ def _hmm_parallel(
             draw_interval, metres_per_step_unit, fitted_dt, cumulative, gamma_d, gamma_c,
             gamma_boost, gamma_scale, zero_mass,
             (vm_mean, vm_kappa, vm_width, vm_f_left, vm_f_right, vm_cut, vm_alias),
-            heading_diffusion, weights, ox, oy, counter, sums,
+            heading_diffusion, walk_scale, weights, ox, oy, counter, sums,
         )  # fmt: skip
 
 
@@ -348,8 +371,9 @@ class HMMMotion:
     along the constant-turn-rate arc (as :class:`~hmmtrack.tracking.motion.VelocityMotion`).
 
     Each (sub-)step of length ``h`` does, per particle: (1) if a draw is due, draw speed and
-    turn rate from the current state; (2) move along the arc for ``h``; (3) move the
-    behavioural state one step of the chain. Particles start with a state drawn from
+    turn rate from the current state; (2) move along the arc for ``h``; (3) with a speed
+    diffusion, take the log-speed random walk's step; (4) move the behavioural state one step
+    of the chain. Particles start with a state drawn from
     ``model.initial`` and speed and turn rate drawn from it (:meth:`initialise`); in the
     time-consistent variant their draw clocks start at staggered, uniform phases.
 
@@ -400,11 +424,23 @@ class HMMMotion:
         next draw (without it they move identically for up to ``model.dt`` s). The law over
         a horizon does not depend on the prediction step (variances add over time). The
         default 0 is the fitted model alone.
+    speed_diffusion : float or sequence of float
+        Standard deviation (per √s, ≥ 0) of a random walk of the log of the held speed: each
+        sub-step of ``h`` s multiplies a particle's speed by ``exp(speed_diffusion sqrt(h)
+        Z)``, ``Z ~ N(0, 1)``, after it has moved. One value for every state, or one per state
+        (K,): a state with 0 keeps its speed (a resting state added by
+        :meth:`hmmtrack.hmm.MovementHMM.with_resting_state` holds its drift). It lets the
+        copies of one particle made by resampling part in speed, as the heading diffusion
+        parts them in heading; without it they hold one speed until their next draw, and a
+        cloud that resamples often keeps only a few distinct speeds. Like the heading's, its
+        law over a horizon does not depend on the prediction step. The default 0 draws
+        nothing (the random streams are those of the model without it).
     """
 
     model: object
     variant: str = "time_consistent"
     heading_diffusion: float = 0.0
+    speed_diffusion: float | tuple[float, ...] = 0.0
     # per prediction step: _Schedule; under "samplers": the kernel's sampler constants
     _schedules: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
@@ -430,6 +466,24 @@ class HMMMotion:
             raise ValueError(
                 f"HMMMotion needs one (K, K) transition matrix, got shape {gamma.shape}"
             )
+        spread = np.asarray(self.speed_diffusion, dtype=np.float64)
+        if not (spread.ndim == 0 or spread.shape == (k,)):
+            raise ValueError(
+                f"speed_diffusion must be one value or one per state ({k}), got "
+                f"{self.speed_diffusion!r}"
+            )
+        if not (np.all(np.isfinite(spread)) and np.all(spread >= 0)):
+            raise ValueError(
+                f"speed_diffusion must be >= 0 per sqrt(s), got {self.speed_diffusion!r}"
+            )
+        if spread.ndim == 1:
+            object.__setattr__(self, "speed_diffusion", tuple(float(a) for a in spread))
+
+    @property
+    def _speed_diffusion(self) -> np.ndarray:
+        """The log-speed random walk's spread of each state (per √s), shape (K,)."""
+        k = np.asarray(self.model.initial).size
+        return np.broadcast_to(np.asarray(self.speed_diffusion, dtype=np.float64), (k,)).copy()
 
     @property
     def _metres(self) -> float:
@@ -519,6 +573,10 @@ class HMMMotion:
                 p.turn_rate = held
             else:
                 move_along_arc(p, plan.sub_step)
+            spread = self._speed_diffusion
+            if spread.max() > 0:
+                walk_scale = spread * np.sqrt(plan.sub_step)
+                p.speed = p.speed * np.exp(walk_scale[p.state] * rng.standard_normal(p.n))
             p.time_since_draw += plan.sub_step
             u = rng.random(p.n)
             p.state = (u[:, None] > plan.cumulative[p.state]).sum(axis=1).astype(np.int64)
@@ -548,5 +606,6 @@ class HMMMotion:
             p.x, p.y, p.heading, p.cos_heading, p.sin_heading, p.speed, p.turn_rate,
             p.state, p.time_since_draw, streams, n_steps, plan.n_sub, plan.sub_step,
             plan.draw_interval, self._metres, float(self.model.dt), plan.cumulative,
-            *self._schedules["samplers"], float(self.heading_diffusion), weights, *origin,
+            *self._schedules["samplers"], float(self.heading_diffusion),
+            self._speed_diffusion * math.sqrt(plan.sub_step), weights, *origin,
         )  # fmt: skip

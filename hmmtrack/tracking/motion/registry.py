@@ -23,6 +23,7 @@ from hmmtrack.tracking.motion.velocity import VelocityMotion
 
 __all__ = [
     "BASELINE_SIGMA",
+    "HMM_GPS_SPEED_DIFFUSION",
     "HMM_HEADING_DIFFUSION",
     "HMM_RESTING",
     "HMM_STILL_RESTING",
@@ -31,6 +32,7 @@ __all__ = [
     "VELOCITY_SIGMA_TURN_RATE",
     "RestingState",
     "bundled_model_path",
+    "default_resting",
     "motion_model",
 ]
 
@@ -82,6 +84,19 @@ HMM_RESTING = RestingState(enter_per_hour=0.5, leave_per_hour=2.0, drift_speed=0
 #: motion it makes a still tag's regions about 1.2 times too wide along its best-measured
 #: line of sight (reports/decisions.md, "A resting tag that holds still")
 HMM_STILL_RESTING = RestingState(enter_per_hour=0.5, leave_per_hour=2.0, drift_speed=0.002)
+#: log-speed random walk (per √s) of the HMM motion model's swimming states under a
+#: measurement that narrows the cloud enough for its few distinct held speeds to show (the
+#: ``range-rate-gps`` measurement): resampling copies held speeds exactly, and 1,000
+#: particles kept about 30 distinct ones, so the cloud's centre wandered along the motion
+#: (reports/decisions.md, "The gps option's overconfidence on the moving shark" and "The
+#: HMM's held speed as a log-speed random walk")
+HMM_GPS_SPEED_DIFFUSION = 0.035
+
+
+def default_resting(variant: str) -> RestingState | None:
+    """The resting state the HMM motion model gets by default in ``variant``:
+    :data:`HMM_RESTING` in the time-consistent variant, none in the paper's."""
+    return HMM_RESTING if variant == "time_consistent" else None
 
 
 #: file name of the bundled white-shark model in the package data
@@ -111,6 +126,7 @@ def _hmm(
     variant: str = "time_consistent",
     heading_diffusion: float | None = None,
     resting: RestingState | None | str = "default",
+    speed_diffusion: float = 0.0,
 ) -> HMMMotion:
     from hmmtrack.hmm import MovementHMM
 
@@ -123,14 +139,20 @@ def _hmm(
     if isinstance(resting, str):
         if resting != "default":
             raise ValueError(f"resting must be a RestingState, None or 'default', got {resting!r}")
-        resting = HMM_RESTING if variant == "time_consistent" else None
+        resting = default_resting(variant)
+    spread: float | tuple[float, ...] = speed_diffusion
     if resting is not None:
+        swimming = model.n_states
         model = model.with_resting_state(
             resting.enter_per_hour,
             resting.leave_per_hour,
             resting_step=resting.drift_speed * model.dt / step_metres(model),
         )
-    return HMMMotion(model, variant=variant, heading_diffusion=heading_diffusion)
+        if speed_diffusion > 0.0:  # a resting tag holds its drift
+            spread = (speed_diffusion,) * swimming + (0.0,)
+    return HMMMotion(
+        model, variant=variant, heading_diffusion=heading_diffusion, speed_diffusion=spread
+    )
 
 
 #: the paper's motion models, by name: a factory of each with hmmtrack's defaults (the
@@ -148,6 +170,7 @@ def motion_model(
     variant: str = "time_consistent",
     heading_diffusion: float | None = None,
     resting: RestingState | None | str = "default",
+    speed_diffusion: float = 0.0,
 ) -> MotionModel:
     """One of the paper's motion models, by name, with hmmtrack's default parameters.
 
@@ -177,6 +200,10 @@ def motion_model(
         estimates' particles then carry ``K + 1`` states, the last one resting. ``"default"``:
         :data:`HMM_RESTING` in the time-consistent variant, none in the paper's; ``None``:
         the model as given.
+    speed_diffusion : float
+        For ``hmm`` only: random walk of the log of the held speed (per √s) of
+        :class:`~hmmtrack.tracking.motion.HMMMotion`, in the fitted model's states; the
+        resting state keeps its drift. 0 (default): none.
 
     Returns
     -------
@@ -186,10 +213,15 @@ def motion_model(
     if name not in MOTIONS:
         raise ValueError(f"motion must be one of {tuple(MOTIONS)}, got {name!r}")
     if name != "hmm":
-        if model is not None or heading_diffusion is not None or resting != "default":
+        if (
+            model is not None
+            or heading_diffusion is not None
+            or resting != "default"
+            or speed_diffusion != 0.0
+        ):
             raise ValueError(
-                "a movement model, heading diffusion and a resting state are used by motion "
-                f"'hmm' only, not {name!r}"
+                "a movement model, heading and speed diffusion and a resting state are used by "
+                f"motion 'hmm' only, not {name!r}"
             )
         return MOTIONS[name]()
-    return MOTIONS[name](model, variant, heading_diffusion, resting)
+    return MOTIONS[name](model, variant, heading_diffusion, resting, speed_diffusion)

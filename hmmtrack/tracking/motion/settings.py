@@ -9,6 +9,7 @@ configuration file names the model and any settings that differ, e.g.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -16,10 +17,13 @@ from hmmtrack.tracking.motion.baseline import BaselineMotion
 from hmmtrack.tracking.motion.hmm import HMM_VARIANTS
 from hmmtrack.tracking.motion.registry import (
     BASELINE_SIGMA,
+    HMM_GPS_SPEED_DIFFUSION,
     HMM_HEADING_DIFFUSION,
     HMM_RESTING,
+    HMM_STILL_RESTING,
     VELOCITY_SIGMA_SPEED,
     VELOCITY_SIGMA_TURN_RATE,
+    default_resting,
     motion_model,
 )
 from hmmtrack.tracking.motion.velocity import VelocityMotion
@@ -113,6 +117,17 @@ class HMMSettings(Settings):
         Add the resting state :data:`hmmtrack.tracking.motion.HMM_RESTING` (a tag may be
         shed, its animal dead or resting); ``None``: the variant's (on time-consistent, off
         paper).
+    resting_drift : float or None
+        Mean speed (m/s, > 0) of a resting tag, when the model has the resting state;
+        ``None``: the measurement's (:data:`hmmtrack.tracking.config.MEASUREMENT_MOTIONS`:
+        0.002 under ``range-rate-gps``), else :data:`~hmmtrack.tracking.motion.HMM_RESTING`'s
+        0.05.
+    speed_diffusion : float or None
+        Random walk of the log of the held speed (per √s) of the swimming states
+        (:class:`~hmmtrack.tracking.motion.HMMMotion`); ``None``: the measurement's
+        (:data:`~hmmtrack.tracking.config.MEASUREMENT_MOTIONS`:
+        :data:`~hmmtrack.tracking.motion.HMM_GPS_SPEED_DIFFUSION` under ``range-rate-gps``),
+        else 0.
     """
 
     name: ClassVar[str] = "hmm"
@@ -154,17 +169,52 @@ class HMMSettings(Settings):
         check=boolean,
         default_text="on time-consistent, off paper",
     )
+    resting_drift: float | None = setting(
+        None,
+        help=(
+            "mean speed of a resting tag (m/s), when the model has the resting state; a "
+            "measurement that parts a still cloud's copies itself (range-rate-gps) holds it "
+            "nearly still"
+        ),
+        check=positive,
+        parse=float,
+        metavar="M_PER_S",
+        default_text=(
+            f"{HMM_STILL_RESTING.drift_speed:g} for range-rate-gps, "
+            f"else {HMM_RESTING.drift_speed:g}"
+        ),
+    )
+    speed_diffusion: float | None = setting(
+        None,
+        help=(
+            "random walk of the log of the swimming states' held speed (per sqrt(s)): parts "
+            "resampled copies in speed; under range-rate-gps the narrow regions need it"
+        ),
+        check=non_negative,
+        parse=float,
+        metavar="PER_SQRT_S",
+        default_text=f"{HMM_GPS_SPEED_DIFFUSION:g} for range-rate-gps, else 0",
+    )
 
     def build(self, model=None):
         """The motion model; ``model`` (a fitted MovementHMM or a path) replaces
-        :attr:`model`."""
-        resting = {True: HMM_RESTING, False: None, None: "default"}[self.resting]
+        :attr:`model`. Settings left to the measurement (``None``) take the defaults of
+        :func:`hmmtrack.tracking.motion.motion_model`; a configuration fills them in from its
+        measurement first (:meth:`hmmtrack.tracking.config.TrackingConfig.motion_model`)."""
+        resting = (
+            default_resting(self.variant)
+            if self.resting is None
+            else (HMM_RESTING if self.resting else None)
+        )
+        if resting is not None and self.resting_drift is not None:
+            resting = dataclasses.replace(resting, drift_speed=self.resting_drift)
         return motion_model(
             "hmm",
             self.model if model is None else model,
             variant=self.variant,
             heading_diffusion=self.heading_diffusion,
             resting=resting,
+            speed_diffusion=self.speed_diffusion or 0.0,
         )
 
 
