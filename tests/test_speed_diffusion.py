@@ -9,6 +9,8 @@ import pytest
 from numba import njit
 from scipy import stats
 
+from hmmtrack.cli import build_parser
+from hmmtrack.cli.track import build_config
 from hmmtrack.experiments.trials import _motion
 from hmmtrack.hmm import Gamma, MovementHMM, VonMises
 from hmmtrack.tracking.compiled import streams as rs
@@ -30,8 +32,9 @@ LONG_STEP = 10_000.0
 
 
 def straight_model(resting=None):
-    """Two swimming states that practically never switch (1e-9 per fitted step), with speeds 0.5 and 1.5 m/s held exactly
-    (step sd 1e-9 of a fitted step of :data:`LONG_STEP` s) and straight arcs; with
+    """Two swimming states that practically never switch (1e-9 per fitted step), with
+    speeds 0.5 and 1.5 m/s held exactly (step sd 1e-9 of a fitted step of
+    :data:`LONG_STEP` s) and straight arcs; with
     ``resting``, a third (resting) state that is never entered or left within a test."""
     model = MovementHMM(
         initial=np.array([0.5, 0.5]),
@@ -243,3 +246,24 @@ def test_a_setting_given_explicitly_wins_over_the_measurements():
         HMM_GPS_SPEED_DIFFUSION,
         0.0,
     )
+
+
+def test_the_command_line_gets_the_measurements_motion_settings():
+    """``hmmtrack track --measurement range-rate-gps`` builds the HMM with the rule's
+    settings, its options override them, and the help says so."""
+    parser = build_parser()
+    base = ["track", "--detections", "d.csv", "--receivers", "r.csv", "-o", "e.csv"]
+    fix = ["--period", "8", "--r0", "a=1"]
+    gps = [*base, *fix, "--measurement", "range-rate-gps", "--motion", "hmm"]
+    sigma = HMM_GPS_SPEED_DIFFUSION
+    built = build_config(parser.parse_args(gps)).motion_model()
+    assert built.speed_diffusion == (sigma, sigma, 0.0)
+    assert built.model.to_dict() == motion_model("hmm", resting=HMM_STILL_RESTING).model.to_dict()
+    given = build_config(parser.parse_args([*gps, "--speed-diffusion", "0"])).motion_model()
+    assert given.speed_diffusion == 0.0
+    plain = build_config(parser.parse_args([*base, *fix])).motion_model()
+    assert plain.speed_diffusion == 0.0
+    track = next(a for a in parser._actions if a.dest == "command").choices["track"]
+    helps = {a.dest: a.help for a in track._actions}
+    assert f"{sigma:g} for range-rate-gps, else 0" in helps["speed_diffusion"]
+    assert f"{HMM_STILL_RESTING.drift_speed:g} for range-rate-gps" in helps["resting_drift"]
