@@ -3,13 +3,19 @@ the exact Kalman filter of a still tag on a fixed line of sight."""
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 from scipy.special import logsumexp
 
+from hmmtrack.tracking.filter import FilterSettings
 from hmmtrack.tracking.measurement import gps_offset
 from hmmtrack.tracking.measurement.gps_offset import GpsOffsetMeasurement
+from hmmtrack.tracking.motion.baseline import BaselineMotion
 from hmmtrack.tracking.particles import Particles
+from hmmtrack.tracking.pipeline import particle_filter
+from hmmtrack.tracking.tempering import Tempered
 
 GPS_SD, TAU, WHITE, RATE_SD = 1.5, 60.0, 0.5, 0.5
 RECEIVER_X = 1000.0
@@ -176,3 +182,16 @@ def test_one_translation_from_a_point_draws_the_exact_posterior(moored, monkeypa
     check = _particles(particles.x[:5].copy())
     _run(measurement, check, times, ranges)
     np.testing.assert_allclose(particles.gps_offset_0[:5], check.gps_offset_0, atol=1e-9)
+
+
+def test_the_gps_option_moves_within_the_mixtures_components():
+    """Its tempered steps move each mixture component by its own covariance, also when the
+    configuration sets its own ``tempering_ess`` (``pipeline.particle_filter``)."""
+    measurement = SimpleNamespace(
+        default_correction=GpsOffsetMeasurement.default_correction, collectors=lambda: []
+    )
+    assert measurement.default_correction.within_components
+    settings = FilterSettings(n_particles=10, tempering_ess=0.5, acquisition=False)
+    pf = particle_filter(settings, measurement, (0.0, 1.0, 0.0, 1.0), BaselineMotion(1.0))
+    assert pf.correction == Tempered(0.5, within_components=True)
+    assert pf.mixture is not None

@@ -143,6 +143,12 @@ class Mixture:
         """One component holds every fresh particle."""
         pf.particles.extra[COMPONENT] = np.zeros(pf.particles.n, dtype=np.int64)
 
+    def labels(self, particles) -> np.ndarray:
+        """Each particle's component, ``0..K-1``, shape (N,), int64 (the particle field
+        ``component``; e.g. for a move within components,
+        :func:`hmmtrack.tracking.tempering.regularisation_move_within`)."""
+        return particles.extra[COMPONENT]
+
     def draw(self, pf, weights: np.ndarray) -> Drawn:
         """Recluster, then draw each component's new particles with the filter's scheme,
         to be gathered by ``Particles.take(drawn.ancestors, ..., locate=drawn.locate)`` and

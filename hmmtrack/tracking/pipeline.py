@@ -407,8 +407,12 @@ def particle_filter(
         (:class:`hmmtrack.tracking.monitor.Monitor`, those two rules).
     """
     correction = measurement.default_correction
-    if settings.tempering_ess is not None:  # (the measurement's acceptance of moves kept)
-        correction = Tempered(settings.tempering_ess, accept=getattr(correction, "accept", False))
+    if settings.tempering_ess is not None:  # (the measurement's kind of moves kept)
+        correction = Tempered(
+            settings.tempering_ess,
+            accept=getattr(correction, "accept", False),
+            within_components=getattr(correction, "within_components", False),
+        )
     return ParticleFilter(
         motion,
         measurement,

@@ -15,7 +15,11 @@ log-likelihood to the log weights through a policy object with two methods,
   covariance (:func:`regularisation_move`), and the measurement rescores the moved particles
   (``score.rescore``). With a ``trigger`` below ``ess``, only a correction that would leave
   fewer than ``trigger · N`` in one pass is tempered (the cloud far wider than the
-  likelihood); the others are plain. Usable with any measurement.
+  likelihood); the others are plain. With ``within_components`` and a mixture filter, each
+  component is moved by its own covariance (:func:`regularisation_move_within`): the whole
+  cloud's covariance spans the distance between two modes, and a move shaped by it carries
+  particles from one mode to the other, stage after stage, until the components meet and
+  are merged. Usable with any measurement.
 
 This module does not score observations (:mod:`hmmtrack.tracking.measurement`) nor hold the
 filter's weights (the filter keeps them: :meth:`ParticleFilter.keep_weights`).
@@ -62,18 +66,25 @@ class Tempered:
         else put it back: the move is shaped by the whole cloud's covariance, so while
         stray particles far away hold weight it throws the particles off a mode a few
         metres wide (a ping's fix); ``False``: every move is kept (the regularisation alone).
+    within_components : bool
+        With a mixture filter (``ParticleFilter(mixture=...)``), move each component's
+        particles by that component's covariance and the bandwidth of its particle count
+        (:func:`regularisation_move_within`), so that no move carries a particle from one
+        mode to another; ``False``, or without a mixture, or with one component: the
+        whole cloud's (:func:`regularisation_move`).
 
     Notes
     -----
     The filter's weights are kept (:meth:`ParticleFilter.keep_weights`) wherever this policy
     replaces the log weights: after the particles are drawn and after each tempered step.
     The regularisation bandwidth is Silverman's for two dimensions,
-    ``(4 / (4 N))^(1/6)``.
+    ``(4 / (4 N))^(1/6)`` (:func:`silverman_bandwidth`).
     """
 
     ess: float = 0.3
     trigger: float | None = None
     accept: bool = False
+    within_components: bool = False
 
     def __post_init__(self) -> None:
         if not 0.0 < self.ess < 1.0:
@@ -95,8 +106,10 @@ class Tempered:
         ESS reaches ``trigger · N`` or the weights were degenerate (recovered as by
         :class:`Plain`), else undone (the log weights restored) and tempered.
         Between steps the particles are resampled (:meth:`ParticleFilter.resample`), moved
-        (:func:`regularisation_move`, one ``(2, N)`` draw of standard normals from the
-        filter's generator) and rescored (``score.rescore(particles, weights)``).
+        (:func:`regularisation_move`, or :func:`regularisation_move_within` the mixture's
+        components with ``within_components``; one ``(2, N)`` draw of standard normals from
+        the filter's generator either way) and rescored (``score.rescore(particles,
+        weights)``).
         """
         loglik = score.loglik
         if self.trigger is not None:
@@ -107,7 +120,8 @@ class Tempered:
             if recovered or estimate.n_eff >= self.trigger * pf.n_particles:
                 return estimate
             pf.particles.log_weight = before
-        bandwidth = (4.0 / (pf.n_particles * 4.0)) ** (1.0 / 6.0)
+        bandwidth = silverman_bandwidth(pf.n_particles)
+        mixture = pf.mixture if self.within_components else None
         remaining = 1.0
         stale = False
         while True:
@@ -120,7 +134,11 @@ class Tempered:
             pf.resample()
             p = pf.particles
             before = (p.x, p.y, loglik[pf.last_ancestors])
-            p.x, p.y = regularisation_move(p.x, p.y, pf.rng.standard_normal((2, p.n)), bandwidth)
+            normals = pf.rng.standard_normal((2, p.n))
+            if mixture is None:
+                p.x, p.y = regularisation_move(p.x, p.y, normals, bandwidth)
+            else:
+                p.x, p.y = regularisation_move_within(p.x, p.y, mixture.labels(p), normals)
             loglik = score.rescore(p, pf.weights()[0])
             if self.accept:
                 loglik, stale = _metropolis(pf, before, loglik, 1.0 - remaining)
@@ -235,6 +253,52 @@ def tempered(log_weight, loglik, beta):
         weights[i] *= scale
         out[i] -= shift
     return out, weights, total * total / squares
+
+
+def silverman_bandwidth(n: int) -> float:
+    """Silverman's rule for a two-dimensional Gaussian kernel over ``n`` points,
+    ``(4 / (4 n))^(1/6)`` (a multiple of the points' standard deviation)."""
+    return (4.0 / (n * 4.0)) ** (1.0 / 6.0)
+
+
+def regularisation_move_within(x, y, labels, normals):
+    """:func:`regularisation_move` of each component on its own: the positions labelled
+    ``k`` move by their own covariance and Silverman's bandwidth for their count
+    (:func:`silverman_bandwidth`), with their own columns of ``normals``.
+
+    With one component this is :func:`regularisation_move` with the bandwidth of all the
+    points (the same numbers). A component of one particle stays in place (it has no
+    covariance).
+
+    Parameters
+    ----------
+    x, y : numpy.ndarray, shape (N,)
+        Positions (m).
+    labels : numpy.ndarray, shape (N,), int
+        Component of each position, ``0..K-1``.
+    normals : numpy.ndarray, shape (2, N)
+        Standard normal draws.
+
+    Returns
+    -------
+    x, y : numpy.ndarray, shape (N,)
+        New arrays (m).
+    """
+    components = int(labels.max()) + 1
+    if components == 1:
+        return regularisation_move(x, y, normals, silverman_bandwidth(x.size))
+    moved_x, moved_y = x.copy(), y.copy()
+    for k in range(components):
+        members = np.flatnonzero(labels == k)
+        if members.size < 2:
+            continue
+        moved_x[members], moved_y[members] = regularisation_move(
+            x[members],
+            y[members],
+            np.ascontiguousarray(normals[:, members]),
+            silverman_bandwidth(members.size),
+        )
+    return moved_x, moved_y
 
 
 @njit(cache=True)

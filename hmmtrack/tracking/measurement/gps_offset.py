@@ -293,7 +293,13 @@ class GpsOffsetMeasurement(RangeRateMeasurement):
     sigma_white: float = SIGMA_WHITE
     name: ClassVar[str] = "range-rate-gps"
     settings: ClassVar[type] = GpsOffsetSettings
-    default_correction: ClassVar[Tempered] = Tempered(GPS_TEMPERING_ESS, GPS_TEMPERING_TRIGGER)
+    #: tempered below the trigger, the moves within the mixture's components: the start
+    #: region holds the tag and its mirror across the receivers' line, and a move shaped by
+    #: the whole cloud merged them (reports/decisions.md, "The mirror merged by the tempered
+    #: move")
+    default_correction: ClassVar[Tempered] = Tempered(
+        GPS_TEMPERING_ESS, GPS_TEMPERING_TRIGGER, within_components=True
+    )
     _index: dict = field(init=False, repr=False, compare=False)
     _tau: np.ndarray = field(init=False, repr=False, compare=False)
 
