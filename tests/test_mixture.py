@@ -219,6 +219,78 @@ def test_component_moments_are_the_same_on_one_and_two_threads():
     np.testing.assert_allclose(serial[:, 0], np.bincount(labels, weights), rtol=1e-12)
 
 
+def _moments_in_particle_order(x, y, weights, labels, n_components, chunk=1024):
+    """The oracle of component_moments' order: per chunk of 1,024 particles, each
+    component's six sums about its first particle, each particle added in turn (plain
+    Python floats), the chunks combined in order."""
+    first = {}
+    for i, k in enumerate(labels.tolist()):
+        first.setdefault(k, (x[i], y[i]))
+    total = np.zeros((n_components, 6))
+    for lo in range(0, x.size, chunk):
+        own = [[0.0] * 6 for _ in range(n_components)]
+        for i in range(lo, min(x.size, lo + chunk)):
+            k = int(labels[i])
+            w, dx, dy = float(weights[i]), x[i] - first[k][0], y[i] - first[k][1]
+            s = own[k]
+            s[0] += w
+            s[1] += w * dx
+            s[2] += w * dy
+            s[3] += w * dx * dx
+            s[4] += w * dy * dy
+            s[5] += w * dx * dy
+        total = total + np.array(own) if lo else np.array(own)
+    out = np.zeros((n_components, 6))
+    for k, (ox, oy) in first.items():
+        s = total[k, 0]
+        mx, my = total[k, 1] / s, total[k, 2] / s
+        out[k] = [
+            s, ox + mx, oy + my, max(total[k, 3] / s - mx * mx, 0.0),
+            max(total[k, 4] / s - my * my, 0.0), total[k, 5] / s - mx * my,
+        ]  # fmt: skip
+    return out
+
+
+@pytest.mark.parametrize("order", ["grouped", "shuffled", "grouped with a merge"])
+def test_component_moments_add_each_components_particles_in_order(order):
+    """Runs of one component summed in registers, a particle at a time when a chunk's
+    labels are not grouped: the same bits as adding every particle to its component's sums
+    in turn (three chunks, components spanning chunk ends), on one and two threads."""
+    rng = np.random.default_rng(11)
+    n = 3000
+    x, y = rng.normal(2e4, 30.0, n), rng.normal(-5e3, 10.0, n)
+    weights = rng.random(n) ** 3
+    weights /= weights.sum()
+    labels = np.repeat(np.arange(3), [700, 1500, 800])
+    if order == "shuffled":
+        labels = rng.permutation(labels)
+    elif order == "grouped with a merge":  # what a merge of components 2 and 0 leaves
+        labels = np.where(labels == 2, 0, labels)
+    n_components = int(labels.max()) + 1
+    expected = _moments_in_particle_order(x, y, weights, labels, n_components)
+    for threads in (1, 2):
+        moments = component_moments(x, y, weights, labels, n_components, threads=threads)
+        np.testing.assert_array_equal(moments, expected)
+
+
+def test_reclustering_one_component_leaves_the_callers_labels_and_splits_a_copy():
+    # one component, no split: the labels come back equal (a new array); two separated
+    # clusters: split into the two clusters, the labels given left as they were
+    rng = np.random.default_rng(12)
+    n = 5000
+    weights = np.full(n, 1.0 / n)
+    labels = np.zeros(n, dtype=np.int64)
+    x, y = rng.normal(0.0, 3.0, n), rng.normal(0.0, 3.0, n)
+    new = Mixture().recluster(x, y, weights, labels)
+    np.testing.assert_array_equal(new, labels)
+    assert not np.may_share_memory(new, labels)
+    east = rng.random(n) < 0.3
+    x = np.where(east, rng.normal(400.0, 3.0, n), rng.normal(0.0, 3.0, n))
+    new = Mixture().recluster(x, y, weights, labels)
+    np.testing.assert_array_equal(new, east.astype(np.int64))
+    np.testing.assert_array_equal(labels, 0)
+
+
 def test_a_mixture_run_is_the_same_on_one_and_two_threads():
     """60,000 particles (the correction's and the mixture's passes on the filter's threads
     from 50,000): the same seed gives the same weights and particles on one thread and on

@@ -269,9 +269,9 @@ class Mixture:
         weights : numpy.ndarray, shape (N,)
             Normalised weights.
         labels : numpy.ndarray, shape (N,), int64
-            Current labels ``0..K-1`` (not changed).
+            Current labels ``0..K-1`` (not changed; never the array returned).
         """
-        return _recluster(
+        new = _recluster(
             x,
             y,
             weights,
@@ -282,6 +282,7 @@ class Mixture:
             float(self.split_share),
             float(self.prune_weight),
         )[0]
+        return new.copy() if np.may_share_memory(new, labels) else new  # labels stay unchanged
 
 
 #: codes of the resampling schemes in :func:`resample_components`
@@ -290,6 +291,8 @@ SCHEME_CODES = {"multinomial": 0, "residual": 1, "stratified": 2, "systematic": 
 _INT64 = np.dtype(np.int64)
 #: "no moments given": :func:`_recluster_and_allocate` sums them itself
 _NO_MOMENTS = np.zeros((0, 6))
+#: "every particle": :func:`_recluster`'s members of the only component (no list built)
+_EVERYONE = np.zeros(0, dtype=np.int64)
 
 
 def scheme_draws(
@@ -469,11 +472,16 @@ def _prepare_components(
     start = np.zeros(n_components + 1, dtype=np.int64)
     # labels in component order (as a resampling leaves them): each component's particles
     # are a slice, so no index list is built and no weights are gathered
-    grouped = True
-    for i in range(labels.size):
-        start[labels[i] + 1] += 1
-        if i > 0 and labels[i] < labels[i - 1]:
-            grouped = False
+    grouped = _ascending(labels, 0, labels.size)
+    if grouped:  # a run of each label: its length
+        i = 0
+        while i < labels.size:
+            end = _run_end(labels, i, labels.size)
+            start[labels[i] + 1] = end - i
+            i = end
+    else:
+        for i in range(labels.size):
+            start[labels[i] + 1] += 1
     for k in range(n_components):
         start[k + 1] += start[k]
     members = np.empty(0 if grouped else labels.size, dtype=np.int64)
@@ -564,12 +572,7 @@ def _finish_components(counts, component_weight, x, y, log_weight, new_weights, 
         while j < a + c:  # the component's particles in each chunk
             chunk = j // size
             end = min(a + c, (chunk + 1) * size)
-            own = sums[chunk]
-            for i in range(j, end):
-                xi, yi = x[i], y[i]
-                sx += xi
-                sy += yi
-                _add_moments(own, r, w_k, xi - ox, yi - oy)
+            sx, sy = _add_run(sums[chunk], r, new_weights, x, y, j, end, ox, oy, sx, sy)
             j = end
         sum_squares += c * w_k * w_k
         mean_x += w_k * sx
@@ -601,7 +604,7 @@ def _recluster(
 ):  # fmt: skip
     """:meth:`Mixture.recluster`, compiled (its settings as arguments), from the current
     components' moments (:func:`component_moments`); also the new components' weights
-    (K,)."""
+    (K,). The new labels are ``labels`` itself when no merge or split changed them."""
     n_components = labels.max() + 1
     target = np.arange(n_components)
     for j in range(n_components):
@@ -613,13 +616,14 @@ def _recluster(
         present[target[k]] = 1
     rank = np.cumsum(present) - 1
     merged = rank[-1] + 1
-    if merged < n_components:
+    # the labels themselves until a merge or a split changes them
+    new = labels
+    copied = merged < n_components
+    if copied:
         new = np.empty(labels.size, dtype=np.int64)
         for i in range(labels.size):
             new[i] = rank[target[labels[i]]]
         moments = _component_moments(x, y, weights, new, merged)
-    else:
-        new = labels.copy()
     n_components = merged
     min_variance = (0.5 * min_separation) ** 2 * split_share
     for k in range(merged):
@@ -631,17 +635,23 @@ def _recluster(
         largest = 0.5 * (var_x + var_y) + math.sqrt(half * half + cov_xy * cov_xy)
         if moments[k, 0] <= prune_weight or largest < min_variance:
             continue
-        # one component: every particle is a member (no pass to list them)
-        members = np.arange(new.size) if merged == 1 else np.flatnonzero(new == k)
-        if members.size < 2:
+        # one component: every particle is a member (no list of them is built)
+        everyone = merged == 1
+        members = _EVERYONE if everyone else np.flatnonzero(new == k)
+        size = new.size if everyone else members.size
+        if size < 2:
             continue
         # the test on an evenly strided sample of at most SPLIT_SAMPLE particles
-        sample = members[:: -(-members.size // SPLIT_SAMPLE)]
+        stride = -(-size // SPLIT_SAMPLE)
+        sample = np.arange(0, size, stride) if everyone else members[::stride]
         separation, minor, sd_lo, sd_hi, mx, my, ax, ay, cut = split_in_two(
             x[sample], y[sample], weights[sample], min_variance, SPLIT_BINS
         )
         if minor >= split_share and separation > max(min_separation, 3.0 * (sd_lo + sd_hi)):
-            for i in members:
+            if not copied:
+                new, copied = labels.copy(), True
+            for j in range(size):
+                i = j if everyone else members[j]
                 if (x[i] - mx) * ax + (y[i] - my) * ay >= cut:
                     new[i] = n_components
             n_components += 1
@@ -708,26 +718,63 @@ def _first_members(x, y, labels, n_components):
 def _moment_chunks(x, y, weights, labels, origin, counter, sums):
     """Per chunk of particles (:func:`hmmtrack.tracking.compiled.chunks.next_chunk`), each
     component's sums of ``w``, ``w dx``, ``w dy``, ``w dx²``, ``w dy²``, ``w dx dy`` about its
-    origin into ``sums[chunk]`` (chunks not yet claimed only)."""
+    origin into ``sums[chunk]`` (chunks not yet claimed only), a run of equal labels at a
+    time (:func:`_add_run`) when the chunk's labels are grouped."""
     chunk, lo, hi = next_chunk(counter, x.size)
     while chunk >= 0:
         own = sums[chunk]
-        for i in range(lo, hi):
+        grouped = _ascending(labels, lo, hi)  # else runs are short: a particle at a time
+        i = lo
+        while i < hi:
             k = labels[i]
-            _add_moments(own, k, weights[i], x[i] - origin[k, 0], y[i] - origin[k, 1])
+            end = _run_end(labels, i, hi) if grouped else i + 1
+            _add_run(own, k, weights, x, y, i, end, origin[k, 0], origin[k, 1], 0.0, 0.0)
+            i = end
         chunk, lo, hi = next_chunk(counter, x.size)
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _add_moments(own, k, w, dx, dy):
-    """Add a particle of weight ``w`` at ``(dx, dy)`` from its component's origin to the
-    component's sums ``own[k]``: ``w``, ``w dx``, ``w dy``, ``w dx²``, ``w dy²``, ``w dx dy``."""
-    own[k, 0] += w
-    own[k, 1] += w * dx
-    own[k, 2] += w * dy
-    own[k, 3] += w * dx * dx
-    own[k, 4] += w * dy * dy
-    own[k, 5] += w * dx * dy
+def _ascending(labels, lo, hi):
+    """Whether ``labels[lo:hi]`` never decreases (grouped by component, in order)."""
+    ascending = True
+    for i in range(lo + 1, hi):
+        ascending &= labels[i - 1] <= labels[i]
+    return ascending
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _run_end(labels, i, hi):
+    """The end of the run of labels equal to ``labels[i]`` that starts at ``i`` (at most
+    ``hi``)."""
+    end = i + 1
+    while end < hi and labels[end] == labels[i]:
+        end += 1
+    return end
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _add_run(own, k, weights, x, y, lo, hi, ox, oy, sx, sy):
+    """Add the particles ``lo:hi``, all of component ``k``, to the component's sums
+    ``own[k]``: ``w``, ``w dx``, ``w dy``, ``w dx²``, ``w dy²``, ``w dx dy`` with ``(dx, dy)``
+    their offsets from ``(ox, oy)``; return ``sx, sy`` plus their ``x`` and ``y``. Each sum
+    is one chain of additions in particle order (the same numbers as adding each particle
+    to ``own[k]`` in turn), carried in registers through the run."""
+    s0, s1, s2 = own[k, 0], own[k, 1], own[k, 2]
+    s3, s4, s5 = own[k, 3], own[k, 4], own[k, 5]
+    for i in range(lo, hi):
+        w, xi, yi = weights[i], x[i], y[i]
+        dx, dy = xi - ox, yi - oy
+        sx += xi
+        sy += yi
+        s0 += w
+        s1 += w * dx
+        s2 += w * dy
+        s3 += w * dx * dx
+        s4 += w * dy * dy
+        s5 += w * dx * dy
+    own[k, 0], own[k, 1], own[k, 2] = s0, s1, s2
+    own[k, 3], own[k, 4], own[k, 5] = s3, s4, s5
+    return sx, sy
 
 
 @njit(cache=True, nogil=True, parallel=True)
