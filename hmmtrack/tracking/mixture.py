@@ -42,6 +42,7 @@ import pandas as pd
 from numba import njit
 
 from hmmtrack.tracking.compiled.chunks import chunking, in_chunks, next_chunk
+from hmmtrack.tracking.compiled.weighing import add_weighted
 from hmmtrack.tracking.particles import split_in_two, sqrt_largest_eigenvalue
 from hmmtrack.tracking.resampling import (
     Scratch,
@@ -762,16 +763,10 @@ def _add_run(own, k, weights, x, y, lo, hi, ox, oy, sx, sy):
     s0, s1, s2 = own[k, 0], own[k, 1], own[k, 2]
     s3, s4, s5 = own[k, 3], own[k, 4], own[k, 5]
     for i in range(lo, hi):
-        w, xi, yi = weights[i], x[i], y[i]
-        dx, dy = xi - ox, yi - oy
+        xi, yi = x[i], y[i]
         sx += xi
         sy += yi
-        s0 += w
-        s1 += w * dx
-        s2 += w * dy
-        s3 += w * dx * dx
-        s4 += w * dy * dy
-        s5 += w * dx * dy
+        s0, s1, s2, s3, s4, s5 = add_weighted(s0, s1, s2, s3, s4, s5, weights[i], xi - ox, yi - oy)
     own[k, 0], own[k, 1], own[k, 2] = s0, s1, s2
     own[k, 3], own[k, 4], own[k, 5] = s3, s4, s5
     return sx, sy

@@ -46,7 +46,7 @@ from numba import njit
 
 from hmmtrack.tracking.compiled.chunks import block_threads, chunking, in_chunks, next_chunk
 
-__all__ = ["chunk_loglik", "loglik_chunks", "moment_sums", "weigh"]
+__all__ = ["add_weighted", "chunk_loglik", "loglik_chunks", "moment_sums", "weigh"]
 
 #: the passes of :func:`_weigh_kernel`
 _UPDATE, _EXPONENTIALS, _NORMALISE = 0, 1, 2
@@ -118,6 +118,22 @@ def _weigh_kernel(
         chunk, lo, hi = next_chunk(counter, n)
 
 
+@njit(cache=True, nogil=True, inline="always")
+def add_weighted(s, sx, sy, sxx, syy, sxy, w, dx, dy):
+    """The sums ``s, sx, sy, sxx, syy, sxy`` of weights and weighted moments, plus a point of
+    weight ``w`` at ``(dx, dy)`` from their origin: ``s + w, sx + w dx, sy + w dy,
+    sxx + w dx², syy + w dy², sxy + w dx dy`` (inlined: each caller's loop keeps the sums
+    in registers, in its own order of additions)."""
+    return (
+        s + w,
+        sx + w * dx,
+        sy + w * dy,
+        sxx + w * dx * dx,
+        syy + w * dy * dy,
+        sxy + w * dx * dy,
+    )
+
+
 # ``reassoc`` lets LLVM split the sums into vector lanes (4-5x faster than one serial chain
 # of additions); the result is still one fixed order of operations for a given input
 @njit(cache=True, fastmath={"reassoc"})
@@ -131,15 +147,8 @@ def moment_sums(w, x, y, k):
     y0 = y[k]
     s = sx = sy = sxx = syy = sxy = sww = 0.0
     for i in range(w.size):
-        dx = x[i] - x0
-        dy = y[i] - y0
         wi = w[i]
-        s += wi
-        sx += wi * dx
-        sy += wi * dy
-        sxx += wi * dx * dx
-        syy += wi * dy * dy
-        sxy += wi * dx * dy
+        s, sx, sy, sxx, syy, sxy = add_weighted(s, sx, sy, sxx, syy, sxy, wi, x[i] - x0, y[i] - y0)
         sww += wi * wi
     mx, my = sx / s, sy / s
     var_x = max(sxx / s - mx * mx, 0.0)
