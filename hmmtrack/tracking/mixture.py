@@ -719,18 +719,27 @@ def _first_members(x, y, labels, n_components):
 def _moment_chunks(x, y, weights, labels, origin, counter, sums):
     """Per chunk of particles (:func:`hmmtrack.tracking.compiled.chunks.next_chunk`), each
     component's sums of ``w``, ``w dx``, ``w dy``, ``w dx²``, ``w dy²``, ``w dx dy`` about its
-    origin into ``sums[chunk]`` (chunks not yet claimed only), a run of equal labels at a
-    time (:func:`_add_run`) when the chunk's labels are grouped."""
+    origin into ``sums[chunk]`` (chunks not yet claimed only): a run of equal labels at a
+    time (:func:`_add_run`) when the chunk's labels are grouped, else a particle at a time
+    (the same additions in the same order either way)."""
     chunk, lo, hi = next_chunk(counter, x.size)
     while chunk >= 0:
         own = sums[chunk]
-        grouped = _ascending(labels, lo, hi)  # else runs are short: a particle at a time
-        i = lo
-        while i < hi:
-            k = labels[i]
-            end = _run_end(labels, i, hi) if grouped else i + 1
-            _add_run(own, k, weights, x, y, i, end, origin[k, 0], origin[k, 1], 0.0, 0.0)
-            i = end
+        if _ascending(labels, lo, hi):
+            i = lo
+            while i < hi:
+                k = labels[i]
+                end = _run_end(labels, i, hi)
+                _add_run(own, k, weights, x, y, i, end, origin[k, 0], origin[k, 1], 0.0, 0.0)
+                i = end
+        else:  # runs may be short: a particle at a time, straight into its component's sums
+            for i in range(lo, hi):
+                k = labels[i]
+                s = own[k]
+                s[0], s[1], s[2], s[3], s[4], s[5] = add_weighted(
+                    s[0], s[1], s[2], s[3], s[4], s[5],
+                    weights[i], x[i] - origin[k, 0], y[i] - origin[k, 1],
+                )  # fmt: skip
         chunk, lo, hi = next_chunk(counter, x.size)
 
 
