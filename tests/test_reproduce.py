@@ -197,8 +197,8 @@ def test_the_filter_option_offers_every_named_filter():
     assert not parser.parse_args(["reproduce", "--no-start-prior"]).start_prior
 
 
-def test_the_measurement_option_names_the_paper_s_by_default():
+def test_the_measurement_option_is_the_gps_one_by_default_and_offers_the_paper_s():
     parser = build_parser(["reproduce"])
-    assert parser.parse_args(["reproduce"]).measurement == "range-rate"
-    chosen = parser.parse_args(["reproduce", "--measurement", "range-rate-gps"])
-    assert chosen.measurement == "range-rate-gps"
+    assert parser.parse_args(["reproduce"]).measurement == "range-rate-gps"
+    chosen = parser.parse_args(["reproduce", "--measurement", "range-rate"])
+    assert chosen.measurement == "range-rate"
