@@ -555,6 +555,8 @@ class HMMMotion:
         """One prediction step of ``dt`` s for all particles, in place (NumPy reference)."""
         plan = self.schedule(dt)
         p = particles
+        walk_scale = self._speed_diffusion * np.sqrt(plan.sub_step)  # (K,), per sub-step
+        speed_walk = walk_scale.max() > 0
         for _ in range(plan.n_sub):
             due = np.flatnonzero(p.time_since_draw >= plan.draw_interval * (1.0 - 1e-9))
             if due.size:
@@ -573,9 +575,7 @@ class HMMMotion:
                 p.turn_rate = held
             else:
                 move_along_arc(p, plan.sub_step)
-            spread = self._speed_diffusion
-            if spread.max() > 0:
-                walk_scale = spread * np.sqrt(plan.sub_step)
+            if speed_walk:
                 p.speed = p.speed * np.exp(walk_scale[p.state] * rng.standard_normal(p.n))
             p.time_since_draw += plan.sub_step
             u = rng.random(p.n)
