@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -407,11 +407,11 @@ def particle_filter(
         (:class:`hmmtrack.tracking.monitor.Monitor`, those two rules).
     """
     correction = measurement.default_correction
-    if settings.tempering_ess is not None:  # (the measurement's kind of moves kept)
-        correction = Tempered(
-            settings.tempering_ess,
-            accept=getattr(correction, "accept", False),
-            within_components=getattr(correction, "within_components", False),
+    if settings.tempering_ess is not None:  # the measurement's kind of moves kept, no trigger
+        correction = (
+            replace(correction, ess=settings.tempering_ess, trigger=None)
+            if isinstance(correction, Tempered)
+            else Tempered(settings.tempering_ess)
         )
     return ParticleFilter(
         motion,
