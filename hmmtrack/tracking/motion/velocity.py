@@ -1,10 +1,10 @@
 """The paper's velocity motion model: random walks in speed and turn rate, moves along arcs.
 
 Each step adds Gaussian increments to speed and turn rate (standard deviations
-``sigma * sqrt(dt)``), then moves along the constant-turn-rate arc of the new speed and
-turn rate (:mod:`hmmtrack.tracking.motion.arcs`). :class:`VelocityMotion` has the NumPy
-reference (``propagate``) and the compiled path (``advance``,
-:mod:`hmmtrack.tracking.motion.base`).
+``sigma * sqrt(dt)``), optionally speed jumps (a compound Poisson process beside the speed's
+random walk), then moves along the constant-turn-rate arc of the new speed and turn rate
+(:mod:`hmmtrack.tracking.motion.arcs`). :class:`VelocityMotion` has the NumPy reference
+(``propagate``) and the compiled path (``advance``, :mod:`hmmtrack.tracking.motion.base`).
 """
 
 from __future__ import annotations
@@ -32,12 +32,46 @@ def _add_scaled(target, z, scale):
         target[i] += scale * z[i]
 
 
+@njit(cache=True, inline="always")
+def _jump_count(w, mean):
+    """The number of jumps in a step whose expected number is ``mean``, by inversion of the
+    Poisson distribution at ``w`` in ``[0, 1)``: the smallest ``k`` with ``w < P(K <= k)``."""
+    pmf = math.exp(-mean)
+    cdf = pmf
+    k = 0
+    while w >= cdf and pmf > 0.0:
+        k += 1
+        pmf *= mean / k
+        cdf += pmf
+    return k
+
+
+@njit(cache=True)
+def _speed_jumps(v, streams, mean, jump_sd, u):
+    """The speed jumps of a step, in place: each particle's ``v`` (n,) gains
+    ``N(0, k jump_sd^2)``, the sum of its ``k ~ Poisson(mean)`` jumps (``mean`` = jump rate
+    x step). Each stream draws one uniform ``u`` in ``(0, 1]`` (a vectorised pass; ``u`` is
+    float scratch (n,)); a particle jumps when ``u <= 1 - exp(-mean)`` (rare), and only then
+    takes ``k`` from ``1 - u`` (:func:`_jump_count`) and draws one normal
+    (:func:`streams.normal`). The velocity kernel runs it after the random walks' normals,
+    and out of line: only when the jump rate is positive, so that without jumps the draws
+    are those of the kernel without them."""
+    for i in range(streams.size):
+        u[i], streams[i] = rs.uniform(streams[i])
+    jump = -math.expm1(-mean)
+    for i in range(streams.size):
+        if u[i] <= jump:
+            z, streams[i] = rs.normal(streams[i])
+            v[i] += math.sqrt(_jump_count(1.0 - u[i], mean)) * jump_sd * z
+
+
 @njit(cache=True, nogil=True)
 def _velocity_kernel(
-    x, y, heading, c, s, v, w, streams, n_steps, dt, sigma_speed, sigma_turn, weights, ox, oy,
-    counter, sums,
+    x, y, heading, c, s, v, w, streams, n_steps, dt, sigma_speed, sigma_turn, jump_rate,
+    jump_sd, weights, ox, oy, counter, sums,
 ):  # fmt: skip
     root_dt = math.sqrt(dt)
+    jumps = jump_rate > 0.0
     chunk, lo, hi = next_chunk(counter, x.size)
     while chunk >= 0:
         xs, ys, hs, cs, ss, vs, ws = motion_views(lo, hi, x, y, heading, c, s, v, w)
@@ -45,10 +79,13 @@ def _velocity_kernel(
         z_speed = np.empty(hi - lo)
         z_turn = np.empty(hi - lo)
         retry = np.empty(hi - lo, dtype=np.bool_)
+        jump_u = np.empty(hi - lo if jumps else 0)
         for t in range(n_steps):
             rs.normal_pairs_into(chunk_streams, z_speed, z_turn, retry)  # speed, then turn
             _add_scaled(vs, z_speed, sigma_speed * root_dt)
             _add_scaled(ws, z_turn, sigma_turn * root_dt)
+            if jumps:
+                _speed_jumps(vs, chunk_streams, jump_rate * dt, jump_sd, jump_u)
             arc_pass(xs, ys, cs, ss, hs, vs, ws, dt)
             moments_pass(xs, ys, weights[lo:hi], ox, oy, sums[chunk, t])
         finish_headings(hs, cs, ss)
@@ -57,13 +94,13 @@ def _velocity_kernel(
 
 @njit(cache=True, nogil=True, parallel=True)
 def _velocity_parallel(
-    threads, x, y, heading, c, s, v, w, streams, n_steps, dt, sigma_speed, sigma_turn, weights,
-    ox, oy, counter, sums,
+    threads, x, y, heading, c, s, v, w, streams, n_steps, dt, sigma_speed, sigma_turn, jump_rate,
+    jump_sd, weights, ox, oy, counter, sums,
 ):  # fmt: skip
     for _ in numba.prange(threads):
         _velocity_kernel(
-            x, y, heading, c, s, v, w, streams, n_steps, dt, sigma_speed, sigma_turn, weights,
-            ox, oy, counter, sums,
+            x, y, heading, c, s, v, w, streams, n_steps, dt, sigma_speed, sigma_turn, jump_rate,
+            jump_sd, weights, ox, oy, counter, sums,
         )  # fmt: skip
 
 
@@ -77,20 +114,32 @@ class VelocityMotion:
     turn rate. As in the paper the speed is a signed linear velocity and may become negative
     (motion against the heading).
 
+    The speed may also jump: at ``jump_rate`` jumps per second (a Poisson process), each
+    adding ``N(0, jump_sd^2)`` m/s. That is the form of an animal whose speed holds between
+    changes of behaviour and then changes at once, beside the small random walk of one whose
+    speed drifts (reports/decisions.md, "Speed jumps for the velocity model").
+
     Parameters
     ----------
     sigma_speed : float
         Standard deviation of the speed increment over one second, m/s.
     sigma_turn_rate : float
         Standard deviation of the turn-rate increment over one second, rad/s.
+    jump_rate : float
+        Expected number of speed jumps per second, 1/s. 0 (default): no jumps, and nothing
+        is drawn for them.
+    jump_sd : float
+        Standard deviation of one speed jump, m/s.
     """
 
     sigma_speed: float
     sigma_turn_rate: float
+    jump_rate: float = 0.0
+    jump_sd: float = 0.0
     compiled = True
 
     def __post_init__(self) -> None:
-        for name in ("sigma_speed", "sigma_turn_rate"):
+        for name in ("sigma_speed", "sigma_turn_rate", "jump_rate", "jump_sd"):
             value = getattr(self, name)
             if not (np.isfinite(value) and value >= 0):
                 raise ValueError(f"VelocityMotion.{name} must be a number >= 0, got {value}")
@@ -99,8 +148,18 @@ class VelocityMotion:
         """Nothing to set: particles start at rest as in the paper's Algorithm 1."""
 
     def propagate(self, rng: np.random.Generator, particles: Particles, dt: float) -> None:
-        """One step of ``dt`` s for all particles, in place (NumPy reference)."""
-        self.apply(particles, dt, rng.standard_normal((2, particles.n)))
+        """One step of ``dt`` s for all particles, in place (NumPy reference): the random
+        walks' normals ``(2, N)``, then, with jumps, each particle's number of jumps
+        (``Poisson(jump_rate dt)``) and a normal for each particle that jumps."""
+        normals = rng.standard_normal((2, particles.n))
+        if self.jump_rate > 0.0:
+            count = rng.poisson(self.jump_rate * dt, particles.n)
+            jumped = np.flatnonzero(count)
+            jumps = np.sqrt(count[jumped]) * self.jump_sd * rng.standard_normal(jumped.size)
+            speed = particles.speed.copy()
+            speed[jumped] += jumps
+            particles.speed = speed
+        self.apply(particles, dt, normals)
 
     def apply(self, particles: Particles, dt: float, normals: np.ndarray) -> None:
         """The step of :meth:`propagate` with given standard normals ``(2, N)`` (dv, domega)."""
@@ -116,5 +175,5 @@ class VelocityMotion:
             _velocity_kernel, _velocity_parallel, p.n, n_steps, threads,
             p.x, p.y, p.heading, p.cos_heading, p.sin_heading, p.speed, p.turn_rate,
             streams, n_steps, float(dt), float(self.sigma_speed), float(self.sigma_turn_rate),
-            weights, *origin,
+            float(self.jump_rate), float(self.jump_sd), weights, *origin,
         )  # fmt: skip
