@@ -1,6 +1,6 @@
 """The velocity model's speed jumps (``VelocityMotion(jump_rate=..., jump_sd=...)``): a
 compound Poisson process in the speed beside its random walk, in the compiled kernel and
-the NumPy reference."""
+the NumPy reference; and its settings (``VelocitySettings``, the command line)."""
 
 import math
 
@@ -8,9 +8,15 @@ import numpy as np
 import pytest
 from numba import njit
 from scipy import stats
+from test_speed_diffusion import run  # horizon of steps by the NumPy or the compiled path
 
+from hmmtrack.cli import build_parser
+from hmmtrack.cli.track import build_config
+from hmmtrack.experiments.trials import _motion
 from hmmtrack.tracking.compiled import streams as rs
-from hmmtrack.tracking.motion import VelocityMotion
+from hmmtrack.tracking.config import TrackingConfig
+from hmmtrack.tracking.motion import VelocityMotion, motion_model
+from hmmtrack.tracking.motion.settings import VelocitySettings
 from hmmtrack.tracking.motion.velocity import _jump_count, _speed_jumps
 from hmmtrack.tracking.particles import Particles
 
@@ -20,18 +26,6 @@ def cloud(n, speed=1.0):
     p = Particles.from_state(x=np.zeros(n), y=np.zeros(n), heading=np.zeros(n))
     p.speed = np.full(n, speed)
     return p
-
-
-def run(motion, p, horizon, dt, path, seed=8):
-    """``horizon`` s of prediction steps of ``dt`` s, by the NumPy or the compiled path."""
-    steps = int(round(horizon / dt))
-    if path == "numpy":
-        rng = np.random.default_rng(seed)
-        for _ in range(steps):
-            motion.propagate(rng, p, dt)
-    else:
-        streams = rs.new_streams(np.random.default_rng(seed), p.n)
-        motion.advance(p, streams, steps, dt, p.normalised_weights(), (0.0, 0.0))
 
 
 def compound_poisson_cdf(x, mean, sd):
@@ -157,3 +151,37 @@ def test_the_jump_pass_jumps_at_the_poisson_rate():
 def test_jump_settings_must_be_numbers_at_least_zero(name, value):
     with pytest.raises(ValueError, match=name):
         VelocityMotion(0.1, 0.02, **{name: value})
+
+
+# ------------------------------------------------------------------------------- settings
+
+
+def test_no_default_path_jumps():
+    """The paper's velocity model everywhere by default, under either range-rate measurement
+    (the gps option's velocity model is today's: reports/decisions.md, "Speed jumps for the
+    velocity model")."""
+    for motion in (
+        motion_model("velocity"),
+        VelocitySettings().build(),
+        _motion("velocity", "range-rate"),
+        _motion("velocity", "range-rate-gps"),
+    ):
+        assert (motion.jump_rate, motion.jump_sd) == (0.0, 0.0)
+
+
+def test_jumps_are_given_in_a_configuration_or_on_the_command_line():
+    config = TrackingConfig.from_dict(
+        {
+            "measurement": {"name": "range-rate-gps", "period": 8.0},
+            "motion": {"name": "velocity", "sigma_speed": 0.03, "jump_rate": 0.02, "jump_sd": 0.4},
+        }
+    )
+    assert config.motion_model() == VelocityMotion(0.03, 0.02, jump_rate=0.02, jump_sd=0.4)
+    assert TrackingConfig.from_dict(config.to_dict()) == config
+    parser = build_parser()
+    args = ["track", "--detections", "d.csv", "--receivers", "r.csv", "-o", "e.csv"]
+    args += ["--period", "8", "--r0", "a=1", "--motion", "velocity"]
+    given = build_config(parser.parse_args([*args, "--jump-rate", "0.05", "--jump-sd", "0.3"]))
+    assert given.motion_model() == VelocityMotion(0.1, 0.02, jump_rate=0.05, jump_sd=0.3)
+    with pytest.raises(ValueError, match="jump_rate must be a non-negative"):
+        VelocitySettings(jump_rate=-1.0)

@@ -75,6 +75,10 @@ class VelocitySettings(Settings):
         Spread of the speed increments (m/s per √s).
     sigma_turn_rate : float
         Spread of the turn-rate increments (rad/s per √s).
+    jump_rate : float
+        Expected number of speed jumps per second (0: none, the paper's model).
+    jump_sd : float
+        Spread of one speed jump (m/s).
     """
 
     name: ClassVar[str] = "velocity"
@@ -93,10 +97,32 @@ class VelocitySettings(Settings):
         parse=float,
         metavar="RAD_PER_S",
     )
+    jump_rate: float = setting(
+        0.0,
+        help=(
+            "expected number of speed jumps per second, each N(0, jump_sd^2) m/s beside the "
+            "speed's random walk (an animal whose speed changes at once)"
+        ),
+        check=non_negative,
+        parse=float,
+        metavar="PER_S",
+    )
+    jump_sd: float = setting(
+        0.0,
+        help="spread of one speed jump (m/s)",
+        check=non_negative,
+        parse=float,
+        metavar="M_PER_S",
+    )
 
     def build(self) -> VelocityMotion:
         """The motion model."""
-        return VelocityMotion(sigma_speed=self.sigma_speed, sigma_turn_rate=self.sigma_turn_rate)
+        return VelocityMotion(
+            sigma_speed=self.sigma_speed,
+            sigma_turn_rate=self.sigma_turn_rate,
+            jump_rate=self.jump_rate,
+            jump_sd=self.jump_sd,
+        )
 
 
 @dataclass(frozen=True)
