@@ -204,6 +204,28 @@ def test_dataset_spread_separates_datasets_from_runs():
     assert row["share_above_100m"] == pytest.approx(1 / 6)
 
 
+def test_calibration_spread_counts_the_datasets_a_cells_share_rests_on():
+    # three datasets of two runs: one all inside, one half inside on average, one that is
+    # all inside in one run only; a second cell to show the grouping
+    table = pd.DataFrame(
+        {
+            "scenario": ["s"] * 6 + ["t"] * 2,
+            "motion": ["hmm"] * 6 + ["velocity"] * 2,
+            "dataset": [0, 0, 1, 1, 2, 2, 0, 1],
+            "calibration": [1.0, 1.0, 0.4, 0.6, 1.0, 0.9, 0.95, 0.7],
+        }
+    )
+    cells = ex.calibration_spread(table).set_index(["scenario", "motion"])
+    hmm = cells.loc[("s", "hmm")]
+    assert hmm["n_datasets"] == 3
+    assert hmm["share"] == pytest.approx(np.mean([1.0, 1.0, 0.4, 0.6, 1.0, 0.9]))
+    assert hmm["between_datasets"] == pytest.approx(np.std([1.0, 0.5, 0.95], ddof=1))
+    assert hmm["all_inside"] == 1 and hmm["mostly_outside"] == 1
+    velocity = cells.loc[("t", "velocity")]
+    assert velocity["all_inside"] == 0 and velocity["mostly_outside"] == 1
+    assert velocity["share"] == pytest.approx(0.825)
+    assert ex.MOSTLY_OUTSIDE == 0.8
+
 def test_run_options_run_one_worker_serially_and_more_in_processes():
     assert ex.run_options(1, 50) == {
         "executor": "serial",

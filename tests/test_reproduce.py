@@ -89,6 +89,7 @@ def test_summary_puts_our_numbers_beside_the_papers(quick_run):
     assert "start = the scenario's start region where it records one" in text
     assert "these runs start where the field team knew the tag to be" in text
     assert "## Spread between datasets and between filter runs" in text
+    assert "## What the calibration figures rest on" in text
 
 
 def test_bad_arguments_are_reported_without_traceback(capsys):

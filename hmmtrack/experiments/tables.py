@@ -143,6 +143,48 @@ def dataset_spread(
     return spread.reset_index()
 
 
+#: a dataset whose mean share of seconds inside the 95 % region is below this is "mostly
+#: outside" (:func:`calibration_spread`)
+MOSTLY_OUTSIDE = 0.8
+
+
+def calibration_spread(table: pd.DataFrame) -> pd.DataFrame:
+    """How each cell's share of seconds inside the 95 % region is made up of its datasets.
+
+    The seconds of one run are not independent draws: a dataset's fixed errors (e.g. a
+    moored receiver's single GPS fix) move all of them together, so a dataset is nearly all
+    inside its regions or not, and a cell's share rests on its few datasets that are not.
+
+    Parameters
+    ----------
+    table : pandas.DataFrame
+        A trials table with ``scenario``, ``motion``, ``dataset`` and ``calibration`` (the
+        share, 0-1, of a trial's seconds after convergence inside its 95 % region).
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per scenario and motion: ``n_datasets``, ``share`` (mean over trials),
+        ``between_datasets`` (standard deviation of the datasets' means), ``all_inside``
+        (datasets whose every trial had every second inside) and ``mostly_outside``
+        (datasets whose mean share is below :data:`MOSTLY_OUTSIDE`).
+    """
+    spread = dataset_spread(table, column="calibration")
+    per_dataset = table.groupby(["scenario", "motion", "dataset"], sort=False)["calibration"]
+    cells = per_dataset.agg(["min", "mean"]).groupby(level=[0, 1], sort=False)
+    counts = pd.DataFrame(
+        {
+            "all_inside": cells["min"].apply(lambda v: int((v >= 1.0).sum())),
+            "mostly_outside": cells["mean"].apply(lambda v: int((v < MOSTLY_OUTSIDE).sum())),
+        }
+    ).reset_index()
+    return (
+        spread[["scenario", "motion", "n_datasets", "mean", "between_datasets"]]
+        .rename(columns={"mean": "share"})
+        .merge(counts, on=["scenario", "motion"], how="left")
+    )
+
+
 def loss_bands(table: pd.DataFrame) -> pd.DataFrame:
     """The paper's measurement-loss summary: mean and max per band of fractions dropped.
 

@@ -16,7 +16,9 @@ import pandas as pd
 from hmmtrack.experiments import (
     HMM_VARIANT,
     LOSS_BANDS,
+    MOSTLY_OUTSIDE,
     MOTIONS,
+    calibration_spread,
     dataset_spread,
     loss_bands,
     summarise_trials,
@@ -131,6 +133,52 @@ def _spread_section(comparison: pd.DataFrame) -> str:
         + markdown_table(headers, rows)
         + "\n"
     )
+
+
+def _calibration_section(comparison: pd.DataFrame) -> str:
+    """Each cell's share of seconds inside the 95 % region, made up of its datasets."""
+    if "calibration" not in comparison.columns:
+        return ""
+    cells = calibration_spread(comparison)
+    if not (cells["n_datasets"] > 1).any():
+        return ""
+    rows = [
+        [
+            PAPER["datasets"].get(cell["scenario"], cell["scenario"]),
+            cell["motion"],
+            str(int(cell["n_datasets"])),
+            _percent_1(cell["share"]),
+            _percent_1(cell["between_datasets"]),
+            str(int(cell["all_inside"])),
+            str(int(cell["mostly_outside"])),
+        ]
+        for _, cell in cells.iterrows()
+    ]
+    headers = [
+        "dataset",
+        "motion model",
+        "datasets",
+        "truth in 95 % region",
+        "sd between datasets",
+        "datasets all inside",
+        f"datasets under {100 * MOSTLY_OUTSIDE:.0f} %",
+    ]
+    return (
+        "## What the calibration figures rest on\n\n"
+        "A run's seconds are not independent draws: a dataset's fixed errors (a moored "
+        "receiver's single GPS fix, the geometry) move all of them together, so a dataset "
+        "is mostly inside its regions or mostly not, and a cell's share rests on the few "
+        "datasets that are not. With 20 datasets a calibrated cell's share moves by several "
+        'points from one experiment seed to the next (reports/decisions.md, "Long Beach '
+        'too wide under the gps option"; `hmmtrack.experiments.calibration_spread`).\n\n'
+        + markdown_table(headers, rows)
+        + "\n"
+    )
+
+
+def _percent_1(share: float) -> str:
+    """A share as a percentage with one decimal, or a dash when unknown."""
+    return "–" if not math.isfinite(share) else f"{100 * share:.1f} %"
 
 
 def _loss_section(loss: pd.DataFrame) -> str:
@@ -331,6 +379,8 @@ def write_summary(
         parts.append(_comparison_section(comparison))
         if spread := _spread_section(comparison):
             parts.append(spread)
+        if calibration := _calibration_section(comparison):
+            parts.append(calibration)
         parts.append(_differences_section(comparison))
     if loss is not None and len(loss):
         parts.append(_loss_section(loss))
