@@ -62,7 +62,6 @@ import itertools
 import time as clock
 import warnings
 from collections.abc import Callable, Iterator, Sequence
-from contextlib import nullcontext
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -170,19 +169,20 @@ class Estimate(NamedTuple):
     n_eff: float
 
 
-def _estimates(times, origin, moments: np.ndarray, n_eff: float) -> list[Estimate]:
-    """Estimates at ``times`` (K,) from weighted moments ``(K, 5)`` of positions relative to
-    ``origin``: mean x, mean y, mean x^2, mean y^2, mean xy (plain floats throughout: made
-    every second of a run)."""
+def _estimates(
+    start: float, dt: float, origin, moments: np.ndarray, n_eff: float
+) -> list[Estimate]:
+    """Estimates at the times ``start + k dt`` (s), ``k = 1..K``, from weighted moments
+    ``(K, 5)`` of positions relative to ``origin``: mean x, mean y, mean x^2, mean y^2, mean
+    xy (plain floats throughout, the times too: made every second of a run)."""
     x0, y0, n_eff = float(origin[0]), float(origin[1]), float(n_eff)
+    start, dt = float(start), float(dt)
     estimates = []
-    for time, (mx, my, sxx, syy, sxy) in zip(
-        np.asarray(times, dtype=np.float64).tolist(), np.atleast_2d(moments).tolist(), strict=True
-    ):
+    for k, (mx, my, sxx, syy, sxy) in enumerate(moments.tolist(), 1):
         var_x, var_y, cov_xy = max(sxx - mx * mx, 0.0), max(syy - my * my, 0.0), sxy - mx * my
         sqrt_lambda1 = sqrt_largest_eigenvalue(var_x, var_y, cov_xy)
         estimates.append(
-            Estimate(time, x0 + mx, y0 + my, var_x, var_y, cov_xy, sqrt_lambda1, n_eff)
+            Estimate(start + k * dt, x0 + mx, y0 + my, var_x, var_y, cov_xy, sqrt_lambda1, n_eff)
         )
     return estimates
 
@@ -533,7 +533,7 @@ class ParticleFilter:
                 moments[k] = _weighted_moments(p, weights, origin)
         start = self.time
         self.time = start + n_steps * self.dt
-        return _estimates(start + np.arange(1, n_steps + 1) * self.dt, origin, moments, n_eff)
+        return _estimates(start, self.dt, origin, moments, n_eff)
 
     def weights(self) -> tuple[np.ndarray, float, tuple[float, float]]:
         """Normalised weights (N,), their ESS and the weighted mean position (m) -- from the
@@ -594,7 +594,9 @@ class ParticleFilter:
         their own default (the range-rate log-likelihood on one thread, the ping
         measurement's on all of numba's)."""
         threads = self.correction_threads()
-        with default_threads(threads) if threads > 1 else nullcontext():
+        if threads == 1:  # the kernels keep their own default (no block to enter and leave)
+            return self._scored_correction(rows, table)
+        with default_threads(threads):
             return self._scored_correction(rows, table)
 
     def _scored_correction(self, rows, table) -> Estimate:

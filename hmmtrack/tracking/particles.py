@@ -215,7 +215,7 @@ class Particles:
             merge), so that they are in the cache when their particles are gathered.
         """
         indices = np.asarray(indices)
-        if indices.ndim != 1 or not np.issubdtype(indices.dtype, np.integer):
+        if indices.ndim != 1 or indices.dtype.kind not in _INTEGER_KINDS:
             raise ValueError(
                 f"Particles.take needs a 1-D integer array of indices, got a {indices.dtype} "
                 f"array of shape {indices.shape}"
@@ -287,6 +287,9 @@ _motion_arrays = operator.attrgetter(*_MOTION_NAMES)
 #: the float fields' dtype (a dtype: comparing with it is faster than with ``np.float64``,
 #: which NumPy converts to a dtype at every comparison)
 _FLOAT64 = np.dtype(np.float64)
+#: the dtype kinds of NumPy's integer types (signed, unsigned): a test of ``dtype.kind``
+#: costs a tenth of ``np.issubdtype(dtype, np.integer)``
+_INTEGER_KINDS = ("i", "u")
 
 
 def _empty(m: int, state_dtype) -> Particles:
