@@ -262,6 +262,20 @@ def test_snapshots_and_window():
         pf.run(obs, snapshot_times=[T0 - 5])
 
 
+def test_observations_in_any_row_order_give_the_same_run():
+    """The rows are put in time order (stably) only when they are not: a shuffled table gives
+    the run of the same rows sorted, and numbers in a column of objects that of the numbers,
+    bit for bit."""
+    obs = circling_observations(duration=120.0)
+    shuffled = obs.sample(frac=1.0, random_state=4)
+    as_objects = obs.astype({"range": object, "range_rate": object})
+    tables = (shuffled, shuffled.sort_values("time", kind="stable"), obs, as_objects)
+    runs = [make_filter(n=500).run(table).estimates for table in tables]
+    assert not shuffled["time"].is_monotonic_increasing
+    pd.testing.assert_frame_equal(runs[0], runs[1], check_exact=True)
+    pd.testing.assert_frame_equal(runs[3], runs[2], check_exact=True)
+
+
 def test_bad_observations_name_rows_and_columns():
     obs = circling_observations(duration=100.0)
     obs.loc[3, "range_rate"] = np.nan
@@ -269,6 +283,12 @@ def test_bad_observations_name_rows_and_columns():
         make_filter().run(obs)
     with pytest.raises(ValueError, match="lack column"):
         make_filter().run(obs.drop(columns="receiver_vx"))
+    # columns of other dtypes are coerced to numbers: text and missing values are named
+    for column in (obs["range"].astype(object), obs["range"].astype("Float64")):
+        odd = obs.assign(range=column)
+        odd.loc[5, "range"] = "far" if column.dtype == object else pd.NA
+        with pytest.raises(ValueError, match=r"\['range', 'range_rate'\] at row\(s\) \[3, 5\]"):
+            make_filter().run(odd)
     with pytest.raises(ValueError, match="backend"):
         make_filter(backend="cuda")
 
