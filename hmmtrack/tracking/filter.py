@@ -197,6 +197,18 @@ def _estimate(time, mean_x, mean_y, var_x, var_y, cov_xy, n_eff) -> Estimate:
     return Estimate(time, mean_x, mean_y, var_x, var_y, cov_xy, sqrt_lambda1, n_eff)
 
 
+def _estimate_table(estimates: list[Estimate]) -> pd.DataFrame:
+    """The table of ``estimates`` (one row each, :data:`ESTIMATE_COLUMNS`, float64): their
+    floats read into one array (half the time of building the table from the tuples)."""
+    width = len(ESTIMATE_COLUMNS)
+    values = np.fromiter(
+        (value for estimate in estimates for value in estimate),
+        dtype=np.float64,
+        count=len(estimates) * width,
+    )
+    return pd.DataFrame(values.reshape(-1, width), columns=list(ESTIMATE_COLUMNS))
+
+
 def _weight_summary(x, y, log_weight, threads: int = 1):
     """Normalised weights (N,) and the weighted mean, covariance and ESS
     (:func:`hmmtrack.tracking.compiled.weighing.weigh` on ``threads`` threads).
@@ -1036,13 +1048,13 @@ class ParticleFilter:
         else:
             rows = None
             while chunk := list(itertools.islice(estimates, ESTIMATE_ROWS)):
-                estimates_to(pd.DataFrame(chunk, columns=list(ESTIMATE_COLUMNS)))
+                estimates_to(_estimate_table(chunk))
         self._settle()
         collected: dict[str, pd.DataFrame] = {}
         for collector in self.collect:
             collected.update(collector.result())
         return FilterResult(
-            estimates=None if rows is None else pd.DataFrame(rows, columns=list(ESTIMATE_COLUMNS)),
+            estimates=None if rows is None else _estimate_table(rows),
             snapshots=snapshots,
             events=pd.DataFrame(self.events, columns=["time", "kind", "detail"]),
             collected=collected,
