@@ -1,8 +1,8 @@
 """``hmmtrack reproduce``: rerun the paper's experiments and write ``reports/``.
 
 Writes every figure (PNG) and ``summary.md`` (our numbers beside the paper's) with
-:func:`hmmtrack.report.reproduce`. ``--quick`` is a small run for a first try (under a
-minute); without it the run is paper-scale (100 trials per motion model per scenario,
+:func:`hmmtrack.report.reproduce`. ``--quick`` is a small run for a first try (a minute or
+two); without it the run is paper-scale (100 trials per motion model per scenario,
 spread over 20 synthetic datasets × 5 filter runs, plus the measurement-loss sweep). By
 default every run is ours (the mode-keeping filter, started where the field team knew the tag
 to be, the ``range-rate-gps`` measurement); ``--filter paper --no-start-prior --measurement
@@ -24,7 +24,7 @@ FILTER_NAMES = ("paper", "mode-keeping", "acquired")
 DESCRIPTION = (
     "Rerun the paper's experiments on the bundled synthetic datasets and write every figure "
     "(PNG), the trial tables (CSV) and summary.md (our numbers beside the paper's). --quick is "
-    "a small first try (under a minute); without it the run is paper-scale: 100 trials per "
+    "a small first try (a minute or two); without it the run is paper-scale: 100 trials per "
     "motion model per scenario (20 synthetic datasets x 5 filter runs), the measurement-loss "
     "sweep and the diving shark. Every run uses the mode-keeping filter from where the field "
     "team knew the tag to be at the start, with the receivers' GPS error correlated in time; "

@@ -79,7 +79,7 @@ class RunSize:
 #: synthetic datasets × 5 filter runs (900 comparison trials), plus the loss sweep and 50
 #: paired trials of the diving shark
 FULL = RunSize(5, LOSS_FRACTIONS, 5, 50, DEFAULT_PARTICLES, n_datasets=20)
-#: a first try: a few trials of everything, under a minute on two cores
+#: a first try: a few trials of everything, about 1.5 minutes on two quiet cores
 QUICK = RunSize(1, (0.0, 0.25, 0.5, 0.75, 0.9, 1.0), 1, 1, 300, shark_tracks_sharks=3, n_datasets=2)
 
 FIGURE_DPI = 100
