@@ -91,9 +91,10 @@ def _comparison_section(comparison: pd.DataFrame) -> str:
     )
 
 
-def _percent(share: float) -> str:
-    """A share as a whole percentage, or a dash when unknown."""
-    return "–" if not math.isfinite(share) else f"{100 * share:.0f} %"
+def _percent(share: float, decimals: int = 0) -> str:
+    """A share as a percentage with ``decimals`` decimals (a whole one by default), or a dash
+    when unknown."""
+    return "–" if not math.isfinite(share) else f"{100 * share:.{decimals}f} %"
 
 
 def _spread_section(comparison: pd.DataFrame) -> str:
@@ -147,8 +148,8 @@ def _calibration_section(comparison: pd.DataFrame) -> str:
             PAPER["datasets"].get(cell["scenario"], cell["scenario"]),
             cell["motion"],
             str(int(cell["n_datasets"])),
-            _percent_1(cell["share"]),
-            _percent_1(cell["between_datasets"]),
+            _percent(cell["share"], 1),
+            _percent(cell["between_datasets"], 1),
             str(int(cell["all_inside"])),
             str(int(cell["mostly_outside"])),
         ]
@@ -174,11 +175,6 @@ def _calibration_section(comparison: pd.DataFrame) -> str:
         + markdown_table(headers, rows)
         + "\n"
     )
-
-
-def _percent_1(share: float) -> str:
-    """A share as a percentage with one decimal, or a dash when unknown."""
-    return "–" if not math.isfinite(share) else f"{100 * share:.1f} %"
 
 
 def _loss_section(loss: pd.DataFrame) -> str:
