@@ -135,46 +135,38 @@ def end_of(result, tag) -> tuple[float, float]:
     return float(np.hypot(last["x"] - tag[0], last["y"] - tag[1])), float(last["sqrt_lambda1"])
 
 
-def test_the_default_filter_reacquires_after_30_days_and_is_not_confidently_wrong():
-    """The 30-day case through the library's default (no monitor switch): ``long_gap`` and
-    ``reacquired`` events after the acquisition's, and the end either near the tag or
-    honestly uncertain, on 3 seeds; without the long-gap rule the same filter collapses
-    onto a confident wrong point."""
+@pytest.mark.parametrize(
+    ("gps", "n_seeds", "confident", "at_least"),
+    [(False, 3, 10.0, 2), (True, 5, 15.0, 3)],
+    ids=["range-rate", "range-rate-gps"],
+)
+def test_the_default_filter_reacquires_after_30_days_and_is_not_confidently_wrong(
+    gps, n_seeds, confident, at_least
+):
+    """The 30-day case through the library's default (no monitor switch), with the range-rate
+    measurement and with the one the reproduction defaults to (whose offsets must not hide
+    the gap): ``long_gap`` and ``reacquired`` events after the acquisition's, and the end
+    either near the tag or honestly uncertain, on every seed; without the long-gap rule the
+    same filter collapses onto a confident wrong point (√λ₁ under ``confident`` m, more than
+    100 m off) on ``at_least`` seeds (gps: 4 of the 5 within 15 m, 570-1,600 m off)."""
     rng = np.random.default_rng(1)
     tag = (700.0, -500.0)
     after = boat_observations(rng, tag=tag, times=[30 * DAY + 16.0])
     observations = pd.concat([boat_observations(rng), after], ignore_index=True)
+    measurement = None
+    if gps:
+        observations, measurement = from_the_boat(observations), gps_measurement()
     confident_and_wrong = 0
-    for seed in range(3):
-        result = quietly_run(default_filter(600.0, seed), observations)
+    for seed in range(n_seeds):
+        result = quietly_run(default_filter(600.0, seed, measurement), observations)
         assert list(result.events["kind"]) == ["acquired", "long_gap", "reacquired"]
         assert result.events["time"].iloc[-1] == pytest.approx(30 * DAY + 16.0, abs=600.0)
         error, spread = end_of(result, tag)
         assert spread > 100.0 or error < 50.0
-        without = quietly_run(default_filter(600.0, seed, long_gap=False), observations)
-        error, spread = end_of(without, tag)
-        confident_and_wrong += spread < 10.0 and error > 100.0
-    assert confident_and_wrong >= 2
-
-
-def test_under_the_gps_measurement_the_30_day_gap_gives_the_events_and_an_honest_cloud():
-    """The same 30-day case with the measurement the reproduction defaults to: its offsets
-    do not hide the gap; the events, and the end either near the tag or hundreds of metres
-    wide (5 seeds; without the rule 4 of the 5 end within 15 m of spread, 570-1,600 m off)."""
-    rng = np.random.default_rng(1)
-    tag = (700.0, -500.0)
-    after = boat_observations(rng, tag=tag, times=[30 * DAY + 16.0])
-    observations = from_the_boat(pd.concat([boat_observations(rng), after], ignore_index=True))
-    confident_and_wrong = 0
-    for seed in range(5):
-        result = quietly_run(default_filter(600.0, seed, gps_measurement()), observations)
-        assert list(result.events["kind"]) == ["acquired", "long_gap", "reacquired"]
-        error, spread = end_of(result, tag)
-        assert spread > 100.0 or error < 50.0
-        without = default_filter(600.0, seed, gps_measurement(), long_gap=False)
+        without = default_filter(600.0, seed, measurement, long_gap=False)
         error, spread = end_of(quietly_run(without, observations), tag)
-        confident_and_wrong += spread < 15.0 and error > 100.0
-    assert confident_and_wrong >= 3
+        confident_and_wrong += spread < confident and error > 100.0
+    assert confident_and_wrong >= at_least
 
 
 def test_the_default_filter_raises_no_event_on_a_clean_run():
