@@ -171,13 +171,18 @@ def calibration_spread(table: pd.DataFrame) -> pd.DataFrame:
     """
     spread = dataset_spread(table, column="calibration")
     per_dataset = table.groupby(["scenario", "motion", "dataset"], sort=False)["calibration"]
-    cells = per_dataset.agg(["min", "mean"]).groupby(level=[0, 1], sort=False)
-    counts = pd.DataFrame(
-        {
-            "all_inside": cells["min"].apply(lambda v: int((v >= 1.0).sum())),
-            "mostly_outside": cells["mean"].apply(lambda v: int((v < MOSTLY_OUTSIDE).sum())),
-        }
-    ).reset_index()
+    shares = per_dataset.agg(["min", "mean"])
+    counts = (
+        pd.DataFrame(
+            {
+                "all_inside": shares["min"] >= 1.0,
+                "mostly_outside": shares["mean"] < MOSTLY_OUTSIDE,
+            }
+        )
+        .groupby(level=["scenario", "motion"], sort=False)
+        .sum()
+        .reset_index()
+    )
     return (
         spread[["scenario", "motion", "n_datasets", "mean", "between_datasets"]]
         .rename(columns={"mean": "share"})
