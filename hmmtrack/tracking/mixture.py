@@ -553,8 +553,8 @@ def _finish_components(counts, component_weight, x, y, log_weight, new_weights, 
             live += component_weight[k]
             n_live += 1
     origin = np.empty((n_live, 2))
-    size = chunking(total)[1]
-    sums = np.zeros((chunking(total)[0], n_live, 6))
+    n_chunks, size = chunking(total)
+    sums = np.zeros((n_chunks, n_live, 6))
     r = 0  # the live rank of component k
     a = 0  # its first new particle
     for k in range(counts.size):
