@@ -156,28 +156,26 @@ def test_jump_settings_must_be_numbers_at_least_zero(name, value):
 # ------------------------------------------------------------------------------- settings
 
 
-def test_no_default_path_jumps_but_the_gps_measurements():
-    """The paper's velocity model by default; the ``range-rate-gps`` measurement's rule
-    jumps (:data:`~hmmtrack.tracking.motion.VELOCITY_GPS`; reports/decisions.md, "The
-    velocity model's circling cloud")."""
+def test_no_default_path_jumps():
+    """The paper's velocity model everywhere by default, under either range-rate measurement
+    (the gps option's velocity model is today's: reports/decisions.md, "Speed jumps for the
+    velocity model")."""
     for motion in (
         motion_model("velocity"),
         VelocitySettings().build(),
         _motion("velocity", "range-rate"),
+        _motion("velocity", "range-rate-gps"),
     ):
         assert (motion.jump_rate, motion.jump_sd) == (0.0, 0.0)
-    gps = _motion("velocity", "range-rate-gps")
-    assert (gps.jump_rate, gps.jump_sd) == (1 / 60, 0.4)
 
 
 def test_jumps_are_given_in_a_configuration_or_on_the_command_line():
     config = TrackingConfig.from_dict(
         {
             "measurement": {"name": "range-rate-gps", "period": 8.0},
-            "motion": {"name": "velocity", "sigma_turn_rate": 0.02, "jump_rate": 0.02},
+            "motion": {"name": "velocity", "sigma_speed": 0.03, "jump_rate": 0.02, "jump_sd": 0.4},
         }
     )
-    # the settings not given are the gps measurement's (speed walk 0.03, jumps of 0.4 m/s)
     assert config.motion_model() == VelocityMotion(0.03, 0.02, jump_rate=0.02, jump_sd=0.4)
     assert TrackingConfig.from_dict(config.to_dict()) == config
     parser = build_parser()

@@ -48,11 +48,7 @@ from pathlib import Path
 
 from hmmtrack.tracking.filter import FILTERS, FilterSettings
 from hmmtrack.tracking.measurement import MEASUREMENTS
-from hmmtrack.tracking.motion.registry import (
-    HMM_GPS_SPEED_DIFFUSION,
-    HMM_STILL_RESTING,
-    VELOCITY_GPS,
-)
+from hmmtrack.tracking.motion.registry import HMM_GPS_SPEED_DIFFUSION, HMM_STILL_RESTING
 from hmmtrack.tracking.motion.settings import MOTION_SETTINGS, HMMSettings
 from hmmtrack.tracking.settings import (
     Settings,
@@ -105,21 +101,12 @@ MEASUREMENT_FILTERS = {"ping": "paper"}
 #: show the few distinct held speeds that resampling leaves, so the swimming states' speed
 #: takes a log random walk (:data:`~hmmtrack.tracking.motion.HMM_GPS_SPEED_DIFFUSION`)
 #: (reports/decisions.md, "A resting tag that holds still" and "The HMM's held speed as a
-#: log-speed random walk"); and the velocity model's cloud, which under the paper's turn-rate
-#: walk circles on the spot, keeps a heading while one receiver is silent
-#: (:data:`~hmmtrack.tracking.motion.VELOCITY_GPS`; reports/decisions.md, "The velocity
-#: model's circling cloud")
+#: log-speed random walk")
 MEASUREMENT_MOTIONS = {
     "range-rate-gps": {
         "hmm": {
             "resting_drift": HMM_STILL_RESTING.drift_speed,
             "speed_diffusion": HMM_GPS_SPEED_DIFFUSION,
-        },
-        "velocity": {
-            "sigma_speed": VELOCITY_GPS.sigma_speed,
-            "sigma_turn_rate": VELOCITY_GPS.sigma_turn_rate,
-            "jump_rate": VELOCITY_GPS.jump_rate,
-            "jump_sd": VELOCITY_GPS.jump_sd,
         },
     },
 }

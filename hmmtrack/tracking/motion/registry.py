@@ -28,7 +28,6 @@ __all__ = [
     "HMM_RESTING",
     "HMM_STILL_RESTING",
     "MOTIONS",
-    "VELOCITY_GPS",
     "VELOCITY_SIGMA_SPEED",
     "VELOCITY_SIGMA_TURN_RATE",
     "RestingState",
@@ -44,14 +43,6 @@ BASELINE_SIGMA = 0.3
 #: increments: speed must follow a swimming animal, turn rates change slowly
 VELOCITY_SIGMA_SPEED = 0.1
 VELOCITY_SIGMA_TURN_RATE = 0.02
-#: the velocity model under a measurement whose regions are narrow enough to show where its
-#: cloud goes while one receiver is silent (the ``range-rate-gps`` measurement): a turn-rate
-#: walk half :data:`VELOCITY_SIGMA_TURN_RATE`, so that particles keep a heading
-#: for minutes instead of circling on the spot (at 0.02 rad/s per √s a cloud's turn rates
-#: spread by 0.1 rad/s within a minute, and its predicted displacement stops growing), and
-#: the speed's small walk with jumps of s16-i13jump (1 a minute, 0.4 m/s). Chosen on seeds
-#: 45-49 and checked on 50-54 (reports/decisions.md, "The velocity model's circling cloud")
-VELOCITY_GPS = VelocityMotion(sigma_speed=0.03, sigma_turn_rate=0.01, jump_rate=1 / 60, jump_sd=0.4)
 #: heading random walk (rad/√s) of the HMM motion model in its time-consistent variant
 #: (:class:`~hmmtrack.tracking.motion.HMMMotion`): lets the resampled copies of a particle,
 #: which hold one speed and turn rate for the fitted step, part; kept small for the

@@ -21,7 +21,6 @@ from hmmtrack.tracking.motion.registry import (
     HMM_HEADING_DIFFUSION,
     HMM_RESTING,
     HMM_STILL_RESTING,
-    VELOCITY_GPS,
     VELOCITY_SIGMA_SPEED,
     VELOCITY_SIGMA_TURN_RATE,
     default_resting,
@@ -39,11 +38,6 @@ from hmmtrack.tracking.settings import (
 )
 
 __all__ = ["MOTION_SETTINGS", "BaselineSettings", "HMMSettings", "VelocitySettings"]
-
-
-def _gps_or(gps: float, otherwise: float) -> str:
-    """The help's default of a setting that the ``range-rate-gps`` measurement sets."""
-    return f"{gps:g} for range-rate-gps, else {otherwise:g}"
 
 
 @dataclass(frozen=True)
@@ -75,43 +69,36 @@ class BaselineSettings(Settings):
 class VelocitySettings(Settings):
     """Settings of :class:`~hmmtrack.tracking.motion.VelocityMotion`.
 
-    Each setting left ``None`` is the measurement's
-    (:data:`hmmtrack.tracking.config.MEASUREMENT_MOTIONS`: under ``range-rate-gps``
-    :data:`~hmmtrack.tracking.motion.VELOCITY_GPS`'s), else the paper's model's
-    (:func:`~hmmtrack.tracking.motion.motion_model`).
-
     Parameters
     ----------
-    sigma_speed : float or None
-        Spread of the speed increments (m/s per √s); else 0.1.
-    sigma_turn_rate : float or None
-        Spread of the turn-rate increments (rad/s per √s); else 0.02.
-    jump_rate : float or None
-        Expected number of speed jumps per second; else 0 (none, the paper's model).
-    jump_sd : float or None
-        Spread of one speed jump (m/s); else 0.
+    sigma_speed : float
+        Spread of the speed increments (m/s per √s).
+    sigma_turn_rate : float
+        Spread of the turn-rate increments (rad/s per √s).
+    jump_rate : float
+        Expected number of speed jumps per second (0: none, the paper's model).
+    jump_sd : float
+        Spread of one speed jump (m/s).
     """
 
     name: ClassVar[str] = "velocity"
 
-    sigma_speed: float | None = setting(
-        None,
+    sigma_speed: float = setting(
+        VELOCITY_SIGMA_SPEED,
         help="spread of the speed increments (m/s per sqrt(s))",
         check=non_negative,
         parse=float,
         metavar="M_PER_S",
-        default_text=_gps_or(VELOCITY_GPS.sigma_speed, VELOCITY_SIGMA_SPEED),
     )
-    sigma_turn_rate: float | None = setting(
-        None,
+    sigma_turn_rate: float = setting(
+        VELOCITY_SIGMA_TURN_RATE,
         help="spread of the turn-rate increments (rad/s per sqrt(s))",
         check=non_negative,
         parse=float,
         metavar="RAD_PER_S",
-        default_text=_gps_or(VELOCITY_GPS.sigma_turn_rate, VELOCITY_SIGMA_TURN_RATE),
     )
-    jump_rate: float | None = setting(
-        None,
+    jump_rate: float = setting(
+        0.0,
         help=(
             "expected number of speed jumps per second, each N(0, jump_sd^2) m/s beside the "
             "speed's random walk (an animal whose speed changes at once)"
@@ -119,28 +106,23 @@ class VelocitySettings(Settings):
         check=non_negative,
         parse=float,
         metavar="PER_S",
-        default_text=_gps_or(VELOCITY_GPS.jump_rate, 0.0),
     )
-    jump_sd: float | None = setting(
-        None,
+    jump_sd: float = setting(
+        0.0,
         help="spread of one speed jump (m/s)",
         check=non_negative,
         parse=float,
         metavar="M_PER_S",
-        default_text=_gps_or(VELOCITY_GPS.jump_sd, 0.0),
     )
 
     def build(self) -> VelocityMotion:
-        """The motion model; settings left to the measurement (``None``) take the paper's
-        model's (a configuration fills them in from its measurement first:
-        :meth:`hmmtrack.tracking.config.TrackingConfig.motion_model`)."""
-        paper = motion_model("velocity")
-        given = {
-            name: getattr(self, name)
-            for name in ("sigma_speed", "sigma_turn_rate", "jump_rate", "jump_sd")
-            if getattr(self, name) is not None
-        }
-        return dataclasses.replace(paper, **given)
+        """The motion model."""
+        return VelocityMotion(
+            sigma_speed=self.sigma_speed,
+            sigma_turn_rate=self.sigma_turn_rate,
+            jump_rate=self.jump_rate,
+            jump_sd=self.jump_sd,
+        )
 
 
 @dataclass(frozen=True)
@@ -223,7 +205,10 @@ class HMMSettings(Settings):
         check=positive,
         parse=float,
         metavar="M_PER_S",
-        default_text=_gps_or(HMM_STILL_RESTING.drift_speed, HMM_RESTING.drift_speed),
+        default_text=(
+            f"{HMM_STILL_RESTING.drift_speed:g} for range-rate-gps, "
+            f"else {HMM_RESTING.drift_speed:g}"
+        ),
     )
     speed_diffusion: float | None = setting(
         None,
@@ -234,7 +219,7 @@ class HMMSettings(Settings):
         check=non_negative,
         parse=float,
         metavar="PER_SQRT_S",
-        default_text=_gps_or(HMM_GPS_SPEED_DIFFUSION, 0.0),
+        default_text=f"{HMM_GPS_SPEED_DIFFUSION:g} for range-rate-gps, else 0",
     )
 
     def build(self, model=None):
