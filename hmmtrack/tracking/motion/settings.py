@@ -79,6 +79,9 @@ class VelocitySettings(Settings):
         Expected number of speed jumps per second (0: none, the paper's model).
     jump_sd : float
         Spread of one speed jump (m/s).
+    turn_reversion : float or None
+        Reversion time of the turn rate to zero (s; an Ornstein-Uhlenbeck turn rate);
+        ``None``: none, the paper's random walk.
     """
 
     name: ClassVar[str] = "velocity"
@@ -114,6 +117,17 @@ class VelocitySettings(Settings):
         parse=float,
         metavar="M_PER_S",
     )
+    turn_reversion: float | None = setting(
+        None,
+        help=(
+            "reversion time of the turn rate to zero (s): an Ornstein-Uhlenbeck turn rate, "
+            "whose heading diffuses where the walk's circles"
+        ),
+        check=positive,
+        parse=float,
+        metavar="SECONDS",
+        default_text="none (the paper's random walk)",
+    )
 
     def build(self) -> VelocityMotion:
         """The motion model."""
@@ -122,6 +136,7 @@ class VelocitySettings(Settings):
             sigma_turn_rate=self.sigma_turn_rate,
             jump_rate=self.jump_rate,
             jump_sd=self.jump_sd,
+            turn_reversion=self.turn_reversion,
         )
 
 

@@ -1,8 +1,9 @@
 """The paper's velocity motion model: random walks in speed and turn rate, moves along arcs.
 
 Each step adds Gaussian increments to speed and turn rate (standard deviations
-``sigma * sqrt(dt)``), optionally speed jumps (a compound Poisson process beside the speed's
-random walk), then moves along the constant-turn-rate arc of the new speed and turn rate
+``sigma * sqrt(dt)``; optionally a turn rate that reverts to zero, an Ornstein-Uhlenbeck
+process, instead of its walk), optionally speed jumps (a compound Poisson process beside the
+speed's random walk), then moves along the constant-turn-rate arc of the new speed and turn rate
 (:mod:`hmmtrack.tracking.motion.arcs`). :class:`VelocityMotion` has the NumPy reference
 (``propagate``) and the compiled path (``advance``, :mod:`hmmtrack.tracking.motion.base`).
 """
@@ -30,6 +31,14 @@ def _add_scaled(target, z, scale):
     """``target += scale * z`` (a random-walk increment)."""
     for i in range(target.size):
         target[i] += scale * z[i]
+
+
+@njit(cache=True, inline="always")
+def _revert_and_add(target, z, decay, scale):
+    """``target = decay * target + scale * z`` (an Ornstein-Uhlenbeck step; with
+    ``decay = 1`` exactly the random walk's increment of :func:`_add_scaled`)."""
+    for i in range(target.size):
+        target[i] = decay * target[i] + scale * z[i]
 
 
 @njit(cache=True, inline="always")
@@ -67,8 +76,8 @@ def _speed_jumps(v, streams, mean, jump_sd, u):
 
 @njit(cache=True, nogil=True)
 def _velocity_kernel(
-    x, y, heading, c, s, v, w, streams, n_steps, dt, sigma_speed, sigma_turn, jump_rate,
-    jump_sd, weights, ox, oy, counter, sums,
+    x, y, heading, c, s, v, w, streams, n_steps, dt, sigma_speed, turn_decay, turn_scale,
+    jump_rate, jump_sd, weights, ox, oy, counter, sums,
 ):  # fmt: skip
     root_dt = math.sqrt(dt)
     jumps = jump_rate > 0.0
@@ -83,7 +92,7 @@ def _velocity_kernel(
         for t in range(n_steps):
             rs.normal_pairs_into(chunk_streams, z_speed, z_turn, retry)  # speed, then turn
             _add_scaled(vs, z_speed, sigma_speed * root_dt)
-            _add_scaled(ws, z_turn, sigma_turn * root_dt)
+            _revert_and_add(ws, z_turn, turn_decay, turn_scale)
             if jumps:
                 _speed_jumps(vs, chunk_streams, jump_rate * dt, jump_sd, jump_u)
             arc_pass(xs, ys, cs, ss, hs, vs, ws, dt)
@@ -94,13 +103,13 @@ def _velocity_kernel(
 
 @njit(cache=True, nogil=True, parallel=True)
 def _velocity_parallel(
-    threads, x, y, heading, c, s, v, w, streams, n_steps, dt, sigma_speed, sigma_turn, jump_rate,
-    jump_sd, weights, ox, oy, counter, sums,
+    threads, x, y, heading, c, s, v, w, streams, n_steps, dt, sigma_speed, turn_decay,
+    turn_scale, jump_rate, jump_sd, weights, ox, oy, counter, sums,
 ):  # fmt: skip
     for _ in numba.prange(threads):
         _velocity_kernel(
-            x, y, heading, c, s, v, w, streams, n_steps, dt, sigma_speed, sigma_turn, jump_rate,
-            jump_sd, weights, ox, oy, counter, sums,
+            x, y, heading, c, s, v, w, streams, n_steps, dt, sigma_speed, turn_decay, turn_scale,
+            jump_rate, jump_sd, weights, ox, oy, counter, sums,
         )  # fmt: skip
 
 
@@ -119,6 +128,14 @@ class VelocityMotion:
     changes of behaviour and then changes at once, beside the small random walk of one whose
     speed drifts (reports/decisions.md, "Speed jumps for the velocity model").
 
+    The turn rate may revert to zero instead (an Ornstein-Uhlenbeck process of reversion time
+    ``turn_reversion`` tau): each step of ``dt`` draws its exact transition,
+    ``omega' = omega exp(-dt/tau) + sigma_turn_rate sqrt(tau (1 - exp(-2 dt/tau)) / 2) z``, with
+    the walk's normal ``z``. Its stationary spread is ``sigma_turn_rate sqrt(tau / 2)``, and
+    the heading then diffuses (variance about ``sigma_turn_rate^2 tau^2 t`` for ``t >> tau``),
+    where under the walk it spreads as ``t^3`` and a cloud circles on the spot
+    (reports/decisions.md, "The velocity model's circling cloud"). tau -> infinity is the walk.
+
     Parameters
     ----------
     sigma_speed : float
@@ -130,12 +147,16 @@ class VelocityMotion:
         is drawn for them.
     jump_sd : float
         Standard deviation of one speed jump, m/s.
+    turn_reversion : float or None
+        Reversion time tau of the turn rate to zero, s (> 0). None (default): no reversion,
+        the paper's random walk.
     """
 
     sigma_speed: float
     sigma_turn_rate: float
     jump_rate: float = 0.0
     jump_sd: float = 0.0
+    turn_reversion: float | None = None
     compiled = True
 
     def __post_init__(self) -> None:
@@ -143,6 +164,26 @@ class VelocityMotion:
             value = getattr(self, name)
             if not (np.isfinite(value) and value >= 0):
                 raise ValueError(f"VelocityMotion.{name} must be a number >= 0, got {value}")
+        tau = self.turn_reversion
+        if tau is not None and not (np.isfinite(tau) and tau > 0):
+            raise ValueError(f"VelocityMotion.turn_reversion must be a number > 0, got {tau}")
+
+    def turn_step(self, dt: float) -> tuple[float, float]:
+        """The turn rate's transition over ``dt`` s: ``omega' = decay omega + scale z``.
+
+        Returns
+        -------
+        decay : float
+            ``exp(-dt / tau)``; exactly 1 for the random walk (no reversion).
+        scale : float
+            The spread of the step's noise, rad/s: ``sigma sqrt(dt)`` for the walk,
+            ``sigma sqrt(tau (1 - exp(-2 dt / tau)) / 2)`` with reversion.
+        """
+        tau = self.turn_reversion
+        if tau is None:
+            return 1.0, self.sigma_turn_rate * np.sqrt(dt)
+        variance = -tau * math.expm1(-2.0 * dt / tau) / 2.0
+        return math.exp(-dt / tau), self.sigma_turn_rate * math.sqrt(variance)
 
     def initialise(self, rng: np.random.Generator, particles: Particles) -> None:
         """Nothing to set: particles start at rest as in the paper's Algorithm 1."""
@@ -164,16 +205,18 @@ class VelocityMotion:
     def apply(self, particles: Particles, dt: float, normals: np.ndarray) -> None:
         """The step of :meth:`propagate` with given standard normals ``(2, N)`` (dv, domega)."""
         particles.speed = particles.speed + self.sigma_speed * np.sqrt(dt) * normals[0]
-        particles.turn_rate = particles.turn_rate + self.sigma_turn_rate * np.sqrt(dt) * normals[1]
+        decay, scale = self.turn_step(dt)
+        particles.turn_rate = decay * particles.turn_rate + scale * normals[1]
         move_along_arc(particles, dt)
 
     def advance(self, particles, streams, n_steps, dt, weights, origin, threads=None) -> np.ndarray:
         """``n_steps`` compiled steps of ``dt`` s, in place; the weighted moments after each,
         ``(n_steps, 5)`` (:meth:`hmmtrack.tracking.motion.base.MotionModel.advance`)."""
         p = particles
+        decay, scale = self.turn_step(dt)
         return run_chunks(
             _velocity_kernel, _velocity_parallel, p.n, n_steps, threads,
             p.x, p.y, p.heading, p.cos_heading, p.sin_heading, p.speed, p.turn_rate,
-            streams, n_steps, float(dt), float(self.sigma_speed), float(self.sigma_turn_rate),
+            streams, n_steps, float(dt), float(self.sigma_speed), float(decay), float(scale),
             float(self.jump_rate), float(self.jump_sd), weights, *origin,
         )  # fmt: skip
