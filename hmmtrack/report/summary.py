@@ -111,7 +111,7 @@ def _spread_section(comparison: pd.DataFrame) -> str:
             fmt(cell["between_datasets"]),
             fmt(cell["between_runs"]),
             fmt(cell["worst_dataset"]),
-            f"{100 * cell['share_above_100m']:.0f} %",
+            _percent(cell["share_above_100m"]),
         ]
         for _, cell in spread.iterrows()
     ]

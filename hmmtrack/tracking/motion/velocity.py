@@ -27,16 +27,9 @@ __all__ = ["VelocityMotion"]
 
 
 @njit(cache=True, inline="always")
-def _add_scaled(target, z, scale):
-    """``target += scale * z`` (a random-walk increment)."""
-    for i in range(target.size):
-        target[i] += scale * z[i]
-
-
-@njit(cache=True, inline="always")
 def _revert_and_add(target, z, decay, scale):
-    """``target = decay * target + scale * z`` (an Ornstein-Uhlenbeck step; with
-    ``decay = 1`` exactly the random walk's increment of :func:`_add_scaled`)."""
+    """``target = decay * target + scale * z``: an Ornstein-Uhlenbeck step, or with
+    ``decay = 1`` a random walk's increment (``1 * target`` is ``target`` exactly)."""
     for i in range(target.size):
         target[i] = decay * target[i] + scale * z[i]
 
@@ -91,7 +84,7 @@ def _velocity_kernel(
         jump_u = np.empty(hi - lo if jumps else 0)
         for t in range(n_steps):
             rs.normal_pairs_into(chunk_streams, z_speed, z_turn, retry)  # speed, then turn
-            _add_scaled(vs, z_speed, sigma_speed * root_dt)
+            _revert_and_add(vs, z_speed, 1.0, sigma_speed * root_dt)
             _revert_and_add(ws, z_turn, turn_decay, turn_scale)
             if jumps:
                 _speed_jumps(vs, chunk_streams, jump_rate * dt, jump_sd, jump_u)
