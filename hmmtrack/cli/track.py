@@ -375,11 +375,9 @@ def _fixed_period(settings: dict) -> bool:
 
 def _chosen_for_period(args, config, detections, receivers) -> TrackingConfig:
     """``config`` with the measurement the tag's pings choose
-    (:func:`~hmmtrack.tracking.measurement.sequence.fixed_period_measurement`) when it is a
-    fixed-period tag's whose measurement is not named (:func:`_fixed_period`); the run
-    says which and why."""
-    if not _fixed_period(_layered(args)[1]):
-        return config
+    (:func:`~hmmtrack.tracking.measurement.sequence.fixed_period_measurement`), for a
+    fixed-period tag's settings that name no measurement (:func:`_fixed_period`, which the
+    caller has checked); the run says which and why."""
     tracked = tracking.tracked_detections(detections, config)
     if config.clocks is not None:
         receivers = tracking.clock_positions(receivers, config.clocks)
@@ -518,8 +516,8 @@ def run(args: argparse.Namespace) -> int:
     receivers = io.read_receivers(args.receivers, tz=args.tz, time_unit=args.time_unit)
     projection = io.Projection.from_frame(receivers)
     truth = io.read_truth(args.truth, projection, args.time_unit, args.tz) if args.truth else None
-    config = _chosen_for_period(args, config, detections, receivers)
     if undecided:
+        config = _chosen_for_period(args, config, detections, receivers)
         _require_pings(
             args, config, ", chosen by the pings: --measurement ping-sequence groups them"
         )
