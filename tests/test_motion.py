@@ -11,7 +11,7 @@ from scipy import stats
 from hmmtrack.hmm import Gamma, MovementHMM, VonMises
 from hmmtrack.tracking.compiled import streams as rs
 from hmmtrack.tracking.motion import BaselineMotion, HMMMotion, VelocityMotion
-from hmmtrack.tracking.motion.arcs import arc_displacement
+from hmmtrack.tracking.motion.arcs import arc_displacement, finish_headings
 from hmmtrack.tracking.motion.hmm import (
     _draw_pass,
     _jitter_and_chain_draws,
@@ -117,6 +117,39 @@ def test_straight_line_limit_is_exact_and_continuous():
             start = particles_at(9, heading=theta)
             np.testing.assert_allclose(p.x - start.x, 1.5 * c, rtol=0, atol=1e-13)
             np.testing.assert_allclose(p.y - start.y, 1.5 * s, rtol=0, atol=1e-13)
+
+
+def test_finish_headings_wraps_any_number_of_turns_as_the_loop_does():
+    """The branch-free pass, and its loop for headings more than a turn outside, give the
+    bits of subtracting 2 pi while above pi, then adding it while at or below -pi; (cos,
+    sin) take one Newton step back to the unit circle."""
+    pi = np.pi
+
+    def loop(heading):
+        out = heading.copy()
+        for i in range(out.size):
+            while out[i] > pi:
+                out[i] -= 2.0 * pi
+            while out[i] <= -pi:
+                out[i] += 2.0 * pi
+        return out
+
+    within_a_turn = [0.0, pi, -pi, np.nextafter(pi, 4.0), np.nextafter(-pi, -4.0), 3.5, -3.5,
+                     2 * pi, -2 * pi, 3 * pi, np.nan]  # fmt: skip
+    turns_outside = [7.0, -7.0, 3 * pi + 1e-9, -3 * pi - 1e-9, 40.0, -33.0, 1e3, -1e3]
+    for values in (within_a_turn, within_a_turn + turns_outside):
+        heading = np.array(values)
+        angle = np.arange(heading.size) * 0.4
+        c, s = 1.001 * np.cos(angle), 0.999 * np.sin(angle)  # off the unit circle
+        got, got_c, got_s = heading.copy(), c.copy(), s.copy()
+        finish_headings(got, got_c, got_s)
+        np.testing.assert_array_equal(got, loop(heading))
+        finite = np.isfinite(got)
+        assert np.all((got[finite] > -pi) & (got[finite] <= pi))
+        factor = 1.5 - 0.5 * (c * c + s * s)
+        np.testing.assert_array_equal(got_c, c * factor)
+        np.testing.assert_array_equal(got_s, s * factor)
+        np.testing.assert_allclose(np.hypot(got_c, got_s), 1.0, atol=1e-5)
 
 
 # ----------------------------------------------------------------------------- kernels == numpy

@@ -174,12 +174,35 @@ def _wide_turns(x, y, c, s, heading, v, turn, dt):
 def finish_headings(heading, c, s):
     """Wrap the headings (n,) into ``(-pi, pi]`` and pull ``(cos, sin)``
     back onto the unit circle (one Newton step of ``1/sqrt``: rotations drift it by ~1e-16
-    per step), without the cost of ``atan2``."""
+    per step), without the cost of ``atan2``.
+
+    A heading is wrapped by subtracting ``2 pi`` while it is above ``pi``, then adding it
+    while it is at or below ``-pi``. A branch-free (vectorised) pass takes the first of those
+    subtractions or additions, which is all that a heading within one turn of the interval
+    needs, and counts the headings still outside; only when there are any does
+    :func:`_wrap_headings` go on with them, so every heading takes the same operations.
+    """
+    n_outside = 0
+    for i in range(heading.size):
+        angle = heading[i]
+        angle = angle - 2.0 * math.pi if angle > math.pi else angle
+        angle = angle + 2.0 * math.pi if angle <= -math.pi else angle
+        heading[i] = angle
+        n_outside += (angle > math.pi) | (angle <= -math.pi)
+        factor = 1.5 - 0.5 * (c[i] * c[i] + s[i] * s[i])
+        c[i] *= factor
+        s[i] *= factor
+    if n_outside > 0:
+        _wrap_headings(heading)
+
+
+# not inlined, like _wide_turns: the loops stay out of the vectorised pass
+@njit(cache=True, nogil=True)
+def _wrap_headings(heading):
+    """Wrap the headings (n,) into ``(-pi, pi]`` in place, ``2 pi`` at a time (headings more
+    than a turn outside, after :func:`finish_headings`' pass)."""
     for i in range(heading.size):
         while heading[i] > math.pi:
             heading[i] -= 2.0 * math.pi
         while heading[i] <= -math.pi:
             heading[i] += 2.0 * math.pi
-        factor = 1.5 - 0.5 * (c[i] * c[i] + s[i] * s[i])
-        c[i] *= factor
-        s[i] *= factor
