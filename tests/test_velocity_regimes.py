@@ -26,7 +26,9 @@ THREE = VelocityRegimes((CRUISE, MANOEUVRE, STILL), RATES)
 
 def cloud(n, speed=0.0, turn_rate=0.0):
     """``n`` particles at the origin heading east."""
-    return Particles.from_state(np.zeros(n), np.zeros(n), np.zeros(n), speed=speed, turn_rate=turn_rate)
+    return Particles.from_state(
+        np.zeros(n), np.zeros(n), np.zeros(n), speed=speed, turn_rate=turn_rate
+    )
 
 
 def run(motion, p, n_steps, dt, path, seed=5, each=None):
@@ -53,7 +55,9 @@ def test_the_chains_closed_forms_for_two_regimes():
     np.testing.assert_allclose(chain.dwell(), [1 / a, 1 / b], rtol=1e-12)
     leave = a / (a + b) * -math.expm1(-(a + b) * dt)
     back = b / (a + b) * -math.expm1(-(a + b) * dt)
-    np.testing.assert_allclose(chain.transition(dt), [[1 - leave, leave], [back, 1 - back]], rtol=1e-12)
+    np.testing.assert_allclose(
+        chain.transition(dt), [[1 - leave, leave], [back, 1 - back]], rtol=1e-12
+    )
     np.testing.assert_allclose(chain.generator().sum(axis=1), 0.0, atol=1e-15)
     # three regimes: the stationary distribution solves pi Q = 0 and is kept by expm(Q dt)
     pi = THREE.stationary()
@@ -93,7 +97,9 @@ def test_occupancy_and_switching_follow_the_rate_matrix(path, dt):
     assert np.all(np.abs(counts - expected) < 5 * np.sqrt(expected * (1 - matrix)) + 1)
     exits = began[:, 0] - np.diag(counts)
     leave = 1 - np.diag(matrix)
-    assert np.all(np.abs(exits - began[:, 0] * leave) < 5 * np.sqrt(began[:, 0] * leave * (1 - leave)))
+    assert np.all(
+        np.abs(exits - began[:, 0] * leave) < 5 * np.sqrt(began[:, 0] * leave * (1 - leave))
+    )
     if dt == 1.0:
         np.testing.assert_allclose(dt / leave, THREE.dwell(), rtol=0.03)
 
@@ -150,8 +156,8 @@ def test_a_reverting_regime_has_the_exact_ou_law(path):
     (4 standard errors); regimes or not, the same law."""
     n, n_steps, dt = 40_000, 30, 1.0
     shared = Regime(0.1, 0.02, speed_reversion=3.0, turn_reversion=10.0)
-    other = Regime(0.1, 0.02, speed_reversion=3.0, turn_reversion=10.0)
-    motion = VelocityMotion(0.1, 0.02, regimes=VelocityRegimes((shared, other), ((0, 0.2), (0.3, 0))))
+    chain = VelocityRegimes((shared, shared), ((0.0, 0.2), (0.3, 0.0)))
+    motion = VelocityMotion(0.1, 0.02, regimes=chain)
     p = cloud(n, speed=1.0, turn_rate=0.1)
     motion.initialise(np.random.default_rng(4), p)
     run(motion, p, n_steps, dt, path)

@@ -119,13 +119,17 @@ class VelocityRegimes:
         k = len(self.regimes)
         rates = np.asarray(self.rates, dtype=np.float64)
         if k < 1 or rates.shape != (k, k):
-            raise ValueError(f"VelocityRegimes needs K >= 1 regimes and (K, K) rates, got {k} and {rates.shape}")
+            raise ValueError(
+                f"VelocityRegimes needs K >= 1 regimes and (K, K) rates, got {k} and {rates.shape}"
+            )
         off = rates[~np.eye(k, dtype=bool)]
         if not (np.all(np.isfinite(off)) and np.all(off >= 0)):
             raise ValueError("VelocityRegimes.rates must be finite and >= 0 off the diagonal")
         stationary = self.stationary()
         if not (np.all(np.isfinite(stationary)) and np.all(stationary > 1e-12)):
-            raise ValueError("VelocityRegimes.rates must connect every regime (one stationary distribution)")
+            raise ValueError(
+                "VelocityRegimes.rates must connect every regime (one stationary distribution)"
+            )
 
     @property
     def n_regimes(self) -> int:

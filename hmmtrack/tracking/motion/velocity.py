@@ -4,10 +4,11 @@ Each step adds Gaussian increments to speed and turn rate (standard deviations
 ``sigma * sqrt(dt)``; optionally a turn rate that reverts to zero, an Ornstein-Uhlenbeck
 process, instead of its walk), optionally speed jumps (a compound Poisson process beside the
 speed's random walk), then moves along the constant-turn-rate arc of the new speed and turn rate
-(:mod:`hmmtrack.tracking.motion.arcs`). Optionally regimes (:mod:`~hmmtrack.tracking.motion.regimes`):
-each particle switches between kinds of movement, each with its own speed and turn-rate
-transitions. :class:`VelocityMotion` has the NumPy reference (``propagate``) and the compiled
-path (``advance``, :mod:`hmmtrack.tracking.motion.base`).
+(:mod:`hmmtrack.tracking.motion.arcs`). Optionally regimes
+(:mod:`~hmmtrack.tracking.motion.regimes`): each particle switches between kinds of movement,
+each with its own speed and turn-rate transitions. :class:`VelocityMotion` has the NumPy
+reference (``propagate``) and the compiled path (``advance``,
+:mod:`hmmtrack.tracking.motion.base`).
 """
 
 from __future__ import annotations
