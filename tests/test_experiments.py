@@ -226,6 +226,7 @@ def test_calibration_spread_counts_the_datasets_a_cells_share_rests_on():
     assert velocity["share"] == pytest.approx(0.825)
     assert ex.MOSTLY_OUTSIDE == 0.8
 
+
 def test_run_options_run_one_worker_serially_and_more_in_processes():
     assert ex.run_options(1, 50) == {
         "executor": "serial",

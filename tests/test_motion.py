@@ -12,10 +12,10 @@ from hmmtrack.hmm import Gamma, MovementHMM, VonMises
 from hmmtrack.tracking.compiled import streams as rs
 from hmmtrack.tracking.motion import BaselineMotion, HMMMotion, VelocityMotion
 from hmmtrack.tracking.motion.arcs import arc_displacement, finish_headings
+from hmmtrack.tracking.motion.chain import transition_pass
 from hmmtrack.tracking.motion.hmm import (
     _draw_pass,
     _jitter_and_chain_draws,
-    _transition_pass,
     transition_for_step,
 )
 from hmmtrack.tracking.particles import Particles
@@ -390,7 +390,7 @@ def test_vectorised_hmm_passes_make_the_scalar_samplers_draws(latest_clock, n_st
     cumulative[:, -1] = 1.0
     expected_state = state.copy()
     _scalar_transitions(expected_state, expected_streams, cumulative)
-    _transition_pass(state, streams, cumulative, np.empty(n), np.empty(n, dtype=np.int64))
+    transition_pass(state, streams, cumulative, np.empty(n), np.empty(n, dtype=np.int64))
     np.testing.assert_array_equal(state, expected_state)
     np.testing.assert_array_equal(streams, expected_streams)
 

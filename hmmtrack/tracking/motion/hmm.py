@@ -11,8 +11,9 @@ optionally a heading random walk (``heading_diffusion``) and a random walk of th
 held speed (``speed_diffusion``) on top of the fitted model.
 
 The compiled kernel draws with vectorised passes (:func:`_draw_pass`,
-:func:`_transition_pass`) whose draws are exactly those of the scalar samplers of
-:mod:`hmmtrack.tracking.compiled.streams` (gamma steps and von Mises angles only).
+:func:`~hmmtrack.tracking.motion.chain.transition_pass`) whose draws are exactly those of the
+scalar samplers of :mod:`hmmtrack.tracking.compiled.streams` (gamma steps and von Mises angles
+only).
 """
 
 from __future__ import annotations
@@ -31,6 +32,7 @@ from hmmtrack.tracking.compiled import streams as rs
 from hmmtrack.tracking.compiled.chunks import moments_pass, next_chunk, run_chunks
 from hmmtrack.tracking.motion.arcs import arc_pass, finish_headings, move_along_arc
 from hmmtrack.tracking.motion.base import motion_views
+from hmmtrack.tracking.motion.chain import next_states, transition_pass
 from hmmtrack.tracking.particles import Particles
 
 __all__ = ["HMM_VARIANTS", "STEP_UNITS", "HMMMotion", "step_metres", "transition_for_step"]
@@ -40,9 +42,6 @@ logger = logging.getLogger(__name__)
 #: the HMM kernel draws with its vectorised passes for all particles of a chunk when more
 #: than 1/SPARSE_DRAWS of them are due, else with the scalar samplers for the due ones only
 SPARSE_DRAWS = 4
-#: the transition pass picks a particle's threshold by selects for up to this many states,
-#: by a lookup (gather) for more (reports/decisions.md, "The HMM kernels' passes")
-SELECT_STATES = 4
 
 
 def transition_for_step(transition: np.ndarray, fraction: float) -> np.ndarray:
@@ -192,49 +191,12 @@ def _redraw(
 
 
 @njit(cache=True, inline="always")
-def _transition_pass(behaviour, streams, cumulative, u, next_state):
-    """One step of the behavioural chain for particles ``(n,)``: a uniform ``u`` from each
-    stream, then :func:`_next_states`. ``u`` (float) and ``next_state`` (int) are
-    scratch."""
-    for i in range(behaviour.size):
-        u[i], streams[i] = rs.uniform(streams[i])
-    _next_states(behaviour, cumulative, u, next_state)
-
-
-@njit(cache=True, inline="always")
-def _next_states(behaviour, cumulative, u, next_state):
-    """Move the states ``behaviour`` (n,) one step of the chain given their uniforms ``u``:
-    the next state is the first ``j`` with ``u <= cumulative[state, j]``
-    (:func:`streams.categorical`), counted as the number of ``j < K - 1`` with
-    ``cumulative[state, j] < u`` in branch-free passes. For up to :data:`SELECT_STATES`
-    states each pass picks the particle's threshold by selects among the column's values
-    (vector blends) rather than by a lookup in the table (a gather): the same threshold.
-    ``next_state`` (int) is scratch."""
-    for i in range(behaviour.size):
-        next_state[i] = 0
-    n_states = cumulative.shape[0]
-    for j in range(n_states - 1):
-        if n_states <= SELECT_STATES:
-            last = n_states - 1
-            c0, c1 = cumulative[0, j], cumulative[min(1, last), j]
-            c2, c3 = cumulative[min(2, last), j], cumulative[min(3, last), j]
-            for i in range(behaviour.size):
-                k = behaviour[i]
-                cut = c0 if k == 0 else (c1 if k == 1 else (c2 if k == 2 else c3))
-                next_state[i] += cut < u[i]
-        else:
-            for i in range(behaviour.size):
-                next_state[i] += cumulative[behaviour[i], j] < u[i]
-    for i in range(behaviour.size):
-        behaviour[i] = next_state[i]
-
-
-@njit(cache=True, inline="always")
 def _jitter_and_chain_draws(streams, w, jitter_scale, turn, u, retry):
     """The heading random walk's normal and the chain's uniform of a sub-step, in one pass
     over the streams (n,): ``turn = w + jitter_scale Z`` (rad/s) with ``Z`` drawn as
     :func:`streams.normal` draws it, then ``u`` as :func:`streams.uniform` draws it, the
-    draws of :func:`streams.normals_into` followed by those of :func:`_transition_pass`.
+    draws of :func:`streams.normals_into` followed by those of
+    :func:`~hmmtrack.tracking.motion.chain.transition_pass`.
 
     A branch-free pass of the normal's first try and the uniform after it, then a scalar
     pass for the few whose try was rejected (``retry``, boolean scratch): the whole
@@ -308,12 +270,12 @@ def _hmm_kernel(
                     arc_pass(xs, ys, cs, ss, hs, vs, scratch, sub_step)
                     if speed_walk:
                         _speed_walk(vs, ks, chunk_streams, walk_scale, walk_z, retry)
-                    _next_states(ks, cumulative, chain_u, next_state)
+                    next_states(ks, cumulative, chain_u, next_state)
                 else:
                     arc_pass(xs, ys, cs, ss, hs, vs, ws, sub_step)
                     if speed_walk:
                         _speed_walk(vs, ks, chunk_streams, walk_scale, walk_z, retry)
-                    _transition_pass(ks, chunk_streams, cumulative, chain_u, next_state)
+                    transition_pass(ks, chunk_streams, cumulative, chain_u, next_state)
                 for i in range(clocks.size):
                     clocks[i] += sub_step
             moments_pass(xs, ys, weights[lo:hi], ox, oy, sums[chunk, t])

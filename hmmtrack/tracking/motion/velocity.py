@@ -24,7 +24,7 @@ from hmmtrack.tracking.compiled import streams as rs
 from hmmtrack.tracking.compiled.chunks import moments_pass, next_chunk, run_chunks
 from hmmtrack.tracking.motion.arcs import arc_pass, finish_headings, move_along_arc
 from hmmtrack.tracking.motion.base import motion_views
-from hmmtrack.tracking.motion.hmm import _transition_pass
+from hmmtrack.tracking.motion.chain import transition_pass
 from hmmtrack.tracking.motion.regimes import VelocityRegimes, reverting_step
 from hmmtrack.tracking.particles import Particles
 
@@ -104,7 +104,7 @@ def _velocity_kernel(
         for t in range(n_steps):
             rs.normal_pairs_into(chunk_streams, z_speed, z_turn, retry)  # speed, then turn
             if switching:  # the regime's step, then the new regime's transitions
-                _transition_pass(chunk_regime, chunk_streams, cumulative, switch_u, next_regime)
+                transition_pass(chunk_regime, chunk_streams, cumulative, switch_u, next_regime)
             _revert_and_add(vs, z_speed, steps[0], steps[1], chunk_regime)
             _revert_and_add(ws, z_turn, steps[2], steps[3], chunk_regime)
             if jumps:
