@@ -1,20 +1,39 @@
-"""One step of a Markov chain for every particle, compiled: the HMM motion model's behavioural
-states and the velocity model's regimes (:mod:`hmmtrack.tracking.motion.hmm`,
+"""One step of a Markov chain for every particle: the HMM motion model's behavioural states
+and the velocity model's regimes (:mod:`hmmtrack.tracking.motion.hmm`,
 :mod:`hmmtrack.tracking.motion.regimes`) move along their chains with these passes, each
-particle's uniform drawn from its own stream (:mod:`hmmtrack.tracking.compiled.streams`).
+particle's uniform drawn from its own stream (:mod:`hmmtrack.tracking.compiled.streams`), and
+with their NumPy references (:func:`draw_states`, :func:`step_states`), whose uniforms come
+from the filter's generator.
 """
 
 from __future__ import annotations
 
+import numpy as np
 from numba import njit
 
 from hmmtrack.tracking.compiled import streams as rs
 
-__all__ = ["SELECT_STATES", "next_states", "transition_pass"]
+__all__ = ["SELECT_STATES", "draw_states", "next_states", "step_states", "transition_pass"]
 
 #: the transition pass picks a particle's threshold by selects for up to this many states,
 #: by a lookup (gather) for more (reports/decisions.md, "The HMM kernels' passes")
 SELECT_STATES = 4
+
+
+def draw_states(rng: np.random.Generator, cumulative: np.ndarray, n: int) -> np.ndarray:
+    """``n`` states (int64) drawn from the distribution of cumulative probabilities
+    ``cumulative`` (K,): each the first ``j`` with ``u < cumulative[j]`` for a uniform ``u``,
+    at most ``K - 1``."""
+    drawn = np.searchsorted(cumulative, rng.random(n), side="right")
+    return np.minimum(drawn, cumulative.size - 1).astype(np.int64)
+
+
+def step_states(rng: np.random.Generator, states: np.ndarray, cumulative: np.ndarray) -> np.ndarray:
+    """The states (N,) after one step of the chain whose transition rows are cumulated in
+    ``cumulative`` (K, K): the NumPy twin of :func:`next_states`, one uniform per state."""
+    u = rng.random(states.size)
+    moved = (u[:, None] > cumulative[states]).sum(axis=1)
+    return np.minimum(moved, cumulative.shape[0] - 1).astype(np.int64)
 
 
 @njit(cache=True, inline="always")

@@ -32,7 +32,7 @@ from hmmtrack.tracking.compiled import streams as rs
 from hmmtrack.tracking.compiled.chunks import moments_pass, next_chunk, run_chunks
 from hmmtrack.tracking.motion.arcs import arc_pass, finish_headings, move_along_arc
 from hmmtrack.tracking.motion.base import motion_views
-from hmmtrack.tracking.motion.chain import next_states, transition_pass
+from hmmtrack.tracking.motion.chain import draw_states, next_states, step_states, transition_pass
 from hmmtrack.tracking.particles import Particles
 
 __all__ = ["HMM_VARIANTS", "STEP_UNITS", "HMMMotion", "step_metres", "transition_for_step"]
@@ -501,10 +501,7 @@ class HMMMotion:
         """
         p = particles
         cumulative = np.cumsum(np.asarray(self.model.initial, dtype=np.float64))
-        p.state = np.minimum(
-            np.searchsorted(cumulative / cumulative[-1], rng.random(p.n), side="right"),
-            cumulative.size - 1,
-        ).astype(np.int64)
+        p.state = draw_states(rng, cumulative / cumulative[-1], p.n)
         fitted_dt = float(self.model.dt)
         p.speed = self.model.step.sample(rng, p.state) * self._metres / fitted_dt
         p.turn_rate = self.model.angle.sample(rng, p.state) / fitted_dt
@@ -540,9 +537,7 @@ class HMMMotion:
             if speed_walk:
                 p.speed = p.speed * np.exp(walk_scale[p.state] * rng.standard_normal(p.n))
             p.time_since_draw += plan.sub_step
-            u = rng.random(p.n)
-            p.state = (u[:, None] > plan.cumulative[p.state]).sum(axis=1).astype(np.int64)
-            p.state = np.minimum(p.state, plan.cumulative.shape[0] - 1)
+            p.state = step_states(rng, p.state, plan.cumulative)
 
     def advance(self, particles, streams, n_steps, dt, weights, origin, threads=None) -> np.ndarray:
         """``n_steps`` compiled steps of ``dt`` s, in place; the weighted moments after each,

@@ -24,8 +24,8 @@ from hmmtrack.tracking.compiled import streams as rs
 from hmmtrack.tracking.compiled.chunks import moments_pass, next_chunk, run_chunks
 from hmmtrack.tracking.motion.arcs import arc_pass, finish_headings, move_along_arc
 from hmmtrack.tracking.motion.base import motion_views
-from hmmtrack.tracking.motion.chain import transition_pass
-from hmmtrack.tracking.motion.regimes import VelocityRegimes, reverting_step
+from hmmtrack.tracking.motion.chain import draw_states, step_states, transition_pass
+from hmmtrack.tracking.motion.regimes import Regime, VelocityRegimes, reverting_step
 from hmmtrack.tracking.particles import Particles
 
 __all__ = ["VelocityMotion"]
@@ -224,12 +224,12 @@ class VelocityMotion:
             (:meth:`VelocityRegimes.cumulative`); ``[[1.0]]`` for one regime.
         """
         if dt not in self._tables:
-            if self.regimes is None:
-                steps = np.array([[1.0, self.sigma_speed * np.sqrt(dt), *self.turn_step(dt)]]).T
-                cumulative = np.ones((1, 1))
-            else:
-                steps, cumulative = self.regimes.steps(dt), self.regimes.cumulative(dt)
-            self._tables[dt] = (np.ascontiguousarray(steps), cumulative)
+            regimes = self.regimes
+            if regimes is None:  # one regime of the model's own walks (or turn reversion)
+                tau = self.turn_reversion
+                own = Regime(self.sigma_speed, self.sigma_turn_rate, turn_reversion=tau)
+                regimes = VelocityRegimes((own,), ((0.0,),))
+            self._tables[dt] = (regimes.steps(dt), regimes.cumulative(dt))
         return self._tables[dt]
 
     @property
@@ -246,11 +246,7 @@ class VelocityMotion:
         if not self.switching:
             particles.state = np.zeros(particles.n, dtype=np.int64)
             return
-        cumulative = np.cumsum(self.regimes.stationary())
-        particles.state = np.minimum(
-            np.searchsorted(cumulative, rng.random(particles.n), side="right"),
-            cumulative.size - 1,
-        ).astype(np.int64)
+        particles.state = draw_states(rng, np.cumsum(self.regimes.stationary()), particles.n)
 
     def propagate(self, rng: np.random.Generator, particles: Particles, dt: float) -> None:
         """One step of ``dt`` s for all particles, in place (NumPy reference): the random
@@ -266,10 +262,7 @@ class VelocityMotion:
             speed[jumped] += jumps
             particles.speed = speed
         if self.switching:
-            cumulative = self.step_table(dt)[1]
-            u = rng.random(particles.n)
-            moved = (u[:, None] > cumulative[particles.state]).sum(axis=1)
-            particles.state = np.minimum(moved, cumulative.shape[0] - 1).astype(np.int64)
+            particles.state = step_states(rng, particles.state, self.step_table(dt)[1])
         self.apply(particles, dt, normals)
 
     def apply(self, particles: Particles, dt: float, normals: np.ndarray) -> None:
