@@ -74,3 +74,14 @@ def test_help_and_sync_do_not_import_the_movement_hmm():
     assert loaded("--help") == set()
     assert loaded("sync", "--help") == {"hmmtrack.tracking"}
     assert loaded("fit", "--help") >= {"hmmtrack.hmm", "hmmtrack.cli.fit"}
+
+
+def test_reproduce_help_states_the_paper_scale_design():
+    """``hmmtrack reproduce --help`` states the paper-scale and quick runs' datasets and
+    filter runs as :data:`hmmtrack.report.FULL` and :data:`~hmmtrack.report.QUICK` have them."""
+    from hmmtrack.report import FULL, QUICK
+
+    parser = _subparsers(build_parser(["reproduce"])).choices["reproduce"]
+    helps = {action.dest: action.help for action in parser._actions}
+    assert f"(default {FULL.n_trials}; quick: {QUICK.n_trials})" in helps["trials"]
+    assert f"(default {FULL.n_datasets}; quick: {QUICK.n_datasets})" in helps["datasets"]

@@ -48,14 +48,14 @@ def register(subparsers) -> None:
         "--trials",
         type=int,
         default=None,
-        help="filter runs per motion model per synthetic dataset (default 5; quick: 1)",
+        help="filter runs per motion model per synthetic dataset (default 2; quick: 1)",
     )
     parser.add_argument(
         "--datasets",
         type=int,
         default=None,
         help="synthetic datasets per scenario in the motion-model comparison "
-        "(default 20; quick: 2); --datasets 1 --trials 100 is the paper's design",
+        "(default 50; quick: 2); --datasets 1 --trials 100 is the paper's design",
     )
     parser.add_argument(
         "--particles",
