@@ -25,7 +25,9 @@ is an error that names the file, the section and the valid keys. A motion settin
 unset (``None``, "the measurement's") takes the value the measurement gives that motion
 model in :data:`MEASUREMENT_MOTIONS` when the run builds its motion model
 (:meth:`TrackingConfig.motion_model`): under ``range-rate-gps`` the HMM's resting tag holds
-still and its held speeds take a log random walk; a value given in the section wins.
+still and its held speeds take a log random walk; a value given in the section wins. The
+velocity model's speed walk, speed jumps and still regime are such settings too
+(:class:`~hmmtrack.tracking.motion.settings.VelocitySettings`).
 
 A *preset* is a bundled file of settings only, without the keys that describe one data set
 (period, ``r0``, transmitter, bounds, start, end), for one kind of deployment; read by name
@@ -101,7 +103,9 @@ MEASUREMENT_FILTERS = {"ping": "paper"}
 #: show the few distinct held speeds that resampling leaves, so the swimming states' speed
 #: takes a log random walk (:data:`~hmmtrack.tracking.motion.HMM_GPS_SPEED_DIFFUSION`)
 #: (reports/decisions.md, "A resting tag that holds still" and "The HMM's held speed as a
-#: log-speed random walk")
+#: log-speed random walk"). A ``"velocity"`` entry may set the velocity model's
+#: ``sigma_speed``, ``jump_rate``, ``jump_sd``, ``still_rate`` and ``still_duration``
+#: (:class:`~hmmtrack.tracking.motion.settings.VelocitySettings`)
 MEASUREMENT_MOTIONS = {
     "range-rate-gps": {
         "hmm": {

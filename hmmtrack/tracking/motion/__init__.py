@@ -33,10 +33,13 @@ from hmmtrack.tracking.motion.registry import (
     MOTIONS,
     VELOCITY_SIGMA_SPEED,
     VELOCITY_SIGMA_TURN_RATE,
+    VELOCITY_STILL,
+    VELOCITY_STILL_DURATION,
     RestingState,
     bundled_model_path,
     default_resting,
     motion_model,
+    still_regimes,
 )
 from hmmtrack.tracking.motion.velocity import VelocityMotion
 
@@ -50,6 +53,8 @@ __all__ = [
     "MOTIONS",
     "VELOCITY_SIGMA_SPEED",
     "VELOCITY_SIGMA_TURN_RATE",
+    "VELOCITY_STILL",
+    "VELOCITY_STILL_DURATION",
     "BaselineMotion",
     "HMMMotion",
     "MotionModel",
@@ -58,4 +63,5 @@ __all__ = [
     "bundled_model_path",
     "default_resting",
     "motion_model",
+    "still_regimes",
 ]

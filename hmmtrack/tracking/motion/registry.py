@@ -11,6 +11,7 @@ bundled white-shark model (:func:`bundled_model_path`) with a resting state adde
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from importlib import resources
@@ -19,6 +20,7 @@ from pathlib import Path
 from hmmtrack.tracking.motion.base import MotionModel
 from hmmtrack.tracking.motion.baseline import BaselineMotion
 from hmmtrack.tracking.motion.hmm import HMMMotion, step_metres
+from hmmtrack.tracking.motion.regimes import Regime, VelocityRegimes
 from hmmtrack.tracking.motion.velocity import VelocityMotion
 
 __all__ = [
@@ -30,10 +32,13 @@ __all__ = [
     "MOTIONS",
     "VELOCITY_SIGMA_SPEED",
     "VELOCITY_SIGMA_TURN_RATE",
+    "VELOCITY_STILL",
+    "VELOCITY_STILL_DURATION",
     "RestingState",
     "bundled_model_path",
     "default_resting",
     "motion_model",
+    "still_regimes",
 ]
 
 #: random-walk step spread of the baseline model (m per √s): small enough that the cloud
@@ -43,6 +48,14 @@ BASELINE_SIGMA = 0.3
 #: increments: speed must follow a swimming animal, turn rates change slowly
 VELOCITY_SIGMA_SPEED = 0.1
 VELOCITY_SIGMA_TURN_RATE = 0.02
+#: the velocity model's still regime (:func:`still_regimes`): a tag that holds still, its
+#: speed and turn rate reverting to zero in 5 s, with small walks (m/s and rad/s per √s)
+#: that part resampled copies (s18-i13regime's still state; reports/decisions.md, "A velocity
+#: model with regimes" and "A smaller speed walk with speed jumps and a still regime")
+VELOCITY_STILL = Regime(0.02, 0.02, speed_reversion=5.0, turn_reversion=5.0)
+#: mean time (s) a particle of the velocity model stays in :data:`VELOCITY_STILL` once it
+#: has entered it, when the settings give an entry rate and no duration: left every 2 min
+VELOCITY_STILL_DURATION = 120.0
 #: heading random walk (rad/√s) of the HMM motion model in its time-consistent variant
 #: (:class:`~hmmtrack.tracking.motion.HMMMotion`): lets the resampled copies of a particle,
 #: which hold one speed and turn rate for the fitted step, part; kept small for the
@@ -92,6 +105,32 @@ HMM_STILL_RESTING = RestingState(enter_per_hour=0.5, leave_per_hour=2.0, drift_s
 #: axes at 0.07 (reports/decisions.md, "The gps option's overconfidence on the moving shark"
 #: and "The HMM's held speed as a log-speed random walk")
 HMM_GPS_SPEED_DIFFUSION = 0.07
+
+
+def still_regimes(moving: Regime, still_rate: float, still_duration: float) -> VelocityRegimes:
+    """Two regimes of the velocity model: moving, and still (:data:`VELOCITY_STILL`).
+
+    Parameters
+    ----------
+    moving : Regime
+        The moving regime's walks (the model's own speed and turn-rate settings).
+    still_rate : float
+        Rate (1/s, > 0) at which a moving particle enters the still regime.
+    still_duration : float
+        Mean time (s, > 0) a particle stays still: it leaves at rate ``1 / still_duration``.
+
+    Returns
+    -------
+    VelocityRegimes
+        Regimes ``(moving, VELOCITY_STILL)`` (a particle's ``state`` 0 moving, 1 still) with
+        generator ``((-still_rate, still_rate), (1 / still_duration, -1 / still_duration))``.
+    """
+    if not (math.isfinite(still_rate) and still_rate > 0):
+        raise ValueError(f"still_rate must be a number > 0, got {still_rate}")
+    if not (math.isfinite(still_duration) and still_duration > 0):
+        raise ValueError(f"still_duration must be a number > 0, got {still_duration}")
+    rates = ((0.0, still_rate), (1.0 / still_duration, 0.0))
+    return VelocityRegimes((moving, VELOCITY_STILL), rates)
 
 
 def default_resting(variant: str) -> RestingState | None:

@@ -2,9 +2,13 @@
 
 :data:`MOTION_SETTINGS` maps each motion model's name (``"baseline"``, ``"velocity"``,
 ``"hmm"``) to its settings class, whose fields are that model's settings with the defaults
-of :func:`hmmtrack.tracking.motion.motion_model`; :meth:`build` makes the model. A
-configuration file names the model and any settings that differ, e.g.
-``{"name": "hmm", "model": "shark.json", "variant": "paper"}``.
+of :func:`hmmtrack.tracking.motion.motion_model`; :meth:`build` makes the model. A setting
+whose default is ``None``, "the measurement's", takes the value the run's measurement gives
+it (:data:`hmmtrack.tracking.config.MEASUREMENT_MOTIONS`), else the library's when the model
+is built. A configuration file names the model and any settings that differ, e.g.
+``{"name": "hmm", "model": "shark.json", "variant": "paper"}`` or
+``{"name": "velocity", "still_rate": 0.002}`` (the velocity model with a still regime,
+:func:`hmmtrack.tracking.motion.still_regimes`).
 """
 
 from __future__ import annotations
@@ -15,6 +19,7 @@ from typing import ClassVar
 
 from hmmtrack.tracking.motion.baseline import BaselineMotion
 from hmmtrack.tracking.motion.hmm import HMM_VARIANTS
+from hmmtrack.tracking.motion.regimes import Regime
 from hmmtrack.tracking.motion.registry import (
     BASELINE_SIGMA,
     HMM_GPS_SPEED_DIFFUSION,
@@ -23,8 +28,11 @@ from hmmtrack.tracking.motion.registry import (
     HMM_STILL_RESTING,
     VELOCITY_SIGMA_SPEED,
     VELOCITY_SIGMA_TURN_RATE,
+    VELOCITY_STILL,
+    VELOCITY_STILL_DURATION,
     default_resting,
     motion_model,
+    still_regimes,
 )
 from hmmtrack.tracking.motion.velocity import VelocityMotion
 from hmmtrack.tracking.settings import (
@@ -37,7 +45,13 @@ from hmmtrack.tracking.settings import (
     text,
 )
 
-__all__ = ["MOTION_SETTINGS", "BaselineSettings", "HMMSettings", "VelocitySettings"]
+__all__ = [
+    "MOTION_SETTINGS",
+    "VELOCITY_LIBRARY",
+    "BaselineSettings",
+    "HMMSettings",
+    "VelocitySettings",
+]
 
 
 @dataclass(frozen=True)
@@ -65,43 +79,78 @@ class BaselineSettings(Settings):
         return BaselineMotion(sigma=self.sigma_position)
 
 
+#: the velocity settings a measurement may fill in (``None`` in :class:`VelocitySettings`),
+#: with the library's values where neither the section nor the measurement gives one: today's
+#: model (the paper's walks, no jumps, no still regime)
+VELOCITY_LIBRARY = {
+    "sigma_speed": VELOCITY_SIGMA_SPEED,
+    "jump_rate": 0.0,
+    "jump_sd": 0.0,
+    "still_rate": 0.0,
+    "still_duration": VELOCITY_STILL_DURATION,
+}
+
+
+def _measured(key: str) -> str:
+    """The help's default of a velocity setting left to the measurement."""
+    return f"the measurement's, else {VELOCITY_LIBRARY[key]:g}"
+
+
 @dataclass(frozen=True)
 class VelocitySettings(Settings):
     """Settings of :class:`~hmmtrack.tracking.motion.VelocityMotion`.
 
+    A setting that defaults to ``None`` is the measurement's
+    (:data:`hmmtrack.tracking.config.MEASUREMENT_MOTIONS`, filled in by
+    :func:`hmmtrack.tracking.config.measurement_motion`), else the library's
+    (:data:`VELOCITY_LIBRARY`: today's model, the paper's walks without jumps or a still
+    regime).
+
     Parameters
     ----------
-    sigma_speed : float
-        Spread of the speed increments (m/s per √s).
+    sigma_speed : float or None
+        Spread of the speed increments (m/s per √s) of a moving particle; ``None``: the
+        measurement's, else :data:`~hmmtrack.tracking.motion.VELOCITY_SIGMA_SPEED` (0.1).
     sigma_turn_rate : float
-        Spread of the turn-rate increments (rad/s per √s).
-    jump_rate : float
-        Expected number of speed jumps per second (0: none, the paper's model).
-    jump_sd : float
-        Spread of one speed jump (m/s).
+        Spread of the turn-rate increments (rad/s per √s) of a moving particle.
+    jump_rate : float or None
+        Expected number of speed jumps per second (0: none, the paper's model); ``None``: the
+        measurement's, else 0.
+    jump_sd : float or None
+        Spread of one speed jump (m/s); ``None``: the measurement's, else 0.
     turn_reversion : float or None
-        Reversion time of the turn rate to zero (s; an Ornstein-Uhlenbeck turn rate);
-        ``None``: none, the paper's random walk.
+        Reversion time of a moving particle's turn rate to zero (s; an Ornstein-Uhlenbeck
+        turn rate); ``None``: none, the paper's random walk.
+    still_rate : float or None
+        Rate (1/s) at which a moving particle enters the still regime
+        (:data:`~hmmtrack.tracking.motion.VELOCITY_STILL`; the two regimes of
+        :func:`~hmmtrack.tracking.motion.still_regimes`); 0: no still regime, today's model;
+        ``None``: the measurement's, else 0.
+    still_duration : float or None
+        Mean time (s, > 0) a particle stays in the still regime (it leaves at rate
+        ``1 / still_duration``), used when ``still_rate`` > 0; ``None``: the measurement's,
+        else :data:`~hmmtrack.tracking.motion.VELOCITY_STILL_DURATION` (120 s).
     """
 
     name: ClassVar[str] = "velocity"
 
-    sigma_speed: float = setting(
-        VELOCITY_SIGMA_SPEED,
-        help="spread of the speed increments (m/s per sqrt(s))",
+    sigma_speed: float | None = setting(
+        None,
+        help="spread of a moving particle's speed increments (m/s per sqrt(s))",
         check=non_negative,
         parse=float,
         metavar="M_PER_S",
+        default_text=_measured("sigma_speed"),
     )
     sigma_turn_rate: float = setting(
         VELOCITY_SIGMA_TURN_RATE,
-        help="spread of the turn-rate increments (rad/s per sqrt(s))",
+        help="spread of a moving particle's turn-rate increments (rad/s per sqrt(s))",
         check=non_negative,
         parse=float,
         metavar="RAD_PER_S",
     )
-    jump_rate: float = setting(
-        0.0,
+    jump_rate: float | None = setting(
+        None,
         help=(
             "expected number of speed jumps per second, each N(0, jump_sd^2) m/s beside the "
             "speed's random walk (an animal whose speed changes at once)"
@@ -109,35 +158,66 @@ class VelocitySettings(Settings):
         check=non_negative,
         parse=float,
         metavar="PER_S",
+        default_text=_measured("jump_rate"),
     )
-    jump_sd: float = setting(
-        0.0,
+    jump_sd: float | None = setting(
+        None,
         help="spread of one speed jump (m/s)",
         check=non_negative,
         parse=float,
         metavar="M_PER_S",
+        default_text=_measured("jump_sd"),
     )
     turn_reversion: float | None = setting(
         None,
         help=(
-            "reversion time of the turn rate to zero (s): an Ornstein-Uhlenbeck turn rate, "
-            "whose heading diffuses where the walk's circles"
+            "reversion time of a moving particle's turn rate to zero (s): an "
+            "Ornstein-Uhlenbeck turn rate, whose heading diffuses where the walk's circles"
         ),
         check=positive,
         parse=float,
         metavar="SECONDS",
         default_text="none (the paper's random walk)",
     )
+    still_rate: float | None = setting(
+        None,
+        help=(
+            "rate at which a moving particle enters the still regime (per s), whose speed "
+            f"and turn rate revert to zero in {VELOCITY_STILL.speed_reversion:g} s; 0: no "
+            "still regime"
+        ),
+        check=non_negative,
+        parse=float,
+        metavar="PER_S",
+        default_text=_measured("still_rate"),
+    )
+    still_duration: float | None = setting(
+        None,
+        help="mean time a particle stays in the still regime (s), with a still rate",
+        check=positive,
+        parse=float,
+        metavar="SECONDS",
+        default_text=_measured("still_duration"),
+    )
 
     def build(self) -> VelocityMotion:
-        """The motion model."""
-        return VelocityMotion(
-            sigma_speed=self.sigma_speed,
-            sigma_turn_rate=self.sigma_turn_rate,
-            jump_rate=self.jump_rate,
-            jump_sd=self.jump_sd,
-            turn_reversion=self.turn_reversion,
-        )
+        """The motion model; settings left to the measurement (``None``) take the library's
+        values (:data:`VELOCITY_LIBRARY`), a configuration fills them in from its measurement
+        first (:meth:`hmmtrack.tracking.config.TrackingConfig.motion_model`). A still rate of
+        0 builds today's model (no regimes); a positive one, two regimes
+        (:func:`~hmmtrack.tracking.motion.still_regimes`): moving, with the speed and turn
+        settings and ``turn_reversion``, and still."""
+        value = {
+            key: library if getattr(self, key) is None else getattr(self, key)
+            for key, library in VELOCITY_LIBRARY.items()
+        }
+        walks = {"sigma_speed": value["sigma_speed"], "sigma_turn_rate": self.sigma_turn_rate}
+        jumps = {"jump_rate": value["jump_rate"], "jump_sd": value["jump_sd"]}
+        if value["still_rate"] == 0.0:
+            return VelocityMotion(**walks, **jumps, turn_reversion=self.turn_reversion)
+        moving = Regime(**walks, turn_reversion=self.turn_reversion)
+        regimes = still_regimes(moving, value["still_rate"], value["still_duration"])
+        return VelocityMotion(**walks, **jumps, regimes=regimes)
 
 
 @dataclass(frozen=True)
