@@ -91,9 +91,13 @@ VELOCITY_LIBRARY = {
 }
 
 
-def _measured(key: str) -> str:
-    """The help's default of a velocity setting left to the measurement."""
-    return f"the measurement's, else {VELOCITY_LIBRARY[key]:g}"
+def _measured(key: str, help: str, check, metavar: str):
+    """A velocity setting left to the measurement: ``None`` by default, a float when given,
+    its help saying the library's value (:data:`VELOCITY_LIBRARY`)."""
+    default_text = f"the measurement's, else {VELOCITY_LIBRARY[key]:g}"
+    return setting(
+        None, help=help, check=check, parse=float, metavar=metavar, default_text=default_text
+    )
 
 
 @dataclass(frozen=True)
@@ -134,13 +138,11 @@ class VelocitySettings(Settings):
 
     name: ClassVar[str] = "velocity"
 
-    sigma_speed: float | None = setting(
-        None,
-        help="spread of a moving particle's speed increments (m/s per sqrt(s))",
-        check=non_negative,
-        parse=float,
-        metavar="M_PER_S",
-        default_text=_measured("sigma_speed"),
+    sigma_speed: float | None = _measured(
+        "sigma_speed",
+        "spread of a moving particle's speed increments (m/s per sqrt(s))",
+        non_negative,
+        "M_PER_S",
     )
     sigma_turn_rate: float = setting(
         VELOCITY_SIGMA_TURN_RATE,
@@ -149,24 +151,15 @@ class VelocitySettings(Settings):
         parse=float,
         metavar="RAD_PER_S",
     )
-    jump_rate: float | None = setting(
-        None,
-        help=(
-            "expected number of speed jumps per second, each N(0, jump_sd^2) m/s beside the "
-            "speed's random walk (an animal whose speed changes at once)"
-        ),
-        check=non_negative,
-        parse=float,
-        metavar="PER_S",
-        default_text=_measured("jump_rate"),
+    jump_rate: float | None = _measured(
+        "jump_rate",
+        "expected number of speed jumps per second, each N(0, jump_sd^2) m/s beside the "
+        "speed's random walk (an animal whose speed changes at once)",
+        non_negative,
+        "PER_S",
     )
-    jump_sd: float | None = setting(
-        None,
-        help="spread of one speed jump (m/s)",
-        check=non_negative,
-        parse=float,
-        metavar="M_PER_S",
-        default_text=_measured("jump_sd"),
+    jump_sd: float | None = _measured(
+        "jump_sd", "spread of one speed jump (m/s)", non_negative, "M_PER_S"
     )
     turn_reversion: float | None = setting(
         None,
@@ -179,25 +172,18 @@ class VelocitySettings(Settings):
         metavar="SECONDS",
         default_text="none (the paper's random walk)",
     )
-    still_rate: float | None = setting(
-        None,
-        help=(
-            "rate at which a moving particle enters the still regime (per s), whose speed "
-            f"and turn rate revert to zero in {VELOCITY_STILL.speed_reversion:g} s; 0: no "
-            "still regime"
-        ),
-        check=non_negative,
-        parse=float,
-        metavar="PER_S",
-        default_text=_measured("still_rate"),
+    still_rate: float | None = _measured(
+        "still_rate",
+        "rate at which a moving particle enters the still regime (per s), whose speed and "
+        f"turn rate revert to zero in {VELOCITY_STILL.speed_reversion:g} s; 0: no still regime",
+        non_negative,
+        "PER_S",
     )
-    still_duration: float | None = setting(
-        None,
-        help="mean time a particle stays in the still regime (s), with a still rate",
-        check=positive,
-        parse=float,
-        metavar="SECONDS",
-        default_text=_measured("still_duration"),
+    still_duration: float | None = _measured(
+        "still_duration",
+        "mean time a particle stays in the still regime (s), with a still rate",
+        positive,
+        "SECONDS",
     )
 
     def build(self) -> VelocityMotion:
