@@ -14,6 +14,7 @@ from hmmtrack.experiments.trials import _motion
 from hmmtrack.tracking import config as config_module
 from hmmtrack.tracking.config import TrackingConfig, measurement_motion
 from hmmtrack.tracking.motion import (
+    VELOCITY_GPS,
     VELOCITY_SIGMA_SPEED,
     VELOCITY_SIGMA_TURN_RATE,
     VELOCITY_STILL,
@@ -26,34 +27,20 @@ from hmmtrack.tracking.motion.regimes import Regime, VelocityRegimes
 from hmmtrack.tracking.motion.settings import VELOCITY_LIBRARY, VelocitySettings
 from hmmtrack.tracking.particles import Particles
 
-#: the velocity model the lead plans for range-rate-gps (reports/decisions.md, "A smaller
-#: speed walk with speed jumps and a still regime"), as a measurement's entry and as Python
-PLANNED = {
-    "sigma_speed": 0.05,
-    "jump_rate": 1 / 60,
-    "jump_sd": 0.4,
-    "still_rate": 1 / 600,
-    "still_duration": 120.0,
-}
-PLANNED_MODEL = VelocityMotion(
+#: the velocity model under range-rate-gps (reports/decisions.md, "A sticky still regime for
+#: the velocity model"), written out in Python
+GPS_MODEL = VelocityMotion(
     0.05,
     0.02,
     jump_rate=1 / 60,
     jump_sd=0.4,
     regimes=VelocityRegimes(
-        (Regime(0.05, 0.02), Regime(0.02, 0.02, speed_reversion=5, turn_reversion=5)),
-        ((0, 1 / 600), (1 / 120, 0)),
+        (Regime(0.05, 0.02), Regime(0.005, 0.005, speed_reversion=0.5, turn_reversion=2.0)),
+        ((0, 1 / 7200), (1 / 1800, 0)),
     ),
 )
 TRACK = ["track", "--detections", "d.csv", "--receivers", "r.csv", "-o", "e.csv"]
 TRACK += ["--period", "8", "--r0", "a=1", "--motion", "velocity"]
-
-
-@pytest.fixture
-def planned(monkeypatch):
-    """``MEASUREMENT_MOTIONS`` with a velocity entry for range-rate-gps (:data:`PLANNED`)."""
-    gps = dict(config_module.MEASUREMENT_MOTIONS["range-rate-gps"]) | {"velocity": PLANNED}
-    monkeypatch.setitem(config_module.MEASUREMENT_MOTIONS, "range-rate-gps", gps)
 
 
 def velocity_config(measurement="range-rate-gps", **motion) -> TrackingConfig:
@@ -87,7 +74,7 @@ def test_the_library_values_are_todays_model():
         "still_rate": 0.0,
         "still_duration": VELOCITY_STILL_DURATION,
     }
-    assert (VELOCITY_SIGMA_SPEED, VELOCITY_STILL_DURATION) == (0.1, 120.0)
+    assert (VELOCITY_SIGMA_SPEED, VELOCITY_STILL_DURATION) == (0.1, 1800.0)
     today = VelocityMotion(0.1, 0.02)
     for settings in (VelocitySettings(), VelocitySettings(still_rate=0.0)):
         built = settings.build()
@@ -106,13 +93,12 @@ def test_no_still_rate_keeps_the_given_walks_jumps_and_reversion_without_regimes
     )
 
 
-def test_no_measurement_sets_the_velocity_model_yet():
-    """Nothing is wired: every measurement builds today's velocity model (the seeded results
-    stay as they were)."""
-    for name in ("range-rate", "range-rate-gps", "arrival-time", "ping"):
+def test_only_the_gps_measurement_sets_the_velocity_model():
+    """The paper's measurements build today's velocity model (their seeded results stay as
+    they were); range-rate-gps fills in its own."""
+    for name in ("range-rate", "arrival-time", "ping"):
         assert measurement_motion(VelocitySettings(), name) == VelocityMotion(0.1, 0.02)
-    assert _motion("velocity", "range-rate-gps") == VelocityMotion(0.1, 0.02)
-    assert velocity_config().motion_model() == VelocityMotion(0.1, 0.02)
+    assert measurement_motion(VelocitySettings(), "range-rate-gps") == GPS_MODEL
 
 
 # ------------------------------------------------------------------------- a still regime
@@ -137,20 +123,21 @@ def test_a_still_rate_builds_moving_and_still_regimes(rate, duration):
 
 
 def test_the_still_regime_is_the_named_constant():
-    assert VELOCITY_STILL == Regime(0.02, 0.02, speed_reversion=5.0, turn_reversion=5.0)
+    assert VELOCITY_STILL == Regime(0.005, 0.005, speed_reversion=0.5, turn_reversion=2.0)
     motion = VelocitySettings(still_rate=0.01).build()
     assert motion.regimes.regimes[1] is VELOCITY_STILL
-    # over 2 s the still regime's speed and turn rate decay by exp(-2 / 5), with the
-    # Ornstein-Uhlenbeck step's spread 0.02 sqrt(5 (1 - exp(-4 / 5)) / 2); the moving ones walk
+    # over 2 s the still regime's speed decays by exp(-2 / 0.5) and its turn rate by
+    # exp(-2 / 2), each with the Ornstein-Uhlenbeck step's spread
+    # 0.005 sqrt(tau (1 - exp(-4 / tau)) / 2); the moving ones walk
     steps = motion.step_table(2.0)[0]
-    decay, spread = np.exp(-0.4), 0.02 * np.sqrt(2.5 * (1 - np.exp(-0.8)))
-    np.testing.assert_allclose(steps[:, 1], [decay, spread, decay, spread])
+    spread = [0.005 * np.sqrt(tau * (1 - np.exp(-4 / tau)) / 2) for tau in (0.5, 2.0)]
+    np.testing.assert_allclose(steps[:, 1], [np.exp(-4.0), spread[0], np.exp(-1.0), spread[1]])
     np.testing.assert_allclose(steps[:, 0], [1.0, 0.1 * np.sqrt(2.0), 1.0, 0.02 * np.sqrt(2.0)])
 
 
-def test_the_still_duration_defaults_to_two_minutes():
+def test_the_still_duration_defaults_to_half_an_hour():
     regimes = VelocitySettings(still_rate=0.01).build().regimes
-    assert regimes.rates == ((0.0, 0.01), (1 / VELOCITY_STILL_DURATION, 0.0))
+    assert regimes.rates == ((0.0, 0.01), (1 / 1800, 0.0))
 
 
 def test_the_turn_reversion_moves_into_the_moving_regime():
@@ -161,8 +148,8 @@ def test_the_turn_reversion_moves_into_the_moving_regime():
     np.testing.assert_allclose(motion.step_table(1.0)[0][2, 0], np.exp(-0.1))
 
 
-def test_the_settings_build_the_planned_model():
-    assert VelocitySettings(**PLANNED).build() == PLANNED_MODEL
+def test_the_settings_build_the_gps_model():
+    assert VelocitySettings(**VELOCITY_GPS).build() == GPS_MODEL
 
 
 @pytest.mark.parametrize(
@@ -182,20 +169,21 @@ def test_still_regimes_refuses_a_rate_or_duration_that_is_not_positive(rate, dur
 # ----------------------------------------------------------------- filled in by the measurement
 
 
-def test_a_measurement_entry_fills_in_the_unset_settings(planned):
-    assert measurement_motion(VelocitySettings(), "range-rate-gps") == PLANNED_MODEL
-    assert velocity_config().motion_model() == PLANNED_MODEL
-    assert _motion("velocity", "range-rate-gps") == PLANNED_MODEL
+def test_the_measurement_entry_fills_in_the_unset_settings():
+    assert config_module.MEASUREMENT_MOTIONS["range-rate-gps"]["velocity"] is VELOCITY_GPS
+    assert measurement_motion(VelocitySettings(), "range-rate-gps") == GPS_MODEL
+    assert velocity_config().motion_model() == GPS_MODEL
+    assert _motion("velocity", "range-rate-gps") == GPS_MODEL
     # another measurement keeps the library's
     assert velocity_config("range-rate").motion_model() == VelocityMotion(0.1, 0.02)
     # and the HMM's entry is untouched
     assert config_module.MEASUREMENT_MOTIONS["range-rate-gps"]["hmm"]["speed_diffusion"] == 0.07
 
 
-def test_a_value_given_wins_over_the_measurements(planned):
+def test_a_value_given_wins_over_the_measurements():
     motion = velocity_config(sigma_speed=0.08, still_duration=60.0).motion_model()
     assert motion.regimes.regimes[0] == Regime(0.08, 0.02)
-    assert motion.regimes.rates == ((0.0, 1 / 600), (1 / 60, 0.0))
+    assert motion.regimes.rates == ((0.0, 1 / 7200), (1 / 60, 0.0))
     assert (motion.jump_rate, motion.jump_sd) == (1 / 60, 0.4)  # the measurement's
     # a given 0 switches the measurement's jumps or still regime off
     plain = velocity_config(still_rate=0.0, jump_rate=0.0).motion_model()
@@ -222,7 +210,8 @@ def test_the_still_regime_round_trips_through_a_configuration_file(tmp_path):
     read = TrackingConfig.from_json(path)
     assert read == config
     assert read.motion_model().regimes.rates == ((0.0, 0.002), (1 / 90, 0.0))
-    assert read.motion_model().regimes.regimes[0] == Regime(0.1, 0.02)
+    # the speed walk left unset is the measurement's (range-rate-gps)
+    assert read.motion_model().regimes.regimes[0] == Regime(0.05, 0.02)
 
 
 def test_the_still_regime_is_given_on_the_command_line():
@@ -237,7 +226,7 @@ def test_the_still_regime_is_given_on_the_command_line():
 def test_the_help_says_the_measurements_else_the_librarys_default():
     options = {option.key: option for option in settings_options()}
     for key, library in [("sigma_speed", "0.1"), ("jump_rate", "0"), ("jump_sd", "0"),
-                         ("still_rate", "0"), ("still_duration", "120")]:  # fmt: skip
+                         ("still_rate", "0"), ("still_duration", "1800")]:  # fmt: skip
         assert options[key].flag == "--" + key.replace("_", "-")
         assert options[key].default_text == f"the measurement's, else {library}"
         assert options[key].components == ("velocity",)

@@ -25,9 +25,8 @@ is an error that names the file, the section and the valid keys. A motion settin
 unset (``None``, "the measurement's") takes the value the measurement gives that motion
 model in :data:`MEASUREMENT_MOTIONS` when the run builds its motion model
 (:meth:`TrackingConfig.motion_model`): under ``range-rate-gps`` the HMM's resting tag holds
-still and its held speeds take a log random walk; a value given in the section wins. The
-velocity model's speed walk, speed jumps and still regime are such settings too
-(:class:`~hmmtrack.tracking.motion.settings.VelocitySettings`).
+still and its held speeds take a log random walk, and the velocity model takes a smaller
+speed walk with speed jumps and a still regime; a value given in the section wins.
 
 A *preset* is a bundled file of settings only, without the keys that describe one data set
 (period, ``r0``, transmitter, bounds, start, end), for one kind of deployment; read by name
@@ -50,7 +49,11 @@ from pathlib import Path
 
 from hmmtrack.tracking.filter import FILTERS, FilterSettings
 from hmmtrack.tracking.measurement import MEASUREMENTS
-from hmmtrack.tracking.motion.registry import HMM_GPS_SPEED_DIFFUSION, HMM_STILL_RESTING
+from hmmtrack.tracking.motion.registry import (
+    HMM_GPS_SPEED_DIFFUSION,
+    HMM_STILL_RESTING,
+    VELOCITY_GPS,
+)
 from hmmtrack.tracking.motion.settings import MOTION_SETTINGS, HMMSettings
 from hmmtrack.tracking.settings import (
     Settings,
@@ -103,15 +106,19 @@ MEASUREMENT_FILTERS = {"ping": "paper"}
 #: show the few distinct held speeds that resampling leaves, so the swimming states' speed
 #: takes a log random walk (:data:`~hmmtrack.tracking.motion.HMM_GPS_SPEED_DIFFUSION`)
 #: (reports/decisions.md, "A resting tag that holds still" and "The HMM's held speed as a
-#: log-speed random walk"). A ``"velocity"`` entry may set the velocity model's
-#: ``sigma_speed``, ``jump_rate``, ``jump_sd``, ``still_rate`` and ``still_duration``
-#: (:class:`~hmmtrack.tracking.motion.settings.VelocitySettings`)
+#: log-speed random walk"). The velocity model takes a smaller speed walk with speed jumps
+#: and a still regime (:data:`~hmmtrack.tracking.motion.VELOCITY_GPS`; its ``sigma_speed``,
+#: ``jump_rate``, ``jump_sd``, ``still_rate`` and ``still_duration`` may be set here,
+#: :class:`~hmmtrack.tracking.motion.settings.VelocitySettings`): its regions were too wide
+#: on the swimmer and along the AUV's line of sight on the still tag (reports/decisions.md,
+#: "A sticky still regime for the velocity model")
 MEASUREMENT_MOTIONS = {
     "range-rate-gps": {
         "hmm": {
             "resting_drift": HMM_STILL_RESTING.drift_speed,
             "speed_diffusion": HMM_GPS_SPEED_DIFFUSION,
         },
+        "velocity": VELOCITY_GPS,
     },
 }
 

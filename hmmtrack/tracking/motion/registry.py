@@ -32,6 +32,7 @@ __all__ = [
     "MOTIONS",
     "VELOCITY_SIGMA_SPEED",
     "VELOCITY_SIGMA_TURN_RATE",
+    "VELOCITY_GPS",
     "VELOCITY_STILL",
     "VELOCITY_STILL_DURATION",
     "RestingState",
@@ -49,13 +50,25 @@ BASELINE_SIGMA = 0.3
 VELOCITY_SIGMA_SPEED = 0.1
 VELOCITY_SIGMA_TURN_RATE = 0.02
 #: the velocity model's still regime (:func:`still_regimes`): a tag that holds still, its
-#: speed and turn rate reverting to zero in 5 s, with small walks (m/s and rad/s per √s)
-#: that part resampled copies (s18-i13regime's still state; reports/decisions.md, "A velocity
-#: model with regimes" and "A smaller speed walk with speed jumps and a still regime")
-VELOCITY_STILL = Regime(0.02, 0.02, speed_reversion=5.0, turn_reversion=5.0)
+#: speed reverting to zero in 0.5 s (so that a speed jump barely moves a still particle) and
+#: its turn rate in 2 s, with small walks (m/s and rad/s per √s) that part resampled copies
+#: (reports/decisions.md, "A sticky still regime for the velocity model")
+VELOCITY_STILL = Regime(0.005, 0.005, speed_reversion=0.5, turn_reversion=2.0)
 #: mean time (s) a particle of the velocity model stays in :data:`VELOCITY_STILL` once it
-#: has entered it, when the settings give an entry rate and no duration: left every 2 min
-VELOCITY_STILL_DURATION = 120.0
+#: has entered it, when the settings give an entry rate and no duration: 30 min, as the HMM's
+#: resting state (:data:`HMM_RESTING`, left twice an hour)
+VELOCITY_STILL_DURATION = 1800.0
+#: the velocity model's settings under a measurement that parts a still cloud's copies itself
+#: and narrows the regions enough to show the speed walk's width (``range-rate-gps``): a
+#: smaller speed walk (m/s per √s) with speed jumps (per s, m/s) that follow a sudden change
+#: of speed, and a still regime entered twice in four hours and left twice an hour, as the
+#: HMM's resting state (reports/decisions.md, "A sticky still regime for the velocity model")
+VELOCITY_GPS = {
+    "sigma_speed": 0.05,
+    "jump_rate": 1 / 60,
+    "jump_sd": 0.4,
+    "still_rate": 1 / 7200,
+}
 #: heading random walk (rad/√s) of the HMM motion model in its time-consistent variant
 #: (:class:`~hmmtrack.tracking.motion.HMMMotion`): lets the resampled copies of a particle,
 #: which hold one speed and turn rate for the fitted step, part; kept small for the

@@ -7,7 +7,7 @@ whose default is ``None``, "the measurement's", takes the value the run's measur
 it (:data:`hmmtrack.tracking.config.MEASUREMENT_MOTIONS`), else the library's when the model
 is built. A configuration file names the model and any settings that differ, e.g.
 ``{"name": "hmm", "model": "shark.json", "variant": "paper"}`` or
-``{"name": "velocity", "still_rate": 0.002}`` (the velocity model with a still regime,
+``{"name": "velocity", "still_rate": 0.0005}`` (the velocity model with a still regime,
 :func:`hmmtrack.tracking.motion.still_regimes`).
 """
 
@@ -133,7 +133,7 @@ class VelocitySettings(Settings):
     still_duration : float or None
         Mean time (s, > 0) a particle stays in the still regime (it leaves at rate
         ``1 / still_duration``), used when ``still_rate`` > 0; ``None``: the measurement's,
-        else :data:`~hmmtrack.tracking.motion.VELOCITY_STILL_DURATION` (120 s).
+        else :data:`~hmmtrack.tracking.motion.VELOCITY_STILL_DURATION` (1,800 s).
     """
 
     name: ClassVar[str] = "velocity"
@@ -174,8 +174,9 @@ class VelocitySettings(Settings):
     )
     still_rate: float | None = _measured(
         "still_rate",
-        "rate at which a moving particle enters the still regime (per s), whose speed and "
-        f"turn rate revert to zero in {VELOCITY_STILL.speed_reversion:g} s; 0: no still regime",
+        "rate at which a moving particle enters the still regime (per s), whose speed "
+        f"reverts to zero in {VELOCITY_STILL.speed_reversion:g} s and turn rate in "
+        f"{VELOCITY_STILL.turn_reversion:g} s; 0: no still regime",
         non_negative,
         "PER_S",
     )
