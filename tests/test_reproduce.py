@@ -90,6 +90,7 @@ def test_summary_puts_our_numbers_beside_the_papers(quick_run):
     assert "these runs start where the field team knew the tag to be" in text
     assert "## Spread between datasets and between filter runs" in text
     assert "## What the calibration figures rest on" in text
+    assert f"With {QUICK.n_datasets} datasets a calibrated cell's share moves" in text
 
 
 def test_bad_arguments_are_reported_without_traceback(capsys):

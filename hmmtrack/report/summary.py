@@ -169,9 +169,10 @@ def _calibration_section(comparison: pd.DataFrame) -> str:
         "A run's seconds are not independent draws: a dataset's fixed errors (a moored "
         "receiver's single GPS fix, the geometry) move all of them together, so a dataset "
         "is mostly inside its regions or mostly not, and a cell's share rests on the few "
-        "datasets that are not. With 20 datasets a calibrated cell's share moves by several "
-        'points from one experiment seed to the next (reports/decisions.md, "Long Beach '
-        'too wide under the gps option"; `hmmtrack.experiments.calibration_spread`).\n\n'
+        f"datasets that are not. With {int(cells['n_datasets'].max())} datasets a calibrated "
+        "cell's share moves by a point or more from one experiment seed to the next "
+        '(reports/decisions.md, "Long Beach too wide under the gps option" and "The '
+        'reproduction\'s design"; `hmmtrack.experiments.calibration_spread`).\n\n'
         + markdown_table(headers, rows)
         + "\n"
     )
