@@ -30,6 +30,7 @@ from scipy.linalg import fractional_matrix_power
 
 from hmmtrack.tracking.compiled import streams as rs
 from hmmtrack.tracking.compiled.chunks import moments_pass, next_chunk, run_chunks
+from hmmtrack.tracking.compiled.noalias import NoAliasCompiler
 from hmmtrack.tracking.motion.arcs import arc_pass, finish_headings, move_along_arc
 from hmmtrack.tracking.motion.base import motion_views
 from hmmtrack.tracking.motion.chain import draw_states, next_states, step_states, transition_pass
@@ -42,6 +43,7 @@ logger = logging.getLogger(__name__)
 #: the HMM kernel draws with its vectorised passes for all particles of a chunk when more
 #: than 1/SPARSE_DRAWS of them are due, else with the scalar samplers for the due ones only
 SPARSE_DRAWS = 4
+_ZERO = np.uint64(0)
 
 
 def transition_for_step(transition: np.ndarray, fraction: float) -> np.ndarray:
@@ -113,8 +115,8 @@ def _draw_pass(
     draw, with the scalar samplers (:func:`_redraw`). Otherwise three passes: the random
     numbers of the samplers' first tries for every particle (a
     branch-free, vectorised pass: the gamma's normal and uniform, the von Mises bits and two
-    uniforms); the first tries themselves (:func:`streams._gamma_from`,
-    :func:`streams._vonmises_from`: per-state table lookups), kept where due and accepted;
+    uniforms); the first tries themselves (:func:`_first_tries`, vectorised with the per-state
+    table lookups as gathers), kept where due and accepted;
     then the scalar samplers (:func:`_redraw`) for the due particles whose tries were
     rejected, or whose state has a zero-inflated or boosted (shape < 1) step distribution.
     Either way a particle's draws are exactly those of the scalar samplers from its stream.
@@ -145,6 +147,38 @@ def _draw_pass(
         angle_bits[i], state = rs._bits(state)
         angle_u[i], state = rs.uniform(state)
         angle_v[i], advanced[i] = rs.uniform(state)
+    _first_tries(
+        v, w, behaviour, streams, retry, speed_factor, fitted_dt, gamma_d, gamma_c, gamma_boost,
+        gamma_scale, zero_mass, vonmises_tables, normal, normal_accepted, step_u, angle_bits,
+        angle_u, angle_v, advanced,
+    )  # fmt: skip
+    _redraw(
+        v, w, behaviour, streams, speed_factor, fitted_dt, gamma_d, gamma_c, gamma_boost,
+        gamma_scale, zero_mass, vonmises_tables, retry,
+    )  # fmt: skip
+
+
+@njit(cache=True, error_model="numpy", pipeline_class=NoAliasCompiler)
+def _first_tries(
+    v, w, behaviour, streams, retry, speed_factor, fitted_dt, gamma_d, gamma_c, gamma_boost,
+    gamma_scale, zero_mass, vonmises_tables, normal, normal_accepted, step_u, angle_bits,
+    angle_u, angle_v, advanced,
+):  # fmt: skip
+    """The samplers' first tries (:func:`streams._gamma_from`, :func:`streams._vonmises_from`)
+    from the random numbers :func:`_draw_pass` drew for every particle (arrays (n,)): a due
+    particle (``retry``) whose tries both accept, in a state that is neither zero-inflated nor
+    boosted, takes speed ``v`` (m/s), turn rate ``w`` (rad/s) and its advanced stream;
+    ``retry`` then marks the due particles left to the scalar samplers.
+
+    A vectorised loop, with the per-state tables' lookups as gathers. Three things make it
+    one: numba's ``noalias`` flag (:class:`~hmmtrack.tracking.compiled.noalias.NoAliasCompiler`:
+    no argument shares memory with ``v``, ``w``, ``streams`` or ``retry``), NumPy's error model
+    (no zero-division checks, which are early exits, in the gamma's log series; a lane whose
+    series divides by zero is one whose try is not used) and the stream's choice between the
+    advanced and the old state as a bit blend (as a select of two loads LLVM makes it a load
+    from a selected address, which it does not vectorise). Every value is the one the scalar
+    loop gave: the same operations, no contraction.
+    """
     for i in range(v.size):
         k = behaviour[i]
         step, step_ok = rs._gamma_from(
@@ -157,12 +191,9 @@ def _draw_pass(
         keep = retry[i] and accepted  # retry[i]: due
         v[i] = step * speed_factor if keep else v[i]
         w[i] = angle / fitted_dt if keep else w[i]
-        streams[i] = advanced[i] if keep else streams[i]
+        kept = _ZERO - np.uint64(keep)  # all ones when kept
+        streams[i] = (advanced[i] & kept) | (streams[i] & ~kept)
         retry[i] = retry[i] and not accepted
-    _redraw(
-        v, w, behaviour, streams, speed_factor, fitted_dt, gamma_d, gamma_c, gamma_boost,
-        gamma_scale, zero_mass, vonmises_tables, retry,
-    )  # fmt: skip
 
 
 @njit(cache=True)
