@@ -307,7 +307,7 @@ def test_trials_hold_the_resting_tag_still_under_the_gps_measurement_only():
     assert gps.variant == "time_consistent"
     assert _motion("hmm", "range-rate").model.to_dict() == motion_model("hmm").model.to_dict()
     assert _motion("hmm").model.to_dict() == rested_bundled(HMM_RESTING).to_dict()
-    assert _motion("velocity", "range-rate-gps") == motion_model("velocity")
+    assert _motion("velocity", "range-rate") == motion_model("velocity")
     assert (HMM_STILL_RESTING.enter_per_hour, HMM_STILL_RESTING.leave_per_hour) == (
         HMM_RESTING.enter_per_hour,
         HMM_RESTING.leave_per_hour,

@@ -223,8 +223,8 @@ def test_other_measurements_and_models_keep_their_defaults():
     for motion in (config.motion_model(), _motion("hmm", "range-rate"), _motion("hmm")):
         assert motion.model.to_dict() == default.model.to_dict()
         assert motion.speed_diffusion == 0.0
-    assert _motion("velocity", "range-rate-gps") == motion_model("velocity")
-    assert measurement_motion(VelocitySettings(), "range-rate-gps") == motion_model("velocity")
+    assert _motion("velocity", "range-rate") == motion_model("velocity")
+    assert measurement_motion(VelocitySettings(), "range-rate") == motion_model("velocity")
 
 
 def test_a_setting_given_explicitly_wins_over_the_measurements():

@@ -156,24 +156,31 @@ def test_jump_settings_must_be_numbers_at_least_zero(name, value):
 # ------------------------------------------------------------------------------- settings
 
 
-def test_no_default_path_jumps():
-    """The paper's velocity model everywhere by default, under either range-rate measurement
-    (the gps option's velocity model is today's: reports/decisions.md, "Speed jumps for the
-    velocity model")."""
+def test_only_the_gps_measurement_jumps_by_default():
+    """The paper's velocity model by default, and under the paper's measurement; under
+    range-rate-gps the speed jumps 1/60 times per second by 0.4 m/s (reports/decisions.md,
+    "A sticky still regime for the velocity model")."""
     for motion in (
         motion_model("velocity"),
         VelocitySettings().build(),
         _motion("velocity", "range-rate"),
-        _motion("velocity", "range-rate-gps"),
     ):
         assert (motion.jump_rate, motion.jump_sd) == (0.0, 0.0)
+    gps = _motion("velocity", "range-rate-gps")
+    assert (gps.jump_rate, gps.jump_sd) == (1 / 60, 0.4)
 
 
 def test_jumps_are_given_in_a_configuration_or_on_the_command_line():
     config = TrackingConfig.from_dict(
         {
             "measurement": {"name": "range-rate-gps", "period": 8.0},
-            "motion": {"name": "velocity", "sigma_speed": 0.03, "jump_rate": 0.02, "jump_sd": 0.4},
+            "motion": {
+                "name": "velocity",
+                "sigma_speed": 0.03,
+                "jump_rate": 0.02,
+                "jump_sd": 0.4,
+                "still_rate": 0.0,  # no still regime (the measurement's would add one)
+            },
         }
     )
     assert config.motion_model() == VelocityMotion(0.03, 0.02, jump_rate=0.02, jump_sd=0.4)

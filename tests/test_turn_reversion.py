@@ -12,6 +12,7 @@ from hmmtrack.cli.track import build_config
 from hmmtrack.tracking.compiled import streams as rs
 from hmmtrack.tracking.config import TrackingConfig
 from hmmtrack.tracking.motion import VelocityMotion, motion_model
+from hmmtrack.tracking.motion.regimes import Regime, VelocityRegimes
 from hmmtrack.tracking.motion.settings import VelocitySettings
 from hmmtrack.tracking.particles import Particles
 
@@ -133,7 +134,14 @@ def test_the_reversion_is_given_in_a_configuration_or_on_the_command_line():
             "motion": {"name": "velocity", "turn_reversion": 10.0},
         }
     )
-    assert config.motion_model() == VelocityMotion(0.1, 0.02, turn_reversion=10.0)
+    # range-rate-gps's velocity model (VELOCITY_GPS) has a still regime, so the reversion
+    # is its moving regime's
+    still = Regime(0.005, 0.005, speed_reversion=0.5, turn_reversion=2.0)
+    moving = Regime(0.05, 0.02, turn_reversion=10.0)
+    regimes = VelocityRegimes((moving, still), ((0.0, 1 / 7200), (1 / 1800, 0.0)))
+    assert config.motion_model() == VelocityMotion(
+        0.05, 0.02, jump_rate=1 / 60, jump_sd=0.4, regimes=regimes
+    )
     assert TrackingConfig.from_dict(config.to_dict()) == config
     parser = build_parser()
     args = ["track", "--detections", "d.csv", "--receivers", "r.csv", "-o", "e.csv"]
