@@ -3,7 +3,7 @@
 Writes every figure (PNG) and ``summary.md`` (our numbers beside the paper's) with
 :func:`hmmtrack.report.reproduce`. ``--quick`` is a small run for a first try (a minute or
 two); without it the run is paper-scale (100 trials per motion model per scenario,
-spread over 20 synthetic datasets × 5 filter runs, plus the measurement-loss sweep). By
+spread over 50 synthetic datasets × 2 filter runs, plus the measurement-loss sweep). By
 default every run is ours (the mode-keeping filter, started where the field team knew the tag
 to be, the ``range-rate-gps`` measurement); ``--filter paper --no-start-prior --measurement
 range-rate`` is the paper's algorithm.
@@ -25,7 +25,7 @@ DESCRIPTION = (
     "Rerun the paper's experiments on the bundled synthetic datasets and write every figure "
     "(PNG), the trial tables (CSV) and summary.md (our numbers beside the paper's). --quick is "
     "a small first try (a minute or two); without it the run is paper-scale: 100 trials per "
-    "motion model per scenario (20 synthetic datasets x 5 filter runs), the measurement-loss "
+    "motion model per scenario (50 synthetic datasets x 2 filter runs), the measurement-loss "
     "sweep and the diving shark. Every run uses the mode-keeping filter from where the field "
     "team knew the tag to be at the start, with the receivers' GPS error correlated in time; "
     "--filter paper --no-start-prior --measurement range-rate runs the paper's algorithm."
