@@ -21,7 +21,9 @@ are. The cases:
   shark pursuit (:func:`hmmtrack.scenarios.shark_pursuit`, two moving AUVs), 1,000
   particles, with each motion model: baseline, velocity, the bundled white-shark HMM
   (time-consistent, with its default resting state) and the HMM in the paper's variant
-  with the paper's resampling (multinomial, after every correction);
+  with the paper's resampling (multinomial, after every correction); and the velocity
+  motion under the ``range-rate-gps`` measurement (its GPS offsets integrated out, and the
+  velocity model that measurement fills in: :data:`hmmtrack.tracking.motion.VELOCITY_GPS`);
 * arrival-time tracking (:func:`hmmtrack.tracking.pipeline.track` with
   ``measurement="arrival-time"``) of 20 minutes
   of the moored array (:func:`hmmtrack.scenarios.realistic.moored_array`, three moorings,
@@ -184,6 +186,13 @@ def range_rate_velocity() -> dict[str, pd.DataFrame]:
     return _track_range_rate(motion="velocity")
 
 
+def range_rate_gps_velocity() -> dict[str, pd.DataFrame]:
+    """Range-rate tracking under ``range-rate-gps`` (each receiver's GPS error an offset
+    integrated out per particle), velocity motion with that measurement's settings
+    (:data:`hmmtrack.tracking.motion.VELOCITY_GPS`: speed jumps and a still regime)."""
+    return _track_range_rate(motion="velocity", measurement="range-rate-gps")
+
+
 def range_rate_hmm() -> dict[str, pd.DataFrame]:
     """Range-rate tracking, the bundled HMM (time-consistent, default resting state)."""
     return _track_range_rate(motion="hmm")
@@ -250,6 +259,7 @@ CASES: dict[str, Callable[[], dict[str, pd.DataFrame]]] = {
         inputs_arrival_time,
         range_rate_baseline,
         range_rate_velocity,
+        range_rate_gps_velocity,
         range_rate_hmm,
         range_rate_hmm_paper,
         arrival_time_plain,
