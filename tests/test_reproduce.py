@@ -122,14 +122,105 @@ def _trials(errors: dict[str, list[float]], scenario: str = "shark-pursuit") -> 
 def test_findings_hold_on_paper_like_tables_and_fail_otherwise():
     from hmmtrack.report import check_findings
 
-    paper_like = _trials({"baseline": [900.0, 1100.0], "velocity": [30.0, 35.0], "hmm": [12, 15]})
+    spread = np.linspace(0.0, 5.0, 12)
+    paper_like = _trials(
+        {
+            "baseline": list(900 + 20 * spread),
+            "velocity": list(30 + spread),
+            "hmm": list(12 + spread),
+        }
+    )
     verdicts = {f.claim: f.holds for f in check_findings(paper_like, None)}
     assert all(verdicts.values()) and len(verdicts) == 2
     # the baseline does not diverge, and the velocity model beats the HMM
-    unlike = _trials({"baseline": [40.0, 60.0], "velocity": [10.0, 11.0], "hmm": [12, 15]})
+    unlike = _trials(
+        {"baseline": list(40 + 2 * spread), "velocity": list(10 + spread), "hmm": list(12 + spread)}
+    )
     findings = check_findings(unlike, None)
     assert [f.holds for f in findings] == [False, False]
-    assert "velocity 10.5 m" in findings[0].evidence
+    assert "velocity 12.5 m" in findings[0].evidence
+    # two trials a model cannot decide which model is lowest, however far apart the means
+    few = _trials({"baseline": [900.0, 1100.0], "velocity": [30.0, 35.0], "hmm": [12, 15]})
+    assert [f.holds for f in check_findings(few, None)] == [None, True]
+
+
+def _paired_trials(scenario, column, by_model, datasets):
+    """Trials of ``datasets`` (one run each) whose ``column`` is ``by_model[m]`` (arrays in
+    dataset order); the other figures fixed."""
+    rows = []
+    for motion, values in by_model.items():
+        for d, value in zip(datasets, values, strict=True):
+            rows.append(
+                {
+                    "scenario": scenario,
+                    "dataset": d,
+                    "motion": motion,
+                    "trial": 0,
+                    "loss_fraction": 0.0,
+                    "depth_correction": False,
+                    "n_particles": 10,
+                    "time_to_convergence": 20.0,
+                    "converged": True,
+                    "mean_error_after_convergence": 5.0,
+                    "rmse_after_convergence": 5.0,
+                    "runtime": 0.0,
+                    column: value,
+                }
+            )
+    return pd.DataFrame(rows)
+
+
+def test_lowest_error_is_tested_pair_by_pair_across_datasets():
+    from scipy import stats
+
+    from hmmtrack.report.findings import ranked_first
+
+    rng = np.random.default_rng(3)
+    column = "mean_error_after_convergence"
+    dataset_effect = rng.gamma(2.0, 10.0, size=30)  # datasets differ by tens of metres
+    hmm = dataset_effect + rng.normal(0.0, 0.05, size=30)
+    velocity = dataset_effect + 0.1 + rng.normal(0.0, 0.05, size=30)
+    baseline = dataset_effect + 50.0
+    order = rng.permutation(30)  # rows of each model in another order: pairs are by dataset
+    models = {"baseline": baseline, "velocity": velocity[order], "hmm": hmm}
+    datasets = {"baseline": np.arange(30), "velocity": order, "hmm": np.arange(30)}
+    rows = pd.concat(_paired_trials("swimmer", column, {m: models[m]}, datasets[m]) for m in models)
+    holds, evidence = ranked_first(rows, "swimmer", column, "hmm")
+    expected = stats.wilcoxon(hmm, velocity, alternative="less").pvalue
+    assert holds is True and expected < 1e-4
+    assert f"hmm against velocity, 30 pairs: p = {expected:.2g} (hmm lower)" in evidence
+    # the same values unpaired (the velocity model's datasets shuffled) decide nothing
+    shuffled = rows.assign(
+        dataset=np.where(
+            rows["motion"] == "velocity", rng.permutation(30)[rows["dataset"]], rows["dataset"]
+        )
+    )
+    assert ranked_first(shuffled, "swimmer", column, "hmm")[0] is None
+    # the reverse: the velocity model lower in every pair
+    swapped = rows.assign(motion=rows["motion"].replace({"hmm": "velocity", "velocity": "hmm"}))
+    assert ranked_first(swapped, "swimmer", column, "hmm")[0] is False
+
+
+def test_a_tie_on_the_swimmer_reads_undecided_in_the_summary(tmp_path):
+    from hmmtrack.report import write_summary
+    from hmmtrack.report.markdown import fmt
+
+    rng = np.random.default_rng(4)
+    datasets = np.arange(40)
+    errors = rng.gamma(2.0, 2.0, size=40)
+    tie = {  # the HMM and the velocity model equal up to noise; the HMM converges slowest
+        "baseline": errors + 20.0,
+        "velocity": errors + rng.normal(0.0, 0.1, size=40),
+        "hmm": errors + rng.normal(0.0, 0.1, size=40),
+    }
+    rows = _paired_trials("swimmer", "mean_error_after_convergence", tie, datasets)
+    rows.loc[rows["motion"] == "hmm", "time_to_convergence"] = 30.0 + np.arange(40) / 40
+    text = write_summary(tmp_path / "summary.md", comparison=rows).read_text()
+    line = next(x for x in text.splitlines() if "Santa Elena Bay (swimmer): the HMM" in x)
+    assert line.startswith("- **undecided by the trials**")
+    assert "hmm against velocity, 40 pairs" in line
+    velocity = fmt(float(np.mean(tie["velocity"])))
+    assert f"the mean error after convergence is {velocity} m with the velocity model" in text
 
 
 def test_loss_findings_use_the_paper_bands():

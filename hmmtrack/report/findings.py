@@ -5,7 +5,10 @@ rests on:
 
 * per dataset (the paper's "Results" subsections): Long Beach — the three models perform
   alike; Santa Elena Bay — the HMM model has the lowest error but converges slowest; shark
-  pursuit — the HMM model has the lowest error and the baseline diverges;
+  pursuit — the HMM model has the lowest error and the baseline diverges. "Lowest" and
+  "slowest" compare the models trial by trial (:func:`ranked_first`): the same dataset and
+  trial index under two models share their detections, so a paired test separates a real
+  difference from the spread between datasets, and a claim the trials cannot decide says so;
 * measurement loss — the filter stays usable up to 80 % loss, and time to convergence and
   error grow with loss, sharply above 80 %;
 * depth — the correction lowers the error on a diving shark (our addition).
@@ -26,7 +29,14 @@ from scipy import stats
 from hmmtrack.experiments import LOSS_BANDS, MOTIONS, loss_bands, summarise_trials
 from hmmtrack.report.markdown import fmt
 
-__all__ = ["DIVERGED_ERROR", "Finding", "check_findings", "paired_lower_p_value", "share_above"]
+__all__ = [
+    "DIVERGED_ERROR",
+    "Finding",
+    "check_findings",
+    "paired_lower_p_value",
+    "ranked_first",
+    "share_above",
+]
 
 #: an error after convergence above this is "diverged or mirrored" (m): ten times the
 #: convergence threshold
@@ -73,7 +83,8 @@ class Finding:
     claim : str
         The claim, in the paper's words.
     holds : bool or None
-        Whether our results support it; ``None`` when the data to test it are missing.
+        Whether our results support it; ``None`` when the trials do not decide it (a paired
+        test finds the difference it rests on in neither direction).
     evidence : str
         The numbers the verdict rests on.
     """
@@ -101,6 +112,68 @@ def _listing(values: dict[str, float], unit: str) -> str:
     return ", ".join(f"{m} {fmt(v)} {unit}" for m, v in values.items())
 
 
+def _pairs(comparison: pd.DataFrame, scenario: str, column: str) -> pd.DataFrame:
+    """``column`` of ``scenario``'s trials, a row per dataset and trial index, a column per
+    motion model."""
+    rows = comparison[comparison["scenario"] == scenario]
+    keys = [key for key in ("dataset", "trial") if key in rows]
+    return rows.pivot_table(index=keys, columns="motion", values=column, aggfunc="first")
+
+
+def ranked_first(
+    comparison: pd.DataFrame, scenario: str, column: str, model: str, *, lowest: bool = True
+) -> tuple[bool | None, str]:
+    """Whether ``model`` has the lowest (or highest) ``column`` of the motion models.
+
+    The claim holds when ``model``'s mean is the lowest and a one-sided paired test
+    (:func:`paired_lower_p_value`, over the trials with the same dataset and trial index,
+    which share their detections) puts it below every other model at p <
+    :data:`SIGNIFICANCE`; it does not hold when another model's mean is lower and the paired
+    test puts that model below ``model``; otherwise the trials do not decide it.
+
+    Parameters
+    ----------
+    comparison : pandas.DataFrame
+        Trials of :func:`hmmtrack.experiments.compare_motion_models`.
+    scenario, column, model : str
+        The scenario's rows, the per-trial figure compared (e.g.
+        ``mean_error_after_convergence``, m) and the model the claim is about.
+    lowest : bool
+        ``False`` for "highest" (e.g. converges slowest).
+
+    Returns
+    -------
+    holds : bool or None
+        ``None`` when undecided.
+    evidence : str
+        The paired tests' p-values, a clause per other model.
+    """
+    pairs = _pairs(comparison, scenario, column)
+    sign = 1.0 if lowest else -1.0
+    means = sign * pairs.mean()
+    below, above, clauses = [], [], []
+    for other in (m for m in MOTIONS if m != model and m in pairs):
+        both = pairs[[model, other]].dropna().to_numpy(dtype=float)
+        p_model = paired_lower_p_value(sign * both[:, 0], sign * both[:, 1])
+        p_other = paired_lower_p_value(sign * both[:, 1], sign * both[:, 0])
+        below.append(means[model] < means[other] and p_model < SIGNIFICANCE)
+        above.append(means[other] < means[model] and p_other < SIGNIFICANCE)
+        clauses.append(
+            f"{model} against {other}, {len(both)} pairs: p = {p_model:.2g} "
+            f"({model} {'lower' if lowest else 'higher'}), p = {p_other:.2g} "
+            f"({other} {'lower' if lowest else 'higher'})"
+        )
+    holds = True if below and all(below) else False if any(above) else None
+    return holds, "; ".join(clauses)
+
+
+def _both(first: bool | None, second: bool | None) -> bool | None:
+    """Both parts of a claim: false if either is, true if both are, else undecided."""
+    if first is False or second is False:
+        return False
+    return True if first and second else None
+
+
 def _dataset_findings(comparison: pd.DataFrame) -> list[Finding]:
     summary = summarise_trials(comparison)
     shares = share_above(comparison)
@@ -117,24 +190,33 @@ def _dataset_findings(comparison: pd.DataFrame) -> list[Finding]:
     errors = _means(summary, "swimmer", "mean_error_after_convergence")
     times = _means(summary, "swimmer", "time_to_convergence")
     if errors is not None:
+        lowest, lowest_tests = ranked_first(
+            comparison, "swimmer", "mean_error_after_convergence", "hmm"
+        )
+        slowest, slowest_tests = ranked_first(
+            comparison, "swimmer", "time_to_convergence", "hmm", lowest=False
+        )
         findings.append(
             Finding(
                 "Santa Elena Bay (swimmer): the HMM model has the lowest error but converges "
                 "slowest.",
-                min(errors, key=errors.get) == "hmm" and max(times, key=times.get) == "hmm",
-                f"mean error after convergence: {_listing(errors, 'm')}; mean time to "
-                f"convergence: {_listing(times, 's')}",
+                _both(lowest, slowest),
+                f"mean error after convergence: {_listing(errors, 'm')} ({lowest_tests}); mean "
+                f"time to convergence: {_listing(times, 's')} ({slowest_tests})",
             )
         )
     errors = _means(summary, "shark-pursuit", "mean_error_after_convergence")
     if errors is not None:
         medians = _means(summary, "shark-pursuit", "median_error_after_convergence")
+        lowest, tests = ranked_first(
+            comparison, "shark-pursuit", "mean_error_after_convergence", "hmm"
+        )
         findings.append(
             Finding(
                 "Shark pursuit: the HMM motion model has the lowest error after convergence.",
-                min(errors, key=errors.get) == "hmm",
+                lowest,
                 f"mean error after convergence: {_listing(errors, 'm')} (medians "
-                f"{_listing(medians, 'm')})",
+                f"{_listing(medians, 'm')}; {tests})",
             )
         )
         share = {m: float(shares.get(("shark-pursuit", m), np.nan)) for m in MOTIONS}
