@@ -188,7 +188,7 @@ def test_lowest_error_is_tested_pair_by_pair_across_datasets():
     holds, evidence = ranked_first(rows, "swimmer", column, "hmm")
     expected = stats.wilcoxon(hmm, velocity, alternative="less").pvalue
     assert holds is True and expected < 1e-4
-    assert f"hmm against velocity, 30 pairs: p = {expected:.2g} (hmm lower)" in evidence
+    assert f"hmm against velocity over 30 datasets: p = {expected:.2g} (hmm lower)" in evidence
     # the same values unpaired (the velocity model's datasets shuffled) decide nothing
     shuffled = rows.assign(
         dataset=np.where(
@@ -218,7 +218,7 @@ def test_a_tie_on_the_swimmer_reads_undecided_in_the_summary(tmp_path):
     text = write_summary(tmp_path / "summary.md", comparison=rows).read_text()
     line = next(x for x in text.splitlines() if "Santa Elena Bay (swimmer): the HMM" in x)
     assert line.startswith("- **undecided by the trials**")
-    assert "hmm against velocity, 40 pairs" in line
+    assert "hmm against velocity over 40 datasets" in line
     velocity = fmt(float(np.mean(tie["velocity"])))
     assert f"the mean error after convergence is {velocity} m with the velocity model" in text
 

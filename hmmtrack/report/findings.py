@@ -6,9 +6,9 @@ rests on:
 * per dataset (the paper's "Results" subsections): Long Beach — the three models perform
   alike; Santa Elena Bay — the HMM model has the lowest error but converges slowest; shark
   pursuit — the HMM model has the lowest error and the baseline diverges. "Lowest" and
-  "slowest" compare the models trial by trial (:func:`ranked_first`): the same dataset and
-  trial index under two models share their detections, so a paired test separates a real
-  difference from the spread between datasets, and a claim the trials cannot decide says so;
+  "slowest" compare the models dataset by dataset (:func:`ranked_first`): two models' runs
+  on one dataset share its detections, so a paired test separates a real difference from
+  the spread between datasets, and a claim the trials cannot decide says so;
 * measurement loss — the filter stays usable up to 80 % loss, and time to convergence and
   error grow with loss, sharply above 80 %;
 * depth — the correction lowers the error on a diving shark (our addition).
@@ -112,12 +112,16 @@ def _listing(values: dict[str, float], unit: str) -> str:
     return ", ".join(f"{m} {fmt(v)} {unit}" for m, v in values.items())
 
 
-def _pairs(comparison: pd.DataFrame, scenario: str, column: str) -> pd.DataFrame:
-    """``column`` of ``scenario``'s trials, a row per dataset and trial index, a column per
-    motion model."""
+def _pairs(comparison: pd.DataFrame, scenario: str, column: str) -> tuple[pd.DataFrame, str]:
+    """``column`` of ``scenario``'s trials, a column per motion model and a row per pair: per
+    dataset (the mean of a model's runs on it) when the trials span several datasets, else
+    per trial index. The runs on one dataset share its detections and errors, so they are
+    not independent pairs. Also returns what a row is (``"datasets"`` or ``"trials"``)."""
     rows = comparison[comparison["scenario"] == scenario]
-    keys = [key for key in ("dataset", "trial") if key in rows]
-    return rows.pivot_table(index=keys, columns="motion", values=column, aggfunc="first")
+    several = "dataset" in rows and rows["dataset"].nunique() > 1
+    by = "dataset" if several else "trial"
+    table = rows.pivot_table(index=by, columns="motion", values=column, aggfunc="mean")
+    return table, f"{by}s"
 
 
 def ranked_first(
@@ -126,8 +130,8 @@ def ranked_first(
     """Whether ``model`` has the lowest (or highest) ``column`` of the motion models.
 
     The claim holds when ``model``'s mean is the lowest and a one-sided paired test
-    (:func:`paired_lower_p_value`, over the trials with the same dataset and trial index,
-    which share their detections) puts it below every other model at p <
+    (:func:`paired_lower_p_value`, over datasets, or over trial indices on one dataset:
+    pairs share their detections) puts it below every other model at p <
     :data:`SIGNIFICANCE`; it does not hold when another model's mean is lower and the paired
     test puts that model below ``model``; otherwise the trials do not decide it.
 
@@ -148,7 +152,7 @@ def ranked_first(
     evidence : str
         The paired tests' p-values, a clause per other model.
     """
-    pairs = _pairs(comparison, scenario, column)
+    pairs, unit = _pairs(comparison, scenario, column)
     sign = 1.0 if lowest else -1.0
     means = sign * pairs.mean()
     below, above, clauses = [], [], []
@@ -159,7 +163,7 @@ def ranked_first(
         below.append(means[model] < means[other] and p_model < SIGNIFICANCE)
         above.append(means[other] < means[model] and p_other < SIGNIFICANCE)
         clauses.append(
-            f"{model} against {other}, {len(both)} pairs: p = {p_model:.2g} "
+            f"{model} against {other} over {len(both)} {unit}: p = {p_model:.2g} "
             f"({model} {'lower' if lowest else 'higher'}), p = {p_other:.2g} "
             f"({other} {'lower' if lowest else 'higher'})"
         )

@@ -335,7 +335,7 @@ def _differences_section(comparison: pd.DataFrame) -> str:
         "sudden speed jumps and a still regime as sticky as the HMM's resting state "
         "(`hmmtrack.tracking.motion.VELOCITY_GPS`); the paper's `range-rate` measurement keeps "
         f"the paper's model.{_swimmer_errors(comparison)} The finding above on the swimmer "
-        "compares the two trial by trial "
+        "compares the two dataset by dataset "
         '(reports/decisions.md, "A sticky still regime for the velocity model").\n'
         "- **Unstated settings.** The paper gives no particle count, random-walk or velocity "
         "noise levels or measurement covariance; we use the run's particle count above and "
