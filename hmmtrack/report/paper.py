@@ -37,3 +37,9 @@ PAPER = {
     # percent error of a slant range taken as horizontal, tag at 10.7 m: range m -> %
     "depth_percent_error": {20.0: 18.4, 50.0: 2.4, 100.0: 0.6},
 }
+
+
+def dataset_name(scenario: str) -> str:
+    """The paper's name of the dataset our ``scenario`` imitates (``scenario`` itself when
+    the paper has none)."""
+    return PAPER["datasets"].get(scenario, scenario)

@@ -34,7 +34,7 @@ from hmmtrack.experiments.executors import default_workers, get_executor
 from hmmtrack.io.outputs import staged_folder
 from hmmtrack.plots import results as plots
 from hmmtrack.plots.experiments import plot_scenario
-from hmmtrack.report.paper import PAPER
+from hmmtrack.report.paper import PAPER, dataset_name
 from hmmtrack.report.summary import write_summary
 from hmmtrack.scenarios import white_shark_tracks
 from hmmtrack.scenarios.historical import WHITE_SHARK_TRACKS_SEED
@@ -133,7 +133,7 @@ def save_figures(
     fig, axes = plt.subplots(1, len(datasets), figsize=(5 * len(datasets), 4.5))
     for ax, scenario in zip(np.atleast_1d(axes), datasets.values(), strict=True):
         plot_scenario(scenario, ax=ax)
-        ax.set_title(PAPER["datasets"].get(scenario.name, scenario.name) + " analogue")
+        ax.set_title(dataset_name(scenario.name) + " analogue")
     fig.tight_layout()
     figures["Dataset overviews (synthetic analogues)"] = _save(fig, out, "datasets.png")
 

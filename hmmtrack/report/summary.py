@@ -25,7 +25,7 @@ from hmmtrack.experiments import (
 )
 from hmmtrack.report.findings import DIVERGED_ERROR, check_findings, share_above
 from hmmtrack.report.markdown import fmt, markdown_table, paper_number
-from hmmtrack.report.paper import PAPER
+from hmmtrack.report.paper import PAPER, dataset_name
 from hmmtrack.scenarios.white_shark_hmm import load_white_shark_hmm
 
 
@@ -38,7 +38,7 @@ def _comparison_section(comparison: pd.DataFrame) -> str:
         paper_tc = PAPER["convergence"].get(scenario, {}).get(motion, math.nan)
         rows.append(
             [
-                PAPER["datasets"].get(scenario, scenario),
+                dataset_name(scenario),
                 motion,
                 fmt(cell["mean_error_after_convergence"]),
                 paper_number(paper_error),
@@ -104,7 +104,7 @@ def _spread_section(comparison: pd.DataFrame) -> str:
         return ""
     rows = [
         [
-            PAPER["datasets"].get(cell["scenario"], cell["scenario"]),
+            dataset_name(cell["scenario"]),
             cell["motion"],
             f"{int(cell['n_datasets'])} × {int(cell['runs_per_dataset'])}",
             fmt(cell["mean"]),
@@ -145,7 +145,7 @@ def _calibration_section(comparison: pd.DataFrame) -> str:
         return ""
     rows = [
         [
-            PAPER["datasets"].get(cell["scenario"], cell["scenario"]),
+            dataset_name(cell["scenario"]),
             cell["motion"],
             str(int(cell["n_datasets"])),
             _percent(cell["share"], 1),
@@ -273,8 +273,7 @@ def _differences_section(comparison: pd.DataFrame) -> str:
     shares = share_above(comparison)
     motions = [m for m in MOTIONS if m in set(comparison["motion"])]
     rows = [
-        [PAPER["datasets"].get(name, name)]
-        + [f"{100 * shares.get((name, m), math.nan):.0f} %" for m in motions]
+        [dataset_name(name)] + [f"{100 * shares.get((name, m), math.nan):.0f} %" for m in motions]
         for name in pd.unique(comparison["scenario"])
     ]
     model = load_white_shark_hmm()
