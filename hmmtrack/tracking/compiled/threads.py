@@ -100,7 +100,8 @@ class ThreadChoice:
         elif threads == self._in_use:
             self._recent.append(cost)
             del self._recent[: -self.RECENT]
-            if len(self._recent) == self.RECENT and _median(self._recent) > self.cost[self._other()]:
+            dearer = _median(self._recent) > self.cost[self._other()]
+            if len(self._recent) == self.RECENT and dearer:
                 self._calls_since_trial = self.explore_every  # a trial at the next call
 
     def _end_trial(self) -> None:
