@@ -341,9 +341,10 @@ class ParticleFilter:
     threads : int or None
         Threads for compiled prediction; ``None`` uses one thread for small calls (fewer
         than :data:`PARALLEL_MIN_WORK` particle-steps) and otherwise whichever of one
-        thread and ``numba.get_num_threads()`` (when the filter is made) has been faster per
-        particle-step so far (:class:`ThreadChoice`), each prediction timed with the
-        correction and resampling that follow it; corrections and resamplings of at least
+        thread and ``numba.get_num_threads()`` (when the filter is made) was faster per
+        particle-step in the latest side-by-side trial (:class:`ThreadChoice`), each
+        prediction timed with the correction and resampling that follow it; corrections
+        and resamplings of at least
         :data:`PARALLEL_MIN_CORRECTION` particles run on the threads of the latest
         prediction. Results do not depend on it.
     correction : Plain, Tempered or None
