@@ -344,9 +344,8 @@ class ParticleFilter:
         thread and ``numba.get_num_threads()`` (when the filter is made) was faster per
         particle-step in the latest side-by-side trial (:class:`ThreadChoice`), each
         prediction timed with the correction and resampling that follow it; corrections
-        and resamplings of at least
-        :data:`PARALLEL_MIN_CORRECTION` particles run on the threads of the latest
-        prediction. Results do not depend on it.
+        and resamplings of at least :data:`PARALLEL_MIN_CORRECTION` particles run on the
+        threads of the latest prediction. Results do not depend on it.
     correction : Plain, Tempered or None
         Correction policy (:mod:`hmmtrack.tracking.tempering`); ``None``: :class:`Plain`.
     collect : sequence of collectors
