@@ -153,7 +153,7 @@ def ranked_first(
         The paired tests' p-values, a clause per other model.
     """
     pairs, unit = _pairs(comparison, scenario, column)
-    sign = 1.0 if lowest else -1.0
+    sign, direction = (1.0, "lower") if lowest else (-1.0, "higher")
     means = sign * pairs.mean()
     below, above, clauses = [], [], []
     for other in (m for m in MOTIONS if m != model and m in pairs):
@@ -164,8 +164,7 @@ def ranked_first(
         above.append(means[other] < means[model] and p_other < SIGNIFICANCE)
         clauses.append(
             f"{model} against {other} over {len(both)} {unit}: p = {p_model:.2g} "
-            f"({model} {'lower' if lowest else 'higher'}), p = {p_other:.2g} "
-            f"({other} {'lower' if lowest else 'higher'})"
+            f"({model} {direction}), p = {p_other:.2g} ({other} {direction})"
         )
     holds = True if below and all(below) else False if any(above) else None
     return holds, "; ".join(clauses)
