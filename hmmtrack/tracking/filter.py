@@ -1133,6 +1133,13 @@ class FilterSettings(Settings):
         Report the cloud's modes (``TrackingResult.modes``) and put the two heaviest beside
         each estimate, with ``converged`` declared only when one mode holds almost all the
         weight (:func:`hmmtrack.tracking.mixture.with_modes`); always on with ``mixture``.
+    mirror_split : bool
+        With ``mixture``, split a component that straddles the line through the two
+        receivers heard last along that line at each resampling (the mixture's mirror
+        split, :class:`hmmtrack.tracking.mirror.MirrorLine`), and report components less
+        than :data:`hmmtrack.tracking.mixture.ONE_MODE_DISTANCE` apart as one mode. Off in
+        every named filter: on fresh synthetic shark pursuits it did not lower the lost runs
+        (reports/decisions.md, "The mirror split").
     """
 
     n_particles: int = setting(
@@ -1200,4 +1207,10 @@ class FilterSettings(Settings):
     )
     modes: bool = _switch(
         "report the cloud's modes beside each estimate (always on with the mixture)"
+    )
+    mirror_split: bool = _switch(
+        "with the mixture, split a component that straddles the line through the two "
+        "receivers heard last along that line, and report parts less than 20 m apart as one "
+        "mode (measured on the synthetic shark pursuit, not better: reports/decisions.md, "
+        "'The mirror split')"
     )

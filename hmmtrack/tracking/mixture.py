@@ -18,14 +18,29 @@ Pérez (2003, "Maintaining multimodality through mixture tracking", ICCV):
   dropped) and each component is resampled on its own, to a number of particles set by
   its weight with a floor (:func:`allocate`). The component weights are not resampled:
   they stay the exact sums of the weights, so no mode is lost by chance, and a particle
-  of component ``k`` weighs ``π_k / N_k`` afterwards.
+  of component ``k`` weighs ``π_k / N_k`` afterwards;
+* the mirror split: with a :class:`~hmmtrack.tracking.mirror.MirrorLine` (``mirror``), a
+  component that straddles the line through the two receivers heard last, with at least
+  ``split_share`` of its weight on each side, is split along that line after the
+  reclustering (:func:`split_across`). Those two receivers' ranges and range-rates are the
+  same from a track and from its reflection across the line, so only the motion model
+  tells the sides apart; while the two intersections of the rings overlap they form one
+  cluster, which the 2-means split cannot cut and whose resampling would let drift choose
+  the side (reports/decisions.md, "The mirror split").
 
 The estimate is still the weighted mean and covariance of the whole cloud, so two modes
 apart inflate ``sqrt_lambda1``: the paper's convergence (√λ₁ < 10 m) is declared only
 when one mode holds almost all of the weight (two modes ``d`` apart with weights ``p`` and
 ``1 − p`` add ``p (1 − p) d²`` to the variance along the line joining them).
-:class:`Modes` is the collector that reports the components (weight, mean, √λ₁ of each)
-after each resampling.
+:class:`Modes` is the collector that reports the modes (weight, mean, √λ₁ of each) after
+each resampling: the components; with the mirror split, those whose means lie within
+:data:`ONE_MODE_DISTANCE` of a heavier one's joined to it (:func:`join_modes`: the two
+halves of a cloud cut by the split are one place).
+
+The mirror split is opt-in (``FilterSettings.mirror_split``, in no named filter): on fresh
+synthetic shark pursuits it kept the HMM's runs on the tag's side where resampling had let
+the mirror win, but the velocity model's losses, where its motion prior favours the
+mirror's track, did not fall (reports/decisions.md, "The mirror split").
 
 This module does not score observations nor move particles.
 """
@@ -33,7 +48,7 @@ This module does not score observations nor move particles.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numba
@@ -43,6 +58,7 @@ from numba import njit
 
 from hmmtrack.tracking.compiled.chunks import chunking, in_chunks, next_chunk
 from hmmtrack.tracking.compiled.weighing import add_weighted
+from hmmtrack.tracking.mirror import MirrorLine
 from hmmtrack.tracking.particles import split_in_two, sqrt_largest_eigenvalue
 from hmmtrack.tracking.resampling import (
     Scratch,
@@ -58,14 +74,17 @@ __all__ = [
     "Drawn",
     "ESTIMATE_MODE_COLUMNS",
     "MODE_COLUMNS",
+    "ONE_MODE_DISTANCE",
     "ONE_MODE_WEIGHT",
     "Mixture",
     "Modes",
     "SCHEME_CODES",
     "allocate",
     "component_moments",
+    "join_modes",
     "resample_components",
     "scheme_draws",
+    "split_across",
     "with_modes",
 ]
 
@@ -73,6 +92,10 @@ __all__ = [
 CONVERGENCE_THRESHOLD = 10.0
 #: weight the heaviest mode must hold for a run to be declared converged ("almost all")
 ONE_MODE_WEIGHT = 0.95
+#: m: components whose means lie closer than this are one mode (:func:`join_modes`): twice
+#: the convergence threshold, so two such parts of any weights add at most (10 m)² to the
+#: variance along the line joining them
+ONE_MODE_DISTANCE = 2 * CONVERGENCE_THRESHOLD
 
 #: the particle field that holds each particle's component label
 COMPONENT = "component"
@@ -116,6 +139,10 @@ class Mixture:
     prune_weight : float
         Component weight below which a component is dropped (its particles are given to
         the others), in [0, 1).
+    mirror : MirrorLine or None
+        The run's mirror line (:class:`hmmtrack.tracking.mirror.MirrorLine`): components
+        that straddle it are split along it at each resampling (:func:`split_across`);
+        ``None``: no mirror split.
     """
 
     max_components: int = 4
@@ -123,6 +150,7 @@ class Mixture:
     split_share: float = 0.02
     min_share: float = 0.25
     prune_weight: float = 1e-4
+    mirror: MirrorLine | None = field(default=None, compare=False, repr=False)
 
     def __post_init__(self) -> None:
         if int(self.max_components) != self.max_components or self.max_components < 1:
@@ -181,6 +209,7 @@ class Mixture:
             if threads == 1
             else component_moments(p.x, p.y, weights, labels, int(labels.max()) + 1, threads)
         )
+        floor = math.ceil(self.min_share * p.n)
         labels, component_weight, counts, live = _recluster_and_allocate(
             p.x,
             p.y,
@@ -191,8 +220,23 @@ class Mixture:
             float(self.min_separation),
             float(self.split_share),
             float(self.prune_weight),
-            math.ceil(self.min_share * p.n),
+            floor,
         )
+        line = None if self.mirror is None else self.mirror.at(pf.time)
+        if line is not None:
+            labels, component_weight, counts, live = _split_and_allocate(
+                p.x,
+                p.y,
+                weights,
+                labels,
+                component_weight,
+                counts,
+                np.array(line),
+                int(self.max_components),
+                float(self.split_share),
+                float(self.prune_weight),
+                floor,
+            )
         code = SCHEME_CODES[pf.resampling]
         scratch = pf.scratch  # the filter's work arrays, unused by its own scheme here
         draws = scheme_draws(pf.rng, code, p.n, live, scratch)
@@ -699,6 +743,140 @@ def allocate(component_weight, n, prune_weight, floor):
     return np.where(live, counts + floor, 0)
 
 
+@njit(cache=True)
+def split_across(
+    x, y, weights, labels, component_weight, line, max_components, split_share, prune_weight
+):
+    """The mirror split: each component that straddles ``line`` split along it.
+
+    Components are taken in order; one whose weight is at least ``prune_weight`` and whose
+    particles left of the line (``(b − a) × (p − a) > 0``) hold a share of its weight in
+    ``[split_share, 1 − split_share]`` gives those particles to a new component, numbered
+    after the others, while there are fewer than ``max_components``. Each side's weight is
+    the sum of its particles' weights.
+
+    Parameters
+    ----------
+    x, y : numpy.ndarray, shape (N,)
+        Positions (m).
+    weights : numpy.ndarray, shape (N,)
+        Normalised weights.
+    labels : numpy.ndarray, shape (N,), int64
+        Components ``0..K-1`` (not changed).
+    component_weight : numpy.ndarray, shape (K,)
+        Their weights.
+    line : numpy.ndarray, shape (4,)
+        ``ax, ay, bx, by`` (m): two points of the line (:meth:`MirrorLine.at`).
+    max_components : int
+    split_share, prune_weight : float
+        As :class:`Mixture`'s.
+
+    Returns
+    -------
+    labels : numpy.ndarray, shape (N,), int64
+        ``labels`` itself when nothing is split, else a new array.
+    component_weight : numpy.ndarray, shape (K',)
+        ``component_weight`` itself when nothing is split, else the new weights.
+    """
+    ax, ay, ux, uy = line[0], line[1], line[2] - line[0], line[3] - line[1]
+    n_components = component_weight.size
+    left = np.zeros(n_components)
+    total = np.zeros(n_components)
+    for i in range(x.size):
+        total[labels[i]] += weights[i]
+        if ux * (y[i] - ay) - uy * (x[i] - ax) > 0.0:
+            left[labels[i]] += weights[i]
+    twin = np.full(n_components, -1, dtype=np.int64)
+    k = n_components
+    for c in range(n_components):
+        if k >= max_components or component_weight[c] < prune_weight or total[c] <= 0.0:
+            continue
+        share = left[c] / total[c]
+        if split_share <= share <= 1.0 - split_share:
+            twin[c] = k
+            k += 1
+    if k == n_components:
+        return labels, component_weight
+    new_labels = labels.copy()
+    for i in range(x.size):
+        c = labels[i]
+        if twin[c] >= 0 and ux * (y[i] - ay) - uy * (x[i] - ax) > 0.0:
+            new_labels[i] = twin[c]
+    new_weight = np.empty(k)
+    new_weight[:n_components] = component_weight
+    for c in range(n_components):
+        if twin[c] >= 0:
+            new_weight[c] = total[c] - left[c]
+            new_weight[twin[c]] = left[c]
+    return new_labels, new_weight
+
+
+@njit(cache=True)
+def _split_and_allocate(
+    x, y, weights, labels, component_weight, counts, line, max_components, split_share,
+    prune_weight, floor,
+):  # fmt: skip
+    """:func:`split_across`, then the particles each component gets (:func:`allocate`) and
+    the number that get any, when it split one (else ``counts`` as they were)."""
+    new_labels, new_weight = split_across(
+        x, y, weights, labels, component_weight, line, max_components, split_share, prune_weight
+    )
+    if new_weight.size > component_weight.size:
+        counts = allocate(new_weight, labels.size, prune_weight, floor)
+    return new_labels, new_weight, counts, np.count_nonzero(counts)
+
+
+def join_modes(moments: np.ndarray, distance: float = ONE_MODE_DISTANCE) -> np.ndarray:
+    """The modes of a cloud's components: each component joined to the heaviest one before
+    it (by weight) whose mean lies within ``distance`` of its own, the joined moments those
+    of the union (weight, weighted mean, covariance about that mean).
+
+    Parameters
+    ----------
+    moments : numpy.ndarray, shape (K, 6)
+        :func:`component_moments` (weight, mean x, y, var x, var y, cov xy).
+    distance : float
+        m.
+
+    Returns
+    -------
+    numpy.ndarray, shape (K', 6)
+        The modes, heaviest component's first; ``moments`` itself when no two join.
+    """
+    order = np.argsort(-moments[:, 0], kind="mergesort")
+    heads: list[int] = []  # for each mode, its heaviest component
+    members: list[list[int]] = []
+    for k in order:
+        for m, head in enumerate(heads):
+            if math.hypot(*(moments[k, 1:3] - moments[head, 1:3])) < distance:
+                members[m].append(int(k))
+                break
+        else:
+            heads.append(int(k))
+            members.append([int(k)])
+    if len(heads) == len(moments):
+        return moments
+    modes = np.zeros((len(heads), 6))
+    for m, group in enumerate(members):
+        part = moments[group]
+        weight = part[:, 0].sum()
+        if weight <= 0.0:
+            modes[m] = part[0]
+            continue
+        share = part[:, 0] / weight
+        mean = share @ part[:, 1:3]
+        dx, dy = part[:, 1] - mean[0], part[:, 2] - mean[1]
+        modes[m] = (
+            weight,
+            mean[0],
+            mean[1],
+            share @ (part[:, 3] + dx * dx),
+            share @ (part[:, 4] + dy * dy),
+            share @ (part[:, 5] + dx * dy),
+        )
+    return modes
+
+
 @njit(cache=True, nogil=True)
 def _first_members(x, y, labels, n_components):
     """Position of each component's first particle (K, 2) (NaN for an empty component): the
@@ -855,13 +1033,14 @@ def component_moments(x, y, weights, labels, n_components: int, threads: int = 1
 class Modes:
     """After each resampling: the modes of the cloud, heaviest first (table ``modes``).
 
-    One row per resampling (:data:`MODE_COLUMNS`): the number of modes and, for the
-    :data:`REPORTED_MODES` heaviest, weight, mean position (m) and √λ₁ of the mode's own
-    covariance (m); NaN where there are fewer modes. The modes are the mixture's
-    components (the particle field ``component``, :class:`Mixture`) or, without a
+    One row per resampling (:data:`MODE_COLUMNS`): the number of components and, for the
+    :data:`REPORTED_MODES` heaviest modes, weight, mean position (m) and √λ₁ of the mode's
+    own covariance (m); NaN where there are fewer modes. The components are the
+    mixture's (the particle field ``component``, :class:`Mixture`) or, without a
     mixture, the clusters :meth:`Mixture.recluster` finds in the cloud (its default
     thresholds: clusters at least 20 m and 3 standard deviations apart, the lighter with
-    at least 2 % of the weight).
+    at least 2 % of the weight); the modes are the components, with the mirror split
+    those closer than :data:`ONE_MODE_DISTANCE` joined (:func:`join_modes`).
     """
 
     every_step = False
@@ -901,6 +1080,8 @@ class Modes:
         if self._n == len(self._table):
             self._make_room()
         self._table[self._n, :2] = pf.time, len(moments)
+        if getattr(pf.mixture, "mirror", None) is not None:
+            moments = join_modes(moments)  # the parts of a cloud the mirror split cut
         self._table[self._n, 2:] = _heaviest(moments).ravel()
         self._n += 1
 

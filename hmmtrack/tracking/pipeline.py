@@ -46,6 +46,7 @@ from hmmtrack.tracking.config import TrackingConfig
 from hmmtrack.tracking.filter import FilterSettings, ParticleFilter
 from hmmtrack.tracking.measurement import MEASUREMENTS
 from hmmtrack.tracking.measurement.base import EVENT_COLUMNS
+from hmmtrack.tracking.mirror import MirrorLine
 from hmmtrack.tracking.mixture import Mixture, Modes, with_modes
 from hmmtrack.tracking.monitor import Monitor
 from hmmtrack.tracking.motion.baseline import BaselineMotion
@@ -373,7 +374,14 @@ class TrackingResult:
 
 
 def particle_filter(
-    settings: FilterSettings, measurement, bounds, motion, *, seed: SeedLike = None, collect=()
+    settings: FilterSettings,
+    measurement,
+    bounds,
+    motion,
+    *,
+    seed: SeedLike = None,
+    collect=(),
+    mirror: MirrorLine | None = None,
 ) -> ParticleFilter:
     """The filter :func:`track` runs, not yet started (e.g. to step it online).
 
@@ -391,6 +399,10 @@ def particle_filter(
     seed : int, SeedSequence or Generator
     collect : sequence of collectors
         Besides the measurement's own (``measurement.collectors()``).
+    mirror : MirrorLine, optional
+        With ``settings.mixture``, the line along which the mixture splits a component that
+        straddles it (:class:`hmmtrack.tracking.mirror.MirrorLine`; :func:`track` gives the
+        run's with ``settings.mirror_split``); none by default.
 
     Returns
     -------
@@ -429,7 +441,7 @@ def particle_filter(
             *collect,
             *([Modes()] if settings.mixture or settings.modes else []),
         ],
-        mixture=Mixture() if settings.mixture else None,
+        mixture=Mixture(mirror=mirror) if settings.mixture else None,
         acquisition=(
             getattr(measurement, "default_acquisition", Acquisition())
             if settings.acquisition
@@ -548,7 +560,14 @@ def track(
         )
         if estimates_to is not None:
             estimates_to = _discard  # the sink takes the smoothed estimates instead
-    pf = particle_filter(config.filter, measurement, bounds, motion, seed=seed, collect=collectors)
+    mirror = (
+        MirrorLine.from_observations(scored, receivers)
+        if config.filter.mixture and config.filter.mirror_split
+        else None
+    )
+    pf = particle_filter(
+        config.filter, measurement, bounds, motion, seed=seed, collect=collectors, mirror=mirror
+    )
     modes = next((c for c in pf.collect if isinstance(c, Modes)), None)
     if estimates_to is not None and estimates_to is not _discard and modes is not None:
         modes.keep = False  # (they leave with the estimates)
