@@ -757,14 +757,11 @@ def split_across(
 
     Parameters
     ----------
-    x, y : numpy.ndarray, shape (N,)
-        Positions (m).
-    weights : numpy.ndarray, shape (N,)
-        Normalised weights.
-    labels : numpy.ndarray, shape (N,), int64
-        Components ``0..K-1`` (not changed).
+    x, y, weights, labels
+        Positions (m), normalised weights and components ``0..K-1`` (N,), as
+        :meth:`Mixture.recluster` takes them (``labels`` not changed).
     component_weight : numpy.ndarray, shape (K,)
-        Their weights.
+        The components' weights.
     line : numpy.ndarray, shape (4,)
         ``ax, ay, bx, by`` (m): two points of the line (:meth:`MirrorLine.at`).
     max_components : int
