@@ -160,8 +160,11 @@ def mode_keeping_cost(sizes, repeat: int) -> None:
         f"{'scenario':<15}{'motion':<10}{'N':>7}{'plain s':>9}{'modes s':>9}{'ratio':>7}"
         f"{'mirror s':>10}{'/ modes':>9}{'rounds':>8}"
     )
-    arms = {"plain": ("paper", {}), "modes": ("mode-keeping", {})}
-    arms["mirror"] = ("mode-keeping", {"mirror_split": True})
+    arms = {
+        "plain": ("paper", {}),
+        "modes": ("mode-keeping", {}),
+        "mirror": ("mode-keeping", {"mirror_split": True}),
+    }
     for name in ("swimmer", "shark_pursuit"):
         scenario = getattr(scenarios, name)(0)
         for motion_name in ("velocity", "hmm"):

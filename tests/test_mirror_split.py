@@ -256,3 +256,23 @@ def test_track_splits_along_the_mirror_line_only_with_its_switch():
     last = split.estimates[["x", "y"]].to_numpy()[-1]
     assert np.hypot(*(last - truth)) < 10.0
     assert split.estimates["converged"].to_numpy()[-1]
+
+
+def test_the_other_receiver_is_the_latest_heard_by_another_one():
+    """Brute force: for each observation, the receiver of the latest earlier observation by
+    another receiver than its own."""
+    rng = np.random.default_rng(0)
+    receivers = pd.DataFrame(
+        {"receiver": [f"r{k}" for k in range(4)], "time": np.nan, "x": np.arange(4.0), "y": 0.0}
+    )
+    for _ in range(100):
+        heard = rng.integers(0, 4, rng.integers(2, 40))
+        if np.unique(heard).size < 2:
+            continue
+        obs = pd.DataFrame(
+            {"time": np.arange(heard.size, dtype=float), "receiver": [f"r{k}" for k in heard]}
+        )
+        line = MirrorLine.from_observations(obs, receivers)
+        for j in range(heard.size):
+            earlier = [i for i in range(j) if line.last[i] != line.last[j]]
+            assert line.other[j] == (line.last[earlier[-1]] if earlier else -1)

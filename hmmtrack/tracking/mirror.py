@@ -82,13 +82,11 @@ class MirrorLine:
         ordered = observations.sort_values("time", kind="stable")
         codes, names = pd.factorize(ordered["receiver"])
         last = codes.astype(np.int64)
-        latest = np.full(len(names), -1, dtype=np.int64)  # each receiver's latest observation
-        other = np.full(last.size, -1, dtype=np.int64)
-        for j, r in enumerate(last):
-            latest[r] = j
-            before = np.where(np.arange(len(names)) == r, -1, latest)
-            if before.max() >= 0:
-                other[j] = int(np.argmax(before))
+        # the latest observation by another receiver is the one just before the run of
+        # observations by the same receiver that holds j
+        index = np.arange(last.size)
+        run_start = np.maximum.accumulate(np.where(np.r_[True, last[1:] != last[:-1]], index, 0))
+        other = np.where(run_start > 0, last[run_start - 1], -1)
         tracks = (
             receivers
             if isinstance(receivers, ReceiverTracks)
@@ -114,14 +112,10 @@ class MirrorLine:
 
 def _position(path, time: float) -> tuple[float, float]:
     """Where a receiver is at ``time`` (s): linear between its fixes, its nearest end
-    outside them, its one position when moored (m)."""
+    outside them (``numpy.interp``), its one position when moored (m). (Not
+    :meth:`ReceiverTracks.state`: its velocities and checks cost six times as much, once per
+    resampling.)"""
     times, x, y = path
     if times.size == 0:
         return float(x[0]), float(y[0])
-    i = int(np.searchsorted(times, time, side="right"))
-    if i == 0:
-        return float(x[0]), float(y[0])
-    if i == times.size:
-        return float(x[-1]), float(y[-1])
-    f = (time - times[i - 1]) / (times[i] - times[i - 1])
-    return float(x[i - 1] + f * (x[i] - x[i - 1])), float(y[i - 1] + f * (y[i] - y[i - 1]))
+    return float(np.interp(time, times, x)), float(np.interp(time, times, y))
