@@ -294,6 +294,24 @@ def test_start_prior_starts_the_particles_in_the_start_region(small_scenarios):
     assert not ex.run_trial(pursuit, "velocity", 1, N_PARTICLES).start_prior
 
 
+def test_a_motion_model_given_is_tracked_with_as_it_is(small_scenarios):
+    swimmer = small_scenarios[0]
+    # the named model's own object: the same run as by name
+    pd.testing.assert_frame_equal(
+        ex.track_scenario(
+            swimmer, "velocity", 2, N_PARTICLES, motion=ex.trials._motion("velocity")
+        ).estimates,
+        ex.track_scenario(swimmer, "velocity", 2, N_PARTICLES).estimates,
+    )
+    # another model under the same name: that model's run, not the name's
+    given = ex.track_scenario(swimmer, "velocity", 2, N_PARTICLES, motion=motion_model("baseline"))
+    by_name = ex.track_scenario(swimmer, "baseline", 2, N_PARTICLES)
+    pd.testing.assert_frame_equal(given.estimates, by_name.estimates)
+    assert not given.estimates.equals(
+        ex.track_scenario(swimmer, "velocity", 2, N_PARTICLES).estimates
+    )
+
+
 def test_trial_scores_and_error_curve_match_metrics(small_scenarios):
     from hmmtrack.analysis import metrics
 

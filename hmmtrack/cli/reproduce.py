@@ -61,7 +61,7 @@ def register(subparsers) -> None:
         "--particles",
         type=int,
         default=None,
-        help="particles per filter run (default: the library's default)",
+        help="particles per filter run (default 1000, the reproduction's; quick: 300)",
     )
     parser.add_argument(
         "--workers",

@@ -33,6 +33,7 @@ from hmmtrack.tracking.config import measurement_motion
 from hmmtrack.tracking.filter import ParticleFilter
 from hmmtrack.tracking.measurement.range_rate import OBSERVATION_COLUMNS, RangeRateMeasurement
 from hmmtrack.tracking.motion import MOTIONS as MOTION_FACTORIES
+from hmmtrack.tracking.motion import MotionModel
 from hmmtrack.tracking.motion.settings import MOTION_SETTINGS, HMMSettings
 
 #: the paper's three motion models, in its order (the names of the motion registry)
@@ -203,6 +204,7 @@ def track_scenario(
     snapshot_times: Sequence[float] = (),
     filter: str = PAPER_FILTER,
     measurement: str = "range-rate",
+    motion: MotionModel | None = None,
 ):
     """Track the tag of ``scenario`` with one motion model (no scoring).
 
@@ -236,6 +238,10 @@ def track_scenario(
     measurement : {"range-rate", "range-rate-gps"}
         The paper's measurement, or the same with the receivers' GPS error correlated in
         time (:mod:`hmmtrack.tracking.measurement.gps_offset`), at their default noise.
+    motion : MotionModel, optional
+        Track with this motion model as it is instead of ``motion_name``'s defaults (e.g. an
+        HMM of another movement model: ``reports/mirror_losses.py`` gives the filter the
+        model that drew the synthetic shark).
 
     Returns
     -------
@@ -262,9 +268,11 @@ def track_scenario(
         measurement=measurement,
         **known_start,
     )
+    if motion is None:
+        motion = _motion(motion_name, measurement)
     if detections.empty:  # everything dropped: the filter runs on its motion model alone
         pf = ParticleFilter(
-            _motion(motion_name, measurement),
+            motion,
             RangeRateMeasurement(np.array(config.measurement.covariance)),
             n_particles=n_particles,
             bounds=bounds,
@@ -276,7 +284,7 @@ def track_scenario(
         detections,
         scenario.receivers,
         config,
-        _motion(motion_name, measurement),
+        motion,
         seed=seed,
         snapshot_times=snapshot_times,
     )
