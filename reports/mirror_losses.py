@@ -28,20 +28,18 @@ from __future__ import annotations
 import argparse
 import os
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from hmmtrack.analysis import metrics
-from hmmtrack.experiments import paper_datasets
+from hmmtrack.experiments import PAPER_SCENARIOS, paper_datasets
 from hmmtrack.experiments.trials import (
     HMM_VARIANT,
     MOTIONS,
     child_seed,
     experiment_seed,
-    track_scenario,
+    run_trial,
 )
 from hmmtrack.hmm import Gamma, MovementHMM, VonMises
 from hmmtrack.scenarios.shark_motion import WHITE_SHARK_GROUND_TRUTH
@@ -49,8 +47,6 @@ from hmmtrack.tracking.config import measurement_motion
 from hmmtrack.tracking.motion.settings import HMMSettings
 
 SCENARIO = "shark_pursuit"
-#: the scenario's index among the paper's, in the filter seeds
-SCENARIO_INDEX = 2
 MEASUREMENT = "range-rate-gps"
 #: a run is lost above this mean error after convergence (m)
 LOST = 50.0
@@ -92,8 +88,7 @@ def _datasets(args) -> list[tuple[int, int]]:
 
 
 def _one_run(scenario, name: str, motion, seed, args) -> dict:
-    start = time.process_time()
-    result = track_scenario(
+    trial = run_trial(
         scenario,
         "hmm" if name == "truth" else name,
         seed,
@@ -103,17 +98,12 @@ def _one_run(scenario, name: str, motion, seed, args) -> dict:
         measurement=MEASUREMENT,
         motion=motion,
     )
-    estimates = result.estimates
-    flags = metrics.convergence_flags(estimates, metrics.CONVERGENCE_THRESHOLD)
-    convergence = metrics.first_convergence(estimates["time"].to_numpy(float), flags)
-    errors = metrics.position_error(estimates, scenario.truth)
-    honest = metrics.uncertainty_metrics(estimates, scenario.truth)
-    after = errors[convergence.index :] if convergence.converged else np.array([np.nan])
     return {
-        "error": float(np.mean(after)),
-        "false_converged": honest.false_converged,
-        "calibration": honest.calibration,
-        "cpu_s": time.process_time() - start,
+        "error": trial.mean_error_after_convergence,
+        "false_converged": trial.false_converged,
+        "calibration": trial.calibration,
+        "mirror_share": trial.mirror_share,
+        "runtime_s": trial.runtime,
     }
 
 
@@ -122,6 +112,7 @@ def run(args) -> None:
         name: truth_motion(args.heading_diffusion) if name == "truth" else None
         for name in args.motions
     }
+    i = PAPER_SCENARIOS.index(SCENARIO)
     for seed, d in _datasets(args):
         root = experiment_seed(seed)
         scenario = paper_datasets(seed, d + 1, names=[SCENARIO])[SCENARIO][d]
@@ -129,11 +120,7 @@ def run(args) -> None:
         for name, motion in motions.items():
             j = MOTIONS.index("hmm" if name == "truth" else name)
             for k in range(args.runs):
-                key = (
-                    (0, SCENARIO_INDEX, j, 100 + k)
-                    if d == 0
-                    else (4, SCENARIO_INDEX, j, d, 100 + k)
-                )
+                key = (0, i, j, 100 + k) if d == 0 else (4, i, j, d, 100 + k)
                 rows.append(
                     {"seed": seed, "dataset": d, "run": k, "motion": name,
                      "particles": args.particles,

@@ -310,6 +310,12 @@ def test_a_motion_model_given_is_tracked_with_as_it_is(small_scenarios):
     assert not given.estimates.equals(
         ex.track_scenario(swimmer, "velocity", 2, N_PARTICLES).estimates
     )
+    # a trial passes it on, and keeps the name it is given
+    trial = ex.run_trial(swimmer, "velocity", 2, N_PARTICLES, motion=motion_model("baseline"))
+    baseline = ex.run_trial(swimmer, "baseline", 2, N_PARTICLES)
+    assert trial.motion == "velocity"
+    assert trial.mean_error_after_convergence == baseline.mean_error_after_convergence
+    np.testing.assert_array_equal(trial.error, baseline.error)
 
 
 def test_trial_scores_and_error_curve_match_metrics(small_scenarios):

@@ -372,6 +372,7 @@ def run_trial(
     start_prior: bool = False,
     filter: str = PAPER_FILTER,
     measurement: str = "range-rate",
+    motion: MotionModel | None = None,
 ) -> TrialResult:
     """Run the particle filter once on ``scenario`` and score it against the truth.
 
@@ -393,6 +394,9 @@ def run_trial(
         Start in the scenario's ``start_region`` (:func:`track_scenario`).
     filter, measurement : str
         Named filter and measurement, as in :func:`track_scenario`.
+    motion : MotionModel, optional
+        Track with this motion model as it is (:func:`track_scenario`); ``motion_name``
+        still names the trial.
 
     Returns
     -------
@@ -409,6 +413,7 @@ def run_trial(
         start_prior=start_prior,
         filter=filter,
         measurement=measurement,
+        motion=motion,
     )
     runtime = _time.perf_counter() - clock
     estimates = run.estimates
